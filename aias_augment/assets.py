@@ -1,0 +1,243 @@
+"""Mesh assets: load textured meshes (OBJ+MTL, DAE, GLB/GLTF, PLY), normalise to the canonical object frame.
+
+Canonical object frame: metres, z up, centred in x/y on the bounding box, resting on z = 0 (the contact plane).
+Units are read from the file, never guessed: COLLADA ``<unit meter=...>`` and ``<up_axis>``, gazebo ``model.sdf``
+``<scale>``, or an explicit ``scale``/``up_axis`` given by the caller (sidecar metadata).
+"""
+from __future__ import annotations
+
+import logging
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .config import data_root
+
+log = logging.getLogger(__name__)
+
+MESH_SUFFIXES = {".obj", ".dae", ".glb", ".gltf", ".ply", ".stl", ".off"}
+
+#: Real-world height ranges (metres) per category, used to sample a physically plausible scale.
+CATEGORY_HEIGHT_RANGE_M: dict[str, tuple[float, float]] = {
+    "traffic_cone": (0.45, 0.92),
+    "barrel": (0.9, 1.1),
+    "barrier": (0.8, 1.1),
+    "concrete_block": (0.15, 0.25),
+    "fire_hydrant": (0.6, 0.9),
+    "car": (1.35, 1.9),
+    "parking_block": (0.1, 0.2),
+    "cow": (1.2, 1.6),
+}
+
+#: Default asset per category in the shared data folder (relative to ``data_root()``).
+DEFAULT_ASSETS: dict[str, list[str]] = {
+    "traffic_cone": ["meshes/gazebo_models/construction_cone"],
+    "barrel": ["meshes/gazebo_models/construction_barrel"],
+    "barrier": ["meshes/gazebo_models/jersey_barrier"],
+    "concrete_block": ["meshes/gazebo_models/cinder_block"],
+    "fire_hydrant": ["meshes/gazebo_models/fire_hydrant"],
+    "car": ["meshes/gazebo_models/hatchback", "meshes/gazebo_models/suv"],
+    "parking_block": ["meshes/gazebo_models/drc_practice_yellow_parking_block"],
+}
+
+
+class AssetError(ValueError):
+    """A mesh could not be loaded or is unusable (reason in the message)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Asset:
+    """A renderable object in the canonical frame (metres, z up, on z = 0).
+
+    ``meshes`` keeps one trimesh per material so textures survive (no atlas packing).
+    """
+
+    name: str
+    category: str
+    meshes: tuple[trimesh.Trimesh, ...]
+    source: str
+    licence: str = ""
+    procedural: bool = False
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def bounds_m(self) -> np.ndarray:
+        """(2, 3) min/max corners in the object frame."""
+        b = np.array([m.bounds for m in self.meshes])
+        return np.stack([b[:, 0].min(0), b[:, 1].max(0)])
+
+    @property
+    def extents_m(self) -> np.ndarray:
+        b = self.bounds_m
+        return b[1] - b[0]
+
+    @property
+    def height_m(self) -> float:
+        return float(self.extents_m[2])
+
+    def corners_m(self) -> np.ndarray:
+        """(8, 3) corners of the axis-aligned bounding box in the object frame."""
+        lo, hi = self.bounds_m
+        return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+    def scaled(self, factor: float) -> "Asset":
+        """Uniformly scaled copy about the contact point (origin); stays on z = 0."""
+        if not np.isfinite(factor) or factor <= 0:
+            raise AssetError(f"scale factor must be positive and finite, got {factor}")
+        meshes = []
+        for m in self.meshes:
+            c = m.copy()
+            c.apply_scale(factor)
+            meshes.append(c)
+        return Asset(self.name, self.category, tuple(meshes), self.source, self.licence, self.procedural,
+                     {**self.meta, "scale": self.meta.get("scale", 1.0) * factor})
+
+    @property
+    def triangle_count(self) -> int:
+        return int(sum(len(m.faces) for m in self.meshes))
+
+
+def _axis_rotation_to_z_up(up_axis: str) -> np.ndarray:
+    up_axis = up_axis.upper().replace("_UP", "")
+    if up_axis == "Z":
+        return np.eye(4)
+    if up_axis == "Y":  # y-up -> z-up: rotate +90 deg about x (y -> z, z -> -y)
+        return trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])
+    if up_axis == "X":
+        return trimesh.transformations.rotation_matrix(-np.pi / 2, [0, 1, 0])
+    raise AssetError(f"unknown up axis {up_axis!r}")
+
+
+def read_collada_unit(path: Path) -> tuple[float, str]:
+    """(metres per unit, up axis) declared in a COLLADA file's <asset> block (defaults 1.0, 'Y' per the spec)."""
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        raise AssetError(f"{path}: not valid COLLADA XML ({e})") from e
+    ns = re.match(r"\{.*\}", root.tag)
+    ns = ns.group(0) if ns else ""
+    meter, up = 1.0, "Y_UP"
+    asset = root.find(f"{ns}asset")
+    if asset is not None:
+        unit = asset.find(f"{ns}unit")
+        if unit is not None and unit.get("meter"):
+            meter = float(unit.get("meter"))
+        up_el = asset.find(f"{ns}up_axis")
+        if up_el is not None and up_el.text:
+            up = up_el.text.strip()
+    return meter, up
+
+
+def _flatten(loaded, path: Path) -> list[trimesh.Trimesh]:
+    if isinstance(loaded, trimesh.Trimesh):
+        meshes = [loaded]
+    elif isinstance(loaded, trimesh.Scene):
+        meshes = []
+        for node in loaded.graph.nodes_geometry:
+            transform, geom_name = loaded.graph[node]
+            g = loaded.geometry[geom_name]
+            if isinstance(g, trimesh.Trimesh):
+                g = g.copy()
+                g.apply_transform(transform)
+                meshes.append(g)
+    else:
+        raise AssetError(f"{path}: unsupported geometry type {type(loaded).__name__}")
+    meshes = [m for m in meshes if len(m.faces) > 0]
+    if not meshes:
+        raise AssetError(f"{path}: contains no triangles")
+    for m in meshes:
+        if not np.all(np.isfinite(m.vertices)):
+            raise AssetError(f"{path}: non-finite vertex coordinates")
+    return meshes
+
+
+def load_mesh_file(path: str | Path, *, scale: float | None = None, up_axis: str | None = None) -> list[trimesh.Trimesh]:
+    """Load a mesh file into z-up metres (not yet recentred). Units from the file unless ``scale`` is given."""
+    path = Path(path)
+    if not path.is_file():
+        raise AssetError(f"mesh file not found: {path}")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise AssetError(f"{path}: unsupported mesh format {path.suffix!r} (supported: {sorted(MESH_SUFFIXES)})")
+    file_scale, file_up = 1.0, "Y_UP" if path.suffix.lower() in {".obj", ".gltf", ".glb"} else "Z_UP"
+    if path.suffix.lower() == ".dae":
+        file_scale, file_up = read_collada_unit(path)
+    try:
+        loaded = trimesh.load(str(path), process=False, maintain_order=True)
+    except Exception as e:  # trimesh raises many types for broken files
+        raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
+    meshes = _flatten(loaded, path)
+    s = file_scale * (1.0 if scale is None else scale)
+    R = _axis_rotation_to_z_up(up_axis or file_up)
+    for m in meshes:
+        m.apply_transform(R)
+        m.apply_scale(s)
+    return meshes
+
+
+def normalise_meshes(meshes: list[trimesh.Trimesh]) -> tuple[trimesh.Trimesh, ...]:
+    """Centre x/y on the bounding box and put the lowest point on z = 0."""
+    b = np.array([m.bounds for m in meshes])
+    lo, hi = b[:, 0].min(0), b[:, 1].max(0)
+    ext = hi - lo
+    if not np.all(np.isfinite(ext)) or ext.max() <= 0:
+        raise AssetError("mesh has degenerate (zero-size) bounds")
+    shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    out = []
+    for m in meshes:
+        c = m.copy()
+        c.apply_translation(shift)
+        out.append(c)
+    return tuple(out)
+
+
+def _gazebo_visual_mesh(model_dir: Path) -> tuple[Path, float]:
+    sdf = model_dir / "model.sdf"
+    root = ET.parse(sdf).getroot()
+    mesh_el = root.find(".//visual//mesh") or root.find(".//mesh")
+    if mesh_el is None or mesh_el.find("uri") is None:
+        raise AssetError(f"{sdf}: no <mesh><uri> in a visual")
+    uri = mesh_el.find("uri").text.strip()
+    rel = uri.split("model://", 1)[-1].split("/", 1)[-1]
+    scale_el = mesh_el.find("scale")
+    scale = 1.0
+    if scale_el is not None and scale_el.text:
+        s = [float(v) for v in scale_el.text.split()]
+        if len(set(s)) != 1:
+            log.warning("%s: non-uniform scale %s, using the mean", sdf, s)
+        scale = float(np.mean(s))
+    return model_dir / rel, scale
+
+
+def load_asset(path: str | Path, *, category: str = "object", name: str | None = None, scale: float | None = None,
+               up_axis: str | None = None, licence: str = "") -> Asset:
+    """Load a mesh file or a gazebo model folder (``model.sdf``) as a canonical :class:`Asset`."""
+    path = Path(path)
+    if path.is_dir():
+        if not (path / "model.sdf").is_file():
+            raise AssetError(f"{path}: a folder asset needs a model.sdf (gazebo layout)")
+        mesh_path, sdf_scale = _gazebo_visual_mesh(path)
+        # gazebo meshes are in the model's z-up frame; the COLLADA unit still applies.
+        meshes = load_mesh_file(mesh_path, scale=sdf_scale * (scale or 1.0), up_axis=up_axis or "Z_UP")
+        if not licence and (path.parent / "LICENSE").exists():
+            licence = "CC-BY-3.0 (gazebo_models)"
+    else:
+        meshes = load_mesh_file(path, scale=scale, up_axis=up_axis)
+    return Asset(name or path.stem, category, normalise_meshes(meshes), str(path), licence)
+
+
+_CACHE: dict[tuple, Asset] = {}
+
+
+def default_asset(category: str, index: int = 0) -> Asset:
+    """The default asset of a category from the shared data folder (cached per process)."""
+    if category not in DEFAULT_ASSETS:
+        raise KeyError(f"no default asset for category {category!r}; known: {sorted(DEFAULT_ASSETS)}")
+    rel = DEFAULT_ASSETS[category][index % len(DEFAULT_ASSETS[category])]
+    key = (category, rel)
+    if key not in _CACHE:
+        _CACHE[key] = load_asset(data_root() / rel, category=category, name=Path(rel).name)
+    return _CACHE[key]
