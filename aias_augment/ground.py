@@ -40,7 +40,7 @@ class GroundFitError(ValueError):
     """No trustworthy ground plane: too few points, collinear points, or no plane near the up direction."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class GroundPlane:
     """Plane ``normal . p + d = 0`` in one camera frame (OpenCV axes, metres); normal unit, pointing up."""
 
@@ -50,6 +50,14 @@ class GroundPlane:
     inlier_ratio: float = 1.0
     rms_m: float = 0.0
     num_inliers: int = field(default=0, compare=False)
+
+    def __eq__(self, other):
+        if not isinstance(other, GroundPlane):
+            return NotImplemented
+        return (np.array_equal(self.normal, other.normal) and self.d == other.d and self.source == other.source
+                and self.inlier_ratio == other.inlier_ratio and self.rms_m == other.rms_m)
+
+    __hash__ = None  # mutable-free but holds an ndarray: compare with ==, do not hash
 
     def __post_init__(self):
         n = np.asarray(self.normal, dtype=np.float64).reshape(-1)
@@ -88,8 +96,9 @@ class GroundPlane:
     def intersect_rays(self, rays_in_cam: np.ndarray) -> np.ndarray:
         """Where rays from the camera centre meet the plane, (*, 3) directions -> (*, 3) points.
 
-        NaN where the ray does not hit the ground ahead along the ray (parameter t > 0): rays parallel to the plane
-        (at the horizon, |n . r| < RAY_PARALLEL_EPS), rays pointing away from it (above the horizon), zero rays.
+        NaN where the ray does not hit the ground in front: rays parallel to the plane (at the horizon,
+        |n . r| < RAY_PARALLEL_EPS), rays pointing away from it (above the horizon, t <= 0), zero rays, and hits
+        behind the camera plane (z <= MIN_DEPTH).
         Directions need not be unit length.
         """
         r = check_shape(rays_in_cam, ("*", 3), "rays_in_cam").astype(np.float64)
@@ -97,7 +106,9 @@ class GroundPlane:
         hits = np.abs(denom) > RAY_PARALLEL_EPS
         t = np.where(hits, -self.d / np.where(hits, denom, 1.0), np.nan)
         t = np.where(t > 0, t, np.nan)
-        return r * t[..., None]
+        points = r * t[..., None]
+        points[~(points[..., 2] > MIN_DEPTH)] = np.nan  # behind the camera plane: not visible, not placeable
+        return points
 
     def intersect_pixels(self, uv: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
         """Ground point seen at pixels (*, 2) -> (*, 3) in camera frame, NaN above the horizon."""
