@@ -241,3 +241,36 @@ def default_asset(category: str, index: int = 0) -> Asset:
     if key not in _CACHE:
         _CACHE[key] = load_asset(data_root() / rel, category=category, name=Path(rel).name)
     return _CACHE[key]
+
+
+class PathAssets:
+    """A small asset source from user paths: ``{"stroller": ["my/stroller.obj", ...]}`` (loaded lazily, cached).
+
+    ``scales``/``up_axes`` optionally give the unit scale and up axis per path for files that do not declare them.
+    """
+
+    def __init__(self, paths: dict[str, list[str]], scales: dict[str, float] | None = None,
+                 up_axes: dict[str, str] | None = None):
+        if not paths:
+            raise ValueError("PathAssets needs at least one category")
+        self.paths = {c: [str(p) for p in ps] for c, ps in paths.items()}
+        for c, ps in self.paths.items():
+            if not ps:
+                raise ValueError(f"PathAssets: category {c!r} has no paths")
+        self.scales = scales or {}
+        self.up_axes = up_axes or {}
+        self._loaded: dict[str, Asset] = {}
+
+    def categories(self) -> list[str]:
+        return sorted(self.paths)
+
+    def sample(self, category: str, rng: np.random.Generator) -> Asset:
+        if category not in self.paths:
+            return default_asset(category)
+        p = self.paths[category][int(rng.integers(len(self.paths[category])))]
+        if p not in self._loaded:
+            self._loaded[p] = load_asset(p, category=category, scale=self.scales.get(p), up_axis=self.up_axes.get(p))
+        return self._loaded[p]
+
+    def __getstate__(self):  # pickles without loaded meshes (reloaded lazily in each worker)
+        return {"paths": self.paths, "scales": self.scales, "up_axes": self.up_axes, "_loaded": {}}

@@ -1,0 +1,207 @@
+"""``InsertObjects``: the albumentations adapter over :func:`aias_augment.pipeline.insert_into_image`.
+
+Use it inside ``A.Compose(..., bbox_params=A.BboxParams(format="coco", label_fields=[...]), seed=...)``. Optional
+per-sample targets: ``camera_k`` (3x3 intrinsics of the image as passed in) and ``depth`` ((H, W) metres, 0/NaN =
+unknown). Inserted boxes are appended with their label (``category_ids[name]`` or the category name); existing
+boxes whose visible fraction under the inserted objects falls below the Compose's ``min_visibility`` are dropped.
+Put it first in the pipeline: later geometric transforms do not update ``camera_k``/``depth``.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+from typing import Any
+
+import albumentations as A
+import numpy as np
+from albumentations.core.bbox_utils import convert_bboxes_from_albumentations, denormalize_bboxes
+
+from .assets import PathAssets
+from .pipeline import PRESETS, InsertionConfig, insert_into_image, load_preset
+
+log = logging.getLogger(__name__)
+
+
+class InsertObjects(A.DualTransform):
+    """Insert 3D objects photorealistically and append their COCO boxes.
+
+    Args:
+        categories: object categories to insert (default asset bank: see ``aias_augment.assets.DEFAULT_ASSETS``).
+        max_objects / min_objects: number of objects per image, drawn uniformly.
+        preset: "fast" | "balanced" | "accurate" (configs/presets/*.yaml).
+        category_ids: label written for each category (e.g. {"traffic_cone": 3}); default: the category name.
+        assets: your own meshes, {"category": ["path.obj", ...]}.
+        config_overrides: any :class:`InsertionConfig` field (e.g. {"shadow": False}).
+        p: probability of applying.
+    """
+
+    _targets = (A.core.type_definitions.Targets.IMAGE, A.core.type_definitions.Targets.MASK,
+                A.core.type_definitions.Targets.BBOXES)
+
+    def __init__(self, categories: tuple[str, ...] | list[str] = ("traffic_cone",), max_objects: int = 3,
+                 min_objects: int = 1, preset: str = "balanced", category_ids: dict[str, Any] | None = None,
+                 assets: dict[str, list[str]] | None = None, config_overrides: dict[str, Any] | None = None,
+                 p: float = 0.5):
+        super().__init__(p=p)
+        if preset not in PRESETS:
+            raise ValueError(f"preset must be one of {PRESETS}, got {preset!r}")
+        if not 0.0 <= p <= 1.0:
+            raise ValueError(f"p must be in [0, 1], got {p}")
+        self.categories = tuple(categories)
+        self.max_objects = int(max_objects)
+        self.min_objects = int(min_objects)
+        self.preset = preset
+        self.category_ids = dict(category_ids) if category_ids else None
+        self.assets = assets
+        self.config_overrides = dict(config_overrides or {})
+        # Validates everything now (unknown override keys raise TypeError, bad counts ValueError).
+        self.config: InsertionConfig = load_preset(preset, categories=self.categories, max_objects=self.max_objects,
+                                                   min_objects=self.min_objects, **self.config_overrides)
+        if self.category_ids is not None:
+            missing = set(self.categories) - set(self.category_ids)
+            if missing:
+                raise ValueError(f"category_ids lacks {sorted(missing)}")
+        self._bank = PathAssets(assets) if assets else None
+        self.skipped = 0          # images left unchanged because insertion failed (logged with the reason)
+        self.last_record = None   # InsertionRecord of the latest call in this process (for debugging/replay)
+
+    @property
+    def targets_as_params(self) -> list[str]:
+        return ["image"]
+
+    def get_transform_init_args_names(self) -> tuple[str, ...]:
+        return ("categories", "max_objects", "min_objects", "preset", "category_ids", "assets", "config_overrides")
+
+    # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
+    def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+        image = data["image"]
+        h, w = image.shape[:2]
+        rgb, restore = _to_rgb_uint8(image)
+        boxes_internal = data.get("bboxes")
+        n_existing = 0 if boxes_internal is None else len(boxes_internal)
+        existing_xywh = np.zeros((0, 4))
+        if n_existing:
+            xyxy = denormalize_bboxes(np.asarray(boxes_internal)[:, :4], {"height": h, "width": w})
+            existing_xywh = np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]]
+        min_vis = 0.0
+        proc = self._bbox_processor()
+        if proc is not None:
+            min_vis = float(proc.params.min_visibility)
+        try:
+            res = insert_into_image(
+                rgb, existing_xywh, list(range(n_existing)), self.random_generator, self.config,
+                intrinsics=data.get("camera_k"), depth=data.get("depth"), min_visibility=min_vis, bank=self._bank,
+            )
+        except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
+            self.skipped += 1
+            log.warning("InsertObjects: image left unchanged (%s: %s); %d skipped so far", type(e).__name__, e,
+                        self.skipped)
+            return {"insert_result": None, "restore": restore}
+        self.last_record = res.record
+        return {"insert_result": res, "restore": restore}
+
+    def __getstate__(self):
+        # Per-call state (render results, the restore closure) is not part of the transform.
+        state = self.__dict__.copy()
+        state["params"] = {}
+        state["last_record"] = None
+        return state
+
+    def _bbox_processor(self):
+        try:
+            return self.get_processor("bboxes")
+        except (AttributeError, KeyError):
+            return None
+
+    def apply(self, img: np.ndarray, insert_result=None, restore=None, **params: Any) -> np.ndarray:
+        if insert_result is None:
+            return img
+        return restore(insert_result.image)
+
+    def apply_to_mask(self, mask: np.ndarray, **params: Any) -> np.ndarray:
+        # Inserted objects are not written into user masks (their instance ids are unknown to us).
+        return mask
+
+    def apply_to_bboxes(self, bboxes: np.ndarray, insert_result=None, **params: Any) -> np.ndarray:
+        if insert_result is None or (len(insert_result.inserted_labels) == 0 and insert_result.keep_existing.all()):
+            return bboxes
+        kept = bboxes[insert_result.keep_existing] if len(bboxes) else bboxes
+        if len(insert_result.inserted_labels) == 0:
+            return kept
+        new_rows = self._encode_new_boxes(insert_result, bboxes, params["shape"])
+        if len(kept) == 0:
+            return new_rows
+        return np.concatenate([kept, new_rows.astype(kept.dtype)], axis=0)
+
+    def _encode_new_boxes(self, res, bboxes: np.ndarray, shape) -> np.ndarray:
+        """Run the new boxes through the Compose bbox processor (as albumentations' Mosaic does) so that their labels
+        are encoded by the same label manager the Compose will use to decode them, even when the image had no box."""
+        h, w = shape[:2]
+        xywh = np.asarray(res.inserted_bboxes, np.float64)
+        xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
+        internal = xyxy / np.array([w, h, w, h], np.float64)  # albumentations' normalised x_min, y_min, x_max, y_max
+        proc = self._bbox_processor()
+        if proc is None:
+            return internal.astype(np.float32)
+        label_fields = list(proc.params.label_fields or [])
+        if not label_fields:
+            return internal.astype(np.float32)
+        values = [self._label_for(c, proc, label_fields[0]) for c in res.inserted_labels]
+        user_fmt = convert_bboxes_from_albumentations(internal.astype(np.float32), proc.params.format,
+                                                      {"height": h, "width": w})
+        temp = {"image": np.zeros((h, w, 1), np.uint8), "bboxes": user_fmt}
+        for f in label_fields:
+            temp[f] = list(values)
+        saved = dict(proc.is_sequence_input)
+        try:
+            proc.preprocess(temp)
+        finally:
+            proc.is_sequence_input.clear()
+            proc.is_sequence_input.update(saved)
+        rows = temp["bboxes"]
+        if len(bboxes) and rows.shape[1] < bboxes.shape[1]:  # extra columns (e.g. bbox ids): pad with zeros
+            rows = np.c_[rows, np.zeros((len(rows), bboxes.shape[1] - rows.shape[1]), rows.dtype)]
+        return rows
+
+    def _label_for(self, category: str, proc, field: str):
+        if self.category_ids is not None:
+            return self.category_ids[category]
+        meta = proc.label_manager.metadata.get("bboxes", {}).get(field)
+        if meta is not None and meta.is_numerical:
+            raise ValueError(
+                f"InsertObjects: the label field {field!r} holds numbers; pass category_ids="
+                f"{{{category!r}: <id>}} so inserted boxes get numeric labels"
+            )
+        return category
+
+
+def _to_rgb_uint8(image: np.ndarray):
+    """Accept grey (H, W) / (H, W, 1), RGB and RGBA, uint8 or float in [0, 1]; return RGB uint8 and the inverse."""
+    img = np.asarray(image)
+    if img.ndim == 2:
+        img = img[..., None]
+    if img.ndim != 3 or img.shape[2] not in (1, 3, 4):
+        raise ValueError(f"InsertObjects: unsupported image shape {np.asarray(image).shape}")
+    is_float = img.dtype in (np.float32, np.float64)
+    if not is_float and img.dtype != np.uint8:
+        raise ValueError(f"InsertObjects: unsupported dtype {img.dtype} (uint8 or float32 in [0, 1])")
+    u8 = np.clip(np.round(img * 255.0), 0, 255).astype(np.uint8) if is_float else img
+    c = u8.shape[2]
+    rgb = np.repeat(u8, 3, axis=2) if c == 1 else u8[..., :3]
+    orig_dtype, orig_ndim = np.asarray(image).dtype, np.asarray(image).ndim
+
+    def restore(out_rgb: np.ndarray) -> np.ndarray:
+        if c == 1:
+            out = np.round(out_rgb.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32))
+            out = np.clip(out, 0, 255).astype(np.uint8)[..., None]
+        elif c == 4:
+            out = np.concatenate([out_rgb, u8[..., 3:]], axis=2)
+        else:
+            out = out_rgb
+        if orig_ndim == 2:
+            out = out[..., 0]
+        if is_float:
+            out = (out.astype(np.float32) / 255.0).astype(orig_dtype)
+        return np.ascontiguousarray(out)
+
+    return np.ascontiguousarray(rgb), restore
