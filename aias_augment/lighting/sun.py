@@ -1,0 +1,384 @@
+"""Where the sun is: from GPS + UTC time (pvlib), from an HDR environment map, or from image cues with a confidence.
+
+Frames:
+- ENU: x east, y north, z up (what pvlib's azimuth/elevation describe).
+- Env frame: see ``envmap`` (z up, Blender convention).
+- Camera: OpenCV (x right, y down, z forward). A "sun direction" always points FROM the scene TOWARD the sun.
+- Image cues score a fixed grid of candidate sun directions expressed in the scene's *world* frame (whatever
+  ``cam_from_world`` maps from) so that per-frame scores of a clip add up in one frame (:func:`fuse_sun_cues`). The
+  world's up vector must be known (``up_in_world``); for a single image with no pose, world = camera and up is taken as
+  -y of a level camera.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from scipy import ndimage
+
+from ..geometry import Intrinsics
+from .envmap import (azimuth_elevation_to_direction, camera_ray_directions, direction_to_azimuth_elevation,
+                     pixel_directions, pixel_solid_angles)
+from .hdr import luminance, srgb_to_linear
+from .sky import preetham_luminance_ratio
+
+__all__ = [
+    "solar_direction_enu",
+    "sun_direction_in_cam_from_metadata",
+    "SunFromEnv",
+    "sun_from_envmap",
+    "remove_sun",
+    "SunCue",
+    "sun_direction_grid",
+    "sun_cue_from_image",
+    "fuse_sun_cues",
+    "angle_between_deg",
+    "frame_from_up",
+]
+
+EPS = 1e-12
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    v = np.asarray(v, dtype=np.float64)
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    if np.any(n < 1e-9):
+        raise ValueError("zero-length direction")
+    return v / n
+
+
+def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle between directions (*, 3), (*, 3) in degrees (dot clamped before arccos)."""
+    return np.rad2deg(np.arccos(np.clip(np.sum(_unit(a) * _unit(b), axis=-1), -1.0, 1.0)))
+
+
+def frame_from_up(up: np.ndarray, forward_hint: np.ndarray | None = None) -> np.ndarray:
+    """Rotation ``up_frame_from_frame`` (3, 3) whose z axis is ``up``; x is ``forward_hint`` made horizontal if given."""
+    z = _unit(up)
+    hint = np.array([1.0, 0.0, 0.0]) if forward_hint is None else np.asarray(forward_hint, dtype=np.float64)
+    x = hint - (hint @ z) * z
+    if np.linalg.norm(x) < 1e-6:
+        x = np.array([0.0, 1.0, 0.0]) - z[1] * z
+        if np.linalg.norm(x) < 1e-6:
+            x = np.array([0.0, 0.0, 1.0]) - z[2] * z
+    x = _unit(x)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=0)
+
+
+# ------------------------------------------------------------------------------------------------ solar position
+
+
+def solar_direction_enu(lat_deg: float, lon_deg: float, utc: str) -> np.ndarray:
+    """Unit direction to the sun in ENU from latitude/longitude (deg) and an ISO UTC time, via pvlib (SPA, apparent
+    elevation including refraction). Below the horizon the vector simply points below (z < 0)."""
+    import pandas as pd
+    import pvlib
+
+    if not (-90.0 <= float(lat_deg) <= 90.0 and -180.0 <= float(lon_deg) <= 360.0):
+        raise ValueError(f"invalid GPS position lat={lat_deg}, lon={lon_deg}")
+    try:
+        ts = pd.Timestamp(utc)
+    except (ValueError, TypeError) as e:
+        raise ValueError(f"cannot parse UTC time {utc!r}: {e}") from e
+    ts = ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
+    sp = pvlib.solarposition.get_solarposition(pd.DatetimeIndex([ts]), float(lat_deg), float(lon_deg))
+    el = np.deg2rad(float(sp["apparent_elevation"].iloc[0]))
+    az = np.deg2rad(float(sp["azimuth"].iloc[0]))  # clockwise from north
+    return np.array([np.sin(az) * np.cos(el), np.cos(az) * np.cos(el), np.sin(el)])
+
+
+def _rot3(T) -> np.ndarray:
+    T = np.asarray(T, dtype=np.float64)
+    if T.shape == (4, 4):
+        T = T[:3, :3]
+    if T.shape != (3, 3) or not np.allclose(T @ T.T, np.eye(3), atol=1e-4):
+        raise ValueError(f"expected a 3x3 rotation (or 4x4 rigid), got shape {T.shape}")
+    return T
+
+
+def enu_from_cam_from_metadata(meta: dict, cam_from_world: np.ndarray | None = None) -> np.ndarray | None:
+    """Camera orientation in ENU from metadata, or None when the metadata does not say.
+
+    Accepted keys (first match wins): ``enu_from_cam`` (3x3); ``enu_from_world`` (3x3, combined with
+    ``cam_from_world``); ``heading_deg`` (camera forward azimuth, clockwise from north, level camera) with optional
+    ``pitch_deg`` (up positive) and ``roll_deg``.
+    """
+    if "enu_from_cam" in meta:
+        return _rot3(meta["enu_from_cam"])
+    if "enu_from_world" in meta:
+        if cam_from_world is None:
+            raise ValueError("meta['enu_from_world'] needs cam_from_world")
+        return _rot3(meta["enu_from_world"]) @ _rot3(cam_from_world).T
+    if "heading_deg" in meta:
+        from .envmap import cam_from_env_look
+
+        # Env frame with x = east, y = north is exactly ENU; env azimuth is counter-clockwise from east.
+        yaw = np.deg2rad(90.0 - float(meta["heading_deg"]))
+        cam_from_enu = cam_from_env_look(yaw, np.deg2rad(float(meta.get("pitch_deg", 0.0))),
+                                         np.deg2rad(float(meta.get("roll_deg", 0.0))))
+        return cam_from_enu.T
+    return None
+
+
+def sun_direction_in_cam_from_metadata(meta: dict, cam_from_world: np.ndarray | None = None) -> np.ndarray | None:
+    """Sun direction in the camera frame from ``meta['lat'], meta['lon'], meta['utc']`` plus an orientation (see
+    :func:`enu_from_cam_from_metadata`); None when position/time or orientation are missing."""
+    if not all(k in meta for k in ("lat", "lon", "utc")):
+        return None
+    enu_from_cam = enu_from_cam_from_metadata(meta, cam_from_world)
+    if enu_from_cam is None:
+        return None
+    return enu_from_cam.T @ solar_direction_enu(meta["lat"], meta["lon"], meta["utc"])
+
+
+# ------------------------------------------------------------------------------------------------ from an HDR map
+
+
+@dataclass(frozen=True)
+class SunFromEnv:
+    """The dominant compact light of an environment map.
+
+    direction_in_env: unit (3,), energy-weighted centroid of the light's excess radiance.
+    irradiance_rgb: (3,) irradiance it delivers at normal incidence: sum over its pixels of (L - background) dOmega.
+    background_rgb: (3,) radiance of the ring around it (what the region becomes when the light is removed).
+    solid_angle_sr: area of the region; peak_radiance: max luminance; mask: (H, W) bool region.
+    """
+
+    direction_in_env: np.ndarray
+    irradiance_rgb: np.ndarray
+    background_rgb: np.ndarray
+    solid_angle_sr: float
+    peak_radiance: float
+    mask: np.ndarray
+
+
+def sun_from_envmap(radiance: np.ndarray, core_fraction: float = 0.05, halo_dilation_deg: float = 3.0,
+                    ring_deg: float = 6.0) -> SunFromEnv:
+    """Find the brightest compact light of an equirectangular map (any height; azimuth seam handled).
+
+    The region is the connected set of pixels with luminance >= ``core_fraction`` x peak that contains the peak (peak
+    taken after a 1-pixel Gaussian so a single hot pixel does not win over a real disc), dilated by
+    ``halo_dilation_deg`` to include the circumsolar glow; the background is the median of a ring ``ring_deg`` wide
+    around it. A map with no light at all (all zero) returns zero irradiance and the zenith.
+    """
+    rad = np.asarray(radiance, dtype=np.float64)
+    h, w = rad.shape[:2]
+    omega = np.broadcast_to(pixel_solid_angles(h, w), (h, w))
+    lum = luminance(rad).astype(np.float64)
+    smooth = ndimage.gaussian_filter(lum, 1.0, mode=("nearest", "wrap"))
+    r0, c0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
+    peak = float(lum.max())
+    dirs = pixel_directions(h, w)
+    if peak <= 0:
+        return SunFromEnv(np.array([0.0, 0.0, 1.0]), np.zeros(3), np.zeros(3), 0.0, 0.0, np.zeros((h, w), bool))
+    shift = w // 2 - c0  # put the peak at the centre column: no region straddles the seam
+    lum_s = np.roll(smooth, shift, axis=1)
+    core = lum_s >= core_fraction * float(smooth[r0, c0])
+    labels, _ = ndimage.label(core)
+    core = labels == labels[r0, w // 2]
+    px_deg = 180.0 / h
+    halo_it = max(1, int(round(halo_dilation_deg / px_deg)))
+    ring_it = max(1, int(round(ring_deg / px_deg)))
+    region = ndimage.binary_dilation(core, iterations=halo_it)
+    ring = ndimage.binary_dilation(region, iterations=ring_it) & ~region
+    region = np.roll(region, -shift, axis=1)
+    ring = np.roll(ring, -shift, axis=1)
+    bg = np.median(rad[ring], axis=0) if ring.any() else np.zeros(3)
+    excess = np.clip(rad - bg, 0.0, None) * omega[..., None]
+    excess[~region] = 0.0
+    irr = excess.sum(axis=(0, 1))
+    wlum = luminance(excess).astype(np.float64)
+    if wlum.sum() <= 0:
+        direction = dirs[r0, c0]
+    else:
+        direction = _unit((dirs * wlum[..., None]).sum(axis=(0, 1)))
+    return SunFromEnv(direction, irr, bg, float(omega[region].sum()), peak, region)
+
+
+def remove_sun(radiance: np.ndarray, sun: SunFromEnv) -> np.ndarray:
+    """The map with the light's region replaced by its background radiance (for ambient SH without the sun)."""
+    out = np.array(radiance, dtype=np.float32, copy=True)
+    out[sun.mask] = np.minimum(out[sun.mask], sun.background_rgb.astype(np.float32))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ from image cues
+
+
+def sun_direction_grid(az_step_deg: float = 4.0, el_min_deg: float = -2.0, el_max_deg: float = 86.0,
+                       el_step_deg: float = 4.0) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate sun directions in an up-frame (z up): unit (N, 3) and their (azimuth, elevation) in rad, (N, 2)."""
+    az = np.deg2rad(np.arange(-180.0, 180.0, az_step_deg))
+    el = np.deg2rad(np.arange(el_min_deg, el_max_deg + 1e-9, el_step_deg))
+    A, E = np.meshgrid(az, el, indexing="xy")
+    return azimuth_elevation_to_direction(A.ravel(), E.ravel()), np.stack([A.ravel(), E.ravel()], axis=-1)
+
+
+@dataclass(frozen=True)
+class SunCue:
+    """Per-candidate log-likelihood of the sun direction, on a grid fixed in the world frame.
+
+    grid_in_world: (N, 3) unit candidates; log_likelihood: (N,) (0 = uninformative); direction_in_world: best candidate
+    refined by a local posterior mean; confidence in [0, 1] (azimuth concentration of the posterior); sun_visible: a
+    clipped sun disc was found in the image; n_sky_pixels: sky samples used; up_in_world: (3,).
+    """
+
+    grid_in_world: np.ndarray
+    log_likelihood: np.ndarray
+    direction_in_world: np.ndarray
+    confidence: float
+    sun_visible: bool
+    n_sky_pixels: int
+    up_in_world: np.ndarray
+
+
+def _posterior_summary(grid: np.ndarray, loglik: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, float]:
+    ll = loglik - loglik.max()
+    p = np.exp(ll)
+    p /= p.sum()
+    best = int(np.argmax(ll))
+    near = np.sum(grid * grid[best], axis=-1) > np.cos(np.deg2rad(10.0))
+    direction = _unit((grid[near] * p[near, None]).sum(axis=0))
+    # Azimuth concentration about the up axis: 1 = one azimuth, 0 = uniform.
+    horiz = grid - (grid @ up)[:, None] * up
+    hn = np.linalg.norm(horiz, axis=-1, keepdims=True)
+    horiz = np.where(hn > 1e-6, horiz / np.maximum(hn, EPS), 0.0)
+    confidence = float(np.linalg.norm((horiz * p[:, None]).sum(axis=0)))
+    return direction, float(np.clip(confidence, 0.0, 1.0))
+
+
+def _find_sun_disc(unit_rgb: np.ndarray, above: np.ndarray, max_area_frac: float = 0.03,
+                   clip_level: float = 250.0 / 255.0) -> tuple[float, float] | None:
+    """(u, v) of a clipped, compact, bright-haloed blob above the horizon, or None."""
+    clipped = (unit_rgb.min(axis=2) >= clip_level) & above  # white: every channel clipped
+    if not clipped.any():
+        return None
+    labels, n = ndimage.label(clipped)
+    sizes = ndimage.sum(clipped, labels, index=np.arange(1, n + 1))
+    h, w = clipped.shape
+    best = None
+    for idx in np.argsort(sizes)[::-1][:5]:
+        area = sizes[idx]
+        if area < 4 or area > max_area_frac * h * w:
+            continue
+        blob = labels == idx + 1
+        ring = ndimage.binary_dilation(blob, iterations=max(2, int(np.sqrt(area) / 2))) & ~blob
+        halo = luminance(srgb_to_linear(unit_rgb[ring])) if ring.any() else np.zeros(1)
+        # A sun disc is surrounded on all sides by glare; a white object or a sky gap between leaves is not.
+        if float(np.percentile(halo, 10)) < 0.3:
+            continue
+        dist = ndimage.distance_transform_edt(np.pad(blob, 1))[1:-1, 1:-1]
+        v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
+        if best is None or area > best[0]:
+            best = (area, float(u), float(v))
+    return None if best is None else (best[1], best[2])
+
+
+def sun_cue_from_image(
+    image_rgb_uint8: np.ndarray,
+    intrinsics: Intrinsics,
+    cam_from_world: np.ndarray | None = None,
+    up_in_world: np.ndarray | None = None,
+    grid_in_world: np.ndarray | None = None,
+    sky_mask: np.ndarray | None = None,
+    turbidities: Sequence[float] = (2.5, 4.0, 7.0),
+    max_sky_pixels: int = 1500,
+    effective_samples: float = 30.0,
+    rng: np.random.Generator | None = None,
+) -> SunCue:
+    """Score candidate sun directions from one image with a known camera.
+
+    Cues: (1) a visible sun disc (clipped compact blob with glare) -> a sharp von Mises-Fisher term around its ray;
+    (2) the sky's luminance pattern: the Preetham model's relative luminance F(theta, gamma) / F(0, theta_s) is fitted
+    to the log-luminance of sky pixels for every candidate (the unknown exposure is one additive constant in log space,
+    solved in closed form) and the best turbidity kept; the residual variance becomes a Gaussian log-likelihood with
+    ``effective_samples`` independent samples (neighbouring sky pixels are strongly correlated).
+    Sky pixels: above the horizon by > 2 deg, smooth (local log-luminance std < 0.06), not clipped, not dark, and
+    blue-dominant or bright; or ``sky_mask`` if given.
+    """
+    img = np.asarray(image_rgb_uint8)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError(f"sun_cue_from_image: expected (H, W, 3) uint8, got {img.shape} {img.dtype}")
+    if (intrinsics.height, intrinsics.width) != img.shape[:2]:
+        raise ValueError("sun_cue_from_image: intrinsics do not match the image size")
+    rng = np.random.default_rng(0) if rng is None else rng
+    cam_from_world = np.eye(3) if cam_from_world is None else _rot3(cam_from_world)
+    if up_in_world is None:
+        up_in_world = cam_from_world.T @ np.array([0.0, -1.0, 0.0])  # level camera: up is -y
+    up_in_world = _unit(up_in_world)
+    if grid_in_world is None:
+        grid_up, _ = sun_direction_grid()
+        grid_in_world = grid_up @ frame_from_up(up_in_world)  # up-frame -> world (rows: R^T v)
+    grid_in_cam = grid_in_world @ cam_from_world.T
+    up_in_cam = cam_from_world @ up_in_world
+
+    unit = img.astype(np.float32) / 255.0
+    lin = srgb_to_linear(unit)
+    rays = camera_ray_directions(intrinsics)
+    elev_sin = rays @ up_in_cam
+    above = elev_sin > np.sin(np.deg2rad(2.0))
+    loglik = np.zeros(len(grid_in_world))
+
+    disc = _find_sun_disc(unit, above)
+    if disc is not None:
+        ray = rays[int(round(disc[1])), int(round(disc[0]))]
+        kappa = 1.0 / np.deg2rad(3.0) ** 2  # ~3 deg spread
+        loglik += kappa * (grid_in_cam @ ray - 1.0)
+
+    Y = np.maximum(luminance(lin), 1e-4)
+    logY = np.log(Y)
+    if sky_mask is None:
+        mean = ndimage.uniform_filter(logY, 5)
+        sq = ndimage.uniform_filter(logY * logY, 5)
+        local_std = np.sqrt(np.clip(sq - mean * mean, 0.0, None))
+        ref = np.percentile(Y[above], 95) if above.any() else 1.0
+        bluish = (lin[..., 2] >= lin[..., 0])
+        sky = above & (local_std < 0.06) & (unit.max(axis=2) < 0.98) & (Y > 0.15 * ref) & (bluish | (Y > 0.5 * ref))
+    else:
+        sky = np.asarray(sky_mask, bool) & above & (unit.max(axis=2) < 0.98)
+    idx = np.flatnonzero(sky.ravel())
+    n_sky = int(idx.size)
+    if n_sky >= 50:
+        if n_sky > max_sky_pixels:
+            idx = rng.choice(idx, max_sky_pixels, replace=False)
+        d = rays.reshape(-1, 3)[idx]
+        ly = logY.ravel()[idx]
+        cos_theta = d @ up_in_cam  # view zenith cosine
+        cos_gamma = np.clip(grid_in_cam @ d.T, -1.0, 1.0)  # (N, P)
+        gamma = np.arccos(cos_gamma)
+        sun_zen = np.arccos(np.clip(grid_in_cam @ up_in_cam, -1.0, 1.0))[:, None]
+        best_cost = np.full(len(grid_in_world), np.inf)
+        for T in turbidities:
+            logF = np.log(np.maximum(preetham_luminance_ratio(cos_theta[None, :], gamma, sun_zen, T), 1e-12))
+            res = ly[None, :] - logF
+            res -= res.mean(axis=1, keepdims=True)
+            best_cost = np.minimum(best_cost, np.mean(res * res, axis=1))
+        sigma2 = max(float(best_cost.min()), 1e-4)  # eps: a perfect fit would otherwise be infinitely sharp
+        # How much better the best sun explains the sky than a typical candidate: 0 = no azimuthal information.
+        sky_contrast = float(np.clip(1.0 - best_cost.min() / max(float(np.median(best_cost)), 1e-12), 0.0, 1.0))
+        loglik += -0.5 * effective_samples * (best_cost - best_cost.min()) / sigma2
+    direction, concentration = _posterior_summary(grid_in_world, loglik, up_in_world)
+    if disc is not None:
+        confidence = 0.9 * concentration
+    elif n_sky < 50:
+        confidence = 0.0
+    else:
+        confidence = concentration * sky_contrast * min(1.0, n_sky / 400.0)
+    return SunCue(grid_in_world, loglik, direction, confidence, disc is not None, n_sky, up_in_world)
+
+
+def fuse_sun_cues(cues: Sequence[SunCue]) -> SunCue:
+    """Combine per-frame cues of one clip (same world grid): log-likelihoods add (frames as independent evidence)."""
+    if len(cues) == 0:
+        raise ValueError("fuse_sun_cues: no cues")
+    grid = cues[0].grid_in_world
+    for c in cues[1:]:
+        if c.grid_in_world.shape != grid.shape or not np.allclose(c.grid_in_world, grid):
+            raise ValueError("fuse_sun_cues: cues use different grids; pass the same grid_in_world to every frame")
+    loglik = np.sum([c.log_likelihood for c in cues], axis=0)
+    up = cues[0].up_in_world
+    direction, confidence = _posterior_summary(grid, loglik, up)
+    return SunCue(grid, loglik, direction, confidence, any(c.sun_visible for c in cues),
+                  int(sum(c.n_sky_pixels for c in cues)), up)
