@@ -1,0 +1,104 @@
+"""Raw mesh reading for the importers: every part with its material, no checks (those live in ``validate``).
+
+Why not ``assets.load_mesh_file``: it loads with ``maintain_order=True``, and trimesh 4.8 then drops the UVs of OBJ
+files whose ``vt`` count differs from their ``v`` count (about every Blender export in the sweethome3d catalogs),
+so the textures would be lost; it also rejects non-finite vertices before the validator can repair them.
+"""
+from __future__ import annotations
+
+import logging
+import re
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ..assets import MESH_SUFFIXES, AssetError
+
+log = logging.getLogger(__name__)
+
+__all__ = ["load_raw_parts", "missing_obj_textures", "part_texture_image", "part_base_color"]
+
+
+def load_raw_parts(path: str | Path) -> list[trimesh.Trimesh]:
+    """All triangle parts of a mesh file in file units and axes (scene graph transforms applied), one per material."""
+    path = Path(path)
+    if not path.is_file():
+        raise AssetError(f"mesh file not found: {path}")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise AssetError(f"{path}: unsupported mesh format {path.suffix!r} (supported: {sorted(MESH_SUFFIXES)})")
+    try:
+        loaded = trimesh.load(str(path), process=False)
+    except Exception as e:  # trimesh raises many types for broken files
+        raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
+    if isinstance(loaded, trimesh.Trimesh):
+        parts = [loaded]
+    elif isinstance(loaded, trimesh.Scene):
+        parts = []
+        for node in loaded.graph.nodes_geometry:
+            transform, geom_name = loaded.graph[node]
+            g = loaded.geometry[geom_name]
+            if isinstance(g, trimesh.Trimesh):
+                g = g.copy()
+                g.apply_transform(transform)
+                parts.append(g)
+    else:
+        raise AssetError(f"{path}: unsupported geometry type {type(loaded).__name__} (no triangles)")
+    if not parts:
+        raise AssetError(f"{path}: contains no triangle meshes")
+    return parts
+
+
+_MAP_RE = re.compile(r"^\s*map_Kd\s+(?:-\S+\s+\S+\s+)*(.+?)\s*$", re.IGNORECASE)
+
+
+def missing_obj_textures(obj_path: str | Path) -> list[str]:
+    """Diffuse texture files named by an OBJ's MTL libraries that do not exist (an unreadable MTL counts too)."""
+    obj_path = Path(obj_path)
+    missing = []
+    if obj_path.suffix.lower() != ".obj":
+        return missing
+    with open(obj_path, "rb") as f:
+        libs = [ln.split(None, 1)[1].decode("utf-8", "replace").strip() for ln in f
+                if ln.startswith(b"mtllib") and len(ln.split(None, 1)) == 2]
+    for lib in libs:
+        mtl = obj_path.parent / lib
+        if not mtl.is_file():
+            missing.append(lib)
+            continue
+        for ln in mtl.read_text(errors="replace").splitlines():
+            m = _MAP_RE.match(ln)
+            if m and not (mtl.parent / m.group(1).replace("\\", "/")).is_file():
+                missing.append(m.group(1))
+    return missing
+
+
+def part_texture_image(part: trimesh.Trimesh):
+    """The part's diffuse texture (PIL image) or None."""
+    mat = getattr(part.visual, "material", None)
+    if mat is None:
+        return None
+    img = getattr(mat, "image", None)
+    if img is None:
+        img = getattr(mat, "baseColorTexture", None)
+    return img
+
+
+def part_base_color(part: trimesh.Trimesh) -> np.ndarray:
+    """RGBA uint8 base colour of the part's material (white when it has none)."""
+    mat = getattr(part.visual, "material", None)
+    col = None
+    if mat is not None:
+        col = getattr(mat, "diffuse", None)
+        if col is None:
+            col = getattr(mat, "baseColorFactor", None)
+    if col is None:
+        return np.array([255, 255, 255, 255], np.uint8)
+    col = np.asarray(col)
+    is_float = np.issubdtype(col.dtype, np.floating)  # float factors are in [0, 1], integer colours in [0, 255]
+    col = col.astype(np.float64).ravel()
+    if col.size == 3:
+        col = np.r_[col, 1.0 if is_float else 255.0]
+    if is_float:
+        col = col * 255.0
+    return np.clip(np.round(col[:4]), 0, 255).astype(np.uint8)

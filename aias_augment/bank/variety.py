@@ -1,0 +1,123 @@
+"""Seeded variety: scale, colour and texture jitter that keeps an asset inside its category's real size range.
+
+Choosing (:func:`sample_variety`, all randomness through the passed ``numpy.random.Generator``) is split from doing
+(:func:`apply_variety`, pure and deterministic given the parameters), so a sample can be replayed from its record.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import trimesh
+from PIL import Image
+
+from ..assets import Asset
+
+__all__ = ["VarietyConfig", "VarietyParams", "sample_variety", "apply_variety", "scale_range"]
+
+
+@dataclass(frozen=True)
+class VarietyConfig:
+    scale_jitter: float = 0.12        # relative: scale drawn in [1 - j, 1 + j] (then clipped to the category range)
+    hue_shift_max: float = 0.02       # fraction of the colour circle; small so a cone stays orange
+    saturation_gain_range: tuple[float, float] = (0.85, 1.15)
+    value_gain_range: tuple[float, float] = (0.8, 1.15)
+
+    def __post_init__(self):
+        if not 0 <= self.scale_jitter < 1:
+            raise ValueError(f"scale_jitter must be in [0, 1), got {self.scale_jitter}")
+        if not 0 <= self.hue_shift_max <= 0.5:
+            raise ValueError(f"hue_shift_max must be in [0, 0.5], got {self.hue_shift_max}")
+        for name in ("saturation_gain_range", "value_gain_range"):
+            lo, hi = getattr(self, name)
+            if not 0 < lo <= hi:
+                raise ValueError(f"{name} must satisfy 0 < lo <= hi, got {(lo, hi)}")
+
+
+@dataclass(frozen=True)
+class VarietyParams:
+    scale: float
+    hue_shift: float
+    saturation_gain: float
+    value_gain: float
+
+
+def scale_range(height_m: float, height_range_m: tuple[float, float], jitter: float) -> tuple[float, float]:
+    """Allowed uniform scale factors: [1 - j, 1 + j] intersected with what keeps the height in the category range.
+
+    An asset already outside its category range (a sitting person is lower than a standing one) keeps [1 - j, 1 + j]
+    clipped towards the range, never pushed across it: the catalog's real size wins over the category prior.
+    """
+    lo, hi = 1.0 - jitter, 1.0 + jitter
+    rlo, rhi = height_range_m[0] / height_m, height_range_m[1] / height_m
+    a, b = max(lo, rlo), min(hi, rhi)
+    if a <= b:
+        return a, b
+    return (lo, min(hi, max(lo, rhi))) if rhi < lo else (max(lo, min(hi, rlo)), hi)
+
+
+def sample_variety(height_m: float, height_range_m: tuple[float, float], cfg: VarietyConfig,
+                   rng: np.random.Generator) -> VarietyParams:
+    if not (np.isfinite(height_m) and height_m > 0):
+        raise ValueError(f"height_m must be positive and finite, got {height_m}")
+    a, b = scale_range(height_m, height_range_m, cfg.scale_jitter)
+    return VarietyParams(
+        scale=float(rng.uniform(a, b)),
+        hue_shift=float(rng.uniform(-cfg.hue_shift_max, cfg.hue_shift_max)),
+        saturation_gain=float(rng.uniform(*cfg.saturation_gain_range)),
+        value_gain=float(rng.uniform(*cfg.value_gain_range)),
+    )
+
+
+def _jitter_rgb_uint8(rgb: np.ndarray, p: VarietyParams) -> np.ndarray:
+    """HSV jitter of (N, 3) uint8 colours; vectorised colorsys.rgb_to_hsv/hsv_to_rgb (tested against it)."""
+    x = rgb.astype(np.float32) / 255.0
+    mx, mn = x.max(-1), x.min(-1)
+    d = mx - mn
+    eps = 1e-8  # eps: grey pixels (d = 0) have no hue; their hue is irrelevant after s = 0
+    r, g, b = x[..., 0], x[..., 1], x[..., 2]
+    h = np.where(mx == r, ((g - b) / (d + eps)) % 6, np.where(mx == g, (b - r) / (d + eps) + 2, (r - g) / (d + eps) + 4))
+    h = (h / 6.0 + p.hue_shift) % 1.0
+    s = np.clip(np.where(mx > 0, d / (mx + eps), 0) * p.saturation_gain, 0, 1)
+    v = np.clip(mx * p.value_gain, 0, 1)
+    i = np.floor(h * 6).astype(int) % 6
+    f = h * 6 - np.floor(h * 6)
+    pp, q, t = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
+    out = np.choose(i[..., None], [np.stack(c, -1) for c in
+                                   ((v, t, pp), (q, v, pp), (pp, v, t), (pp, q, v), (t, pp, v), (v, pp, q))])
+    return np.clip(np.round(out * 255), 0, 255).astype(np.uint8)
+
+
+def _jitter_part(m: trimesh.Trimesh, p: VarietyParams) -> trimesh.Trimesh:
+    vis = m.visual
+    if vis.kind in ("vertex", "face"):
+        vc = np.array(vis.vertex_colors, np.uint8)
+        vc[:, :3] = _jitter_rgb_uint8(vc[:, :3], p)
+        return trimesh.Trimesh(m.vertices, m.faces, vertex_normals=m.vertex_normals,
+                               visual=trimesh.visual.ColorVisuals(vertex_colors=vc), process=False)
+    mat = getattr(vis, "material", None)
+    if mat is None:
+        return m.copy()
+    from .meshio import part_base_color, part_texture_image
+    rgba = part_base_color(m).copy()
+    rgba[:3] = _jitter_rgb_uint8(rgba[None, :3], p)[0]
+    img = part_texture_image(m)
+    uv = getattr(vis, "uv", None)
+    if img is not None and uv is not None:
+        arr = np.asarray(img.convert("RGBA"))
+        rgb = _jitter_rgb_uint8(arr[..., :3].reshape(-1, 3), p).reshape(arr.shape[:2] + (3,))
+        opaque = arr[..., 3].min() == 255
+        img = Image.fromarray(np.ascontiguousarray(rgb) if opaque else np.dstack([rgb, arr[..., 3]]))
+        new_mat = trimesh.visual.material.SimpleMaterial(image=img, diffuse=rgba)
+        visual = trimesh.visual.TextureVisuals(uv=uv, material=new_mat)
+    else:
+        visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.SimpleMaterial(diffuse=rgba))
+    return trimesh.Trimesh(m.vertices, m.faces, vertex_normals=m.vertex_normals, visual=visual, process=False)
+
+
+def apply_variety(asset: Asset, p: VarietyParams) -> Asset:
+    """A new asset: uniformly scaled about its contact point and colour-jittered (materials and textures)."""
+    scaled = asset.scaled(p.scale)
+    meshes = tuple(_jitter_part(m, p) for m in scaled.meshes)
+    return Asset(asset.name, asset.category, meshes, asset.source, asset.licence, asset.procedural,
+                 {**scaled.meta, "variety": asdict(p)})
