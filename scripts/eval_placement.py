@@ -198,6 +198,8 @@ def main(argv=None) -> int:
                        "contact_in_cam": p["contact"].round(4).tolist(),
                        "distance_m": float(np.linalg.norm(p["contact"])),
                        "contact_err_m": err, "measured_points_near": n_near, "measure_radius_m": radius,
+                       "coarse_plane_contact_err_m": measured_contact_error(
+                           np.array(p["placement"].contact_point_in_cam), points, up, radius)[0],
                        "coarse_vs_local_contact_m": float(np.linalg.norm(
                            np.array(p["placement"].contact_point_in_cam) - p["contact"])),
                        "local_ground": p["local"].to_dict(), "clustered_points_inside_box": hits,
@@ -223,6 +225,8 @@ def main(argv=None) -> int:
         "per_seed": per_seed,
         "placements_intersecting_point_clusters": int(sum(r["clustered_points_inside_box"] > 0 for r in rows)),
         "median_distance_m": float(np.median([r["distance_m"] for r in rows])) if rows else None,
+        "median_abs_contact_err_if_coarse_plane_m": float(np.median(
+            [abs(r["coarse_plane_contact_err_m"]) for r in rows if r["coarse_plane_contact_err_m"] is not None])),
         "median_coarse_vs_local_contact_shift_m": float(np.median([r["coarse_vs_local_contact_m"] for r in rows])),
         "rejected_candidates": dict(reasons.most_common()),
         "seconds": elapsed,
