@@ -127,10 +127,9 @@ def _to_pyrender_meshes(asset: Asset, normals: bool) -> list:
                                     vertex_colors=np.c_[colors, np.full(len(colors), 255, np.uint8)])
             out.append(pyrender.Mesh.from_trimesh(plain, smooth=True))
         else:
-            try:
-                out.append(pyrender.Mesh.from_trimesh(m, smooth=True))
-            except Exception:  # broken material: fall back to its main colour
-                out.append(pyrender.Mesh.from_trimesh(trimesh.Trimesh(m.vertices, m.faces, process=False)))
+            # Per-face colours need flat (unsmoothed) vertices in pyrender; textures and vertex colours are smooth.
+            smooth = getattr(m.visual, "kind", None) != "face"
+            out.append(pyrender.Mesh.from_trimesh(m, smooth=smooth))
     asset.meta[cache_key] = (os.getpid(), out)
     return out
 
@@ -230,7 +229,7 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     r = _renderer(w, h)
     flags = pyrender.RenderFlags.SHADOWS_DIRECTIONAL | pyrender.RenderFlags.SKIP_CULL_FACES
     if sun[2] <= 0.02:
-        _, gdepth = r.render(base, flags=pyrender.RenderFlags.DEPTH_ONLY)
+        gdepth = r.render(base, flags=pyrender.RenderFlags.DEPTH_ONLY)
         gm = gdepth > 0
         return ShadowLayers(np.ones((h, w), np.float32), gm, gdepth.astype(np.float32))
     # pyrender's directional light shines along its node's -z axis: align -z with -sun.

@@ -1,0 +1,113 @@
+import numpy as np
+import pytest
+
+from aias_augment.geometry import Intrinsics
+from aias_augment.ground import prior_ground_plane
+from aias_augment.pipeline import InsertionConfig, insert_into_image, load_preset
+from tests.aias_augment.fixtures import box_asset
+
+K = Intrinsics(500.0, 500.0, 319.5, 239.5, 640, 480)
+
+
+class OneAsset:
+    def __init__(self, asset):
+        self.asset = asset
+
+    def sample(self, category, rng):
+        return self.asset
+
+
+def _ground_depth(height=1.6):
+    """Analytic z-depth of a level ground plane 1.6 m below the camera; sky (above horizon) unknown (0)."""
+    g = prior_ground_plane(height)
+    u, v = np.meshgrid(np.arange(K.width), np.arange(K.height))
+    p = g.intersect_pixels(np.stack([u, v], -1).astype(float), K)
+    return np.nan_to_num(p[..., 2], nan=0.0).astype(np.float32)
+
+
+def _image():
+    rng = np.random.default_rng(0)
+    img = np.full((K.height, K.width, 3), 110, np.uint8)
+    img[: K.height // 2] = (150, 180, 220)
+    return np.clip(img + rng.integers(-8, 8, img.shape), 0, 255).astype(np.uint8)
+
+
+CFG = InsertionConfig(categories=("box",), harmonize=False, ssaa=1)
+
+
+def test_depth_wall_in_front_lowers_visibility_and_shrinks_visible_box():
+    asset = box_asset(extents=(0.6, 0.6, 1.2), category="box")
+    depth = _ground_depth()
+    a = insert_into_image(_image(), rng=np.random.default_rng(3), cfg=CFG, intrinsics=K, depth=depth,
+                          bank=OneAsset(asset), n_objects=1)
+    ann = a.record.annotations[0]
+    assert ann.visibility > 0.99
+    x, y, w, h = ann.visible_box_xywh
+    z = a.record.placements[0].contact_point_in_cam[2]
+    wall = depth.copy()
+    wall[: int(y + h / 2), int(x) - 5: int(x + w) + 5] = z * 0.5  # a wall half way to the object, upper half
+    b = insert_into_image(_image(), rng=np.random.default_rng(3), cfg=CFG, intrinsics=K, depth=wall,
+                          bank=OneAsset(asset), n_objects=1)
+    ann_b = b.record.annotations[0]
+    assert np.allclose(ann_b.amodal_box_xywh, ann.amodal_box_xywh, atol=2)  # same placement
+    assert 0.3 < ann_b.visibility < 0.7
+    xb, yb, wb, hb = ann_b.visible_box_xywh
+    assert hb < 0.7 * h and yb > y + 0.3 * h  # only the lower half is visible
+
+
+def test_existing_box_hidden_by_insertion_is_dropped():
+    asset = box_asset(extents=(1.0, 1.0, 1.5), category="box")
+    a = insert_into_image(_image(), rng=np.random.default_rng(5), cfg=CFG, intrinsics=K, bank=OneAsset(asset),
+                          n_objects=1)
+    x, y, w, h = a.inserted_bboxes[0]
+    existing = np.array([[x + w * 0.25, y + h * 0.25, w * 0.5, h * 0.5], [0, 0, 20, 20]])
+    cfg = InsertionConfig(categories=("box",), harmonize=False, ssaa=1,
+                          placement_cfg=CFG.placement_cfg.__class__(max_overlap_existing=1.0))
+    b = insert_into_image(_image(), existing, ["hidden", "far"], rng=np.random.default_rng(5), cfg=cfg,
+                          intrinsics=K, bank=OneAsset(asset), n_objects=1, min_visibility=0.3)
+    assert b.labels[0] == "far" and "hidden" not in b.labels
+    assert b.record.existing_visibility[0] < 0.05 and b.record.existing_visibility[1] == 1.0
+
+
+def test_contact_point_lies_on_the_ground_and_box_touches_it():
+    asset = box_asset(category="box")
+    res = insert_into_image(_image(), rng=np.random.default_rng(11), cfg=CFG, intrinsics=K, bank=OneAsset(asset),
+                            n_objects=2)
+    g = prior_ground_plane(CFG.camera_height_m)
+    for p in res.record.placements:
+        assert abs(g.signed_distance(np.array(p.contact_point_in_cam))) < 1e-9
+        assert p.contact_pixel[1] > K.cy  # below the horizon of a level camera
+
+
+def test_same_seed_same_output_and_inputs_untouched():
+    img = _image()
+    before = img.copy()
+    r1 = insert_into_image(img, rng=np.random.default_rng(7), cfg=CFG, intrinsics=K, bank=OneAsset(box_asset()))
+    r2 = insert_into_image(img, rng=np.random.default_rng(7), cfg=CFG, intrinsics=K, bank=OneAsset(box_asset()))
+    assert np.array_equal(r1.image, r2.image) and np.array_equal(r1.bboxes, r2.bboxes)
+    assert np.array_equal(img, before)
+    assert not np.array_equal(r1.image, img)
+
+
+def test_naive_paste_skips_modules_and_records_why():
+    res = insert_into_image(_image(), rng=np.random.default_rng(1), cfg=InsertionConfig(categories=("box",),
+                            naive_paste=True, ssaa=1), bank=OneAsset(box_asset()), n_objects=1)
+    mods = res.record.modules
+    assert mods["placement"].startswith("skipped") and mods["shadow"].startswith("skipped")
+    assert mods["lighting"].startswith("skipped") and mods["harmonize"].startswith("skipped")
+
+
+def test_bad_inputs_raise_clearly():
+    with pytest.raises(ValueError, match="uint8"):
+        insert_into_image(np.zeros((10, 10), np.uint8), rng=np.random.default_rng(0))
+    with pytest.raises(ValueError, match="Generator"):
+        insert_into_image(_image())
+    with pytest.raises(ValueError, match="labels"):
+        insert_into_image(_image(), [[0, 0, 1, 1]], [], rng=np.random.default_rng(0))
+    with pytest.raises(ValueError):
+        insert_into_image(_image(), rng=np.random.default_rng(0), intrinsics=np.full((3, 3), np.nan))
+    with pytest.raises(KeyError, match="unknown config keys"):
+        from aias_augment.config import from_dict
+        from_dict(InsertionConfig, {"ssaa": 2, "shadows": True})
+    with pytest.raises(ValueError, match="preset"):
+        load_preset("ultra")

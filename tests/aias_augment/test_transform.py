@@ -1,0 +1,92 @@
+import pickle
+
+import albumentations as A
+import numpy as np
+import pytest
+import torch
+
+from aias_augment import InsertObjects
+from tests.aias_augment.test_pipeline import _image
+
+K = [[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]]
+
+
+def _compose(seed=137, **kw):
+    return A.Compose(
+        [InsertObjects(categories=["traffic_cone"], max_objects=2, p=1.0, preset="fast", **kw)],
+        bbox_params=A.BboxParams(format="coco", label_fields=["category_ids"], min_visibility=0.2), seed=seed)
+
+
+def test_zero_boxes_with_label_fields_gets_inserted_boxes_and_labels():
+    out = _compose()(image=_image(), bboxes=[], category_ids=[], camera_k=np.array(K))
+    assert len(out["bboxes"]) >= 1 and len(out["bboxes"]) == len(out["category_ids"])
+    assert set(out["category_ids"]) == {"traffic_cone"}
+    for x, y, w, h in out["bboxes"]:
+        assert 0 <= x and 0 <= y and x + w <= 640 + 1e-3 and y + h <= 480 + 1e-3 and w > 0 and h > 0
+
+
+def test_numeric_ids_and_existing_boxes_kept():
+    tf = _compose(category_ids={"traffic_cone": 7})
+    out = tf(image=_image(), bboxes=[[5, 5, 30, 30]], category_ids=[3])
+    assert out["category_ids"][0] == 3 and all(c == 7 for c in out["category_ids"][1:])
+    assert len(out["category_ids"]) >= 2
+    with pytest.raises(ValueError, match="category_ids"):
+        _compose()(image=_image(), bboxes=[[5, 5, 30, 30]], category_ids=[3])
+
+
+def test_same_seed_same_sample():
+    a = _compose(seed=5)(image=_image(), bboxes=[], category_ids=[])
+    b = _compose(seed=5)(image=_image(), bboxes=[], category_ids=[])
+    assert np.array_equal(a["image"], b["image"]) and a["bboxes"] == b["bboxes"]
+
+
+@pytest.mark.parametrize("img", [
+    _image()[..., 0],                                    # grey (H, W)
+    np.dstack([_image(), np.full((480, 640), 200, np.uint8)]),  # RGBA: alpha kept
+    _image().astype(np.float32) / 255.0,                 # float in [0, 1]
+])
+def test_grey_rgba_float_inputs(img):
+    out = _compose()(image=img, bboxes=[], category_ids=[])
+    assert out["image"].shape == img.shape and out["image"].dtype == img.dtype
+    if img.ndim == 3 and img.shape[2] == 4:
+        assert np.array_equal(out["image"][..., 3], img[..., 3])
+
+
+def test_odd_image_is_skipped_not_fatal():
+    tf = _compose()
+    tiny = np.zeros((3, 3, 3), np.uint8)
+    out = tf(image=tiny, bboxes=[], category_ids=[], camera_k=np.full((3, 3), np.nan))
+    assert np.array_equal(out["image"], tiny) and out["bboxes"] == []
+    assert tf.transforms[0].skipped == 1
+
+
+def test_bad_arguments_raise_at_construction():
+    with pytest.raises(ValueError):
+        InsertObjects(preset="nope")
+    with pytest.raises(TypeError):
+        InsertObjects(config_overrides={"not_a_field": 1})
+
+
+class _Data(torch.utils.data.Dataset):
+    def __init__(self, tf):
+        self.tf = tf
+
+    def __len__(self):
+        return 4
+
+    def __getitem__(self, i):
+        out = self.tf(image=_image(), bboxes=[], category_ids=[])
+        return torch.from_numpy(out["image"]), len(out["bboxes"])
+
+
+def test_pickles_and_runs_in_dataloader_with_two_workers():
+    tf = _compose()
+    tf(image=_image(), bboxes=[], category_ids=[])  # after a call (renderer exists in this process)
+    tf2 = pickle.loads(pickle.dumps(tf))
+    # spawn: this process already holds an EGL context, which a forked child must not inherit.
+    dl = torch.utils.data.DataLoader(_Data(tf2), batch_size=2, num_workers=2, multiprocessing_context="spawn")
+    n = 0
+    for imgs, counts in dl:
+        assert imgs.shape == (2, 480, 640, 3)
+        n += int(counts.sum())
+    assert n >= 4
