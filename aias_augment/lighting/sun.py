@@ -284,7 +284,7 @@ def sun_cue_from_image(
     grid_in_world: np.ndarray | None = None,
     sky_mask: np.ndarray | None = None,
     turbidities: Sequence[float] = (2.5, 4.0, 7.0),
-    max_sky_pixels: int = 1500,
+    max_sky_pixels: int = 800,
     effective_samples: float = 30.0,
     rng: np.random.Generator | None = None,
 ) -> SunCue:
@@ -335,7 +335,7 @@ def sun_cue_from_image(
         local_std = np.sqrt(np.clip(sq - mean * mean, 0.0, None))
         ref = np.percentile(Y[above], 95) if above.any() else 1.0
         bluish = (lin[..., 2] >= lin[..., 0])
-        sky = above & (local_std < 0.06) & (unit.max(axis=2) < 0.98) & (Y > 0.15 * ref) & (bluish | (Y > 0.5 * ref))
+        sky = above & (local_std < 0.06) & (unit.max(axis=2) < 0.98) & (Y > max(0.15 * ref, 0.01)) & (bluish | (Y > 0.5 * ref))
     else:
         sky = np.asarray(sky_mask, bool) & above & (unit.max(axis=2) < 0.98)
     idx = np.flatnonzero(sky.ravel())

@@ -1,0 +1,298 @@
+"""Top-level lighting estimate of one frame: a sun (directional light, kept apart) plus SH ambient, in the camera frame.
+
+Frames and units:
+- Everything in :class:`LightingEstimate` is in the OpenCV camera frame (x right, y down, z forward) of the frame it
+  was estimated for. The sun direction points FROM the scene TOWARD the sun.
+- ``cam_from_world`` (4x4 or 3x3) maps the scene's world frame to the camera; only its rotation matters (light is at
+  infinity). The world's up vector is ``meta['up_in_world']`` when given, else the up (-y) of this camera assumed level:
+  for KITTI-style worlds (world = first camera) and z-up worlds seen by level cameras both are right.
+- Radiometric units are those of the input: linear sRGB of the image (8-bit 255 -> 1.0), or of the env map. A white
+  Lambertian surface with normal n shows radiance ``(E_sh(n) + E_sun max(0, n.l) v) / pi`` (see ``shading``).
+- ``sun_sky_ratio`` is for the horizontal ground (normal = up); see ``shadows`` for how it sets shadow strength.
+
+Sources, in order of preference: an environment map (``envmap``), GPS + UTC + camera orientation in ``meta`` (pvlib),
+image cues (visible sun disc, sky gradient) with a known camera. Sun strength always comes from the env map, or else
+from lit vs shadowed ground in the image (``ratio``); ``meta['indoor'] = True`` forces environment light only.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry import Intrinsics
+from .envmap import EnvironmentMap, assemble_envmap, camera_ray_directions
+from .hdr import InverseToneMapParams, inverse_tone_map, luminance, srgb_to_linear
+from .ratio import LitShadowMeasurement, ground_region_mask, measure_lit_shadow
+from .sh import project_envmap_to_sh, sh_irradiance
+from .sky import preetham_sky_radiance
+from .sun import (_rot3, frame_from_up, remove_sun, solar_direction_enu, sun_cue_from_image,
+                  sun_direction_in_cam_from_metadata, sun_from_envmap, sun_direction_grid)
+
+__all__ = ["LightingEstimate", "LightingConfig", "estimate_lighting", "lighting_from_envmap"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LightingEstimate:
+    """Lighting of one frame in its camera frame (see module docstring).
+
+    sun_direction_in_cam: unit (3,) toward the sun, or None when there is no dominant sun.
+    sun_irradiance_rgb: (3,) linear irradiance of the sun at normal incidence (zeros without a dominant sun).
+    ambient_sh: (9, 3) SH of the incident radiance without the sun (``sh`` conventions).
+    sun_sky_ratio: sun / sky irradiance on the horizontal ground (0 without a dominant sun).
+    dominant_sun: whether shadows should be cast. confidence: in [0, 1], of the sun direction.
+    source: 'envmap' | 'metadata' | 'image_cues' | 'none'. up_in_cam: unit (3,) up used for the ground.
+    """
+
+    sun_direction_in_cam: np.ndarray | None
+    sun_irradiance_rgb: np.ndarray
+    ambient_sh: np.ndarray
+    sun_sky_ratio: float
+    dominant_sun: bool
+    confidence: float
+    source: str
+    up_in_cam: np.ndarray = field(default_factory=lambda: np.array([0.0, -1.0, 0.0]))
+
+    def __post_init__(self):
+        for name in ("sun_irradiance_rgb", "ambient_sh", "up_in_cam"):
+            a = np.asarray(getattr(self, name), dtype=np.float64)
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"LightingEstimate.{name} contains NaN or Inf")
+            object.__setattr__(self, name, a)
+        if self.ambient_sh.shape != (9, 3) or self.sun_irradiance_rgb.shape != (3,):
+            raise ValueError("LightingEstimate: ambient_sh must be (9, 3) and sun_irradiance_rgb (3,)")
+        if self.sun_direction_in_cam is not None:
+            d = np.asarray(self.sun_direction_in_cam, dtype=np.float64).reshape(3)
+            n = np.linalg.norm(d)
+            if not np.isfinite(n) or n < 1e-9:
+                raise ValueError("LightingEstimate: sun direction must be a finite non-zero vector")
+            object.__setattr__(self, "sun_direction_in_cam", d / n)
+        if not (np.isfinite(self.sun_sky_ratio) and self.sun_sky_ratio >= 0):
+            raise ValueError(f"LightingEstimate: sun_sky_ratio must be finite >= 0, got {self.sun_sky_ratio}")
+        object.__setattr__(self, "confidence", float(np.clip(self.confidence, 0.0, 1.0)))
+
+    def sky_irradiance_on_ground(self) -> np.ndarray:
+        return sh_irradiance(self.ambient_sh, self.up_in_cam)
+
+    def to_dict(self) -> dict:
+        """JSON-ready record (written beside each insertion so it can be replayed)."""
+        return {
+            "sun_direction_in_cam": None if self.sun_direction_in_cam is None else self.sun_direction_in_cam.tolist(),
+            "sun_irradiance_rgb": self.sun_irradiance_rgb.tolist(),
+            "ambient_sh": self.ambient_sh.tolist(),
+            "sun_sky_ratio": float(self.sun_sky_ratio),
+            "dominant_sun": bool(self.dominant_sun),
+            "confidence": float(self.confidence),
+            "source": self.source,
+            "up_in_cam": self.up_in_cam.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class LightingConfig:
+    """Thresholds and priors of :func:`estimate_lighting` (loadable from YAML with ``config.load_config``)."""
+
+    #: A light larger than this (sr) is an area (window, bright cloud), not a sun: 0.05 sr ~ a disc of 7 deg radius.
+    max_sun_solid_angle_sr: float = 0.05
+    #: Minimum sun/sky ratio on the ground for the sun to count as dominant (shadows visible).
+    min_dominant_sun_sky_ratio: float = 0.3
+    #: Sun/sky ratio assumed when the image shows the sun (disc or confident cue) but no lit/shadow ground pair.
+    default_sun_sky_ratio: float = 3.0
+    #: Minimum image-cue confidence to declare a sun without a lit/shadow measurement.
+    min_cue_confidence: float = 0.6
+    #: Field of view prior when no intrinsics are given (deg, horizontal).
+    prior_hfov_deg: float = 60.0
+    #: Resolution of the ambient maps built internally (rows; width is twice).
+    ambient_map_height: int = 32
+    #: cos(sun zenith) is clamped to at least this when turning the ground ratio into normal-incidence irradiance.
+    min_sun_cos: float = 0.1
+    camera_height_m: float = 1.65
+    #: Ground box used for lit/shadow when no ground mask is given (m, gravity-aligned camera frame).
+    ground_lateral_range_m: tuple[float, float] = (-1.5, 1.5)
+    ground_forward_range_m: tuple[float, float] = (5.0, 20.0)
+    turbidity: float = 3.0
+    #: Sun cues and the ambient map are computed on a copy at most this wide (pixels).
+    analysis_width: int = 400
+
+    def __post_init__(self):
+        if self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or self.default_sun_sky_ratio < 0:
+            raise ValueError("LightingConfig: invalid values")
+
+
+def _downsample_map(radiance: np.ndarray, max_height: int = 128) -> np.ndarray:
+    h, w = radiance.shape[:2]
+    f = 1
+    while h // (2 * f) >= max_height // 2 and h // f > max_height and h % (2 * f) == 0 and w % (2 * f) == 0:
+        f *= 2
+    return radiance.reshape(h // f, f, w // f, f, 3).mean(axis=(1, 3)) if f > 1 else radiance
+
+
+def _downscale(img: np.ndarray, K: Intrinsics, max_width: int) -> tuple[np.ndarray, Intrinsics]:
+    """Area-resample an image (and its intrinsics) so that it is at most ``max_width`` wide."""
+    import cv2
+
+    h, w = img.shape[:2]
+    if w <= max_width:
+        return img, K
+    s = max_width / w
+    K2 = K.scaled(s)
+    return cv2.resize(img, (K2.width, K2.height), interpolation=cv2.INTER_AREA), K2
+
+
+def lighting_from_envmap(env: EnvironmentMap, cam_from_world: np.ndarray | None = None,
+                         up_in_world: np.ndarray | None = None, config: LightingConfig = LightingConfig(),
+                         indoor: bool = False) -> LightingEstimate:
+    """Sun = the map's brightest compact light (kept only if dominant), ambient = SH of the map without it."""
+    R_cw = np.eye(3) if cam_from_world is None else _rot3(cam_from_world)
+    cam_from_env = R_cw @ env.world_from_env
+    up_in_cam = cam_from_env @ np.array([0.0, 0.0, 1.0]) if up_in_world is None else R_cw @ np.asarray(up_in_world)
+    up_in_cam = up_in_cam / np.linalg.norm(up_in_cam)
+    sun = sun_from_envmap(env.radiance)
+    ambient = _downsample_map(remove_sun(env.radiance, sun))
+    sh = project_envmap_to_sh(ambient, cam_from_env)
+    sun_dir = cam_from_env @ sun.direction_in_env
+    e_sky = float(luminance(sh_irradiance(sh, up_in_cam)))
+    e_sun_ground = float(luminance(sun.irradiance_rgb)) * max(0.0, float(sun_dir @ up_in_cam))
+    ratio = e_sun_ground / max(e_sky, 1e-12)  # eps: a black sky with a sun gives a huge but finite ratio
+    dominant = (not indoor and sun.solid_angle_sr <= config.max_sun_solid_angle_sr
+                and ratio >= config.min_dominant_sun_sky_ratio and float(sun_dir @ up_in_cam) > 0.0)
+    if not dominant:
+        full = project_envmap_to_sh(_downsample_map(env.radiance), cam_from_env)
+        return LightingEstimate(None, np.zeros(3), full, 0.0, False, 1.0, "envmap", up_in_cam)
+    return LightingEstimate(sun_dir, sun.irradiance_rgb, sh, float(ratio), True, 1.0, "envmap", up_in_cam)
+
+
+def _ambient_from_image(linear: np.ndarray, K: Intrinsics, up_in_cam: np.ndarray, sun_dir_cam: np.ndarray | None,
+                        config: LightingConfig) -> np.ndarray:
+    """SH (9, 3) in the camera frame of an env map built from this one frame plus a Preetham sky and a ground fill."""
+    env_from_cam = frame_from_up(up_in_cam, np.array([0.0, 0.0, 1.0]))  # env z = up, env x = camera forward
+    cam_from_env = env_from_cam.T
+    rays = camera_ray_directions(K)
+    elev = rays @ up_in_cam
+    above, below = elev > 0.03, elev < -0.03
+    Y = luminance(linear)
+    sun_env = env_from_cam @ (sun_dir_cam if sun_dir_cam is not None else up_in_cam)
+    sky_scale = None
+    if above.sum() > 50:
+        # Match the model sky to the brightness of what the camera saw above the horizon (median, robust to clipping).
+        model = luminance(preetham_sky_radiance(rays[above] @ env_from_cam.T, sun_env, turbidity=config.turbidity))
+        sky_scale = float(np.median(Y[above])) / max(float(np.median(model)), 1e-12)
+    if sky_scale is None or not np.isfinite(sky_scale):
+        ref = float(np.percentile(Y, 90)) if Y.size else 0.0
+        zen = float(luminance(preetham_sky_radiance(np.array([0.0, 0.0, 1.0]), sun_env, turbidity=config.turbidity)))
+        sky_scale = ref / max(zen, 1e-12)
+    ground_rgb = np.median(linear[below], axis=0) if below.sum() > 50 else np.median(linear.reshape(-1, 3), axis=0)
+
+    def fill(dirs_env: np.ndarray) -> np.ndarray:
+        sky = preetham_sky_radiance(dirs_env, sun_env, turbidity=config.turbidity) * sky_scale
+        return np.where(dirs_env[:, 2:3] > 0, sky, ground_rgb[None, :])
+
+    radiance, _ = assemble_envmap([linear], [K], [cam_from_env], height=config.ambient_map_height, fill=fill)
+    return project_envmap_to_sh(radiance, cam_from_env)
+
+
+def estimate_lighting(
+    image_rgb_uint8: np.ndarray,
+    intrinsics: Intrinsics | None = None,
+    cam_from_world: np.ndarray | None = None,
+    meta: dict | None = None,
+    envmap: EnvironmentMap | np.ndarray | None = None,
+    rng: np.random.Generator | None = None,
+    config: LightingConfig = LightingConfig(),
+) -> LightingEstimate:
+    """Estimate the lighting of one RGB uint8 frame (see the module docstring for frames, units and sources).
+
+    ``meta`` keys used: 'lat', 'lon', 'utc' (ISO string) with an orientation ('enu_from_cam', 'enu_from_world' or
+    'heading_deg' [+ 'pitch_deg', 'roll_deg']); 'up_in_world' (3,); 'indoor' (bool); 'ground_mask' ((H, W) bool: the
+    ground region used for lit/shadow); 'world_from_env' (3x3, orientation of ``envmap`` given as an array).
+    ``rng`` only subsamples pixels (None -> a fixed seed). The result is always finite.
+    """
+    img = np.asarray(image_rgb_uint8)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError(f"estimate_lighting: image must be (H, W, 3) uint8 RGB, got {img.shape} {img.dtype}")
+    h, w = img.shape[:2]
+    if h < 8 or w < 8:
+        raise ValueError(f"estimate_lighting: image too small ({w}x{h})")
+    meta = dict(meta or {})
+    rng = np.random.default_rng(0) if rng is None else rng
+    R_cw = np.eye(3) if cam_from_world is None else _rot3(cam_from_world)
+    if "up_in_world" in meta:
+        up_in_world = np.asarray(meta["up_in_world"], dtype=np.float64).reshape(3)
+    else:
+        up_in_world = R_cw.T @ np.array([0.0, -1.0, 0.0])
+    up_in_world = up_in_world / np.linalg.norm(up_in_world)
+    up_in_cam = R_cw @ up_in_world
+    indoor = bool(meta.get("indoor", False))
+
+    if envmap is not None:
+        env = envmap if isinstance(envmap, EnvironmentMap) else EnvironmentMap(
+            np.asarray(envmap, dtype=np.float32), np.asarray(meta.get("world_from_env", np.eye(3))))
+        return lighting_from_envmap(env, R_cw, up_in_world if "up_in_world" in meta else None, config, indoor)
+
+    known_camera = intrinsics is not None
+    K = intrinsics if known_camera else Intrinsics.from_fov(w, h, config.prior_hfov_deg)
+    if (K.width, K.height) != (w, h):
+        raise ValueError(f"estimate_lighting: intrinsics are for {K.width}x{K.height}, image is {w}x{h}")
+    unclipped_linear = srgb_to_linear(img)  # full resolution: thin cast shadows matter for the lit/shadow ratio
+    small, K_small = _downscale(img, K, config.analysis_width)
+    linear_small = inverse_tone_map(small, InverseToneMapParams())
+
+    # Sun direction.
+    sun_dir, confidence, source, cue = None, 0.0, "none", None
+    if not indoor:
+        try:
+            sun_dir = sun_direction_in_cam_from_metadata(meta, R_cw if cam_from_world is not None else None)
+        except ValueError as e:
+            log.warning("lighting: metadata sun position unusable (%s); falling back to image cues", e)
+            sun_dir = None
+        if sun_dir is not None:
+            confidence, source = 0.95, "metadata"
+        else:
+            grid_up, azel = sun_direction_grid()
+            grid_world = grid_up @ frame_from_up(up_in_world)
+            cue = sun_cue_from_image(small, K_small, R_cw, up_in_world, grid_world, rng=rng)
+            loglik = cue.log_likelihood
+            if all(k in meta for k in ("lat", "lon", "utc")):
+                # Position and time without orientation still fix the sun's elevation.
+                el = np.arcsin(np.clip(solar_direction_enu(meta["lat"], meta["lon"], meta["utc"])[2], -1, 1))
+                loglik = loglik - 0.5 * ((azel[:, 1] - el) / np.deg2rad(3.0)) ** 2
+            best = int(np.argmax(loglik))
+            sun_dir = R_cw @ grid_world[best]
+            confidence = cue.confidence * (1.0 if known_camera else 0.5)
+            source = "image_cues"
+
+    # Sun strength: lit vs shadowed ground.
+    region = meta.get("ground_mask")
+    if region is None:
+        region = ground_region_mask(K, up_in_cam, config.camera_height_m, config.ground_lateral_range_m,
+                                    config.ground_forward_range_m)
+    measurement: LitShadowMeasurement | None = measure_lit_shadow(unclipped_linear, np.asarray(region, bool), rng=rng)
+    if indoor:
+        dominant = False
+    elif measurement is not None and measurement.dominant_sun:
+        dominant = True
+    else:
+        dominant = cue is not None and (cue.sun_visible or cue.confidence >= config.min_cue_confidence) and (
+            measurement is None or measurement.shadow_fraction < 0.01)
+        dominant = dominant or (source == "metadata" and measurement is None)
+    if sun_dir is not None and float(sun_dir @ up_in_cam) <= 0.0:
+        dominant = False  # the sun is at or below the horizon: no direct light
+    sh = _ambient_from_image(linear_small, K_small, up_in_cam, sun_dir if dominant else None, config)
+    if not dominant or sun_dir is None:
+        return LightingEstimate(None, np.zeros(3), sh, 0.0, False, confidence, source, up_in_cam)
+
+    e_sky = sh_irradiance(sh, up_in_cam)
+    cos_z = max(float(sun_dir @ up_in_cam), config.min_sun_cos)
+    if measurement is not None and measurement.dominant_sun:
+        # Per channel: lit / shadow - 1 = E_sun,c cos(z) / E_sky,c.
+        r_rgb = np.clip(measurement.lit_rgb / np.maximum(measurement.shadow_rgb, 1e-6) - 1.0, 0.0, None)
+        ratio = measurement.sun_sky_ratio
+    else:
+        r_rgb = np.full(3, config.default_sun_sky_ratio)
+        ratio = config.default_sun_sky_ratio
+    sun_irr = r_rgb * e_sky / cos_z
+    sun_irr = np.nan_to_num(sun_irr, nan=0.0, posinf=0.0)
+    return LightingEstimate(sun_dir, sun_irr, sh, float(ratio), True, confidence, source, up_in_cam)

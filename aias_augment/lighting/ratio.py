@@ -1,0 +1,136 @@
+"""Sun-to-sky ratio from lit versus shadowed ground of one material, and detection of scenes with no dominant sun.
+
+Method: inside a ground region (given, or the road-like area below the horizon), fit a two-component Gaussian mixture
+to log-luminance (sklearn). A sunny ground with cast shadows is bimodal: the dark mode is shadow (sky light only), the
+bright mode lit (sky + sun). Same material is enforced loosely by dropping pixels whose chromaticity is far from the
+region's median (lane paint, grass, cars). Pixels near the class boundary (penumbrae, texture) are dropped by keeping only
+confident posteriors and eroding each class. The ratio uses class medians of linear luminance.
+
+A scene has a dominant sun when the mixture is clearly bimodal (Ashman's D >= ``min_separation``), both modes hold at
+least ``min_fraction`` of the region, and lit / shadow >= ``min_lit_to_shadow``. Overcast and indoor ground is unimodal
+(D < 2 for a single Gaussian's best two-component fit) or too flat. See ``shadows`` for the ratio convention.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ..geometry import Intrinsics
+from .envmap import camera_ray_directions
+from .hdr import luminance
+
+__all__ = ["LitShadowMeasurement", "measure_lit_shadow", "ground_region_mask"]
+
+
+@dataclass(frozen=True)
+class LitShadowMeasurement:
+    """Result of :func:`measure_lit_shadow`. Luminances and RGB are linear; masks are (H, W) bool."""
+
+    lit_rgb: np.ndarray
+    shadow_rgb: np.ndarray
+    lit_luminance: float
+    shadow_luminance: float
+    shadow_to_lit: float
+    sun_sky_ratio: float
+    separation: float
+    shadow_fraction: float
+    n_pixels: int
+    dominant_sun: bool
+    lit_mask: np.ndarray
+    shadow_mask: np.ndarray
+
+
+def ground_region_mask(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = 1.65,
+                       lateral_range_m: tuple[float, float] = (-3.0, 3.0),
+                       forward_range_m: tuple[float, float] = (5.0, 25.0)) -> np.ndarray:
+    """Pixels whose ray meets a flat ground ``camera_height_m`` below the camera inside a box in front of it.
+
+    The box is in the gravity-aligned frame of the camera: lateral (x, right positive) and forward distance (m). KITTI's
+    camera is 1.65 m above the road. Returns (H, W) bool.
+    """
+    up = np.asarray(up_in_cam, dtype=np.float64)
+    up = up / np.linalg.norm(up)
+    rays = camera_ray_directions(intrinsics)
+    down_cos = -(rays @ up)
+    ok = down_cos > 1e-6  # rays at or above the horizon never meet the ground
+    t = np.where(ok, camera_height_m / np.maximum(down_cos, 1e-6), 0.0)
+    pts = rays * t[..., None]
+    fwd = np.array([0.0, 0.0, 1.0]) - up[2] * up
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, up)  # level OpenCV camera: z x (-y) = +x
+    lat = pts @ right
+    fwd_d = pts @ fwd
+    return ok & (lat >= lateral_range_m[0]) & (lat <= lateral_range_m[1]) & (fwd_d >= forward_range_m[0]) & (
+        fwd_d <= forward_range_m[1])
+
+
+def measure_lit_shadow(
+    image_linear: np.ndarray,
+    region_mask: np.ndarray,
+    *,
+    max_chroma_dev: float = 0.04,
+    min_posterior: float = 0.95,
+    erode_px: int = 0,
+    min_separation: float = 2.0,
+    min_fraction: float = 0.01,
+    min_lit_to_shadow: float = 1.5,
+    max_samples: int = 20000,
+    rng: np.random.Generator | None = None,
+) -> LitShadowMeasurement | None:
+    """Measure lit and shadowed luminance of the ground in ``region_mask``; None if fewer than 200 usable pixels.
+
+    ``image_linear``: (H, W, 3) float linear RGB (use ``hdr.srgb_to_linear``; clipped pixels are excluded).
+    """
+    from sklearn.mixture import GaussianMixture
+
+    img = np.asarray(image_linear, dtype=np.float64)
+    region = np.asarray(region_mask, bool)
+    if img.ndim != 3 or img.shape[2] != 3 or region.shape != img.shape[:2]:
+        raise ValueError(f"measure_lit_shadow: image {img.shape} and mask {region.shape} do not match")
+    rng = np.random.default_rng(0) if rng is None else rng
+    Y = luminance(img).astype(np.float64)
+    usable = region & np.isfinite(Y) & (Y > 1e-4) & (img.max(axis=2) < 0.97)
+    if usable.sum() < 200:
+        return None
+    chroma = img / np.maximum(img.sum(axis=2, keepdims=True), 1e-6)  # eps: black pixels are already excluded
+    med = np.median(chroma[usable], axis=0)
+    # Shadows are bluer (sky light), so allow more deviation toward blue than elsewhere.
+    dev = chroma - med
+    dev[..., 2] = np.where(dev[..., 2] > 0, dev[..., 2] * 0.5, dev[..., 2])
+    usable &= np.abs(dev).max(axis=2) < max_chroma_dev * 2.0
+    if usable.sum() < 200:
+        return None
+    logY = np.log(Y)
+    idx = np.flatnonzero(usable.ravel())
+    fit_idx = rng.choice(idx, max_samples, replace=False) if idx.size > max_samples else idx
+    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=2).fit(logY.ravel()[fit_idx, None])
+    mu = gm.means_.ravel()
+    sd = np.sqrt(gm.covariances_.ravel())
+    dark, bright = int(np.argmin(mu)), int(np.argmax(mu))
+    separation = float(abs(mu[bright] - mu[dark]) / np.sqrt(0.5 * (sd[0] ** 2 + sd[1] ** 2)))
+    post = np.zeros(Y.size)
+    post[idx] = gm.predict_proba(logY.ravel()[idx, None])[:, dark]
+    post = post.reshape(Y.shape)
+    shadow = usable & (post >= min_posterior)
+    lit = usable & (post <= 1.0 - min_posterior)
+    if erode_px > 0:
+        shadow = ndimage.binary_erosion(shadow, iterations=erode_px)
+        lit = ndimage.binary_erosion(lit, iterations=erode_px)
+    n = int(usable.sum())
+    if shadow.sum() < 20 or lit.sum() < 20:
+        shadow_fraction = float(shadow.sum()) / n
+        return LitShadowMeasurement(np.median(img[usable], 0), np.median(img[usable], 0), float(np.median(Y[usable])),
+                                    float(np.median(Y[usable])), 1.0, 0.0, separation, shadow_fraction, n, False,
+                                    lit, shadow)
+    lit_rgb = np.median(img[lit], axis=0)
+    shadow_rgb = np.median(img[shadow], axis=0)
+    lit_y, shadow_y = float(np.median(Y[lit])), float(np.median(Y[shadow]))
+    shadow_to_lit = shadow_y / max(lit_y, 1e-12)
+    frac = float(shadow.sum()) / max(float(shadow.sum() + lit.sum()), 1.0)
+    dominant = bool(separation >= min_separation and min_fraction <= frac <= 1.0 - min_fraction
+                    and lit_y / max(shadow_y, 1e-12) >= min_lit_to_shadow)
+    return LitShadowMeasurement(lit_rgb, shadow_rgb, lit_y, shadow_y, float(shadow_to_lit),
+                                float(max(lit_y / max(shadow_y, 1e-12) - 1.0, 0.0)), separation, frac, n, dominant,
+                                lit, shadow)
