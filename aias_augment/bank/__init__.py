@@ -124,22 +124,22 @@ def import_record(record: CatalogRecord, cache: MeshCache, taxonomy: Taxonomy, *
         key = cache.key(record.id, _record_stamp(record))
     except (OSError, KeyError) as e:
         return replace(record, status="rejected", notes=(f"source unavailable: {e}",)), None
-    parts = None if force else cache.load(key)
-    notes = list(record.notes)
-    if parts is None:
-        try:
+    hit = None if force else cache.load(key)
+    parts, notes = hit if hit is not None else (None, [])
+    fresh = hit is None
+    try:
+        if fresh:
             parts, notes = _LOADERS[record.importer](record)
-            ext = np.array([p.bounds for p in parts])
-            extents = ext[:, 1].max(0) - ext[:, 0].min(0)
-            check_size(extents, record.category, taxonomy.height_range_m(record.category), where=record.source)
-        except AssetError as e:
-            log.warning("rejected %s: %s", record.id, e)
-            return replace(record, status="rejected", notes=(str(e),)), None
-        if cache.save(key, list(parts)):
-            notes.append("texture downscaled to at most 2048 px")
-    b = np.array([p.bounds for p in parts])
-    extents = tuple(float(x) for x in b[:, 1].max(0) - b[:, 0].min(0))
-    status = record.status if record.status in ("ok", "repaired") else ("repaired" if notes else "ok")
+        b = np.array([p.bounds for p in parts])
+        extents = tuple(float(x) for x in b[:, 1].max(0) - b[:, 0].min(0))
+        # checked on cache hits too: the category (taxonomy) may have changed since the mesh was cached
+        check_size(np.array(extents), record.category, taxonomy.height_range_m(record.category), where=record.source)
+    except AssetError as e:
+        log.warning("rejected %s: %s", record.id, e)
+        return replace(record, status="rejected", notes=(str(e),)), None
+    if fresh and cache.save(key, list(parts), notes):
+        notes = notes + ["texture downscaled to at most 2048 px"]
+    status = "repaired" if notes else "ok"
     return replace(record, dimensions_m=extents, triangle_count=int(sum(len(p.faces) for p in parts)),
                    textured=_textured(parts), status=status, notes=tuple(notes)), parts
 

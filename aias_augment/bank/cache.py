@@ -21,7 +21,7 @@ from .meshio import part_base_color, part_texture_image
 
 __all__ = ["default_cache_dir", "MeshCache", "source_stamp", "CACHE_FORMAT"]
 
-CACHE_FORMAT = 2
+CACHE_FORMAT = 3
 MAX_TEXTURE_SIDE = 2048  # larger textures are downscaled (noted by the importer): a thumbnail-to-HD object never needs more
 
 
@@ -68,8 +68,8 @@ class MeshCache:
     def has(self, key: str) -> bool:
         return self.path(key).is_file()
 
-    def save(self, key: str, parts: list[trimesh.Trimesh]) -> bool:
-        """Store parts; returns whether any texture had to be downscaled."""
+    def save(self, key: str, parts: list[trimesh.Trimesh], notes: list[str] = ()) -> bool:
+        """Store parts and the import's repair notes; returns whether any texture had to be downscaled."""
         arrays: dict[str, np.ndarray] = {"count": np.array([len(parts)], np.int32),
                                          "rgba": np.stack([part_base_color(p) for p in parts])}
         downscaled = False
@@ -86,6 +86,8 @@ class MeshCache:
                 arrays[f"tex{i}"] = np.frombuffer(data, np.uint8)
             elif p.visual.kind in ("vertex", "face"):
                 arrays[f"vc{i}"] = np.asarray(p.visual.vertex_colors, np.uint8)
+        notes = list(notes) + (["texture downscaled to at most 2048 px"] if downscaled else [])
+        arrays["notes"] = np.frombuffer(json.dumps(notes).encode(), np.uint8)
         path = self.path(key)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + f".tmp{os.getpid()}")
@@ -94,14 +96,16 @@ class MeshCache:
         os.replace(tmp, path)
         return downscaled
 
-    def load(self, key: str) -> tuple[trimesh.Trimesh, ...] | None:
-        """The cached parts, or None on a miss or an unreadable entry (which is then deleted)."""
+    def load(self, key: str) -> tuple[tuple[trimesh.Trimesh, ...], list[str]] | None:
+        """The cached parts and their repair notes, or None on a miss or an unreadable entry (then deleted)."""
         path = self.path(key)
         if not path.is_file():
             return None
         try:
             with np.load(path) as z:
                 data = {k: z[k] for k in z.files}
+            if "count" not in data or "notes" not in data:
+                raise ValueError("incomplete cache entry")
         except Exception:  # truncated/corrupt entry: treat as a miss and rebuild
             path.unlink(missing_ok=True)
             return None
@@ -118,4 +122,4 @@ class MeshCache:
                 visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.SimpleMaterial(diffuse=rgba))
             parts.append(trimesh.Trimesh(data[f"v{i}"].astype(np.float64), data[f"f{i}"].astype(np.int64),
                                          vertex_normals=data[f"n{i}"], visual=visual, process=False))
-        return tuple(parts)
+        return tuple(parts), json.loads(data["notes"].tobytes().decode())
