@@ -6,7 +6,8 @@ An inserted (or existing) object is an :class:`OrientedBox` in the camera frame.
 - it intersects an existing object's box (separating-axis test on the two boxes);
 - the scene depth says it would be mostly hidden (fraction of its projected footprint/box pixels where the scene
   is nearer than the object by ``depth_margin_m``).
-Each check returns a reason string or None, so a placement report can say why a candidate was rejected.
+Each check returns a reason string or None, so a placement report can say why a candidate was rejected; reasons
+read ``"<stable key>: <detail>"`` so reports can count by ``reason.split(":")[0]``.
 """
 from __future__ import annotations
 
@@ -114,7 +115,7 @@ def scene_points_collision(box: OrientedBox, points_in_cam: np.ndarray | None, g
     inside = points_inside_box(p[above], box, cfg.margin_m)
     n = int(inside.sum())
     if n >= cfg.min_points_inside:
-        return f"intersects {n} scene points above the ground"
+        return f"intersects scene points above the ground: {n} points"
     return None
 
 
@@ -122,7 +123,7 @@ def existing_objects_collision(box: OrientedBox, existing: list[OrientedBox] | N
                                cfg: CollisionConfig = CollisionConfig()) -> str | None:
     for other in existing or ():
         if boxes_intersect(box, other, cfg.margin_m):
-            return f"intersects existing object {other.label or '(unnamed)'}"
+            return f"intersects an existing object: {other.label or '(unnamed)'}"
     return None
 
 
@@ -148,7 +149,7 @@ def depth_occlusion(box: OrientedBox, depth: np.ndarray | None, intrinsics: Intr
     nearest = float(transform_points(np.eye(4), box.corners())[:, 2].min())
     occluded = float(np.mean(scene[known] < nearest - cfg.depth_margin_m))
     if occluded > cfg.max_occluded_frac:
-        return f"hidden behind nearer scene surfaces ({occluded:.0%} of its pixels)", occluded
+        return f"hidden behind nearer scene surfaces: {occluded:.0%} of its pixels", occluded
     return None, occluded
 
 

@@ -119,8 +119,7 @@ def place_one(frame, points, up, existing, asset, rng, args, reasons: Counter):
         reason = check_candidate(box, local, intr, points_in_cam=points, existing=existing, depth=frame.depth,
                                  cfg=CollisionConfig())
         if reason is not None:
-            reasons[reason.split(" (")[0] if "hidden" in reason else
-                    ("intersects scene points above the ground" if "scene points" in reason else reason)] += 1
+            reasons[reason.split(":")[0]] += 1
             continue
         return {"contact": contact, "box": box, "local": local, "coarse": coarse, "placement": placement,
                 "region": region.to_dict()}
