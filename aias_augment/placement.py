@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .assets import CATEGORY_HEIGHT_RANGE_M, Asset
+from .collision import CollisionConfig, OrientedBox, check_candidate
 from .geometry import Intrinsics, make_rigid, project_points, transform_points
 from .ground import GroundPlane
 
@@ -99,7 +100,9 @@ def _overlap_frac(box: np.ndarray, others: np.ndarray) -> float:
 def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, rng: np.random.Generator, *,
                      existing_boxes_xyxy: np.ndarray | None = None, depth: np.ndarray | None = None,
                      region_mask: np.ndarray | None = None, height_range_m: tuple[float, float] | None = None,
-                     cfg: PlacementConfig = PlacementConfig()) -> tuple[Placement | None, PlacementReport]:
+                     cfg: PlacementConfig = PlacementConfig(), points_in_cam: np.ndarray | None = None,
+                     existing_objects: list | None = None,
+                     collision_cfg=None) -> tuple[Placement | None, PlacementReport]:
     """Choose a ground point, scale and yaw for ``asset``; ``None`` (with reasons) when no candidate passes.
 
     Candidates: a pixel drawn uniformly in the ground region (below the horizon, inside ``region_mask`` when
@@ -167,6 +170,16 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
         if _overlap_frac(box, existing) > cfg.max_overlap_existing:
             report.rejected["overlaps an existing box"] += 1
             continue
+        if points_in_cam is not None or existing_objects:
+            # 3D checks (collision.py): LiDAR/stereo points inside the object's box above the ground, existing
+            # 3D boxes (OrientedBox), depth occlusion. Reasons read "key: detail"; the report counts by key.
+            box3d = OrientedBox.standing_on_ground(cam_from_object, tuple(asset.extents_m * scale), asset.category)
+            reason = check_candidate(box3d, ground, intrinsics, points_in_cam=points_in_cam,
+                                     existing=existing_objects, depth=depth,
+                                     cfg=collision_cfg if collision_cfg is not None else CollisionConfig())
+            if reason is not None:
+                report.rejected[reason.split(":")[0]] += 1
+                continue
         report.chosen_because = (
             f"first candidate passing all checks (try {report.tries}): ground point at {dist:.1f} m, "
             f"box {bh:.0f} px high"

@@ -68,3 +68,23 @@ def test_depth_occlusion_and_reasons():
 def test_invalid_box():
     with pytest.raises(ValueError):
         OrientedBox(np.eye(4), (1.0, 0.0, 1.0))
+
+
+def test_sample_placement_rejects_candidates_inside_point_clusters():
+    """placement.sample_placement with points_in_cam: a wall of points across the whole ground in front rejects
+    every candidate with the collision reason, and without the points the same seed places the object."""
+    import trimesh
+
+    from aias_augment.assets import Asset
+    from aias_augment.placement import PlacementConfig, sample_placement
+
+    asset = Asset("box", "barrel", (trimesh.creation.box((0.6, 0.6, 1.0), trimesh.transformations.translation_matrix(
+        [0, 0, 0.5])),), "test")
+    xs, ys, zs = np.meshgrid(np.linspace(-30, 30, 121), np.linspace(0.6, 1.4, 5), np.linspace(2, 40, 77))
+    forest = np.column_stack([xs.ravel(), ys.ravel(), zs.ravel()])  # points 0.1..0.9 m above the ground
+    cfg = PlacementConfig(max_tries=20)
+    placed, _ = sample_placement(asset, GROUND, INTR, np.random.default_rng(0), cfg=cfg, height_range_m=(1.0, 1.0))
+    assert placed is not None
+    none, report = sample_placement(asset, GROUND, INTR, np.random.default_rng(0), cfg=cfg, points_in_cam=forest,
+                                    height_range_m=(1.0, 1.0))
+    assert none is None and report.rejected["intersects scene points above the ground"] > 0
