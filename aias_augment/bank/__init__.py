@@ -239,20 +239,24 @@ class AssetBank:
 
         An asset that fails to import is marked rejected, logged and counted in ``skipped``; another is drawn.
         """
+        failures: list[str] = []
         for _ in range(max_tries):
             cands = sorted(self.records(category), key=lambda r: r.id)
             if not cands:
-                raise KeyError(f"no usable asset of category {category!r}; available: {self.categories()}")
+                break
             r = cands[int(rng.integers(len(cands)))]
             try:
                 asset = self.load(r.id, rng)
             except AssetError as e:
                 self.skipped.append(str(e))
+                failures.append(str(e))
                 log.warning("bank.sample: skipped %s", e)
                 continue
             params = sample_variety(asset.height_m, self.taxonomy.height_range_m(category), self.variety, rng)
             return apply_variety(asset, params)
-        raise AssetError(f"bank.sample({category!r}): {max_tries} candidates failed to load: {self.skipped[-3:]}")
+        if failures:
+            raise AssetError(f"bank.sample({category!r}): {len(failures)} candidate(s) failed to load: {failures[-3:]}")
+        raise KeyError(f"no usable asset of category {category!r}; available: {self.categories()}")
 
 
 _BANKS: dict[str, AssetBank] = {}

@@ -78,7 +78,8 @@ def contact_sheet(bank, record_ids: list[str], tile_px: int = 160, columns: int 
             tile = np.full((tile_px, tile_px, 3), 255, np.uint8)
             text2, colour = "FAILED: " + str(e)[:20], (200, 0, 0)
         sheet[y0:y0 + tile_px, x0:x0 + tile_px] = tile
-        for j, t in enumerate((rec.category[:22], text2)):
-            cv2.putText(sheet, t, (x0 + 3, y0 + tile_px + 11 + 13 * j), cv2.FONT_HERSHEY_SIMPLEX, 0.33, colour, 1,
-                        cv2.LINE_AA)
+        label = np.full((label_h, tile_px, 3), 255, np.uint8)  # drawn apart so text never spills into a neighbour
+        for j, t in enumerate((rec.category, text2)):
+            cv2.putText(label, t, (3, 11 + 13 * j), cv2.FONT_HERSHEY_SIMPLEX, 0.33, colour, 1, cv2.LINE_AA)
+        sheet[y0 + tile_px:y0 + tile_px + label_h, x0:x0 + tile_px] = label
     return sheet, ok
