@@ -105,6 +105,10 @@ def measure_lit_shadow(
     logY = np.log(Y)
     idx = np.flatnonzero(usable.ravel())
     fit_idx = rng.choice(idx, max_samples, replace=False) if idx.size > max_samples else idx
+    n = int(usable.sum())
+    if float(np.ptp(logY.ravel()[fit_idx])) < 1e-3:  # one flat colour: nothing to separate
+        rgb, y = np.median(img[usable], 0), float(np.median(Y[usable]))
+        return LitShadowMeasurement(rgb, rgb, y, y, 1.0, 0.0, 0.0, 0.0, n, False, usable, np.zeros_like(usable))
     gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=2).fit(logY.ravel()[fit_idx, None])
     mu = gm.means_.ravel()
     sd = np.sqrt(gm.covariances_.ravel())
@@ -118,7 +122,6 @@ def measure_lit_shadow(
     if erode_px > 0:
         shadow = ndimage.binary_erosion(shadow, iterations=erode_px)
         lit = ndimage.binary_erosion(lit, iterations=erode_px)
-    n = int(usable.sum())
     if shadow.sum() < 20 or lit.sum() < 20:
         shadow_fraction = float(shadow.sum()) / n
         return LitShadowMeasurement(np.median(img[usable], 0), np.median(img[usable], 0), float(np.median(Y[usable])),

@@ -30,21 +30,29 @@ _A_BAND = np.array([np.pi, 2.0 * np.pi / 3.0, np.pi / 4.0])
 _A_COEFF = _A_BAND[SH_BAND_OF_COEFF]
 
 
+# Exact normalisation constants (0.282095, 0.488603, 1.092548, 0.315392, 0.546274).
+_C0 = 0.5 * np.sqrt(1.0 / np.pi)
+_C1 = np.sqrt(3.0 / (4.0 * np.pi))
+_C2 = 0.5 * np.sqrt(15.0 / np.pi)
+_C20 = 0.25 * np.sqrt(5.0 / np.pi)
+_C22 = 0.25 * np.sqrt(15.0 / np.pi)
+
+
 def sh_basis(directions: np.ndarray) -> np.ndarray:
     """Real SH basis up to l = 2 at unit directions, (*, 3) -> (*, 9)."""
     d = check_shape(directions, ("*", 3), "directions").astype(np.float64)
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
     return np.stack(
         [
-            np.full_like(x, 0.282095),
-            0.488603 * y,
-            0.488603 * z,
-            0.488603 * x,
-            1.092548 * x * y,
-            1.092548 * y * z,
-            0.315392 * (3.0 * z * z - 1.0),
-            1.092548 * x * z,
-            0.546274 * (x * x - y * y),
+            np.full_like(x, _C0),
+            _C1 * y,
+            _C1 * z,
+            _C1 * x,
+            _C2 * x * y,
+            _C2 * y * z,
+            _C20 * (3.0 * z * z - 1.0),
+            _C2 * x * z,
+            _C22 * (x * x - y * y),
         ],
         axis=-1,
     )

@@ -154,42 +154,48 @@ class SunFromEnv:
     mask: np.ndarray
 
 
-def sun_from_envmap(radiance: np.ndarray, core_fraction: float = 0.05, halo_dilation_deg: float = 3.0,
-                    ring_deg: float = 6.0) -> SunFromEnv:
-    """Find the brightest compact light of an equirectangular map (any height; azimuth seam handled).
+def sun_from_envmap(radiance: np.ndarray, core_fraction: float = 0.05, halo_deg: float = 3.0,
+                    ring_deg: float = 6.0, peak_blur_deg: float = 1.0, centroid_deg: float = 5.0) -> SunFromEnv:
+    """Find the brightest compact light of an equirectangular map (any height; seam and poles handled on the sphere).
 
-    The region is the connected set of pixels with luminance >= ``core_fraction`` x peak that contains the peak (peak
-    taken after a 1-pixel Gaussian so a single hot pixel does not win over a real disc), dilated by
-    ``halo_dilation_deg`` to include the circumsolar glow; the background is the median of a ring ``ring_deg`` wide
-    around it. A map with no light at all (all zero) returns zero irradiance and the zenith.
+    Peak: argmax of the luminance blurred by ~``peak_blur_deg`` (energy, not a single hot pixel). Region: the connected
+    set of pixels >= ``core_fraction`` x the blurred peak containing it, grown by ``halo_deg`` (angular distance on the
+    sphere) to include the circumsolar glow. Background: median radiance of the ``ring_deg`` ring around the region.
+    Direction: energy-weighted centroid of the excess radiance within ``centroid_deg`` of the peak, so a broad area
+    light (window, bright cloud) points at its brightest part. A map with no light returns zeros and the
+    zenith.
     """
+    from scipy.spatial import cKDTree
+
     rad = np.asarray(radiance, dtype=np.float64)
     h, w = rad.shape[:2]
     omega = np.broadcast_to(pixel_solid_angles(h, w), (h, w))
     lum = luminance(rad).astype(np.float64)
-    smooth = ndimage.gaussian_filter(lum, 1.0, mode=("nearest", "wrap"))
-    r0, c0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
-    peak = float(lum.max())
     dirs = pixel_directions(h, w)
+    peak = float(lum.max())
     if peak <= 0:
         return SunFromEnv(np.array([0.0, 0.0, 1.0]), np.zeros(3), np.zeros(3), 0.0, 0.0, np.zeros((h, w), bool))
-    shift = w // 2 - c0  # put the peak at the centre column: no region straddles the seam
+    sigma_px = max(peak_blur_deg / (180.0 / h), 0.5)
+    smooth = ndimage.gaussian_filter(lum, sigma_px, mode=("nearest", "wrap"))
+    r0, c0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
+    shift = w // 2 - c0  # put the peak at the centre column so the region does not straddle the seam
     lum_s = np.roll(smooth, shift, axis=1)
-    core = lum_s >= core_fraction * float(smooth[r0, c0])
-    labels, _ = ndimage.label(core)
-    core = labels == labels[r0, w // 2]
-    px_deg = 180.0 / h
-    halo_it = max(1, int(round(halo_dilation_deg / px_deg)))
-    ring_it = max(1, int(round(ring_deg / px_deg)))
-    region = ndimage.binary_dilation(core, iterations=halo_it)
-    ring = ndimage.binary_dilation(region, iterations=ring_it) & ~region
-    region = np.roll(region, -shift, axis=1)
-    ring = np.roll(ring, -shift, axis=1)
+    labels, _ = ndimage.label(lum_s >= core_fraction * float(smooth[r0, c0]))
+    core = np.roll(labels == labels[r0, w // 2], -shift, axis=1)
+    # The brightest part: within ``centroid_deg`` of the peak (a sun disc and its glow; the hot spot of a window).
+    bright = core & ((dirs @ dirs[r0, c0]) >= np.cos(np.deg2rad(centroid_deg)))
+    core_dirs = dirs[core]
+    if len(core_dirs) > 4000:
+        core_dirs = core_dirs[:: len(core_dirs) // 4000 + 1]
+    dist, _ = cKDTree(core_dirs).query(dirs.reshape(-1, 3))
+    ang = (2.0 * np.arcsin(np.clip(dist / 2.0, 0.0, 1.0))).reshape(h, w)  # chord -> angle
+    region = core | (ang <= np.deg2rad(halo_deg))
+    ring = ~region & (ang <= np.deg2rad(halo_deg + ring_deg))
     bg = np.median(rad[ring], axis=0) if ring.any() else np.zeros(3)
     excess = np.clip(rad - bg, 0.0, None) * omega[..., None]
     excess[~region] = 0.0
     irr = excess.sum(axis=(0, 1))
-    wlum = luminance(excess).astype(np.float64)
+    wlum = luminance(excess).astype(np.float64) * bright
     if wlum.sum() <= 0:
         direction = dirs[r0, c0]
     else:
@@ -249,27 +255,35 @@ def _posterior_summary(grid: np.ndarray, loglik: np.ndarray, up: np.ndarray) -> 
     return direction, float(np.clip(confidence, 0.0, 1.0))
 
 
-def _find_sun_disc(unit_rgb: np.ndarray, above: np.ndarray, max_area_frac: float = 0.03,
+def _find_sun_disc(unit_rgb: np.ndarray, above: np.ndarray, max_area_frac: float = 0.08,
                    clip_level: float = 250.0 / 255.0) -> tuple[float, float] | None:
-    """(u, v) of a clipped, compact, bright-haloed blob above the horizon, or None."""
-    clipped = (unit_rgb.min(axis=2) >= clip_level) & above  # white: every channel clipped
+    """(u, v) of a visible sun: a clipped (white) blob above the horizon that is compact (< ``max_area_frac`` of the
+    image), round (area <= 2.5 x the disc inscribed at its deepest point) and surrounded by glare (the 2-pixel ring around it
+    is bright everywhere: 10th percentile >= 0.45 linear, mean >= 2x the median above the horizon). Returns its deepest
+    point, or None."""
+    clipped = (unit_rgb.min(axis=2) >= clip_level) & above
     if not clipped.any():
         return None
+    lum = luminance(srgb_to_linear(unit_rgb))
+    sky_median = float(np.median(lum[above & ~clipped])) if (above & ~clipped).any() else 0.0
     labels, n = ndimage.label(clipped)
     sizes = ndimage.sum(clipped, labels, index=np.arange(1, n + 1))
     h, w = clipped.shape
     best = None
     for idx in np.argsort(sizes)[::-1][:5]:
-        area = sizes[idx]
+        area = float(sizes[idx])
         if area < 4 or area > max_area_frac * h * w:
             continue
         blob = labels == idx + 1
-        ring = ndimage.binary_dilation(blob, iterations=max(2, int(np.sqrt(area) / 2))) & ~blob
-        halo = luminance(srgb_to_linear(unit_rgb[ring])) if ring.any() else np.zeros(1)
-        # A sun disc is surrounded on all sides by glare; a white object or a sky gap between leaves is not.
-        if float(np.percentile(halo, 10)) < 0.3:
-            continue
         dist = ndimage.distance_transform_edt(np.pad(blob, 1))[1:-1, 1:-1]
+        depth = float(dist.max())
+        if area > 2.5 * np.pi * depth ** 2:  # elongated or ragged: a white object or a gap between leaves
+            continue
+        # Glare: every pixel just outside a clipped sun is nearly clipped too; a white facade or a sky gap between
+        # leaves has dark pixels on its border.
+        ring = ndimage.binary_dilation(blob, iterations=2) & ~blob
+        if not ring.any() or float(np.percentile(lum[ring], 10)) < 0.45 or float(lum[ring].mean()) < 2.0 * sky_median:
+            continue
         v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
         if best is None or area > best[0]:
             best = (area, float(u), float(v))

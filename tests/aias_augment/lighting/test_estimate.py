@@ -1,0 +1,99 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from aias_augment.config import data_root
+from aias_augment.geometry import Intrinsics
+from aias_augment.lighting import envmap as em, sun
+from aias_augment.lighting.estimate import LightingConfig, LightingEstimate, estimate_lighting
+
+KITTI = data_root() / "kitti06_color_snippet"
+
+
+def _finite(e: LightingEstimate):
+    assert np.all(np.isfinite(e.ambient_sh)) and np.all(np.isfinite(e.sun_irradiance_rgb))
+    assert np.isfinite(e.sun_sky_ratio) and 0 <= e.confidence <= 1
+    if e.sun_direction_in_cam is not None:
+        assert np.linalg.norm(e.sun_direction_in_cam) == pytest.approx(1.0)
+
+
+def test_envmap_source_rotated_into_camera(blender_world):
+    env = em.EnvironmentMap.from_file(blender_world("sunrise"))
+    found = sun.sun_from_envmap(env.radiance)
+    R = em.cam_from_env_look(0.4, 0.1)
+    cam_from_world = np.eye(4)
+    cam_from_world[:3, :3] = R
+    e = estimate_lighting(np.zeros((32, 48, 3), np.uint8), cam_from_world=cam_from_world, envmap=env)
+    _finite(e)
+    assert e.source == "envmap" and e.dominant_sun
+    assert sun.angle_between_deg(e.sun_direction_in_cam, R @ found.direction_in_env) < 1e-6
+    assert np.allclose(e.up_in_cam, R @ [0, 0, 1.0])
+
+
+def test_envmap_indoor_flag_gives_environment_light_only(blender_world):
+    env = em.EnvironmentMap.from_file(blender_world("interior"))
+    e = estimate_lighting(np.zeros((32, 48, 3), np.uint8), envmap=env, meta={"indoor": True})
+    assert not e.dominant_sun and e.sun_direction_in_cam is None and np.all(e.sun_irradiance_rgb == 0)
+    assert e.ambient_sh[0].min() > 0
+
+
+def test_envmap_sun_at_horizon_is_not_dominant():
+    d = em.pixel_directions(32)
+    rad = np.full((32, 64, 3), 0.5, np.float32)
+    s = em.azimuth_elevation_to_direction(0.0, np.deg2rad(-1.0))
+    rad[np.arccos(np.clip(d @ s, -1, 1)) < np.deg2rad(4)] = 1e5
+    e = estimate_lighting(np.zeros((16, 16, 3), np.uint8), envmap=em.EnvironmentMap(rad))
+    _finite(e)
+    assert not e.dominant_sun
+
+
+@pytest.mark.skipif(not (KITTI / "kitti06-12-color.png").is_file(), reason="shared KITTI data not present")
+def test_kitti_sunny_frame():
+    from PIL import Image
+
+    img = np.array(Image.open(KITTI / "kitti06-12-color.png").convert("RGB"))
+    K = Intrinsics(707.0912, 707.0912, 601.8873, 183.1104, 1226, 370)
+    e = estimate_lighting(img, K)
+    _finite(e)
+    assert e.dominant_sun and e.source == "image_cues"
+    assert 2.0 < e.sun_sky_ratio < 12.0  # clear-day sun/sky ratios on the ground
+    assert e.sun_direction_in_cam @ e.up_in_cam > 0
+
+
+def test_metadata_source_and_determinism():
+    img = np.full((60, 80, 3), 120, np.uint8)
+    meta = {"lat": 49.0, "lon": 8.4, "utc": "2011-09-30T12:00:00Z", "heading_deg": 180.0}
+    e1 = estimate_lighting(img, Intrinsics.from_fov(80, 60, 60.0), meta=meta, rng=np.random.default_rng(5))
+    e2 = estimate_lighting(img, Intrinsics.from_fov(80, 60, 60.0), meta=meta, rng=np.random.default_rng(5))
+    assert e1.source == "metadata"
+    assert e1.to_dict() == e2.to_dict()
+
+
+def test_bad_inputs():
+    with pytest.raises(ValueError):
+        estimate_lighting(np.zeros((10, 10), np.uint8))
+    with pytest.raises(ValueError):
+        estimate_lighting(np.zeros((10, 10, 3), np.float32))
+    with pytest.raises(ValueError):
+        estimate_lighting(np.zeros((30, 40, 3), np.uint8), Intrinsics.from_fov(50, 30, 60.0))
+
+
+@pytest.mark.parametrize("value", [0, 255])
+def test_black_and_white_images(value):
+    e = estimate_lighting(np.full((48, 64, 3), value, np.uint8), Intrinsics.from_fov(64, 48, 60.0))
+    _finite(e)
+    assert not e.dominant_sun
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_random_images_never_nan(seed):
+    rng = np.random.default_rng(seed)
+    img = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
+    img[:4] = 255
+    _finite(estimate_lighting(img, rng=rng))
+
+
+def test_config_validation():
+    with pytest.raises(ValueError):
+        LightingConfig(ambient_map_height=2)

@@ -1,0 +1,38 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from aias_augment.lighting import envmap as em, sky
+
+
+def test_zenith_luminance_matches_formula_at_zenith():
+    sun = em.azimuth_elevation_to_direction(0.0, np.deg2rad(40.0))
+    Yz, _, _ = sky.preetham_zenith(3.0, np.deg2rad(50.0))
+    rgb = sky.preetham_sky_radiance(np.array([0.0, 0.0, 1.0]), sun, turbidity=3.0)
+    Y = float(rgb @ np.array([0.2126, 0.7152, 0.0722]))
+    assert Y == pytest.approx(Yz, rel=0.02)
+
+
+def test_brightest_near_sun_and_blue_overhead():
+    sun = em.azimuth_elevation_to_direction(np.deg2rad(30.0), np.deg2rad(30.0))
+    d = em.pixel_directions(32)
+    rgb = sky.preetham_sky_radiance(d, sun)
+    Y = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    Y[d[..., 2] < 0] = 0
+    r, c = np.unravel_index(np.argmax(Y), Y.shape)
+    assert np.degrees(np.arccos(np.clip(d[r, c] @ sun, -1, 1))) < 10
+    zen = sky.preetham_sky_radiance(np.array([0.0, 0.0, 1.0]), sun)
+    assert zen[2] > zen[0]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-10.0, 90.0), st.floats(-180, 180), st.floats(1.5, 15.0))
+def test_sky_finite_including_horizon_sun(el_deg, az_deg, turbidity):
+    sun = em.azimuth_elevation_to_direction(np.deg2rad(az_deg), np.deg2rad(el_deg))
+    rgb = sky.preetham_sky_radiance(em.pixel_directions(8), sun, turbidity=turbidity)
+    assert np.all(np.isfinite(rgb)) and rgb.min() >= 0
+
+
+def test_bad_turbidity():
+    with pytest.raises(ValueError):
+        sky.perez_coefficients(0.5)

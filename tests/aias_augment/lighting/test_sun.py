@@ -1,0 +1,124 @@
+import numpy as np
+import pytest
+
+from aias_augment.geometry import Intrinsics
+from aias_augment.lighting import envmap as em, hdr, sky, sun
+
+
+def _approx_solar_elevation_deg(lat, lon, day_of_year, utc_hours):
+    """Textbook approximation (Cooper declination, no equation of time): good to ~1 deg."""
+    decl = np.deg2rad(23.45) * np.sin(2 * np.pi * (284 + day_of_year) / 365)
+    hour_angle = np.deg2rad(15.0 * (utc_hours + lon / 15.0 - 12.0))
+    lat = np.deg2rad(lat)
+    return np.rad2deg(np.arcsin(np.sin(lat) * np.sin(decl) + np.cos(lat) * np.cos(decl) * np.cos(hour_angle)))
+
+
+@pytest.mark.parametrize("lat,lon,utc,doy,hours", [(49.0, 8.4, "2011-09-30T12:00:00Z", 273, 12.0),
+                                                   (-33.9, 151.2, "2020-01-15T02:00:00", 15, 2.0),
+                                                   (0.0, 0.0, "2021-03-20T12:00:00Z", 79, 12.0)])
+def test_solar_elevation_matches_textbook(lat, lon, utc, doy, hours):
+    d = sun.solar_direction_enu(lat, lon, utc)
+    el = np.rad2deg(np.arcsin(d[2]))
+    # 2.5 deg: the textbook formula ignores the equation of time (up to 16 min = 4 deg of hour angle * cos terms)
+    assert el == pytest.approx(_approx_solar_elevation_deg(lat, lon, doy, hours), abs=2.5)
+    assert np.linalg.norm(d) == pytest.approx(1.0)
+
+
+def test_metadata_heading_points_camera_at_sun():
+    d = sun.solar_direction_enu(49.0, 8.4, "2011-09-30T12:00:00Z")
+    heading = np.rad2deg(np.arctan2(d[0], d[1]))  # clockwise from north
+    in_cam = sun.sun_direction_in_cam_from_metadata({"lat": 49.0, "lon": 8.4, "utc": "2011-09-30T12:00:00Z",
+                                                     "heading_deg": heading})
+    assert abs(in_cam[0]) < 1e-6 and in_cam[2] > 0 and in_cam[1] < 0  # straight ahead, above the horizon
+    assert sun.sun_direction_in_cam_from_metadata({"lat": 1, "lon": 2}) is None
+    with pytest.raises(ValueError):
+        sun.solar_direction_enu(49.0, 8.4, "not a time")
+
+
+def _sky_with_sun(h, az_deg, el_deg, peak=1e5, radius_deg=0.8):
+    d = em.pixel_directions(h)
+    s = em.azimuth_elevation_to_direction(np.deg2rad(az_deg), np.deg2rad(el_deg))
+    rad = sky.preetham_sky_radiance(d, s) * 0.01
+    rad[d[..., 2] < 0] = 0.05
+    ang = np.arccos(np.clip(d @ s, -1, 1))
+    blob = peak * np.exp(-0.5 * (ang / np.deg2rad(radius_deg)) ** 2)
+    omega = np.broadcast_to(em.pixel_solid_angles(h), (h, 2 * h))
+    return (rad + blob[..., None]).astype(np.float32), s, float((blob * omega).sum())
+
+
+@pytest.mark.parametrize("az,el", [(30.0, 45.0), (180.0, 20.0), (-90.0, 0.0), (0.0, 85.0)])
+def test_sun_from_envmap_recovers_direction_and_energy(az, el):
+    rad, s, energy = _sky_with_sun(256, az, el)
+    found = sun.sun_from_envmap(rad)
+    assert sun.angle_between_deg(found.direction_in_env, s) < 0.5
+    assert hdr.luminance(found.irradiance_rgb) == pytest.approx(energy, rel=0.05)
+    assert np.all(np.isfinite(found.irradiance_rgb))
+    removed = sun.remove_sun(rad, found)
+    assert removed.max() < 1.0
+
+
+def test_sun_from_black_map():
+    found = sun.sun_from_envmap(np.zeros((16, 32, 3)))
+    assert np.all(found.irradiance_rgb == 0) and np.all(np.isfinite(found.direction_in_env))
+
+
+@pytest.mark.parametrize("name", ["city", "courtyard", "forest", "interior", "night", "studio", "sunrise", "sunset"])
+def test_blender_map_sun_is_the_brightest_region(blender_world, name):
+    from scipy import ndimage
+
+    rad = hdr.read_hdr_image(blender_world(name))
+    found = sun.sun_from_envmap(rad)
+    # Independent reference: the peak of the luminance blurred by ~2 deg, in the 4x downsampled map.
+    small = hdr.luminance(rad.reshape(128, 4, 256, 4, 3).mean((1, 3)))
+    blurred = ndimage.gaussian_filter(small, 1.5, mode=("nearest", "wrap"))
+    r, c = np.unravel_index(np.argmax(blurred), blurred.shape)
+    # Ties between near-equal lamps (studio) are allowed: the found direction must be as bright as the brightest
+    # region (>= 80 % of the blurred peak), and for a compact light within 3 deg of it.
+    col, row = np.round(em.direction_to_pixel(found.direction_in_env, 128)).astype(int)
+    assert blurred[min(row, 127), col % 256] >= 0.8 * blurred.max()
+    ref = em.pixel_directions(128)[r, c]
+    if found.solid_angle_sr < 0.05 and name != "studio":
+        assert sun.angle_between_deg(found.direction_in_env, ref) < 3.0
+
+
+def _ldr(rad):
+    """Auto exposure on the median (as camera metering ignores the sun), clip, sRGB, 8 bit."""
+    s = 0.18 / max(float(np.median(hdr.luminance(rad))), 1e-8)
+    return np.round(hdr.linear_to_srgb(rad * s) * 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("offset_deg", [0.0, 70.0])
+def test_image_cue_on_synthetic_clear_sky(offset_deg):
+    rad, s, _ = _sky_with_sun(128, 20.0, 15.0, peak=3e3, radius_deg=2.0)
+    K = Intrinsics.from_fov(200, 120, 80.0)
+    R = em.cam_from_env_look(np.deg2rad(20.0 + offset_deg), np.deg2rad(10.0))
+    cue = sun.sun_cue_from_image(_ldr(em.render_perspective(rad, K, R)), K, cam_from_world=R,
+                                 up_in_world=np.array([0.0, 0, 1]))
+    az, _ = em.direction_to_azimuth_elevation(cue.direction_in_world)
+    err = abs((np.rad2deg(az) - 20.0 + 180) % 360 - 180)
+    assert err < (5.0 if offset_deg == 0 else 25.0)
+    assert cue.sun_visible == (offset_deg == 0)
+    assert 0 < cue.confidence <= 1
+
+
+def test_fusion_of_frames_in_world_coordinates():
+    rad, s, _ = _sky_with_sun(128, -60.0, 25.0, peak=3e3)
+    K = Intrinsics.from_fov(160, 100, 70.0)
+    grid, _ = sun.sun_direction_grid()
+    cues = []
+    for yaw in (-10.0, -120.0):  # neither view contains the sun
+        R = em.cam_from_env_look(np.deg2rad(yaw), np.deg2rad(5.0))
+        cues.append(sun.sun_cue_from_image(_ldr(em.render_perspective(rad, K, R)), K, R, np.array([0, 0, 1.0]), grid))
+    fused = sun.fuse_sun_cues(cues)
+    az, _ = em.direction_to_azimuth_elevation(fused.direction_in_world)
+    assert abs((np.rad2deg(az) + 60.0 + 180) % 360 - 180) < 25.0
+    with pytest.raises(ValueError):
+        sun.fuse_sun_cues([])
+
+
+@pytest.mark.parametrize("value", [0, 255])
+def test_image_cue_uniform_images_have_no_confidence(value):
+    K = Intrinsics.from_fov(64, 48, 60.0)
+    cue = sun.sun_cue_from_image(np.full((48, 64, 3), value, np.uint8), K)
+    assert cue.confidence < 0.05
+    assert np.all(np.isfinite(cue.log_likelihood)) and np.all(np.isfinite(cue.direction_in_world))
