@@ -16,8 +16,14 @@ from . import composite as comp
 from .annotate import ObjectAnnotation, annotate_object, box_visibility_under_cover
 from .assets import CATEGORY_HEIGHT_RANGE_M, Asset, default_asset
 from .config import CONFIG_DIR, from_dict, load_config
-from .geometry import Intrinsics, check_finite, make_rigid, project_points, transform_points
+from .geometry import (Intrinsics, invert_rigid, make_rigid, project_points, transform_points,
+                       unproject_points)
+from .lighting.estimate import LightingEstimate, estimate_lighting
+from .lighting.shading import shade_object
+from .lighting.shadows import (contact_occlusion, occluder_distance_from_footprint, shadow_ratio_from_sun_sky,
+                               soften_shadow)
 from .ground import GroundFitError, GroundPlane, ground_plane_from_depth, prior_ground_plane
+from .region import placeable_region
 from .placement import Placement, PlacementConfig, box_of_points, sample_placement
 from .render import render_ground_shadow, render_object
 
@@ -43,8 +49,6 @@ class InsertionConfig:
     # Priors when the scene does not say.
     camera_height_m: float = 1.6
     default_hfov_deg: float = 60.0
-    sun_elevation_deg_range: tuple[float, float] = (25.0, 60.0)
-    sun_sky_ratio: float = 2.5           # sun / sky irradiance on the ground (sunny day ~2-5, overcast ~0)
     naive_height_frac_range: tuple[float, float] = (0.05, 0.4)
     placement_cfg: PlacementConfig = PlacementConfig()
 
@@ -65,21 +69,13 @@ def load_preset(name: str, **overrides) -> InsertionConfig:
     return replace(cfg, **overrides) if overrides else cfg
 
 
-@dataclass(frozen=True)
-class LightingUsed:
-    sun_direction_in_cam: tuple[float, float, float] | None
-    irradiance_rgb: tuple[float, float, float]
-    sun_sky_ratio: float
-    source: str
-
-
 @dataclass
 class InsertionRecord:
     """What was done to one image: enough to replay it (placements are frozen records) and to debug it."""
 
     placements: list[Placement] = field(default_factory=list)
     annotations: list[ObjectAnnotation] = field(default_factory=list)
-    lighting: LightingUsed | None = None
+    lighting: LightingEstimate | None = None
     modules: dict[str, str] = field(default_factory=dict)   # stage -> what was used, or "skipped: why"
     placement_reports: list[dict] = field(default_factory=list)
     existing_visibility: list[float] = field(default_factory=list)
@@ -88,7 +84,7 @@ class InsertionRecord:
         return {
             "placements": [asdict(p) for p in self.placements],
             "annotations": [a.to_dict() for a in self.annotations],
-            "lighting": asdict(self.lighting) if self.lighting else None,
+            "lighting": self.lighting.to_dict() if self.lighting else None,
             "modules": self.modules,
             "placement_reports": self.placement_reports,
             "existing_visibility": self.existing_visibility,
@@ -131,45 +127,65 @@ def _scene_ground(depth, intr: Intrinsics, rng, cfg: InsertionConfig, modules: d
     return prior_ground_plane(cfg.camera_height_m)
 
 
-def _scene_lighting(image, ground: GroundPlane, rng, cfg: InsertionConfig, meta: dict, modules: dict) -> LightingUsed:
-    exposure = comp.ExposureMatch.from_image(image)
+def _scene_lighting(image, intr: Intrinsics, ground: GroundPlane, rng, cfg: InsertionConfig, meta: dict,
+                    modules: dict) -> LightingEstimate:
+    """Sun (kept apart, for shading and shadows) + SH ambient in the image's linear radiometric units."""
     if not cfg.lighting:
-        modules["lighting"] = "skipped: disabled (ablation); flat unlit albedo"
-        return LightingUsed(None, (1.0, 1.0, 1.0), 0.0, "none")
-    sun = meta.get("sun_direction_in_cam")
-    if sun is not None:
-        sun = check_finite(np.asarray(sun, float).reshape(3), "sun_direction_in_cam")
-        sun = sun / np.linalg.norm(sun)
-        source = "metadata"
+        # Ablation: no estimated lighting. The object is lit by a uniform ambient equal to the image's gray-world
+        # irradiance (so it is neither black nor blown out), no sun.
+        E = np.asarray(comp.ExposureMatch.from_image(image).irradiance_rgb)
+        sh = np.zeros((9, 3))
+        sh[0] = E / (np.pi * 0.886227)  # irradiance of a constant SH radiance L00*Y00 is pi * 0.886227 * L00
+        modules["lighting"] = "skipped: disabled (ablation); uniform gray-world ambient, no sun"
+        return LightingEstimate(None, np.zeros(3), sh, 0.0, False, 0.0, "none", ground.normal)
+    est = estimate_lighting(image, intr, None, {**meta, "up_in_world": ground.normal}, rng=rng)
+    if est.dominant_sun:
+        modules["lighting"] = (f"sun from {est.source} (confidence {est.confidence:.2f}), sun/sky ratio "
+                               f"{est.sun_sky_ratio:.2f}, SH ambient")
     else:
-        # Prior: sun above the ground plane at a random elevation and azimuth (recorded for replay).
-        elev = np.deg2rad(rng.uniform(*cfg.sun_elevation_deg_range))
-        az = rng.uniform(-np.pi, np.pi)
-        up = ground.normal
-        e1 = np.cross(up, [0.0, 0.0, 1.0])
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(up, e1)
-        sun = np.cos(elev) * (np.cos(az) * e1 + np.sin(az) * e2) + np.sin(elev) * up
-        source = "prior (random elevation/azimuth)"
-    modules["lighting"] = f"sun from {source}; exposure/white balance from gray-world"
-    return LightingUsed(tuple(map(float, sun)), exposure.irradiance_rgb, float(cfg.sun_sky_ratio), source)
+        modules["lighting"] = f"no dominant sun ({est.source}): environment (SH) light only"
+    return est
 
 
-def _shade(albedo: np.ndarray, normals: np.ndarray, lighting: LightingUsed, ground: GroundPlane) -> np.ndarray:
-    """Lambertian: albedo * (E_sky + E_sun * max(0, n.l)); E split so that a horizontal surface in the sun receives
-    the measured total irradiance."""
-    E = np.asarray(lighting.irradiance_rgb, np.float32)
-    if lighting.sun_direction_in_cam is None:
-        return albedo * E
-    sun = np.asarray(lighting.sun_direction_in_cam, np.float32)
-    r = lighting.sun_sky_ratio
-    cos_ground = max(float(sun @ ground.normal), 0.1)  # eps: a grazing sun must not blow up the normal irradiance
-    e_sky = E / (1.0 + r)
-    e_sun = E * r / (1.0 + r) / cos_ground
-    ndotl = np.clip(normals @ sun, 0.0, None)[..., None]
-    # Sky light reaching a surface tilted away from the zenith: (1 + n.up) / 2 (uniform sky, no ground bounce).
-    sky_vis = (0.5 * (1.0 + normals @ ground.normal.astype(np.float32)))[..., None]
-    return albedo * (e_sky * (0.3 + 0.7 * sky_vis) + e_sun * ndotl)
+def _object_shadow(asset: Asset, cam_from_object: np.ndarray, intr: Intrinsics, lighting: LightingEstimate,
+                   scene_depth: np.ndarray | None) -> np.ndarray:
+    """Multiplicative shadow ratio (H, W) of one object on the ground: sun visibility from the shadow catcher,
+    strength from the sun/sky ratio, penumbra growing with the distance to the occluder, contact occlusion.
+    Computed inside the window the catcher rendered (1 elsewhere)."""
+    R = cam_from_object[:3, :3]
+    sun_cam = lighting.sun_direction_in_cam if lighting.dominant_sun else None
+    # Below-horizon direction: the catcher then returns the ground geometry with full visibility.
+    sun_obj = R.T @ sun_cam if sun_cam is not None else np.array([0.0, 0.0, -1.0])
+    sl = render_ground_shadow(asset, cam_from_object, intr, sun_obj)
+    out = np.ones((intr.height, intr.width), np.float32)
+    x0, y0, x1, y1 = sl.roi
+    gm = sl.ground_mask[y0:y1, x0:x1]
+    if not gm.any():
+        return out
+    gdepth = sl.ground_depth[y0:y1, x0:x1]
+    vv, uu = np.nonzero(gm)
+    pts_cam = unproject_points(np.stack([uu + x0, vv + y0], -1).astype(float), gdepth[gm], intr.K)
+    pts_obj = transform_points(invert_rigid(cam_from_object), pts_cam)
+    lo, hi = asset.bounds_m
+    # Horizontal distance from each ground point to the object's footprint rectangle.
+    dx = np.maximum(np.maximum(lo[0] - pts_obj[:, 0], pts_obj[:, 0] - hi[0]), 0.0)
+    dy = np.maximum(np.maximum(lo[1] - pts_obj[:, 1], pts_obj[:, 1] - hi[1]), 0.0)
+    rho = np.full(gm.shape, 1e6)  # off the ground patch: far from the object, no contact occlusion
+    rho[gm] = np.hypot(dx, dy)
+    ao = contact_occlusion(rho, asset.height_m)
+    ratio = shadow_ratio_from_sun_sky(sl.visibility[y0:y1, x0:x1], lighting.sun_sky_ratio if sun_cam is not None
+                                      else 0.0, ambient_occlusion=ao)
+    if sun_cam is not None:
+        elevation = float(np.arcsin(np.clip(sun_obj[2], -1.0, 1.0)))
+        dist = np.full(gm.shape, np.nan)
+        dist[gm] = occluder_distance_from_footprint(pts_obj[:, :2], asset.corners_m()[:, :2], elevation)
+        ppm = np.where(gm, intr.fy / np.maximum(gdepth, 1e-3), 0.0)  # eps: no division by zero depth
+        ratio = soften_shadow(ratio, dist, pixels_per_metre=ppm)
+    # The real scene in front of the shadowed ground hides the shadow.
+    sd = None if scene_depth is None else scene_depth[y0:y1, x0:x1]
+    unoccluded = comp.visible_fraction_against_depth(gdepth, sd)
+    out[y0:y1, x0:x1] = 1.0 - (1.0 - ratio) * unoccluded
+    return out
 
 
 def _naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tuple[np.ndarray, float]:
@@ -228,7 +244,13 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
     ground = _scene_ground(depth, intr, rng, cfg, mods) if cfg.placement else None
     if not cfg.placement:
         mods["placement"] = "skipped: disabled (ablation or naive paste); random 2D position and size"
-    lighting = _scene_lighting(img, ground or prior_ground_plane(cfg.camera_height_m), rng, cfg, meta, mods)
+    region = None
+    if cfg.placement:
+        region = placeable_region(intr, ground, depth=depth, semantic=meta.get("semantic"))
+        mods["region"] = f"{region.evidence} ({100 * region.fraction:.0f}% of the image placeable)"
+        if region.evidence != "prior:below_horizon" and "ground_mask" not in meta:
+            meta = {**meta, "ground_mask": region.mask}  # lit/shadowed ground for the sun/sky ratio
+    lighting = _scene_lighting(img, intr, ground or prior_ground_plane(cfg.camera_height_m), rng, cfg, meta, mods)
     k = int(n_objects if n_objects is not None else rng.integers(cfg.min_objects, cfg.max_objects + 1))
 
     existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
@@ -239,7 +261,7 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
         base = _choose_asset(category, rng, bank)
         if cfg.placement:
             placement, report = sample_placement(base, ground, intr, rng, existing_boxes_xyxy=np.array(taken),
-                                                 depth=depth, cfg=cfg.placement_cfg,
+                                                 depth=depth, cfg=cfg.placement_cfg, region_mask=region.mask,
                                                  height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category))
             record.placement_reports.append(report.to_dict())
             if placement is None:
@@ -261,29 +283,22 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
         if rl.alpha.max() <= 0.5:
             record.placement_reports.append({"rejected": {"renders to no pixel": 1}})
             continue
-        shaded = _shade(rl.albedo_linear, rl.normals_in_cam, lighting,
-                        ground or prior_ground_plane(cfg.camera_height_m))
+        shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lighting)
         layers.append((placement, asset, rl, shaded, cam_from_object))
         taken.append(np.array(placement.amodal_box_xyxy))
         record.placements.append(placement)
 
     # Composite far to near.
     bg = comp.to_linear(img)
-    if cfg.shadow and lighting.sun_direction_in_cam is not None and layers:
+    if cfg.shadow and layers:
         ratio = np.ones((h, w), np.float32)
         for placement, asset, rl, _, cam_from_object in layers:
-            sun_in_obj = cam_from_object[:3, :3].T @ np.asarray(lighting.sun_direction_in_cam)
-            sl = render_ground_shadow(asset, cam_from_object, intr, sun_in_obj)
-            unoccluded = comp.visible_fraction_against_depth(sl.ground_depth, depth)
-            shadow_strength = lighting.sun_sky_ratio / (1.0 + lighting.sun_sky_ratio)
-            r_i = 1.0 - shadow_strength * (1.0 - sl.visibility) * unoccluded
-            ratio = np.minimum(ratio, r_i)  # overlapping shadows of one sun do not darken twice
-        bg = comp.apply_shadow(bg, ratio)
-        mods["shadow"] = "shadow catcher: ground patch rendered with/without the object, differential ratio"
+            ratio = np.minimum(ratio, _object_shadow(asset, cam_from_object, intr, lighting, depth))
+        bg = comp.apply_shadow(bg, ratio)  # overlapping shadows of one sun do not darken twice: min, not product
+        mods["shadow"] = ("shadow catcher (ground patch with/without the object), soft penumbra, contact occlusion"
+                          if lighting.dominant_sun else "contact occlusion only: no dominant sun")
     elif not cfg.shadow:
         mods["shadow"] = "skipped: disabled (ablation or naive paste)"
-    else:
-        mods["shadow"] = "skipped: no sun direction"
 
     # Far to near by median object depth, so nearer objects are blended last.
     order = sorted(range(len(layers)), key=lambda i: -float(np.median(layers[i][2].depth[layers[i][2].alpha > 0])))

@@ -22,7 +22,8 @@ import pyrender  # noqa: E402
 import trimesh  # noqa: E402
 
 from .assets import Asset  # noqa: E402
-from .geometry import Intrinsics, check_finite, check_rigid, invert_rigid, opengl_from_opencv  # noqa: E402
+from .geometry import (Intrinsics, check_finite, check_rigid, invert_rigid, opengl_from_opencv, project_points,
+                       transform_points)  # noqa: E402
 
 __all__ = ["RenderLayers", "ShadowLayers", "render_object", "render_ground_shadow", "srgb_to_linear",
            "linear_to_srgb"]
@@ -146,6 +147,32 @@ def _render_flat(meshes: list, cam_from_object: np.ndarray, intr: Intrinsics, ss
     return color, depth
 
 
+def _roi(points_in_obj: np.ndarray, cam_from_object: np.ndarray, intr: Intrinsics, margin_px: float,
+         znear: float) -> tuple[int, int, int, int]:
+    """Pixel window (x0, y0, x1, y1), x1/y1 exclusive, that contains the projection of ``points_in_obj`` (whose
+    convex hull bounds what is rendered) plus a margin; the full frame when a point is not in front of the camera."""
+    uv, z = project_points(transform_points(cam_from_object, points_in_obj), intr.K)
+    if np.any(z <= znear) or not np.all(np.isfinite(uv)):
+        return 0, 0, intr.width, intr.height
+    x0 = int(np.clip(np.floor(uv[:, 0].min() - margin_px), 0, intr.width))
+    y0 = int(np.clip(np.floor(uv[:, 1].min() - margin_px), 0, intr.height))
+    x1 = int(np.clip(np.ceil(uv[:, 0].max() + margin_px) + 1, 0, intr.width))
+    y1 = int(np.clip(np.ceil(uv[:, 1].max() + margin_px) + 1, 0, intr.height))
+    return x0, y0, x1, y1
+
+
+def _crop_intrinsics(intr: Intrinsics, roi: tuple[int, int, int, int]) -> Intrinsics:
+    x0, y0, x1, y1 = roi
+    return Intrinsics(intr.fx, intr.fy, intr.cx - x0, intr.cy - y0, x1 - x0, y1 - y0)
+
+
+def _paste(full_shape: tuple, roi: tuple[int, int, int, int], crop: np.ndarray, fill: float = 0.0) -> np.ndarray:
+    out = np.full(full_shape + crop.shape[2:], fill, dtype=np.float32)
+    x0, y0, x1, y1 = roi
+    out[y0:y1, x0:x1] = crop
+    return out
+
+
 def render_object(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, *, ssaa: int = 1,
                   znear: float = 0.05, zfar: float = 2000.0, with_normals: bool = True) -> RenderLayers:
     """Render ``asset`` (canonical object frame) seen by an OpenCV camera at ``cam_from_object``.
@@ -155,6 +182,20 @@ def render_object(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrins
     cam_from_object = check_rigid(cam_from_object, "cam_from_object")
     if ssaa < 1 or int(ssaa) != ssaa:
         raise ValueError(f"ssaa must be a positive integer, got {ssaa}")
+    full = (intrinsics.height, intrinsics.width)
+    # Only the window around the object is rendered (the projected bounding-box corners bound the silhouette).
+    roi = _roi(asset.corners_m(), cam_from_object, intrinsics, 2.0, znear)
+    if roi[2] <= roi[0] or roi[3] <= roi[1]:
+        z = np.zeros(full, np.float32)
+        return RenderLayers(np.zeros(full + (3,), np.float32), z, z.copy(), np.zeros(full + (3,), np.float32))
+    layers = _render_object_window(asset, cam_from_object, _crop_intrinsics(intrinsics, roi), ssaa, znear, zfar,
+                                   with_normals)
+    return RenderLayers(_paste(full, roi, layers.albedo_linear), _paste(full, roi, layers.alpha),
+                        _paste(full, roi, layers.depth), _paste(full, roi, layers.normals_in_cam))
+
+
+def _render_object_window(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, ssaa: int,
+                          znear: float, zfar: float, with_normals: bool) -> RenderLayers:
     color, depth = _render_flat(_to_pyrender_meshes(asset, False), cam_from_object, intrinsics, ssaa, znear, zfar)
     covered = (depth > 0).astype(np.float32)
     albedo = srgb_to_linear(color[..., :3].astype(np.float32) / 255.0) * covered[..., None]
@@ -187,11 +228,13 @@ class ShadowLayers:
         no ground patch was rendered.
     ground_mask: (H, W) bool, pixels where the ground patch was rendered.
     ground_depth: (H, W) float32 z-depth of the ground patch (0 outside).
+    Only the window holding the object, its shadow and a ring of ground around its footprint is rendered.
     """
 
     visibility: np.ndarray
     ground_mask: np.ndarray
     ground_depth: np.ndarray
+    roi: tuple[int, int, int, int] = (0, 0, 0, 0)   # window (x0, y0, x1, y1) that was rendered; 1/False/0 outside
 
 
 def _ground_patch(radius: float) -> "pyrender.Mesh":
@@ -218,20 +261,35 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     if norm < 1e-9:
         raise ValueError("sun direction has zero length")
     sun = sun / norm
-    h, w = intrinsics.height, intrinsics.width
+    full = (intrinsics.height, intrinsics.width)
+    corners = asset.corners_m()
     ext = asset.extents_m
+    ring = max(float(ext[2]), float(ext[:2].max()))  # ground around the footprint kept for contact shadows
+    lo, hi = asset.bounds_m
+    pts = [corners, np.array([[lo[0] - ring, lo[1] - ring, 0], [hi[0] + ring, lo[1] - ring, 0],
+                              [lo[0] - ring, hi[1] + ring, 0], [hi[0] + ring, hi[1] + ring, 0]])]
+    if sun[2] > 0.02:
+        # Sun below 10 deg elevation still gets its full shadow length (cot 10 deg ~ 5.7 x height), capped at 30 m.
+        reach = min(corners[:, 2].max() / max(sun[2], 0.17), 30.0)
+        pts.append(corners - (corners[:, 2:3] / max(sun[2], 0.17)) * sun)
+        radius_default = float(max(np.abs(corners[:, :2]).max() + reach, ring) * 1.2)
+    else:
+        radius_default = float(np.abs(corners[:, :2]).max() + ring)
     if patch_radius_m is None:
-        # Long enough for the shadow of a sun 10 deg above the horizon (cot 10deg ~ 5.7), capped for map resolution.
-        patch_radius_m = float(max(ext[:2].max(), min(6.0 * ext[2], 30.0)))
+        patch_radius_m = radius_default
+    roi = _roi(np.concatenate(pts), cam_from_object, intrinsics, 2.0, znear)
+    if roi[2] <= roi[0] or roi[3] <= roi[1]:
+        return ShadowLayers(np.ones(full, np.float32), np.zeros(full, bool), np.zeros(full, np.float32), roi)
+    crop = _crop_intrinsics(intrinsics, roi)
+    h, w = crop.height, crop.width
     base = pyrender.Scene(bg_color=np.zeros(4), ambient_light=np.zeros(3))
     base.add(_ground_patch(patch_radius_m))
-    base.add(_pyrender_camera(intrinsics, 1, znear, zfar), pose=_camera_pose_gl(cam_from_object))
+    base.add(_pyrender_camera(crop, 1, znear, zfar), pose=_camera_pose_gl(cam_from_object))
     r = _renderer(w, h)
     flags = pyrender.RenderFlags.SHADOWS_DIRECTIONAL | pyrender.RenderFlags.SKIP_CULL_FACES
     if sun[2] <= 0.02:
         gdepth = r.render(base, flags=pyrender.RenderFlags.DEPTH_ONLY)
-        gm = gdepth > 0
-        return ShadowLayers(np.ones((h, w), np.float32), gm, gdepth.astype(np.float32))
+        return ShadowLayers(np.ones(full, np.float32), _paste(full, roi, gdepth) > 0, _paste(full, roi, gdepth), roi)
     # pyrender's directional light shines along its node's -z axis: align -z with -sun.
     z_axis = sun
     x_axis = np.cross([0.0, 0.0, 1.0] if abs(sun[2]) < 0.99 else [1.0, 0.0, 0.0], z_axis)
@@ -250,4 +308,4 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     ok = gm & (lit_l.mean(-1) > 1e-4)  # eps: ground facing away from the sun has no lit reference
     vis = np.ones((h, w), np.float32)
     vis[ok] = np.clip(sh_l.mean(-1)[ok] / lit_l.mean(-1)[ok], 0.0, 1.0)
-    return ShadowLayers(vis, gm, gdepth.astype(np.float32))
+    return ShadowLayers(_paste(full, roi, vis, 1.0), _paste(full, roi, gdepth) > 0, _paste(full, roi, gdepth), roi)
