@@ -1,0 +1,97 @@
+"""``harmonize()``: the one call the pipeline makes after compositing.
+
+    from aias_augment.harmonize import harmonize
+    out = harmonize(composite_rgb_uint8, fg_mask, method="camera", rng=np.random.default_rng(0))
+
+composite_rgb_uint8: (H, W, 3) uint8 RGB composite (the inserted objects already pasted in).
+fg_mask: (H, W) float in [0, 1] (float32 or float64; bool also accepted), 1 = inserted object; soft edges allowed.
+method:
+  "none"     - a copy of the input;
+  "reinhard" - Reinhard Lab mean/std transfer from the background (``reinhard.py``);
+  "camera"   - camera-pipeline matching: exposure/WB, blur, noise, JPEG (``camera_pipeline.py``); uses ``rng``;
+  "fast"     - predicted affine colour transform from a thumbnail (``fast.py``, checkpoints/harmonizer_fast.pt);
+  "network"  - the paper's coarse-to-fine dilated-conv generator (``network.py``, checkpoints/harmonizer_small.pt).
+rng: numpy Generator for the stochastic stages (camera noise); None -> ``np.random.default_rng(0)`` (deterministic).
+checkpoint: path of the "fast" / "network" checkpoint; None -> the shipped default. A missing checkpoint raises
+  FileNotFoundError naming the training command. Loaded models are cached per process (path + mtime).
+
+Statistics and network inputs use the binary mask ``fg_mask > 0.5``; the result is blended with the soft mask:
+out = composite * (1 - m) + harmonized * m, so pixels with m == 0 are returned unchanged, bit for bit.
+The input arrays are never modified; a new array is returned.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..config import REPO_ROOT
+from .camera_pipeline import CameraMatchParams, camera_match
+from .color import to_float, to_uint8
+from .reinhard import reinhard_transfer
+
+METHODS = ("none", "reinhard", "camera", "fast", "network")
+DEFAULT_CHECKPOINTS = {
+    "network": REPO_ROOT / "checkpoints" / "harmonizer_small.pt",
+    "fast": REPO_ROOT / "checkpoints" / "harmonizer_fast.pt",
+}
+TRAIN_COMMAND = ("nice -n 10 .venv/bin/python scripts/train_harmonizer.py --config configs/harmonize_small.yaml "
+                 "--which {which} --out-{which} {path}")
+
+
+def _validate(composite: np.ndarray, fg_mask: np.ndarray, method: str) -> np.ndarray:
+    if method not in METHODS:
+        raise ValueError(f"harmonize: unknown method {method!r}; choose one of {METHODS}")
+    if not isinstance(composite, np.ndarray) or composite.dtype != np.uint8 or composite.ndim != 3 \
+            or composite.shape[2] != 3:
+        shape = getattr(composite, "shape", None)
+        raise ValueError(f"harmonize: composite must be an (H, W, 3) uint8 RGB array, got {shape} "
+                         f"{getattr(composite, 'dtype', type(composite).__name__)}")
+    if not isinstance(fg_mask, np.ndarray) or fg_mask.shape != composite.shape[:2]:
+        raise ValueError(f"harmonize: fg_mask must be an (H, W) = {composite.shape[:2]} array, "
+                         f"got {getattr(fg_mask, 'shape', type(fg_mask).__name__)}")
+    if fg_mask.dtype == bool:
+        return fg_mask.astype(np.float32)
+    if not np.issubdtype(fg_mask.dtype, np.floating):
+        raise ValueError(f"harmonize: fg_mask must be float in [0, 1] (or bool), got dtype {fg_mask.dtype}")
+    if not np.isfinite(fg_mask).all():
+        raise ValueError("harmonize: fg_mask contains NaN or Inf")
+    if fg_mask.min() < 0.0 or fg_mask.max() > 1.0:
+        raise ValueError(f"harmonize: fg_mask must lie in [0, 1], got [{fg_mask.min()}, {fg_mask.max()}]")
+    return fg_mask.astype(np.float32)
+
+
+def _checkpoint(method: str, checkpoint: str | Path | None) -> Path:
+    path = Path(checkpoint) if checkpoint is not None else DEFAULT_CHECKPOINTS[method]
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"harmonize(method={method!r}): checkpoint {path} not found. Train one with:\n  "
+            + TRAIN_COMMAND.format(which=method, path=path))
+    return path
+
+
+def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str = "camera",
+              rng: np.random.Generator | None = None, checkpoint: str | Path | None = None) -> np.ndarray:
+    """Harmonize the masked foreground of a composite; see the module docstring. Returns a new (H, W, 3) uint8."""
+    soft = _validate(composite_rgb_uint8, fg_mask, method)
+    hard = soft > 0.5
+    if method == "none" or not hard.any():
+        return composite_rgb_uint8.copy()
+    rng = rng if rng is not None else np.random.default_rng(0)
+    image = to_float(composite_rgb_uint8)
+    if method == "reinhard":
+        result = reinhard_transfer(image, hard)
+    elif method == "camera":
+        result = to_float(camera_match(composite_rgb_uint8, hard, rng, CameraMatchParams()))
+    elif method == "fast":
+        from .fast import load_fast, run_fast  # torch is imported only for the learnt methods
+
+        result = run_fast(load_fast(_checkpoint(method, checkpoint)), image, hard)
+    else:
+        from .network import load_generator, run_network
+
+        result = run_network(load_generator(_checkpoint(method, checkpoint)), image, hard)
+    # Soft-edge blend; the soft mask may extend beyond the hard one, where the harmonized image equals the input.
+    m = soft[..., None]
+    blended = to_uint8(image * (1.0 - m) + result * m)
+    return np.where(m > 0, blended, composite_rgb_uint8)

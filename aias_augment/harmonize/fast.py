@@ -1,0 +1,117 @@
+"""Fast harmonizer: a tiny CNN looks at a thumbnail of the object's context crop and predicts one affine colour
+transform (3x3 matrix + offset, sRGB values) that is then applied to the foreground at full resolution.
+
+Cost is independent of the image size except for the final per-pixel 3x4 multiply. The predictor also receives the
+masked mean and standard deviation of foreground and background colours (12 numbers), the statistics a colour
+transfer needs; its last layer starts at zero so an untrained model is the identity.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from ..config import from_dict
+from .network import CHECKPOINT_FORMAT, load_checkpoint_dict, network_inputs, to_tensor
+from .regions import components, context_box, mask_box, resize
+
+# Added to the masked pixel count before dividing (pixels) so an empty region gives zeros, not NaN.
+EPS_COUNT = 1.0
+
+
+@dataclass(frozen=True)
+class FastConfig:
+    thumbnail_px: int = 64
+    channels: int = 16
+    context: float = 2.4
+
+
+def masked_stats(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(B,3,H,W), (B,1,H,W) -> (B,12): mean and std of the foreground, then of the background."""
+    out = []
+    for m in (mask, 1 - mask):
+        n = m.sum(dim=(2, 3)) + EPS_COUNT
+        mean = (image * m).sum(dim=(2, 3)) / n
+        var = ((image - mean[..., None, None]) ** 2 * m).sum(dim=(2, 3)) / n
+        out += [mean, torch.sqrt(var + 1e-8)]
+    return torch.cat(out, dim=1)
+
+
+class FastColorNet(nn.Module):
+    def __init__(self, cfg: FastConfig):
+        super().__init__()
+        self.cfg = cfg
+        c, layers, cin = cfg.channels, [], 7
+        for cout in (c, 2 * c, 4 * c, 4 * c):
+            layers += [nn.Conv2d(cin, cout, 3, 2, 1), nn.ReLU()]
+            cin = cout
+        self.features = nn.Sequential(*layers)
+        self.mlp = nn.Sequential(nn.Linear(cin + 12, 64), nn.ReLU(), nn.Linear(64, 12))
+        nn.init.zeros_(self.mlp[-1].weight)
+        nn.init.zeros_(self.mlp[-1].bias)
+
+    def forward(self, thumbnail: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """Thumbnail (B,3,t,t) in [0,1] and binary mask (B,1,t,t) -> affine (B,3,4) = [I + dM | b]."""
+        f = self.features(network_inputs(thumbnail, mask)).mean(dim=(2, 3))
+        delta = self.mlp(torch.cat([f, masked_stats(thumbnail, mask)], 1)).view(-1, 3, 4)
+        eye = torch.eye(3, 4, dtype=delta.dtype).expand_as(delta)
+        return eye + delta
+
+
+def apply_affine(image: torch.Tensor, affine: torch.Tensor) -> torch.Tensor:
+    """(B,3,H,W) sRGB in [0,1], (B,3,4) -> (B,3,H,W) clamped to [0,1]."""
+    out = torch.einsum("bij,bjhw->bihw", affine[:, :, :3], image) + affine[:, :, 3, None, None]
+    return out.clamp(0, 1)
+
+
+def thumbnail(image: torch.Tensor, mask: torch.Tensor, size_px: int) -> tuple[torch.Tensor, torch.Tensor]:
+    t = F.interpolate(image, size=(size_px, size_px), mode="area")
+    m = (F.interpolate(mask, size=(size_px, size_px), mode="area") > 0.5).to(image.dtype)
+    return t, m
+
+
+def save_fast_checkpoint(path: str | Path, model: FastColorNet, meta: dict) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save({"format": CHECKPOINT_FORMAT, "kind": "fast", "config": dataclasses.asdict(model.cfg),
+                "state_dict": {k: v.detach().clone() for k, v in model.state_dict().items()}, "meta": meta}, tmp)
+    tmp.replace(path)
+
+
+@functools.lru_cache(maxsize=4)
+def _load_fast_cached(path: str, mtime_ns: int) -> FastColorNet:
+    ckpt = load_checkpoint_dict(path, "fast")
+    model = FastColorNet(from_dict(FastConfig, ckpt["config"]))
+    model.load_state_dict(ckpt["state_dict"])
+    return model.eval()
+
+
+def load_fast(path: str | Path) -> FastColorNet:
+    p = Path(path).resolve()
+    if not p.is_file():
+        raise FileNotFoundError(p)
+    return _load_fast_cached(str(p), p.stat().st_mtime_ns)
+
+
+@torch.no_grad()
+def run_fast(model: FastColorNet, image_float: np.ndarray, mask_bool: np.ndarray) -> np.ndarray:
+    """One affine per connected component, predicted from its context-crop thumbnail; returns a new float image."""
+    out = image_float.copy()
+    t = model.cfg.thumbnail_px
+    for comp in components(mask_bool):
+        x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, model.cfg.context)
+        crop = resize(image_float[y0:y1, x0:x1], (t, t))
+        m = (resize(comp[y0:y1, x0:x1].astype(np.float32), (t, t)) > 0.5).astype(np.float32)
+        if not m.any():
+            m = (resize(comp[y0:y1, x0:x1].astype(np.float32), (t, t)) > 0).astype(np.float32)
+        affine = model(to_tensor(crop), torch.from_numpy(m)[None, None])[0].numpy()
+        fg = out[comp]
+        out[comp] = np.clip(fg @ affine[:, :3].T + affine[:, 3], 0.0, 1.0)
+    return out

@@ -1,0 +1,199 @@
+"""The paper's harmonization network: a coarse-to-fine generator of dilated convolutions (DeepFill v1 style) + critic.
+
+Inputs (all in [0, 1], NCHW):
+  coarse stage:  [image with the foreground filled black (3), binary foreground mask (1), foreground with the
+                  background filled black (3)] = 7 channels;
+  refine stage:  the same 7 channels + the coarse output composited into the background (3) = 10 channels.
+Each stage is DeepFill v1's encoder (5x5 conv, two stride-2 3x3 convs), a chain of dilated 3x3 convs at 1/4
+resolution (dilations 2, 4, 8, 16 give the receptive field to see the surroundings) and a nearest-upsampling
+decoder, ELU activations. Differences from DeepFill v1, and why:
+  * the stage output is a tanh *residual* added to its input foreground (harmonization keeps the object's content;
+    starting at the identity lets a CPU-sized training budget reach a useful model);
+  * no contextual-attention branch (it copies background patches into a hole; here nothing is missing);
+  * one global critic that sees (image, mask) instead of DeepFill's global + local pair.
+The WGAN-GP gradient penalty is weighted by the mask as in DeepFill v1: only gradients w.r.t. foreground pixels are
+constrained (``masked_gradient_penalty``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from ..config import from_dict
+from .regions import components, context_box, mask_box, resize
+
+CHECKPOINT_FORMAT = "aias-harmonizer-v1"
+# Added under the square root of the masked gradient norm so its gradient stays finite at zero gradient.
+GP_EPS = 1e-12
+
+
+@dataclass(frozen=True)
+class NetworkConfig:
+    resolution_px: int = 128  # training and inference crop size (the paper's setting is 256)
+    base_channels: int = 16  # width of the first layer; 1/4-resolution layers have 4x this
+    dilations: tuple[int, ...] = (2, 4, 8, 16)
+    levels: int = 2  # stride-2 steps before the dilated convs (DeepFill v1: 2)
+    critic_channels: int = 16
+    context: float = 2.4  # inference crop = this x the object's box side (training draws a range around it)
+
+
+def _conv(cin: int, cout: int, k: int = 3, stride: int = 1, dilation: int = 1, act: bool = True) -> nn.Module:
+    conv = nn.Conv2d(cin, cout, k, stride, padding=dilation * (k - 1) // 2, dilation=dilation)
+    return nn.Sequential(conv, nn.ELU()) if act else conv
+
+
+class StageNet(nn.Module):
+    """One DeepFill-v1 stage; returns a residual in [-1, 1] for the 3 colour channels.
+
+    ``levels`` stride-2 steps (DeepFill v1: 2, i.e. the dilated convs run at 1/4 resolution); widths double per
+    level up to 4 x ``c``. The decoder mirrors the encoder with nearest upsampling.
+    """
+
+    def __init__(self, in_channels: int, c: int, dilations: tuple[int, ...], levels: int = 2):
+        super().__init__()
+        widths = [c] + [c * min(2 ** (i + 1), 4) for i in range(levels)]
+        enc = [_conv(in_channels, c, 5)]
+        for a, b in zip(widths[:-1], widths[1:]):
+            enc += [_conv(a, b, 3, 2), _conv(b, b)]
+        self.encoder = nn.Sequential(*enc)
+        w = widths[-1]
+        self.middle = nn.Sequential(*[_conv(w, w, 3, dilation=d) for d in dilations], _conv(w, w), _conv(w, w))
+        self.decoder = nn.ModuleList(
+            nn.Sequential(_conv(b, a), _conv(a, a)) for a, b in reversed(list(zip(widths[:-1], widths[1:])))
+        )
+        self.tail = _conv(c, max(c // 2, 4))
+        self.head = _conv(max(c // 2, 4), 3, act=False)
+        nn.init.zeros_(self.head.weight)  # start at the identity (zero residual)
+        nn.init.zeros_(self.head.bias)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        h = self.middle(self.encoder(x))
+        for up in self.decoder:
+            h = up(F.interpolate(h, scale_factor=2.0, mode="nearest"))
+        return torch.tanh(self.head(self.tail(h)))
+
+
+def network_inputs(composite: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(B,3,H,W) composite and (B,1,H,W) binary mask -> the 7-channel coarse input."""
+    return torch.cat([composite * (1 - mask), mask, composite * mask], dim=1)
+
+
+class Generator(nn.Module):
+    def __init__(self, cfg: NetworkConfig):
+        super().__init__()
+        self.cfg = cfg
+        self.coarse = StageNet(7, cfg.base_channels, cfg.dilations, cfg.levels)
+        self.refine = StageNet(10, cfg.base_channels, cfg.dilations, cfg.levels)
+
+    def forward(self, composite: torch.Tensor, mask: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Returns ``coarse`` and ``output`` (refined), both composited: background pixels equal the input's."""
+        k = 2**self.cfg.levels
+        if composite.shape[-1] % k or composite.shape[-2] % k:
+            raise ValueError(f"Generator: H and W must be multiples of {k}, got {tuple(composite.shape[-2:])}")
+        x = network_inputs(composite, mask)
+        coarse = mask * (composite + self.coarse(x)).clamp(0, 1) + (1 - mask) * composite
+        refined = (coarse + self.refine(torch.cat([x, coarse], dim=1))).clamp(0, 1)
+        return {"coarse": coarse, "output": mask * refined + (1 - mask) * composite}
+
+
+class Critic(nn.Module):
+    """WGAN critic on (image, mask): four 5x5 stride-2 convs, global mean, linear score."""
+
+    def __init__(self, c: int):
+        super().__init__()
+        layers, cin = [], 4
+        for cout in (c, 2 * c, 4 * c, 4 * c):
+            layers += [nn.Conv2d(cin, cout, 5, 2, 2), nn.LeakyReLU(0.2)]
+            cin = cout
+        self.features = nn.Sequential(*layers)
+        self.score = nn.Linear(cin, 1)
+
+    def forward(self, image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        return self.score(self.features(torch.cat([image, mask], 1)).mean(dim=(2, 3))).squeeze(1)
+
+
+def masked_gradient_penalty(critic, real: torch.Tensor, fake: torch.Tensor, mask: torch.Tensor,
+                            generator: torch.Generator | None = None) -> torch.Tensor:
+    """WGAN-GP with the gradient norm taken over the masked pixels only (DeepFill v1's ``gradients_penalty``).
+
+    ``critic(image, mask) -> (B,)``; the penalty is ``mean_b (sqrt(sum(grad^2 * mask) + GP_EPS) - 1)^2`` at random
+    interpolates of ``real`` and ``fake``; gradients w.r.t. pixels where ``mask == 0`` do not enter it.
+    """
+    alpha = torch.rand(real.shape[0], 1, 1, 1, generator=generator, dtype=real.dtype)
+    x = (alpha * real.detach() + (1 - alpha) * fake.detach()).requires_grad_(True)
+    (grad,) = torch.autograd.grad(critic(x, mask).sum(), x, create_graph=True)
+    slopes = torch.sqrt((grad.pow(2) * mask).sum(dim=(1, 2, 3)) + GP_EPS)
+    return (slopes - 1).pow(2).mean()
+
+
+# ------------------------------------------------------------------------------------------------------- checkpoints
+def save_checkpoint(path: str | Path, generator: Generator, meta: dict) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    state = {k: v.detach().clone() for k, v in generator.state_dict().items()}
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.save({"format": CHECKPOINT_FORMAT, "kind": "network", "config": dataclasses.asdict(generator.cfg),
+                "state_dict": state, "meta": meta}, tmp)
+    tmp.replace(path)
+
+
+def load_checkpoint_dict(path: str | Path, kind: str) -> dict:
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(path)
+    ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT or ckpt.get("kind") != kind:
+        raise ValueError(f"{path} is not an {CHECKPOINT_FORMAT} '{kind}' checkpoint")
+    return ckpt
+
+
+@functools.lru_cache(maxsize=4)
+def _load_generator_cached(path: str, mtime_ns: int) -> Generator:
+    ckpt = load_checkpoint_dict(path, "network")
+    gen = Generator(from_dict(NetworkConfig, ckpt["config"]))
+    gen.load_state_dict(ckpt["state_dict"])
+    return gen.eval()
+
+
+def load_generator(path: str | Path) -> Generator:
+    """Load (once per process and file version) a generator for inference."""
+    p = Path(path).resolve()
+    if not p.is_file():
+        raise FileNotFoundError(p)
+    return _load_generator_cached(str(p), p.stat().st_mtime_ns)
+
+
+# --------------------------------------------------------------------------------------------------------- inference
+def to_tensor(image_float: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(np.ascontiguousarray(image_float.transpose(2, 0, 1)))[None]
+
+
+@torch.no_grad()
+def run_network(generator: Generator, image_float: np.ndarray, mask_bool: np.ndarray) -> np.ndarray:
+    """Harmonize every connected component of the mask in its own context crop; returns a new float image.
+
+    Each crop is resized to the network resolution; the predicted change (output - input) is resized back to the
+    crop's size and added there, so the background and the object's full-resolution detail are kept.
+    """
+    cfg = generator.cfg
+    s = cfg.resolution_px
+    out = image_float.copy()
+    for comp in components(mask_bool):
+        x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, cfg.context)
+        crop, m = image_float[y0:y1, x0:x1], comp[y0:y1, x0:x1]
+        crop_s = resize(crop, (s, s))
+        m_s = (resize(m.astype(np.float32), (s, s)) > 0.5).astype(np.float32)
+        if not m_s.any():  # object smaller than one network pixel: leave it
+            continue
+        pred = generator(to_tensor(crop_s), torch.from_numpy(m_s)[None, None])["output"][0].numpy().transpose(1, 2, 0)
+        delta = resize(pred - crop_s, (x1 - x0, y1 - y0))
+        region = out[y0:y1, x0:x1]
+        region[m] = np.clip(crop[m] + delta[m], 0.0, 1.0)
+    return out

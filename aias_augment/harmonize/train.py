@@ -1,0 +1,291 @@
+"""Training of the harmonization network (L1 + masked WGAN-GP) and of the fast colour-transform predictor.
+
+The pair pool (object crops + masks at the network resolution) is built once from real images and cached under
+``cache/``; perturbations are drawn fresh every step from a seeded ``numpy.random.Generator``, so a run is
+reproducible given its config and seed.
+"""
+from __future__ import annotations
+
+import dataclasses
+import glob
+import hashlib
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from ..config import REPO_ROOT, data_root
+from .fast import FastColorNet, FastConfig, apply_affine, save_fast_checkpoint, thumbnail
+from .network import Critic, Generator, NetworkConfig, masked_gradient_penalty, save_checkpoint
+from .pairs import (PerturbRanges, apply_perturbation, grabcut_mask, labelled_images, load_boxes, object_crop,
+                    random_region_mask, read_image_rgb, sample_perturbation)
+from .regions import mask_box
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PairDataConfig:
+    """Where training pairs come from (paths relative to ``data_root()``)."""
+
+    labelled_images_dir: str = "tracon/images/train"
+    labelled_labels: str = "tracon/labels/train"  # YOLO folder or COCO json
+    unlabelled_globs: tuple[str, ...] = ("kitti06_color_snippet/*-color.png", "nyu_rgbd/color/*.png")
+    regions_per_unlabelled_image: int = 2  # random blobs per image without boxes (incl. labelled-set images w/o boxes)
+    max_objects_per_image: int = 4
+    min_box_px: int = 12
+    context_range: tuple[float, float] = (1.8, 3.0)
+    holdout_fraction: float = 0.05  # pool items kept out of training to monitor it
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+    fast: FastConfig = field(default_factory=FastConfig)
+    perturb: PerturbRanges = field(default_factory=PerturbRanges)
+    data: PairDataConfig = field(default_factory=PairDataConfig)
+    seed: int = 0
+    threads: int = 2
+    # network
+    steps: int = 3000
+    time_limit_s: float = 900.0  # stop (and save) when training time passes this
+    batch_size: int = 8
+    lr_generator: float = 3e-4
+    lr_critic: float = 3e-4
+    l1_coarse_weight: float = 1.2  # DeepFill v1's l1_loss_alpha
+    l1_refine_weight: float = 1.2
+    gan_weight: float = 0.001  # DeepFill v1's gan_loss_alpha
+    gp_weight: float = 10.0  # DeepFill v1's wgan_gp_lambda
+    log_every: int = 25
+    save_every: int = 100
+    # fast harmonizer
+    fast_steps: int = 1500
+    fast_time_limit_s: float = 240.0
+    fast_batch_size: int = 32
+    fast_lr: float = 1e-3
+
+
+# ----------------------------------------------------------------------------------------------------------- the pool
+@dataclass
+class PairPool:
+    images: np.ndarray  # (N, S, S, 3) uint8
+    masks: np.ndarray  # (N, S, S) uint8 {0, 1}
+    sources: list[str]
+
+
+def build_pool(cfg: PairDataConfig, size_px: int, rng: np.random.Generator) -> PairPool:
+    root = data_root()
+    images, masks, sources = [], [], []
+    skipped = {"grabcut": 0, "small": 0}
+
+    def add(img, mask_bool, box, name):
+        crop, m = object_crop(img, mask_bool, box, float(rng.uniform(*cfg.context_range)), size_px)
+        if m.sum() >= 16:
+            images.append(crop), masks.append(m.astype(np.uint8)), sources.append(name)
+
+    def add_random_regions(img, name):
+        for _ in range(cfg.regions_per_unlabelled_image):
+            mb = random_region_mask(img.shape[:2], rng)
+            add(img, mb, mask_box(mb), name + ":region")
+
+    lab_dir, labels = root / cfg.labelled_images_dir, root / cfg.labelled_labels
+    for path, boxes in labelled_images(lab_dir, labels):
+        img = read_image_rgb(path)
+        boxes = load_boxes(path, boxes, labels, img.shape[:2])
+        if not boxes:
+            add_random_regions(img, path.name)
+            continue
+        order = rng.permutation(len(boxes))[: cfg.max_objects_per_image]
+        for i in order:
+            b = boxes[i]
+            if min(b[2] - b[0], b[3] - b[1]) < cfg.min_box_px:
+                skipped["small"] += 1
+                continue
+            mb = grabcut_mask(img, b)
+            if mb is None:
+                skipped["grabcut"] += 1
+                continue
+            add(img, mb, b, path.name)
+    for pattern in cfg.unlabelled_globs:
+        for p in sorted(glob.glob(str(root / pattern))):
+            add_random_regions(read_image_rgb(p), Path(p).name)
+    log.info("pair pool: %d items, skipped %s", len(images), skipped)
+    if not images:
+        raise ValueError(f"no training pairs could be built from {root}")
+    return PairPool(np.stack(images), np.stack(masks), sources)
+
+
+def cached_pool(cfg: PairDataConfig, size_px: int, seed: int, cache_dir: Path = REPO_ROOT / "cache") -> PairPool:
+    key = hashlib.sha1(json.dumps([dataclasses.asdict(cfg), size_px, seed, str(data_root())]).encode()).hexdigest()[:12]
+    path = cache_dir / f"harmonize_pool_{size_px}_{key}.npz"
+    if path.exists():
+        z = np.load(path)
+        return PairPool(z["images"], z["masks"], list(z["sources"]))
+    pool = build_pool(cfg, size_px, np.random.default_rng(seed))
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    np.savez(path, images=pool.images, masks=pool.masks, sources=np.array(pool.sources))
+    return pool
+
+
+def split_pool(pool: PairPool, holdout_fraction: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (train, holdout); holdout is split by *source image* so no photo is on both sides."""
+    names = sorted(set(pool.sources))
+    held = set(rng.permutation(names)[: max(1, int(round(holdout_fraction * len(names))))].tolist())
+    idx = np.arange(len(pool.sources))
+    is_held = np.array([s in held for s in pool.sources])
+    return idx[~is_held], idx[is_held]
+
+
+def make_batch(pool: PairPool, idx: np.ndarray, perturb: PerturbRanges, rng: np.random.Generator, flip: bool = True):
+    """(composite, target, mask) tensors (B,3,S,S), (B,3,S,S), (B,1,S,S) in [0, 1]."""
+    comps, targets, masks = [], [], []
+    for i in idx:
+        img, m = pool.images[i], pool.masks[i].astype(np.float32)
+        if flip and rng.random() < 0.5:
+            img, m = img[:, ::-1], m[:, ::-1]
+        comps.append(apply_perturbation(img, m, sample_perturbation(perturb, rng), rng))
+        targets.append(img), masks.append(m)
+    to_t = lambda a: torch.from_numpy(np.ascontiguousarray(np.stack(a))).permute(0, 3, 1, 2).float() / 255.0  # noqa: E731
+    return to_t(comps), to_t(targets), torch.from_numpy(np.ascontiguousarray(np.stack(masks)))[:, None]
+
+
+def masked_l1(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """L1 over foreground pixels, normalised by foreground area (+1 pixel so an empty mask gives 0)."""
+    return ((pred - target).abs() * mask).sum() / (3 * mask.sum() + 1.0)
+
+
+def fmse_255(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -> float:
+    """Mean over the batch of per-image fMSE on the 0..255 scale (same definition as ``metrics.fmse``)."""
+    err = ((pred.detach() - target) * 255).pow(2) * mask
+    return float((err.sum(dim=(1, 2, 3)) / (3 * mask.sum(dim=(1, 2, 3)).clamp_min(1))).mean())
+
+
+def _fixed_holdout(pool, hold_idx, cfg: TrainConfig, n: int = 48):
+    rng = np.random.default_rng(cfg.seed + 1)
+    return make_batch(pool, hold_idx[:n], cfg.perturb, rng, flip=False)
+
+
+# -------------------------------------------------------------------------------------------------------- the network
+def train_step(gen: Generator, critic: Critic, opt_g, opt_d, comp, target, mask, cfg: TrainConfig,
+               tgen: torch.Generator | None = None) -> dict[str, float]:
+    """One critic update (WGAN loss + mask-weighted GP) then one generator update (L1 coarse + L1 refined + adv)."""
+    out = gen(comp, mask)
+    opt_d.zero_grad()
+    d_real, d_fake = critic(target, mask), critic(out["output"].detach(), mask)
+    gp = masked_gradient_penalty(critic, target, out["output"], mask, tgen)
+    loss_d = d_fake.mean() - d_real.mean() + cfg.gp_weight * gp
+    loss_d.backward()
+    opt_d.step()
+    opt_g.zero_grad()
+    l1_c = masked_l1(out["coarse"], target, mask)
+    l1_r = masked_l1(out["output"], target, mask)
+    adv = -critic(out["output"], mask).mean()
+    loss_g = cfg.l1_coarse_weight * l1_c + cfg.l1_refine_weight * l1_r + cfg.gan_weight * adv
+    loss_g.backward()
+    opt_g.step()
+    return {"l1_coarse": float(l1_c), "l1_refine": float(l1_r), "loss_d": float(loss_d), "gp": float(gp),
+            "adv": float(adv)}
+
+
+def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
+    return (torch.optim.Adam(gen.parameters(), lr=cfg.lr_generator, betas=(0.5, 0.9)),
+            torch.optim.Adam(critic.parameters(), lr=cfg.lr_critic, betas=(0.5, 0.9)))
+
+
+def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None, meta: dict | None = None) -> dict:
+    """Train the generator + critic; saves ``out_path`` every ``save_every`` steps and at the end. Returns a summary."""
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    tgen = torch.Generator().manual_seed(cfg.seed)
+    pool = pool or cached_pool(cfg.data, cfg.network.resolution_px, cfg.seed)
+    train_idx, hold_idx = split_pool(pool, cfg.data.holdout_fraction, np.random.default_rng(cfg.seed))
+    hold = _fixed_holdout(pool, hold_idx, cfg)
+    gen, critic = Generator(cfg.network), Critic(cfg.network.critic_channels)
+    opt_g, opt_d = make_optimizers(gen, critic, cfg)
+    history, t0, step = [], time.perf_counter(), 0
+
+    def evaluate():
+        gen.eval()
+        with torch.no_grad():
+            out = gen(hold[0], hold[2])["output"]
+        gen.train()
+        return fmse_255(hold[0], hold[1], hold[2]), fmse_255(out, hold[1], hold[2])
+
+    raw_fmse, _ = evaluate()
+    log.info("holdout: %d pairs, raw composite fMSE %.1f", len(hold_idx[:48]), raw_fmse)
+    for step in range(1, cfg.steps + 1):
+        comp, target, mask = make_batch(pool, rng.choice(train_idx, cfg.batch_size), cfg.perturb, rng)
+        losses = train_step(gen, critic, opt_g, opt_d, comp, target, mask, cfg, tgen)
+        elapsed = time.perf_counter() - t0
+        if step % cfg.log_every == 0:
+            _, net_fmse = evaluate()
+            rec = {"step": step, "time_s": round(elapsed, 1), **losses, "holdout_fmse": net_fmse}
+            history.append(rec)
+            log.info("step %d %.0fs l1 %.4f/%.4f D %.3f gp %.3f holdout fMSE %.1f (raw %.1f)", step, elapsed,
+                     rec["l1_coarse"], rec["l1_refine"], rec["loss_d"], rec["gp"], net_fmse, raw_fmse)
+        done = elapsed > cfg.time_limit_s or step == cfg.steps
+        if step % cfg.save_every == 0 or done:
+            summary = {"steps": step, "train_time_s": round(elapsed, 1), "holdout_raw_fmse": raw_fmse,
+                       "holdout_fmse": evaluate()[1], "pool_items": len(pool.sources), "threads": cfg.threads,
+                       "config": dataclasses.asdict(cfg), "history": history, **(meta or {})}
+            save_checkpoint(out_path, gen, summary)
+        if done:
+            break
+    return summary
+
+
+# --------------------------------------------------------------------------------------------------- fast harmonizer
+def fast_predict(model: FastColorNet, comp: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    thumb, tm = thumbnail(comp, mask, model.cfg.thumbnail_px)
+    return mask * apply_affine(comp, model(thumb, tm)) + (1 - mask) * comp
+
+
+def fast_train_step(model: FastColorNet, opt, comp, target, mask) -> float:
+    loss = masked_l1(fast_predict(model, comp, mask), target, mask)
+    opt.zero_grad()
+    loss.backward()
+    opt.step()
+    return float(loss)
+
+
+def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None, meta: dict | None = None) -> dict:
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed + 7)
+    pool = pool or cached_pool(cfg.data, cfg.network.resolution_px, cfg.seed)
+    train_idx, hold_idx = split_pool(pool, cfg.data.holdout_fraction, np.random.default_rng(cfg.seed))
+    hold = _fixed_holdout(pool, hold_idx, cfg)
+    model = FastColorNet(cfg.fast)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.fast_lr)
+    t = cfg.fast.thumbnail_px
+
+    def predict(comp, mask):
+        return fast_predict(model, comp, mask)
+
+    def evaluate():
+        with torch.no_grad():
+            return fmse_255(predict(hold[0], hold[2]), hold[1], hold[2])
+
+    raw = fmse_255(hold[0], hold[1], hold[2])
+    t0, history, step = time.perf_counter(), [], 0
+    for step in range(1, cfg.fast_steps + 1):
+        comp, target, mask = make_batch(pool, rng.choice(train_idx, cfg.fast_batch_size), cfg.perturb, rng)
+        loss = fast_train_step(model, opt, comp, target, mask)
+        elapsed = time.perf_counter() - t0
+        if step % (cfg.log_every * 4) == 0:
+            history.append({"step": step, "time_s": round(elapsed, 1), "l1": loss, "holdout_fmse": evaluate()})
+            log.info("fast step %d %.0fs l1 %.4f holdout fMSE %.1f (raw %.1f)", step, elapsed, loss,
+                     history[-1]["holdout_fmse"], raw)
+        if elapsed > cfg.fast_time_limit_s:
+            break
+    summary = {"steps": step, "train_time_s": round(time.perf_counter() - t0, 1), "holdout_raw_fmse": raw,
+               "holdout_fmse": evaluate(), "threads": cfg.threads, "config": dataclasses.asdict(cfg),
+               "history": history, **(meta or {})}
+    save_fast_checkpoint(out_path, model, summary)
+    return summary

@@ -1,0 +1,86 @@
+import numpy as np
+import pytest
+import torch
+
+from aias_augment.harmonize import harmonize
+from aias_augment.harmonize.fast import FastColorNet, FastConfig, save_fast_checkpoint
+from aias_augment.harmonize.network import Generator, NetworkConfig, save_checkpoint
+
+
+@pytest.fixture(scope="module")
+def checkpoints(tmp_path_factory):
+    """Small randomly perturbed (so not identity) models saved in the shipped format."""
+    d = tmp_path_factory.mktemp("ckpt")
+    torch.manual_seed(0)
+    gen = Generator(NetworkConfig(resolution_px=64, base_channels=4, levels=2, dilations=(2,), critic_channels=4))
+    fast = FastColorNet(FastConfig(thumbnail_px=32, channels=4))
+    with torch.no_grad():
+        for p in list(gen.parameters()) + list(fast.parameters()):
+            p.add_(0.05 * torch.randn_like(p))
+    save_checkpoint(d / "net.pt", gen, {})
+    save_fast_checkpoint(d / "fast.pt", fast, {})
+    return {"network": str(d / "net.pt"), "fast": str(d / "fast.pt")}
+
+
+def soft_mask(h, w):
+    yy, xx = np.mgrid[:h, :w]
+    r = np.hypot(xx - w * 0.45, yy - h * 0.55)
+    return np.clip((40 - r) / 6, 0, 1).astype(np.float32)  # disc of radius ~37 px with a 6 px soft edge
+
+
+@pytest.mark.parametrize("method", ["none", "reinhard", "camera", "fast", "network"])
+def test_only_masked_pixels_change_and_input_is_kept(street_rgb, checkpoints, method):
+    mask = soft_mask(*street_rgb.shape[:2])
+    img = street_rgb.copy()
+    img[mask > 0] = np.clip(img[mask > 0].astype(int) + (40, 10, -20), 0, 255)  # a visibly mismatched object
+    before, mask_before = img.copy(), mask.copy()
+    out = harmonize(img, mask, method, np.random.default_rng(0), checkpoints.get(method))
+    assert out.dtype == np.uint8 and out.shape == img.shape and out is not img
+    np.testing.assert_array_equal(img, before)
+    np.testing.assert_array_equal(mask, mask_before)
+    np.testing.assert_array_equal(out[mask == 0], img[mask == 0])
+    if method != "none":
+        assert np.abs(out[mask > 0.5].astype(int) - img[mask > 0.5]).mean() > 0.5
+    # Same rng seed -> same result.
+    again = harmonize(img, mask, method, np.random.default_rng(0), checkpoints.get(method))
+    np.testing.assert_array_equal(out, again)
+
+
+def test_soft_edge_lies_between_input_and_harmonized(street_rgb):
+    mask = soft_mask(*street_rgb.shape[:2])
+    img = street_rgb.copy()
+    full = harmonize(img, (mask > 0).astype(np.float32), "reinhard")
+    soft = harmonize(img, mask, "reinhard")
+    edge = (mask > 0.1) & (mask < 0.9)
+    lo, hi = np.minimum(img, full).astype(int), np.maximum(img, full).astype(int)
+    assert ((soft[edge] >= lo[edge] - 1) & (soft[edge] <= hi[edge] + 1)).all()
+
+
+def test_empty_mask_returns_a_copy(street_rgb):
+    out = harmonize(street_rgb, np.zeros(street_rgb.shape[:2], np.float32), "camera")
+    np.testing.assert_array_equal(out, street_rgb)
+    assert out is not street_rgb
+
+
+@pytest.mark.parametrize("bad", [
+    dict(mask_shape=(10, 11)),
+    dict(mask_value=np.nan),
+    dict(mask_value=1.5),
+    dict(image_dtype=np.float32),
+    dict(image_channels=4),
+    dict(mask_dtype=np.uint8),
+    dict(method="magic"),
+])
+def test_bad_inputs_raise(bad):
+    img = np.zeros((10, 12, bad.get("image_channels", 3)), bad.get("image_dtype", np.uint8))
+    mask = np.zeros(bad.get("mask_shape", (10, 12)), bad.get("mask_dtype", np.float32))
+    mask[2:5, 2:5] = bad.get("mask_value", 1.0)
+    with pytest.raises(ValueError):
+        harmonize(img, mask, bad.get("method", "reinhard"))
+
+
+def test_missing_checkpoint_names_the_training_command(tmp_path):
+    img, mask = np.zeros((16, 16, 3), np.uint8), np.ones((16, 16), np.float32)
+    for method in ("network", "fast"):
+        with pytest.raises(FileNotFoundError, match="train_harmonizer.py"):
+            harmonize(img, mask, method, checkpoint=str(tmp_path / "nope.pt"))
