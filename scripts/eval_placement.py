@@ -102,8 +102,11 @@ def place_one(frame, points, up, existing, asset, rng, args, reasons: Counter):
             reasons["placement: no candidate"] += 1
             return None
         contact_coarse = np.array(placement.contact_point_in_cam)
+        # Local refit only on points near the coarse ground: a car's trunk or a low wall is a horizontal plane
+        # too, and without this band a local fit can choose it as "ground".
+        near_coarse = points[np.abs(coarse.signed_distance(points)) < args.ground_band]
         try:
-            local = fit_ground_plane(points, rng, up_hint=coarse.normal, max_tilt_deg=10, threshold_m=0.05,
+            local = fit_ground_plane(near_coarse, rng, up_hint=coarse.normal, max_tilt_deg=10, threshold_m=0.05,
                                      local_center=contact_coarse, local_radius_m=args.local_radius,
                                      min_inliers=10, source="local")
         except GroundFitError:
@@ -156,6 +159,8 @@ def main(argv=None) -> int:
     ap.add_argument("--local-radius", type=float, default=3.0, help="m, ground refit around the contact point")
     ap.add_argument("--measure-radius", type=float, default=0.5, help="m, measured points around the contact")
     ap.add_argument("--max-distance", type=float, default=25.0, help="m, farthest contact point")
+    ap.add_argument("--ground-band", type=float, default=0.4,
+                    help="m, local refit uses points within this distance of the coarse ground")
     ap.add_argument("--max-candidates", type=int, default=20)
     ap.add_argument("--pictures", type=int, default=3)
     args = ap.parse_args(argv)
@@ -217,6 +222,7 @@ def main(argv=None) -> int:
         "scene": str(args.scene.resolve()), "depth_source": rows[0]["depth_source"] if rows else None,
         "frames": len(frames), "seeds": args.seeds, "placements": len(rows),
         "placements_measured": len(measured),
+        "placements_unmeasured_no_ground_points_nearby": len(rows) - len(measured),
         "median_abs_contact_err_m": float(np.median(measured)) if measured else None,
         "p90_abs_contact_err_m": float(np.percentile(measured, 90)) if measured else None,
         "median_of_seed_medians_m": float(np.median([s["median_abs_contact_err_m"] for s in per_seed
