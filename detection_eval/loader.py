@@ -46,8 +46,17 @@ def cache_image(record, size: int) -> CachedImage:
     return CachedImage(image, record.boxes_xyxy * lb.scale, record.labels, lb)
 
 
-def cache_dataset(dataset: DetectionSet, size: int) -> list[CachedImage]:
-    return [cache_image(r, size) for r in dataset.records]
+def cache_dataset(dataset: DetectionSet, size: int, memo: dict | None = None) -> list[CachedImage]:
+    """Cached images of ``dataset``; ``memo`` (keyed by path and size) shares decoded images between runs."""
+    if memo is None:
+        return [cache_image(r, size) for r in dataset.records]
+    out = []
+    for r in dataset.records:
+        key = (r.image_path, size)
+        if key not in memo:
+            memo[key] = cache_image(r, size)
+        out.append(memo[key])
+    return out
 
 
 def pad_to_square(image: np.ndarray, lb: Letterbox) -> np.ndarray:

@@ -81,15 +81,16 @@ class TrainResult:
 
 def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
                    sample_transform: SampleTransform | None = None, device: str | torch.device = "cpu",
-                   log_fn=None) -> TrainResult:
+                   log_fn=None, image_memo: dict | None = None) -> TrainResult:
     """Train a detector on ``train_set`` for ``cfg.train.max_iters`` iterations. Torch initialisation is seeded by
-    ``seed`` through a local generator state (``torch.manual_seed`` inside ``fork_rng``)."""
+    ``seed`` through a local generator state (``torch.manual_seed`` inside ``fork_rng``). ``image_memo`` shares
+    decoded training images between runs (see ``cache_dataset``)."""
     tc = cfg.train
     if cfg.model.num_classes != len(train_set.category_names):
         cfg = replace_nested(cfg, **{"model.num_classes": len(train_set.category_names)})
     torch.set_num_threads(tc.num_threads)
     t0 = time.perf_counter()
-    cache = cache_dataset(train_set, tc.img_size)
+    cache = cache_dataset(train_set, tc.img_size, image_memo)
     cache_seconds = time.perf_counter() - t0
     batches = TrainBatches(cache, tc.img_size, tc.batch_size, cfg.augment, seed, sample_transform)
     with torch.random.fork_rng(devices=[]):
