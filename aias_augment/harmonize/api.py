@@ -15,8 +15,9 @@ rng: numpy Generator for the stochastic stages (camera noise); None -> ``np.rand
 checkpoint: path of the "fast" / "network" checkpoint; None -> the shipped default. A missing checkpoint raises
   FileNotFoundError naming the training command. Loaded models are cached per process (path + mtime).
 
-Statistics and network inputs use the binary mask ``fg_mask > 0.5``; the result is blended with the soft mask:
-out = composite * (1 - m) + harmonized * m, so pixels with m == 0 are returned unchanged, bit for bit.
+Statistics and network inputs use the binary mask ``fg_mask > 0`` (every pixel that receives any foreground);
+the result is blended with the soft mask: out = composite * (1 - m) + harmonized * m, so pixels with m == 0 are
+returned unchanged, bit for bit.
 The input arrays are never modified; a new array is returned.
 """
 from __future__ import annotations
@@ -74,7 +75,7 @@ def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str 
               rng: np.random.Generator | None = None, checkpoint: str | Path | None = None) -> np.ndarray:
     """Harmonize the masked foreground of a composite; see the module docstring. Returns a new (H, W, 3) uint8."""
     soft = _validate(composite_rgb_uint8, fg_mask, method)
-    hard = soft > 0.5
+    hard = soft > 0.0
     if method == "none" or not hard.any():
         return composite_rgb_uint8.copy()
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -91,7 +92,6 @@ def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str 
         from .network import load_generator, run_network
 
         result = run_network(load_generator(_checkpoint(method, checkpoint)), image, hard)
-    # Soft-edge blend; the soft mask may extend beyond the hard one, where the harmonized image equals the input.
     m = soft[..., None]
     blended = to_uint8(image * (1.0 - m) + result * m)
     return np.where(m > 0, blended, composite_rgb_uint8)

@@ -188,8 +188,8 @@ def train_step(gen: Generator, critic: Critic, opt_g, opt_d, comp, target, mask,
     loss_g = cfg.l1_coarse_weight * l1_c + cfg.l1_refine_weight * l1_r + cfg.gan_weight * adv
     loss_g.backward()
     opt_g.step()
-    return {"l1_coarse": float(l1_c), "l1_refine": float(l1_r), "loss_d": float(loss_d), "gp": float(gp),
-            "adv": float(adv)}
+    return {k: float(v.detach()) for k, v in
+            {"l1_coarse": l1_c, "l1_refine": l1_r, "loss_d": loss_d, "gp": gp, "adv": adv}.items()}
 
 
 def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
@@ -251,7 +251,7 @@ def fast_train_step(model: FastColorNet, opt, comp, target, mask) -> float:
     opt.zero_grad()
     loss.backward()
     opt.step()
-    return float(loss)
+    return float(loss.detach())
 
 
 def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None, meta: dict | None = None) -> dict:

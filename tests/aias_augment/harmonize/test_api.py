@@ -41,6 +41,8 @@ def test_only_masked_pixels_change_and_input_is_kept(street_rgb, checkpoints, me
     np.testing.assert_array_equal(out[mask == 0], img[mask == 0])
     if method != "none":
         assert np.abs(out[mask > 0.5].astype(int) - img[mask > 0.5]).mean() > 0.5
+    assert harmonize(img, mask.astype(np.float64), method, np.random.default_rng(0), checkpoints.get(method)).shape \
+        == img.shape
     # Same rng seed -> same result.
     again = harmonize(img, mask, method, np.random.default_rng(0), checkpoints.get(method))
     np.testing.assert_array_equal(out, again)
