@@ -24,10 +24,11 @@ import numpy as np
 from ..geometry import Intrinsics
 from .envmap import EnvironmentMap, assemble_envmap, camera_ray_directions
 from .hdr import InverseToneMapParams, inverse_tone_map, luminance, srgb_to_linear
-from .ratio import LitShadowMeasurement, ground_region_mask, measure_lit_shadow
+from .ratio import (LitShadowMeasurement, ground_coordinates, ground_region_mask, measure_lit_shadow,
+                    shadow_axis_on_ground)
 from .sh import project_envmap_to_sh, sh_irradiance
 from .sky import preetham_sky_radiance
-from .sun import (_rot3, frame_from_up, remove_sun, solar_direction_enu, sun_cue_from_image,
+from .sun import (_posterior_summary, _rot3, frame_from_up, remove_sun, solar_direction_enu, sun_cue_from_image,
                   sun_direction_in_cam_from_metadata, sun_from_envmap, sun_direction_grid)
 
 __all__ = ["LightingEstimate", "LightingConfig", "estimate_lighting", "lighting_from_envmap"]
@@ -114,6 +115,8 @@ class LightingConfig:
     ground_lateral_range_m: tuple[float, float] = (-1.5, 1.5)
     ground_forward_range_m: tuple[float, float] = (5.0, 20.0)
     turbidity: float = 3.0
+    #: Weight of the cast-shadow axis term (log-likelihood kappa x strength x cos 2 dphi) against the sky cue.
+    shadow_axis_kappa: float = 20.0
     #: Sun cues and the ambient map are computed on a copy at most this wide (pixels).
     analysis_width: int = 400
 
@@ -240,6 +243,12 @@ def estimate_lighting(
     small, K_small = _downscale(img, K, config.analysis_width)
     linear_small = inverse_tone_map(small, InverseToneMapParams())
 
+    # Sun strength: lit vs shadowed ground.
+    region = meta.get("ground_mask")
+    if region is None:
+        region = ground_region_mask(K, up_in_cam, config.camera_height_m, config.ground_lateral_range_m,
+                                    config.ground_forward_range_m)
+    measurement: LitShadowMeasurement | None = measure_lit_shadow(unclipped_linear, np.asarray(region, bool), rng=rng)
     # Sun direction.
     sun_dir, confidence, source, cue = None, 0.0, "none", None
     if not indoor:
@@ -259,17 +268,27 @@ def estimate_lighting(
                 # Position and time without orientation still fix the sun's elevation.
                 el = np.arcsin(np.clip(solar_direction_enu(meta["lat"], meta["lon"], meta["utc"])[2], -1, 1))
                 loglik = loglik - 0.5 * ((azel[:, 1] - el) / np.deg2rad(3.0)) ** 2
+            axis_strength = 0.0
+            if measurement is not None and measurement.dominant_sun:
+                # Cast shadows on the ground are bands along the sun's azimuth (ambiguous by 180 deg: the sky cue
+                # picks the side).
+                ground_xy, _ = ground_coordinates(K, up_in_cam, config.camera_height_m)
+                axis, axis_strength = shadow_axis_on_ground(measurement.shadow_mask, np.asarray(region, bool),
+                                                            ground_xy)
+                # Visible cast shadows need a sun clearly above the horizon.
+                loglik = np.where(azel[:, 1] > np.deg2rad(3.0), loglik, loglik - 1e3)
+                if axis_strength > 0:
+                    d_cam = grid_world @ R_cw.T
+                    fwd = np.array([0.0, 0.0, 1.0]) - up_in_cam[2] * up_in_cam
+                    fwd /= np.linalg.norm(fwd)
+                    phi = np.arctan2(d_cam @ fwd, d_cam @ np.cross(fwd, up_in_cam))
+                    loglik = loglik + config.shadow_axis_kappa * axis_strength * np.cos(2.0 * (phi - axis))
             best = int(np.argmax(loglik))
             sun_dir = R_cw @ grid_world[best]
-            confidence = cue.confidence * (1.0 if known_camera else 0.5)
+            _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
+            confidence = max(cue.confidence, 0.5 * axis_strength * concentration) * (1.0 if known_camera else 0.5)
             source = "image_cues"
 
-    # Sun strength: lit vs shadowed ground.
-    region = meta.get("ground_mask")
-    if region is None:
-        region = ground_region_mask(K, up_in_cam, config.camera_height_m, config.ground_lateral_range_m,
-                                    config.ground_forward_range_m)
-    measurement: LitShadowMeasurement | None = measure_lit_shadow(unclipped_linear, np.asarray(region, bool), rng=rng)
     if indoor:
         dominant = False
     elif measurement is not None and measurement.dominant_sun:

@@ -21,7 +21,8 @@ from ..geometry import Intrinsics
 from .envmap import camera_ray_directions
 from .hdr import luminance
 
-__all__ = ["LitShadowMeasurement", "measure_lit_shadow", "ground_region_mask"]
+__all__ = ["LitShadowMeasurement", "measure_lit_shadow", "ground_region_mask", "ground_coordinates",
+           "shadow_axis_on_ground"]
 
 
 @dataclass(frozen=True)
@@ -42,14 +43,11 @@ class LitShadowMeasurement:
     shadow_mask: np.ndarray
 
 
-def ground_region_mask(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = 1.65,
-                       lateral_range_m: tuple[float, float] = (-3.0, 3.0),
-                       forward_range_m: tuple[float, float] = (5.0, 25.0)) -> np.ndarray:
-    """Pixels whose ray meets a flat ground ``camera_height_m`` below the camera inside a box in front of it.
-
-    The box is in the gravity-aligned frame of the camera: lateral (x, right positive) and forward distance (m). KITTI's
-    camera is 1.65 m above the road. Returns (H, W) bool.
-    """
+def ground_coordinates(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = 1.65
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Where each pixel's ray meets a flat ground ``camera_height_m`` below the camera: (H, W, 2) (lateral, forward)
+    metres in the gravity-aligned camera frame (lateral positive to the right, forward along the camera's heading) and
+    (H, W) bool (False at or above the horizon, where the ray never meets the ground)."""
     up = np.asarray(up_in_cam, dtype=np.float64)
     up = up / np.linalg.norm(up)
     rays = camera_ray_directions(intrinsics)
@@ -60,10 +58,51 @@ def ground_region_mask(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_hei
     fwd = np.array([0.0, 0.0, 1.0]) - up[2] * up
     fwd /= np.linalg.norm(fwd)
     right = np.cross(fwd, up)  # level OpenCV camera: z x (-y) = +x
-    lat = pts @ right
-    fwd_d = pts @ fwd
+    return np.stack([pts @ right, pts @ fwd], axis=-1), ok
+
+
+def ground_region_mask(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = 1.65,
+                       lateral_range_m: tuple[float, float] = (-3.0, 3.0),
+                       forward_range_m: tuple[float, float] = (5.0, 25.0)) -> np.ndarray:
+    """Pixels whose ray meets a flat ground ``camera_height_m`` below the camera inside a box in front of it.
+
+    The box is in the gravity-aligned frame of the camera: lateral (x, right positive) and forward distance (m). KITTI's
+    camera is 1.65 m above the road. Returns (H, W) bool.
+    """
+    g, ok = ground_coordinates(intrinsics, up_in_cam, camera_height_m)
+    lat, fwd_d = g[..., 0], g[..., 1]
     return ok & (lat >= lateral_range_m[0]) & (lat <= lateral_range_m[1]) & (fwd_d >= forward_range_m[0]) & (
         fwd_d <= forward_range_m[1])
+
+
+def shadow_axis_on_ground(shadow_mask: np.ndarray, region_mask: np.ndarray, ground_xy: np.ndarray,
+                          bin_m: float = 0.1, step_deg: float = 2.0, min_pixels: int = 50) -> tuple[float, float]:
+    """Axis of straight cast-shadow bands on the ground by projection profiles: (angle, strength).
+
+    Shadows of upright thin occluders (poles, posts, trunks) are long bands along the sun's azimuth. For each candidate
+    axis angle theta, shadow points (``ground_xy`` (H, W, 2) lateral/forward metres) are projected on the axis normal
+    and histogrammed (``bin_m``); bands aligned with theta make the histogram peaky (large sum of squared counts). The
+    peakiness is divided by that of all ``region_mask`` points at the same theta, so the region's own shape does not
+    bias the answer. Works on fragmented 1-2 px lines, unlike connected components. Angle = atan2(forward, lateral)
+    in [0, pi) (the sun lies along it, on one of its two sides); strength = 1 - median / max of the normalised
+    peakiness over theta (0: no direction stands out). Fewer than ``min_pixels`` shadow points give (0, 0).
+    """
+    shadow = np.asarray(shadow_mask, bool) & region_mask
+    if shadow.sum() < min_pixels or region_mask.sum() < min_pixels:
+        return 0.0, 0.0
+    ps, pr = ground_xy[shadow], ground_xy[region_mask]
+    thetas = np.deg2rad(np.arange(0.0, 180.0, step_deg))
+    rel = np.empty(len(thetas))
+    for k, th in enumerate(thetas):
+        normal = np.array([-np.sin(th), np.cos(th)])
+        a, b = ps @ normal, pr @ normal
+        edges = np.arange(b.min(), b.max() + 2 * bin_m, bin_m)
+        hs = np.histogram(a, edges)[0].astype(np.float64)
+        hr = np.histogram(b, edges)[0].astype(np.float64)
+        rel[k] = (np.sum(hs ** 2) / len(a) ** 2) / max(np.sum(hr ** 2) / len(b) ** 2, 1e-12)
+    rel = ndimage.uniform_filter1d(rel, 3, mode="wrap")
+    best = int(np.argmax(rel))
+    return float(thetas[best]), float(np.clip(1.0 - np.median(rel) / max(rel[best], 1e-12), 0.0, 1.0))
 
 
 def measure_lit_shadow(

@@ -180,7 +180,11 @@ def sun_from_envmap(radiance: np.ndarray, core_fraction: float = 0.05, halo_deg:
     r0, c0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
     shift = w // 2 - c0  # put the peak at the centre column so the region does not straddle the seam
     lum_s = np.roll(smooth, shift, axis=1)
-    labels, _ = ndimage.label(lum_s >= core_fraction * float(smooth[r0, c0]))
+    # Threshold relative to the raw peak near the blurred maximum (blurring lowers a small sun's peak a lot).
+    win = max(2, int(round(3 * sigma_px)))
+    local_peak = float(np.roll(lum, shift, axis=1)[max(0, r0 - win):r0 + win + 1, w // 2 - win:w // 2 + win + 1].max())
+    # ... but never above the blurred peak itself, so the peak is always inside its own region.
+    labels, _ = ndimage.label(lum_s >= min(core_fraction * local_peak, 0.5 * float(smooth[r0, c0])))
     core = np.roll(labels == labels[r0, w // 2], -shift, axis=1)
     # The brightest part: within ``centroid_deg`` of the peak (a sun disc and its glow; the hot spot of a window).
     bright = core & ((dirs @ dirs[r0, c0]) >= np.cos(np.deg2rad(centroid_deg)))
@@ -258,9 +262,9 @@ def _posterior_summary(grid: np.ndarray, loglik: np.ndarray, up: np.ndarray) -> 
 def _find_sun_disc(unit_rgb: np.ndarray, above: np.ndarray, max_area_frac: float = 0.08,
                    clip_level: float = 250.0 / 255.0) -> tuple[float, float] | None:
     """(u, v) of a visible sun: a clipped (white) blob above the horizon that is compact (< ``max_area_frac`` of the
-    image), round (area <= 2.5 x the disc inscribed at its deepest point) and surrounded by glare (the 2-pixel ring around it
-    is bright everywhere: 10th percentile >= 0.45 linear, mean >= 2x the median above the horizon). Returns its deepest
-    point, or None."""
+    image), not cut by the image border, round (area <= 2.5 x the disc inscribed at its deepest point) and surrounded by glare (the 2-pixel ring around it
+    is bright everywhere: 10th percentile >= 0.45 linear, mean >= 2x the median above the horizon; 8 samples at 1.5x
+    its radius within a factor 0.35 of each other). Returns its deepest point, or None."""
     clipped = (unit_rgb.min(axis=2) >= clip_level) & above
     if not clipped.any():
         return None
@@ -275,16 +279,29 @@ def _find_sun_disc(unit_rgb: np.ndarray, above: np.ndarray, max_area_frac: float
         if area < 4 or area > max_area_frac * h * w:
             continue
         blob = labels == idx + 1
+        if blob[0].any() or blob[-1].any() or blob[:, 0].any() or blob[:, -1].any():
+            continue  # cut by the image border: its centre is unknown (the sky fit still sees the glare)
         dist = ndimage.distance_transform_edt(np.pad(blob, 1))[1:-1, 1:-1]
         depth = float(dist.max())
         if area > 2.5 * np.pi * depth ** 2:  # elongated or ragged: a white object or a gap between leaves
+            continue
+        v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
+        # Glare is isotropic: 8 samples around the blob at 1.5x its radius must all be bright relative to each other.
+        ang = np.arange(8) * np.pi / 4
+        rad_px = 1.5 * depth + 3.0
+        su = np.round(u + rad_px * np.cos(ang)).astype(int)
+        sv = np.round(v + rad_px * np.sin(ang)).astype(int)
+        inside = (su >= 0) & (su < w) & (sv >= 0) & (sv < h)
+        if inside.sum() < 5:
+            continue
+        samples = lum[sv[inside], su[inside]]
+        if float(samples.min()) < 0.35 * float(samples.max()):
             continue
         # Glare: every pixel just outside a clipped sun is nearly clipped too; a white facade or a sky gap between
         # leaves has dark pixels on its border.
         ring = ndimage.binary_dilation(blob, iterations=2) & ~blob
         if not ring.any() or float(np.percentile(lum[ring], 10)) < 0.45 or float(lum[ring].mean()) < 2.0 * sky_median:
             continue
-        v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
         if best is None or area > best[0]:
             best = (area, float(u), float(v))
     return None if best is None else (best[1], best[2])

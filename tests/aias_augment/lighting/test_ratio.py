@@ -48,3 +48,18 @@ def test_ground_region_is_below_horizon_and_in_front():
     assert v.min() == pytest.approx(183.1104 + 707.0912 * 1.65 / 20, abs=1.5)
     assert v.max() == 369
     assert abs(u.mean() - 601.9) < 30
+
+
+def test_shadow_axis_of_pole_shadow_bands():
+    # Thin, broken shadow bands at 30 deg from the lateral axis on a ground grid: the axis is recovered.
+    xs, ys = np.meshgrid(np.linspace(-2, 2, 200), np.linspace(5, 20, 300))
+    ground = np.stack([xs, ys], axis=-1)
+    region = np.ones(xs.shape, bool)
+    th = np.deg2rad(30.0)
+    normal = np.array([-np.sin(th), np.cos(th)])
+    dist = ground @ normal
+    shadow = (np.abs(dist - 7.0) < 0.05) | (np.abs(dist - 11.0) < 0.05)
+    shadow &= np.random.default_rng(0).random(xs.shape) > 0.3  # fragmented
+    angle, strength = ratio.shadow_axis_on_ground(shadow, region, ground)
+    assert abs(np.rad2deg(angle) - 30.0) < 4.0 and strength > 0.5
+    assert ratio.shadow_axis_on_ground(np.zeros_like(shadow), region, ground) == (0.0, 0.0)

@@ -1,0 +1,270 @@
+"""Evaluate lighting estimation on equirectangular HDR maps (EXR or Radiance .hdr; files or folders).
+
+Three measurements per map:
+1. Sun from the map (``sun.sun_from_envmap``) against an independent "brightest region": the argmax of the luminance
+   of the 4x area-downsampled map blurred by a 1.5-pixel Gaussian (about 2 deg). Reports the angle between them.
+2. SH irradiance: relative RMS error (luminance, over 256 Fibonacci normals) of the 9-coefficient SH irradiance against
+   brute-force integration of the full map, (a) SH of the full map, (b) SH of the map without the sun + the sun as a
+   directional light (what the estimator hands to the renderer).
+3. Image cues: perspective crops with a known camera (pinhole, level roll, yaw all around the sun, pitch and field of
+   view drawn per seed), exposed like a camera (median metering, clip, sRGB, 8 bit), run through
+   ``sun.sun_cue_from_image``; azimuth error against the map's sun; single frames and all crops of a map fused in world
+   coordinates (``sun.fuse_sun_cues``). Only maps with a dominant sun (``estimate.lighting_from_envmap``) count in the
+   headline numbers.
+
+Usage: python scripts/eval_lighting.py /usr/share/blender/datafiles/studiolights/world --out results/lighting
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from aias_augment.geometry import Intrinsics
+from aias_augment.lighting import envmap as em
+from aias_augment.lighting import hdr, sh, sun
+from aias_augment.lighting.estimate import lighting_from_envmap
+
+
+def find_maps(paths: list[str]) -> list[Path]:
+    out = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            out += sorted(q for q in p.iterdir() if q.suffix.lower() in hdr.HDR_SUFFIXES)
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise FileNotFoundError(p)
+    if not out:
+        raise SystemExit(f"no .exr/.hdr maps under {paths}")
+    return out
+
+
+def downsample(rad: np.ndarray, f: int) -> np.ndarray:
+    h, w = rad.shape[:2]
+    h2, w2 = h // f, w // f
+    return rad[: h2 * f, : w2 * f].reshape(h2, f, w2, f, 3).mean(axis=(1, 3))
+
+
+def brightest_region_direction(rad: np.ndarray) -> np.ndarray:
+    f = max(1, rad.shape[0] // 128)
+    small = hdr.luminance(downsample(rad, f))
+    blurred = ndimage.gaussian_filter(small, 1.5, mode=("nearest", "wrap"))
+    r, c = np.unravel_index(int(np.argmax(blurred)), blurred.shape)
+    return em.pixel_directions(*small.shape)[r, c]
+
+
+def sh_errors(rad: np.ndarray, found: sun.SunFromEnv, dominant: bool) -> dict:
+    normals = sh.fibonacci_sphere(256)
+    ref = hdr.luminance(sh.brute_force_irradiance(rad, normals))
+    full = hdr.luminance(sh.sh_irradiance(sh.project_envmap_to_sh(rad), normals))
+    ambient = sh.sh_irradiance(sh.project_envmap_to_sh(sun.remove_sun(rad, found)), normals)
+    split = hdr.luminance(ambient + np.maximum(normals @ found.direction_in_env, 0.0)[:, None] * found.irradiance_rgb)
+
+    def rel_rms(est):
+        return float(np.sqrt(np.mean((est - ref) ** 2)) / max(np.sqrt(np.mean(ref ** 2)), 1e-12))
+
+    # What the estimator hands to the renderer: ambient + sun when the sun is dominant, else SH of the whole map.
+    return {"sh_full_rel_rms": rel_rms(full), "sh_ambient_plus_sun_rel_rms": rel_rms(split),
+            "sh_estimator_rel_rms": rel_rms(split if dominant else full)}
+
+
+def expose_ldr(rad: np.ndarray) -> np.ndarray:
+    """Median metering to 0.18 (cameras meter on the scene, not on the sun), clip, sRGB, 8 bit."""
+    s = 0.18 / max(float(np.median(hdr.luminance(rad))), 1e-8)
+    return np.round(hdr.linear_to_srgb(rad * s) * 255.0).astype(np.uint8)
+
+
+def azimuth_error_deg(d: np.ndarray, ref: np.ndarray) -> float:
+    a, _ = em.direction_to_azimuth_elevation(d)
+    b, _ = em.direction_to_azimuth_elevation(ref)
+    return float(abs((np.rad2deg(a - b) + 180.0) % 360.0 - 180.0))
+
+
+def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: int, width: int, height: int) -> dict:
+    sun_az, sun_el = em.direction_to_azimuth_elevation(sun_dir)
+    grid, _ = sun.sun_direction_grid()
+    up = np.array([0.0, 0.0, 1.0])
+    rows, fused = [], []
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        cues = []
+        for k in range(n_views):
+            offset = 360.0 * k / n_views + rng.uniform(-10, 10)
+            pitch = rng.uniform(0.0, 15.0)
+            hfov = rng.uniform(60.0, 90.0)
+            K = Intrinsics.from_fov(width, height, hfov)
+            R = em.cam_from_env_look(sun_az + np.deg2rad(offset), np.deg2rad(pitch))
+            img = expose_ldr(em.render_perspective(rad, K, R))
+            t = time.perf_counter()
+            cue = sun.sun_cue_from_image(img, K, R, up, grid, rng=rng)
+            dt = time.perf_counter() - t
+            cues.append(cue)
+            sun_in_cam = R @ sun_dir
+            uv = (K.fx * sun_in_cam[0] / max(sun_in_cam[2], 1e-9) + K.cx, K.fy * sun_in_cam[1] / max(sun_in_cam[2], 1e-9) + K.cy)
+            in_view = bool(sun_in_cam[2] > 0 and 0 <= uv[0] < width and 0 <= uv[1] < height)
+            rows.append({"seed": seed, "yaw_offset_deg": round(offset, 2), "pitch_deg": round(pitch, 2),
+                         "hfov_deg": round(hfov, 2), "sun_in_view": in_view, "sun_visible_detected": cue.sun_visible,
+                         "azimuth_error_deg": azimuth_error_deg(cue.direction_in_world, sun_dir),
+                         "confidence": cue.confidence, "seconds": dt})
+        f = sun.fuse_sun_cues(cues)
+        fused.append({"seed": seed, "azimuth_error_deg": azimuth_error_deg(f.direction_in_world, sun_dir),
+                      "elevation_est_deg": float(np.rad2deg(em.direction_to_azimuth_elevation(f.direction_in_world)[1])),
+                      "elevation_true_deg": float(np.rad2deg(sun_el)), "confidence": f.confidence})
+    return {"crops": rows, "fused": fused}
+
+
+def summarize(errors: list[float]) -> dict:
+    if not errors:
+        return {"n": 0}
+    e = np.asarray(errors)
+    return {"n": int(e.size), "median_deg": float(np.median(e)), "mean_deg": float(e.mean()),
+            "p75_deg": float(np.percentile(e, 75)), "frac_below_25deg": float(np.mean(e < 25.0))}
+
+
+def make_plot(report: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    names = list(report["maps"])
+    sh_full = [report["maps"][n]["sh_full_rel_rms"] * 100 for n in names]
+    sh_split = [report["maps"][n]["sh_ambient_plus_sun_rel_rms"] * 100 for n in names]
+    x = np.arange(len(names))
+    axes[0].bar(x - 0.2, sh_full, 0.4, label="SH of full map")
+    axes[0].bar(x + 0.2, sh_split, 0.4, label="SH ambient + sun")
+    axes[0].axhline(15, color="r", ls="--", lw=1, label="15 % target")
+    axes[0].set_xticks(x, names, rotation=45)
+    axes[0].set_ylabel("irradiance rel. RMS error (%)")
+    axes[0].legend(fontsize=8)
+    axes[1].bar(x, [report["maps"][n]["sun_vs_brightest_deg"] for n in names])
+    axes[1].set_xticks(x, names, rotation=45)
+    axes[1].set_ylabel("sun vs brightest region (deg)")
+    for n in names:
+        crops = report["maps"][n].get("image_cues", {}).get("crops", [])
+        if crops:
+            axes[2].scatter([((c["yaw_offset_deg"] + 180) % 360) - 180 for c in crops],
+                            [c["azimuth_error_deg"] for c in crops], s=10, label=n)
+    axes[2].axhline(25, color="r", ls="--", lw=1)
+    axes[2].set_xlabel("camera yaw - sun azimuth (deg)")
+    axes[2].set_ylabel("image-cue azimuth error (deg)")
+    axes[2].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("maps", nargs="+", help="equirectangular .exr/.hdr files or folders")
+    ap.add_argument("--out", default="out/lighting", help="output folder (report.json, report.md, plot.png)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--views", type=int, default=12, help="crops per map and seed, spread all around the sun")
+    ap.add_argument("--size", type=int, nargs=2, default=[480, 300], metavar=("W", "H"))
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
+              "maps": {}}
+    headline_single, headline_fused = [], []
+    for path in find_maps(args.maps):
+        rad = hdr.read_hdr_image(path)
+        if rad.shape[1] != 2 * rad.shape[0]:
+            print(f"skip {path}: not equirectangular ({rad.shape[1]}x{rad.shape[0]})")
+            continue
+        t = time.perf_counter()
+        found = sun.sun_from_envmap(rad)
+        t_sun = time.perf_counter() - t
+        est = lighting_from_envmap(em.EnvironmentMap(rad))
+        az, el = em.direction_to_azimuth_elevation(found.direction_in_env)
+        entry = {
+            "path": str(path),
+            "sun_azimuth_deg": float(np.rad2deg(az)), "sun_elevation_deg": float(np.rad2deg(el)),
+            "sun_solid_angle_sr": found.solid_angle_sr, "sun_irradiance_rgb": found.irradiance_rgb.tolist(),
+            "sun_vs_brightest_deg": float(sun.angle_between_deg(found.direction_in_env, brightest_region_direction(rad))),
+            "dominant_sun": est.dominant_sun, "sun_sky_ratio": est.sun_sky_ratio, "sun_from_envmap_seconds": t_sun,
+        }
+        entry.update(sh_errors(rad, found, est.dominant_sun))
+        if est.dominant_sun:
+            cues = crop_eval(rad, found.direction_in_env, args.seeds, args.views, *args.size)
+            entry["image_cues"] = cues
+            entry["image_cues_summary"] = {
+                "all": summarize([c["azimuth_error_deg"] for c in cues["crops"]]),
+                "sun_in_view": summarize([c["azimuth_error_deg"] for c in cues["crops"] if c["sun_in_view"]]),
+                "sun_out_of_view": summarize([c["azimuth_error_deg"] for c in cues["crops"] if not c["sun_in_view"]]),
+                "confident_ge_0.5": summarize([c["azimuth_error_deg"] for c in cues["crops"] if c["confidence"] >= 0.5]),
+                "fused_clip": summarize([f["azimuth_error_deg"] for f in cues["fused"]]),
+                "median_seconds_per_crop": float(np.median([c["seconds"] for c in cues["crops"]])),
+            }
+            headline_single += [c for c in cues["crops"]]
+            headline_fused += [f["azimuth_error_deg"] for f in cues["fused"]]
+        report["maps"][path.stem] = entry
+        print(f"{path.stem:12s} sun az {entry['sun_azimuth_deg']:7.1f} el {entry['sun_elevation_deg']:5.1f} "
+              f"vs brightest {entry['sun_vs_brightest_deg']:5.2f} deg  dominant {est.dominant_sun!s:5s} "
+              f"SH full {entry['sh_full_rel_rms']:.3f} split {entry['sh_ambient_plus_sun_rel_rms']:.3f}"
+              + (f"  cue median {entry['image_cues_summary']['all']['median_deg']:.1f} deg" if est.dominant_sun else ""))
+    report["headline"] = {
+        "image_cue_azimuth_all_crops": summarize([c["azimuth_error_deg"] for c in headline_single]),
+        "image_cue_azimuth_sun_in_view": summarize([c["azimuth_error_deg"] for c in headline_single if c["sun_in_view"]]),
+        "image_cue_azimuth_sun_out_of_view": summarize(
+            [c["azimuth_error_deg"] for c in headline_single if not c["sun_in_view"]]),
+        "image_cue_azimuth_confident_ge_0.5": summarize(
+            [c["azimuth_error_deg"] for c in headline_single if c["confidence"] >= 0.5]),
+        "coverage_confident_ge_0.5": float(np.mean([c["confidence"] >= 0.5 for c in headline_single]))
+        if headline_single else 0.0,
+        "image_cue_azimuth_fused_clips": summarize(headline_fused),
+        "sh_full_rel_rms_max": max(m["sh_full_rel_rms"] for m in report["maps"].values()),
+        "sh_ambient_plus_sun_rel_rms_max": max(m["sh_ambient_plus_sun_rel_rms"] for m in report["maps"].values()),
+        "sh_estimator_rel_rms_max": max(m["sh_estimator_rel_rms"] for m in report["maps"].values()),
+        "sun_vs_brightest_deg_max": max(m["sun_vs_brightest_deg"] for m in report["maps"].values()),
+    }
+    (out / "report.json").write_text(json.dumps(report, indent=1))
+    make_plot(report, out / "plot.png")
+    write_markdown(report, out / "report.md")
+    print(json.dumps(report["headline"], indent=1))
+    return 0
+
+
+def write_markdown(report: dict, path: Path) -> None:
+    h = report["headline"]
+    lines = ["# Lighting evaluation on equirectangular HDR maps", "", f"Command: `{report['command']}`", "",
+             "| map | sun az / el (deg) | solid angle (sr) | sun vs brightest (deg) | dominant sun | sun/sky ratio "
+             "| SH full rel RMS | SH ambient+sun rel RMS | SH as used rel RMS | image-cue az err median (all / in view / out of view / fused) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for name, m in report["maps"].items():
+        s = m.get("image_cues_summary")
+        cue = "-" if s is None else (f"{s['all']['median_deg']:.1f} / {s['sun_in_view'].get('median_deg', float('nan')):.1f}"
+                                      f" / {s['sun_out_of_view'].get('median_deg', float('nan')):.1f}"
+                                      f" / {s['fused_clip']['median_deg']:.1f}")
+        lines.append(f"| {name} | {m['sun_azimuth_deg']:.1f} / {m['sun_elevation_deg']:.1f} | {m['sun_solid_angle_sr']:.4f} "
+                     f"| {m['sun_vs_brightest_deg']:.2f} | {m['dominant_sun']} | {m['sun_sky_ratio']:.2f} "
+                     f"| {m['sh_full_rel_rms'] * 100:.1f} % | {m['sh_ambient_plus_sun_rel_rms'] * 100:.1f} % "
+                     f"| {m['sh_estimator_rel_rms'] * 100:.1f} % | {cue} |")
+
+    def fmt(s):
+        return "n=0" if s["n"] == 0 else (f"n={s['n']}, median {s['median_deg']:.1f} deg, p75 {s['p75_deg']:.1f} deg, "
+                                          f"{s['frac_below_25deg'] * 100:.0f} % below 25 deg")
+
+    lines += ["", "Headline (maps with a dominant sun; single crops over all seeds):", "",
+              f"- image-cue azimuth, all crops: {fmt(h['image_cue_azimuth_all_crops'])}",
+              f"- sun in view: {fmt(h['image_cue_azimuth_sun_in_view'])}",
+              f"- sun out of view: {fmt(h['image_cue_azimuth_sun_out_of_view'])}",
+              f"- confidence >= 0.5 ({h['coverage_confident_ge_0.5'] * 100:.0f} % of crops): "
+              f"{fmt(h['image_cue_azimuth_confident_ge_0.5'])}",
+              f"- all crops of a map fused in world coordinates: {fmt(h['image_cue_azimuth_fused_clips'])}",
+              f"- SH irradiance rel. RMS, worst map: full map {h['sh_full_rel_rms_max'] * 100:.1f} %, "
+              f"ambient + separate sun {h['sh_ambient_plus_sun_rel_rms_max'] * 100:.1f} %, as used by the estimator "
+              f"(ambient + sun only where the sun is dominant) {h['sh_estimator_rel_rms_max'] * 100:.1f} % (target < 15 %)",
+              f"- sun vs brightest region, worst map: {h['sun_vs_brightest_deg_max']:.2f} deg", "",
+              "![plot](plot.png)", ""]
+    path.write_text("\n".join(lines))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
