@@ -13,7 +13,7 @@ import numpy as np
 from .assets import CATEGORY_HEIGHT_RANGE_M, Asset
 from .collision import CollisionConfig, OrientedBox, check_candidate
 from .geometry import Intrinsics, make_rigid, project_points, transform_points
-from .ground import GroundPlane
+from .ground import GroundFitError, GroundPlane, depth_to_points, fit_ground_plane
 
 
 @dataclass(frozen=True)
@@ -27,6 +27,23 @@ class PlacementConfig:
     min_in_image_frac: float = 0.9          # fraction of the projected box that must lie inside the image
     depth_tolerance_rel: float = 0.15       # |scene depth - plane depth| / plane depth for "this pixel is ground"
     horizon_margin_px: float = 8.0          # contact pixels must be this far below the horizon
+    # Local ground refit around the chosen contact (needs measured points: ``points_in_cam`` or ``depth``). The
+    # coarse (global) plane is only a first guess: roads are crowned and banked, sidewalks are kerb-high.
+    local_refit: bool = True
+    local_radius_m: float = 3.0             # refit on points within this horizontal distance of the coarse contact
+    local_ground_band_m: float = 0.4        # ... and within this distance of the coarse plane (not a car trunk)
+    local_threshold_m: float = 0.05         # RANSAC inlier distance of the local fit
+    local_max_tilt_deg: float = 10.0        # local normal within this angle of the coarse normal
+    local_min_inliers: int = 10
+    local_max_depth_m: float = 40.0         # depth pixels farther than this are not used (stereo noise ~ z^2)
+    local_max_points: int = 200_000         # random subset of the band points (speed)
+    local_fallback: str = "global"          # when the refit fails: "global" (coarse plane) | "reject" the candidate
+
+    def __post_init__(self):
+        if self.local_fallback not in ("global", "reject"):
+            raise ValueError(f"local_fallback must be 'global' or 'reject', got {self.local_fallback!r}")
+        if self.local_radius_m <= 0 or self.local_ground_band_m <= 0 or self.local_threshold_m <= 0:
+            raise ValueError("local_radius_m, local_ground_band_m and local_threshold_m must be positive")
 
 
 @dataclass(frozen=True)
@@ -46,6 +63,11 @@ class Placement:
     ground_normal_in_cam: tuple[float, float, float]
     ground_d: float
     ground_source: str
+    # Which plane the contact point and the orientation come from: "local" (refit around the contact), "global"
+    # (the frame's plane: no measured points, refit off, or refit failed) and the inliers/rms of that plane.
+    ground_used: str = "global"
+    ground_num_inliers: int = 0
+    ground_rms_m: float = 0.0
 
     @property
     def cam_from_object_matrix(self) -> np.ndarray:
@@ -57,9 +79,11 @@ class PlacementReport:
     tries: int = 0
     rejected: Counter = field(default_factory=Counter)
     chosen_because: str = ""
+    local_refit_failed: int = 0    # candidates whose local refit failed (then the global plane or a rejection)
 
     def to_dict(self) -> dict:
-        return {"tries": self.tries, "rejected": dict(self.rejected), "chosen_because": self.chosen_because}
+        return {"tries": self.tries, "rejected": dict(self.rejected), "chosen_because": self.chosen_because,
+                "local_refit_failed": self.local_refit_failed}
 
 
 def object_pose_on_ground(contact_point_in_cam: np.ndarray, ground: GroundPlane, yaw_rad: float) -> np.ndarray:
@@ -97,6 +121,45 @@ def _overlap_frac(box: np.ndarray, others: np.ndarray) -> float:
     return float(np.max(inter / np.minimum(area_b, area_o)))
 
 
+def _child_generator(rng: np.random.Generator) -> np.random.Generator:
+    """Independent child of ``rng`` that leaves ``rng``'s stream untouched (SeedSequence spawn; deterministic).
+    A generator without a seed sequence gives one draw instead."""
+    try:
+        return rng.spawn(1)[0]
+    except (TypeError, ValueError, AttributeError):
+        return np.random.default_rng(rng.integers(2**63))
+
+
+def ground_band_points(ground: GroundPlane, intrinsics: Intrinsics, rng: np.random.Generator, *,
+                       points_in_cam: np.ndarray | None = None, depth: np.ndarray | None = None,
+                       cfg: PlacementConfig = PlacementConfig()) -> np.ndarray | None:
+    """Measured points that may be ground: within ``cfg.local_ground_band_m`` of the coarse plane, (N, 3) or None.
+
+    Source: ``points_in_cam`` (LiDAR / stereo points) when given, else ``depth`` pixels nearer than
+    ``cfg.local_max_depth_m``. At most ``cfg.local_max_points`` points, drawn with ``rng``.
+    """
+    if points_in_cam is not None:
+        pts = np.asarray(points_in_cam, dtype=np.float64).reshape(-1, 3)
+        pts = pts[np.all(np.isfinite(pts), axis=1) & (pts[:, 2] < cfg.local_max_depth_m)]
+    elif depth is not None:
+        pts, _ = depth_to_points(depth, intrinsics, max_depth_m=cfg.local_max_depth_m)
+    else:
+        return None
+    pts = pts[np.abs(ground.signed_distance(pts)) < cfg.local_ground_band_m]
+    if len(pts) > cfg.local_max_points:
+        pts = pts[rng.choice(len(pts), cfg.local_max_points, replace=False)]
+    return pts
+
+
+def refit_local_ground(band_points: np.ndarray, ground: GroundPlane, contact_in_cam: np.ndarray,
+                       rng: np.random.Generator, cfg: PlacementConfig = PlacementConfig()) -> GroundPlane:
+    """Ground plane refit on ``band_points`` within ``cfg.local_radius_m`` (horizontally) of ``contact_in_cam``,
+    normal within ``cfg.local_max_tilt_deg`` of the coarse ``ground``'s. Raises GroundFitError when no such plane."""
+    return fit_ground_plane(band_points, rng, up_hint=ground.normal, max_tilt_deg=cfg.local_max_tilt_deg,
+                            threshold_m=cfg.local_threshold_m, local_center=contact_in_cam,
+                            local_radius_m=cfg.local_radius_m, min_inliers=cfg.local_min_inliers, source="local")
+
+
 def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, rng: np.random.Generator, *,
                      existing_boxes_xyxy: np.ndarray | None = None, depth: np.ndarray | None = None,
                      region_mask: np.ndarray | None = None, height_range_m: tuple[float, float] | None = None,
@@ -106,9 +169,13 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
     """Choose a ground point, scale and yaw for ``asset``; ``None`` (with reasons) when no candidate passes.
 
     Candidates: a pixel drawn uniformly in the ground region (below the horizon, inside ``region_mask`` when
-    given), lifted to 3D by intersecting its ray with ``ground`` (the paper's Ax+By+Cz+D=0), then checked:
-    distance range, scene depth agrees with the plane at that pixel (when depth is known), projected box inside
-    the image, pixel size, overlap with existing boxes.
+    given), lifted to 3D by intersecting its ray with ``ground`` (the paper's Ax+By+Cz+D=0). When measured
+    points are known (``points_in_cam``, else ``depth``) and ``cfg.local_refit``: the ground is refitted on the
+    points within ``cfg.local_radius_m`` of that point and ``cfg.local_ground_band_m`` of ``ground``, the pixel's
+    ray is re-intersected with the local plane and the object is oriented by the local normal (the Placement
+    records ``ground_used``). Then checked: distance range, scene depth agrees with the plane at that pixel (when
+    depth is known), projected box inside the image, pixel size, overlap with existing boxes, and the 3D checks
+    of :mod:`.collision` when ``points_in_cam`` or ``existing_objects`` (OrientedBox list) are given.
     """
     w, h = intrinsics.width, intrinsics.height
     existing = np.zeros((0, 4)) if existing_boxes_xyxy is None else np.asarray(existing_boxes_xyxy, float).reshape(-1, 4)
@@ -128,6 +195,11 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
     if len(cand) == 0:
         report.rejected["no ground pixels in view"] += 1
         return None, report
+    # A child generator for the refits, so that how many points the scene has does not change the draws of
+    # pixels, heights and yaws from ``rng`` (same seed -> same candidates with or without measured points).
+    refit_rng = _child_generator(rng) if cfg.local_refit else None
+    band = (ground_band_points(ground, intrinsics, refit_rng, points_in_cam=points_in_cam, depth=depth, cfg=cfg)
+            if cfg.local_refit else None)
     for _ in range(cfg.max_tries):
         report.tries += 1
         idx = cand[rng.integers(len(cand))]
@@ -141,6 +213,20 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
         if not (cfg.min_distance_m <= dist <= cfg.max_distance_m):
             report.rejected["distance out of range"] += 1
             continue
+        plane, used = ground, "global"
+        if band is not None:
+            try:
+                local = refit_local_ground(band, ground, p, refit_rng, cfg)
+                p_local = local.intersect_pixels(uv, intrinsics)
+                if not np.all(np.isfinite(p_local)):
+                    raise GroundFitError("the pixel's ray misses the local plane")
+                plane, used, p = local, "local", p_local
+                dist = float(np.linalg.norm(p))
+            except GroundFitError:
+                report.local_refit_failed += 1
+                if cfg.local_fallback == "reject":
+                    report.rejected["no local ground around the contact point"] += 1
+                    continue
         if depth is not None:
             d_scene = float(depth[v, u])
             if np.isfinite(d_scene) and d_scene > 0 and abs(d_scene - p[2]) > cfg.depth_tolerance_rel * p[2]:
@@ -149,7 +235,7 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
         target_h = rng.uniform(*hr)
         scale = target_h / max(asset.height_m, 1e-9)
         yaw = rng.uniform(-np.pi, np.pi)
-        cam_from_object = object_pose_on_ground(p, ground, yaw)
+        cam_from_object = object_pose_on_ground(p, plane, yaw)
         corners = transform_points(cam_from_object, asset.corners_m() * scale)
         uvc, z = project_points(corners, intrinsics.K)
         if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
@@ -174,23 +260,24 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
             # 3D checks (collision.py): LiDAR/stereo points inside the object's box above the ground, existing
             # 3D boxes (OrientedBox), depth occlusion. Reasons read "key: detail"; the report counts by key.
             box3d = OrientedBox.standing_on_ground(cam_from_object, tuple(asset.extents_m * scale), asset.category)
-            reason = check_candidate(box3d, ground, intrinsics, points_in_cam=points_in_cam,
+            reason = check_candidate(box3d, plane, intrinsics, points_in_cam=points_in_cam,
                                      existing=existing_objects, depth=depth,
                                      cfg=collision_cfg if collision_cfg is not None else CollisionConfig())
             if reason is not None:
                 report.rejected[reason.split(":")[0]] += 1
                 continue
         report.chosen_because = (
-            f"first candidate passing all checks (try {report.tries}): ground point at {dist:.1f} m, "
-            f"box {bh:.0f} px high"
+            f"first candidate passing all checks (try {report.tries}): ground point at {dist:.1f} m on the "
+            f"{used} plane, box {bh:.0f} px high"
         )
         placement = Placement(
             category=asset.category, asset_name=asset.name, asset_source=asset.source, scale=float(scale),
             height_m=float(target_h), yaw_rad=float(yaw), contact_point_in_cam=tuple(map(float, p)),
             contact_pixel=(float(uv[0]), float(uv[1])),
             cam_from_object=tuple(tuple(map(float, r)) for r in cam_from_object),
-            amodal_box_xyxy=tuple(map(float, box)), ground_normal_in_cam=tuple(map(float, ground.normal)),
-            ground_d=float(ground.d), ground_source=ground.source,
+            amodal_box_xyxy=tuple(map(float, box)), ground_normal_in_cam=tuple(map(float, plane.normal)),
+            ground_d=float(plane.d), ground_source=plane.source, ground_used=used,
+            ground_num_inliers=int(plane.num_inliers), ground_rms_m=float(plane.rms_m),
         )
         return placement, report
     return None, report

@@ -1,0 +1,116 @@
+"""placement.sample_placement: local ground refit around the contact point (synthetic road + kerb-high sidewalk)."""
+import numpy as np
+import pytest
+import trimesh
+
+from aias_augment.assets import Asset
+from aias_augment.geometry import Intrinsics
+from aias_augment.ground import GroundPlane, prior_ground_plane
+from aias_augment.placement import PlacementConfig, sample_placement
+
+K = Intrinsics(500.0, 500.0, 319.5, 239.5, 640, 480)
+CAM_HEIGHT = 1.6
+KERB_X = 2.0           # sidewalk for x >= 2 m (camera frame, x right)
+KERB_RISE = 0.10       # sidewalk 10 cm above the road at the kerb
+CROSS_SLOPE = 0.02     # and rising 2 % to the right (tilted normal: the object must follow it)
+
+# Sidewalk: y = (CAM_HEIGHT - KERB_RISE) - CROSS_SLOPE (x - KERB_X)  <=>  y + CROSS_SLOPE x = C
+_C = CAM_HEIGHT - KERB_RISE + CROSS_SLOPE * KERB_X
+_n = -np.array([CROSS_SLOPE, 1.0, 0.0])
+SIDEWALK = GroundPlane(_n, _C, "truth")  # -(0.02 x + y) + C = 0; the constructor normalises n and d
+ROAD = prior_ground_plane(CAM_HEIGHT)
+
+
+def _asset():
+    return Asset("box", "barrel", (trimesh.creation.box((0.5, 0.5, 1.0), trimesh.transformations.translation_matrix(
+        [0, 0, 0.5])),), "test")
+
+
+def _scene():
+    """Analytic z-depth of road + kerb face + sloped sidewalk; also which surface each pixel sees."""
+    u, v = np.meshgrid(np.arange(K.width), np.arange(K.height))
+    x = (u - K.cx) / K.fx
+    y = (v - K.cy) / K.fy                     # ray (x, y, 1): z-depth = ray parameter t
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_side = _C / (y + CROSS_SLOPE * x)
+        t_road = CAM_HEIGHT / y
+        t_kerb = KERB_X / x
+    on_side = (t_side > 0) & (t_side * x >= KERB_X)
+    on_road = ~on_side & (t_road > 0) & (t_road * x < KERB_X)
+    on_kerb = ~on_side & ~on_road & (t_kerb > 0) & (y > 0)
+    depth = np.select([on_side, on_road, on_kerb], [t_side, t_road, t_kerb], 0.0)
+    depth = np.where(np.isfinite(depth) & (depth < 60), depth, 0.0).astype(np.float32)
+    return depth, on_side, on_road, x * depth
+
+
+def test_sidewalk_contact_gets_sidewalk_height_and_normal():
+    """Coarse plane = the road. Contacts on the sidewalk (>= 3.5 m from the kerb, so the 3 m local window sees
+    only sidewalk) must lie on the sidewalk within 1 cm, not on the road 10+ cm below, and stand along its normal."""
+    depth, on_side, _, x_m = _scene()
+    region = on_side & (x_m > KERB_X + 3.5) & (depth > 6) & (depth < 20)
+    cfg = PlacementConfig(max_tries=40, min_box_height_px=4)
+    n_local = 0
+    for seed in range(4):
+        pl, report = sample_placement(_asset(), ROAD, K, np.random.default_rng(seed), depth=depth,
+                                      region_mask=region, cfg=cfg, height_range_m=(1.0, 1.0))
+        assert pl is not None, report.to_dict()
+        c = np.array(pl.contact_point_in_cam)
+        assert pl.ground_used == "local" and pl.ground_num_inliers > 100
+        assert abs(float(SIDEWALK.signed_distance(c))) < 0.01
+        assert float(ROAD.signed_distance(c)) > KERB_RISE  # what the coarse plane would have given: 10+ cm off
+        # The coarse contact on the same pixel ray would have been on the road plane.
+        coarse = ROAD.intersect_pixels(np.array(pl.contact_pixel), K)
+        assert abs(float(SIDEWALK.signed_distance(coarse))) > 0.09
+        up_obj = pl.cam_from_object_matrix[:3, 2]
+        angle = np.degrees(np.arccos(np.clip(up_obj @ SIDEWALK.normal, -1, 1)))
+        assert angle < 0.2, angle   # follows the 1.15 deg cross-slope, not the road normal
+        n_local += 1
+    assert n_local == 4
+
+
+def test_road_contact_corrects_a_biased_coarse_plane():
+    """Coarse plane 5 cm too low: a road contact (> 3 m from the kerb) is refitted onto the true road."""
+    depth, _, on_road, x_m = _scene()
+    region = on_road & (x_m < KERB_X - 3.5) & (depth > 5) & (depth < 20)
+    biased = prior_ground_plane(CAM_HEIGHT + 0.05)
+    pl, report = sample_placement(_asset(), biased, K, np.random.default_rng(0), depth=depth, region_mask=region,
+                                  cfg=PlacementConfig(max_tries=40, min_box_height_px=4), height_range_m=(1.0, 1.0))
+    assert pl is not None, report.to_dict()
+    c = np.array(pl.contact_point_in_cam)
+    assert pl.ground_used == "local" and abs(float(ROAD.signed_distance(c))) < 0.01
+    assert abs(pl.ground_d - CAM_HEIGHT) < 0.01
+
+
+def test_without_measurements_the_global_plane_is_used_and_candidates_match():
+    """No depth/points: contact on the given plane, recorded as global. The refit's randomness is drawn from a
+    child generator, so the same seed picks the same contact pixel with or without depth."""
+    depth, on_side, _, x_m = _scene()
+    region = on_side & (x_m > KERB_X + 3.5) & (depth > 6) & (depth < 20)
+    cfg = PlacementConfig(max_tries=40, min_box_height_px=4)
+    a, _ = sample_placement(_asset(), ROAD, K, np.random.default_rng(1), region_mask=region, cfg=cfg,
+                            height_range_m=(1.0, 1.0))
+    b, _ = sample_placement(_asset(), ROAD, K, np.random.default_rng(1), depth=depth, region_mask=region, cfg=cfg,
+                            height_range_m=(1.0, 1.0))
+    assert a.ground_used == "global" and abs(float(ROAD.signed_distance(np.array(a.contact_point_in_cam)))) < 1e-9
+    assert b.ground_used == "local" and a.contact_pixel == b.contact_pixel and a.yaw_rad == b.yaw_rad
+
+
+def test_refit_failure_falls_back_or_rejects_as_configured():
+    """Measured points only beyond the farthest contact (z > 70 m): no local ground near any contact -> global, or a counted
+    rejection with local_fallback='reject'."""
+    xs, zs = np.meshgrid(np.linspace(-20, 20, 41), np.linspace(70, 80, 11))
+    far = np.column_stack([xs.ravel(), np.full(xs.size, CAM_HEIGHT), zs.ravel()])
+    cfg = PlacementConfig(max_tries=10, local_max_depth_m=100.0)
+    pl, report = sample_placement(_asset(), ROAD, K, np.random.default_rng(0), points_in_cam=far, cfg=cfg,
+                                  height_range_m=(1.0, 1.0))
+    assert pl is not None and pl.ground_used == "global" and report.local_refit_failed >= 1
+    none, report = sample_placement(_asset(), ROAD, K, np.random.default_rng(0), points_in_cam=far,
+                                    cfg=PlacementConfig(max_tries=10, local_max_depth_m=100.0,
+                                                        local_fallback="reject"), height_range_m=(1.0, 1.0))
+    assert none is None and report.rejected["no local ground around the contact point"] >= 5
+    assert set(report.rejected) <= {"no local ground around the contact point", "distance out of range"}
+
+
+def test_bad_config_raises():
+    with pytest.raises(ValueError, match="local_fallback"):
+        PlacementConfig(local_fallback="nearest")
