@@ -81,6 +81,8 @@ def main(argv=None) -> int:
     p.add_argument("--video-every", type=int, default=40)
     p.add_argument("--words", type=int, default=2048)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--matching", choices=["words", "descriptors"], default="words")
+    p.add_argument("--rerank", type=int, default=QueryConfig.rerank)
     p.add_argument("--index-out", type=Path, default=Path("out/retrieval/bench_index.npz"))
     a = p.parse_args(argv)
     cv2.setNumThreads(1)
@@ -93,7 +95,8 @@ def main(argv=None) -> int:
     timings["seconds_save"] = round(time.perf_counter() - t, 2)
     print(json.dumps(timings))
 
-    cfg, cfg_plain = QueryConfig(top_k=5), QueryConfig(top_k=5, rerank=0)
+    cfg = QueryConfig(top_k=5, rerank=a.rerank, matching=a.matching)
+    cfg_plain = QueryConfig(top_k=5, rerank=0)
     rows = []
     for qi, (ref, img) in enumerate(frames):
         for name, fn in PERTURBATIONS.items():
@@ -137,7 +140,7 @@ def main(argv=None) -> int:
                      for r in rows if r["rank"] != 1],
         "command": "python scripts/bench_retrieval.py " + " ".join(sys.argv[1:] if argv is None else argv),
         "config": {"kitti_every": a.kitti_every, "video_every": a.video_every, "words": a.words, "seed": a.seed,
-                   "query": cfg.__dict__},
+                   "query": dict(cfg.__dict__)},
     }
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "bench.json").write_text(json.dumps(summary, indent=1))

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import cv2
 import numpy as np
 import trimesh
 from PIL import Image
@@ -70,22 +71,19 @@ def sample_variety(height_m: float, height_range_m: tuple[float, float], cfg: Va
 
 
 def _jitter_rgb_uint8(rgb: np.ndarray, p: VarietyParams) -> np.ndarray:
-    """HSV jitter of (N, 3) uint8 colours; vectorised colorsys.rgb_to_hsv/hsv_to_rgb (tested against it)."""
-    x = rgb.astype(np.float32) / 255.0
-    mx, mn = x.max(-1), x.min(-1)
-    d = mx - mn
-    eps = 1e-8  # eps: grey pixels (d = 0) have no hue; their hue is irrelevant after s = 0
-    r, g, b = x[..., 0], x[..., 1], x[..., 2]
-    h = np.where(mx == r, ((g - b) / (d + eps)) % 6, np.where(mx == g, (b - r) / (d + eps) + 2, (r - g) / (d + eps) + 4))
-    h = (h / 6.0 + p.hue_shift) % 1.0
-    s = np.clip(np.where(mx > 0, d / (mx + eps), 0) * p.saturation_gain, 0, 1)
-    v = np.clip(mx * p.value_gain, 0, 1)
-    i = np.floor(h * 6).astype(int) % 6
-    f = h * 6 - np.floor(h * 6)
-    pp, q, t = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
-    out = np.choose(i[..., None], [np.stack(c, -1) for c in
-                                   ((v, t, pp), (q, v, pp), (pp, v, t), (pp, q, v), (t, pp, v), (v, pp, q))])
-    return np.clip(np.round(out * 255), 0, 255).astype(np.uint8)
+    """HSV jitter of (..., 3) uint8 RGB colours: hue rotated (wraps), saturation and value scaled and clipped.
+
+    Same maths as colorsys.rgb_to_hsv / hsv_to_rgb (tested against it), through OpenCV's float HSV for speed
+    (a 2048 x 2048 texture takes milliseconds).
+    """
+    shape = rgb.shape
+    x = np.ascontiguousarray(rgb.reshape(-1, 1, 3), dtype=np.float32) / 255.0
+    hsv = cv2.cvtColor(x, cv2.COLOR_RGB2HSV)  # float input: H in degrees [0, 360), S and V in [0, 1]
+    hsv[..., 0] = np.mod(hsv[..., 0] + 360.0 * p.hue_shift, 360.0)
+    hsv[..., 1] = np.clip(hsv[..., 1] * p.saturation_gain, 0.0, 1.0)
+    hsv[..., 2] = np.clip(hsv[..., 2] * p.value_gain, 0.0, 1.0)
+    out = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
+    return np.clip(np.round(out * 255.0), 0, 255).astype(np.uint8).reshape(shape)
 
 
 def _jitter_part(m: trimesh.Trimesh, p: VarietyParams) -> trimesh.Trimesh:
@@ -105,7 +103,7 @@ def _jitter_part(m: trimesh.Trimesh, p: VarietyParams) -> trimesh.Trimesh:
     uv = getattr(vis, "uv", None)
     if img is not None and uv is not None:
         arr = np.asarray(img.convert("RGBA"))
-        rgb = _jitter_rgb_uint8(arr[..., :3].reshape(-1, 3), p).reshape(arr.shape[:2] + (3,))
+        rgb = _jitter_rgb_uint8(arr[..., :3], p)
         opaque = arr[..., 3].min() == 255
         img = Image.fromarray(np.ascontiguousarray(rgb) if opaque else np.dstack([rgb, arr[..., 3]]))
         new_mat = trimesh.visual.material.SimpleMaterial(image=img, diffuse=rgba)

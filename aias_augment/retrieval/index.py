@@ -4,9 +4,9 @@
   region labels and visual words, so the top results can be re-ranked by geometric verification.
 - Scoring: cosine similarity of L2-normalised tf-idf vectors (idf = log((1 + D) / (1 + df))), evaluated through the
   inverted file (the CSC columns of the document-word matrix: the postings of each word).
-- Spatial re-ranking (Philbin et al. 2007): the top ``rerank`` candidates are matched to the query (ratio test) and
-  verified with RANSAC; a candidate's inliers are the larger of a homography's and a fundamental matrix's (the latter
-  for 3D scenes with parallax). Verified candidates (>= ``min_inliers``) move ahead, ordered by inliers.
+- Spatial re-ranking (Philbin et al. 2007): the top ``rerank`` candidates are matched to the query (shared visual
+  words, mutual nearest descriptors) and verified by robust fitting: a homography (MAGSAC++), or a fundamental matrix
+  when no homography holds. Verified candidates (>= ``min_inliers``) move ahead, ordered by inliers.
 - Named visual words: words learned from example regions (e.g. road), over-represented there relative to the corpus;
   ``query_words`` ranks frames by the fraction of their features falling in those words ("dominated by road").
 - The index persists to one ``.npz`` file.
@@ -55,9 +55,18 @@ class Hit:
 class QueryConfig:
     top_k: int = 5
     rerank: int = 10              # candidates geometrically verified
-    ratio: float = 0.85           # Lowe ratio test on RootSIFT
+    matching: str = "words"       # tentative matches: "words" (shared visual word) or "descriptors" (ratio test)
+    max_per_word: int = 4         # words matching: skip words this frequent in either frame
+    ratio: float = 0.85           # descriptors matching: Lowe ratio test on RootSIFT
+    ransac_iters: int = 1000
     ransac_rel_px: float = 0.006  # RANSAC threshold: fraction of the matched keypoints' extent (at least 500 px)
     min_inliers: int = 12
+
+    def __post_init__(self):
+        if self.matching not in ("words", "descriptors"):
+            raise ValueError(f"matching must be 'words' or 'descriptors', got {self.matching!r}")
+        if self.top_k < 1 or self.rerank < 0 or self.max_per_word < 1:
+            raise ValueError(f"QueryConfig: bad sizes {self}")
 
 
 def _tfidf(counts: sp.csr_matrix, idf: np.ndarray) -> sp.csr_matrix:
@@ -100,37 +109,71 @@ class SceneIndex:
         nz = np.nonzero(q)[0]
         return np.asarray(self.inverted[:, nz] @ q[nz]).ravel()
 
-    def _verify(self, q: FrameFeatures, d: int, cfg: QueryConfig) -> int:
+    def _correspondences(self, q: FrameFeatures, q_words: np.ndarray, d: int,
+                         cfg: QueryConfig) -> tuple[np.ndarray, np.ndarray]:
+        """Tentative matches (query index, candidate index).
+
+        ``words``: keypoints sharing a visual word (words frequent in either frame are skipped, as in Philbin et al.),
+        the nearest descriptor within the word, kept when mutual; cheap (no all-pairs distances).
+        ``descriptors``: brute-force nearest neighbours with Lowe's ratio test (slower, a little more matches).
+        """
         c = self.doc_features(d)
-        if len(q) < 8 or len(c) < 8:
+        if cfg.matching == "descriptors":
+            pairs = cv2.BFMatcher(cv2.NORM_L2).knnMatch(q.desc, c.desc, k=2)
+            good = [m[0] for m in pairs if len(m) == 2 and m[0].distance < cfg.ratio * m[1].distance]
+            return (np.array([m.queryIdx for m in good], int), np.array([m.trainIdx for m in good], int))
+        cw = self.words[self.offsets[d]:self.offsets[d + 1]]
+        order = np.argsort(cw, kind="stable")
+        cs = cw[order]
+        lo, hi = np.searchsorted(cs, q_words, "left"), np.searchsorted(cs, q_words, "right")
+        cnt = hi - lo
+        q_count = np.bincount(q_words, minlength=self.vocab.size)[q_words]
+        ok = (cnt >= 1) & (cnt <= cfg.max_per_word) & (q_count <= cfg.max_per_word)
+        qi = np.repeat(np.nonzero(ok)[0], cnt[ok])
+        if len(qi) == 0:
+            return np.zeros(0, int), np.zeros(0, int)
+        starts = np.repeat(lo[ok], cnt[ok])
+        within = np.arange(len(qi)) - np.repeat(np.cumsum(cnt[ok]) - cnt[ok], cnt[ok])
+        ci = order[starts + within]
+        dist = np.sum((q.desc[qi] - c.desc[ci]) ** 2, axis=1)
+        # best candidate per query keypoint, then best query keypoint per candidate (mutual)
+        o = np.lexsort((dist, qi))
+        first = np.r_[True, qi[o][1:] != qi[o][:-1]]
+        qi, ci, dist = qi[o][first], ci[o][first], dist[o][first]
+        o = np.lexsort((dist, ci))
+        first = np.r_[True, ci[o][1:] != ci[o][:-1]]
+        return qi[o][first], ci[o][first]
+
+    def _verify(self, q: FrameFeatures, q_words: np.ndarray, d: int, cfg: QueryConfig) -> int:
+        qi, ci = self._correspondences(q, q_words, d, cfg)
+        if len(qi) < 8:
             return 0
-        pairs = cv2.BFMatcher(cv2.NORM_L2).knnMatch(q.desc, c.desc, k=2)
-        good = [m[0] for m in pairs if len(m) == 2 and m[0].distance < cfg.ratio * m[1].distance]
-        if len(good) < 8:
-            return 0
-        src = q.xy[[m.queryIdx for m in good]].astype(np.float64)
-        dst = c.xy[[m.trainIdx for m in good]].astype(np.float64)
+        src = q.xy[qi].astype(np.float64)
+        dst = self.xy[self.offsets[d]:self.offsets[d + 1]][ci].astype(np.float64)
         side = float(max(np.ptp(dst[:, 0]), np.ptp(dst[:, 1]), 1.0))
         thr = cfg.ransac_rel_px * max(side, 500.0)
-        best = 0
-        H, mh = cv2.findHomography(src, dst, cv2.RANSAC, thr, maxIters=2000, confidence=0.995)
-        if H is not None and mh is not None:
-            best = int(mh.sum())
-        if len(good) >= 15:
-            F, mf = cv2.findFundamentalMat(src, dst, cv2.FM_RANSAC, thr / 2, 0.995)
-            if F is not None and mf is not None and F.shape == (3, 3):
-                best = max(best, int(mf.sum()))
-        return best
+        # Homography first (MAGSAC++: fast, and the right model for the same view, crops and zooms); a fundamental
+        # matrix only when no homography holds (another viewpoint of a 3D scene). Preferring the homography also
+        # ranks the exact frame above its neighbours in a clip, which share epipolar geometry but not the view.
+        H, mh = cv2.findHomography(src, dst, cv2.USAC_MAGSAC, thr, maxIters=cfg.ransac_iters, confidence=0.995)
+        h_inl = int(mh.sum()) if H is not None and mh is not None else 0
+        if h_inl >= cfg.min_inliers or len(qi) < 15:
+            return h_inl
+        F, mf = cv2.findFundamentalMat(src, dst, cv2.USAC_FAST, thr / 2, 0.995, cfg.ransac_iters)
+        f_inl = int(mf.sum()) if F is not None and mf is not None and F.shape == (3, 3) else 0
+        return max(h_inl, f_inl)
 
     def query_features(self, q: FrameFeatures, cfg: QueryConfig = QueryConfig()) -> list[Hit]:
         if len(q) == 0:
             return []
-        scores = self.score_tfidf(self.vocab.assign(q.desc))
+        q_words = self.vocab.assign(q.desc)
+        scores = self.score_tfidf(q_words)
         order = np.argsort(-scores, kind="stable")
         head = order[: max(cfg.rerank, cfg.top_k)]
-        inl = {int(d): (self._verify(q, int(d), cfg) if i < cfg.rerank else 0) for i, d in enumerate(head)}
+        inl = {int(d): (self._verify(q, q_words, int(d), cfg) if i < cfg.rerank else 0) for i, d in enumerate(head)}
         verified = sorted((d for d in inl if inl[d] >= cfg.min_inliers), key=lambda d: (-inl[d], -scores[d]))
-        rest = [int(d) for d in order if int(d) not in set(verified)]
+        chosen = set(verified)
+        rest = [int(d) for d in order[: cfg.top_k + len(verified)] if int(d) not in chosen]
         ranked = (verified + rest)[: cfg.top_k]
         return [Hit(i + 1, d, self.refs[d], float(scores[d]), inl.get(d, 0)) for i, d in enumerate(ranked)]
 
