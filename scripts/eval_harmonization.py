@@ -152,9 +152,9 @@ def main(argv=None) -> int:
         red = "" if r["fmse_reduction_vs_composite"] is None else f"{-100 * r['fmse_reduction_vs_composite']:+.1f}%"
         lines.append(f"| {LABELS[m]} | {r['mse']:.1f} | {r['fmse']:.1f} | {r['psnr']:.2f} | {red} | "
                      f"{r['time_ms_median']:.1f} / {r['time_ms_p90']:.1f} |")
-    lines += ["", "![side by side](side_by_side.jpg)", ""]
+    lines += ["", "![side by side](side_by_side.png)", ""]
     (args.out / "eval.md").write_text("\n".join(lines))
-    side_by_side(pairs, outputs, methods, args.out / "side_by_side.jpg")
+    side_by_side(pairs, outputs, methods, args.out / "side_by_side.png")
     print("\n".join(lines))
     return 0
 

@@ -181,10 +181,12 @@ def noise_level_function(gray: np.ndarray, region: np.ndarray, bins: int = 6) ->
     return float(a), float(b)
 
 
-def match_noise(image_float: np.ndarray, fg: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Add the noise variance the background has and the foreground lacks (per pixel, from the NLFs)."""
+def match_noise(image_float: np.ndarray, fg: np.ndarray, rng: np.random.Generator,
+                background: np.ndarray | None = None) -> np.ndarray:
+    """Add the noise variance the background (default: ~fg) has and the foreground lacks (per pixel, from NLFs)."""
     gray = image_float @ LUMA_WEIGHTS
-    nlf_bg, nlf_fg = noise_level_function(gray, ~fg), noise_level_function(gray, fg)
+    nlf_bg = noise_level_function(gray, ~fg if background is None else background)
+    nlf_fg = noise_level_function(gray, fg)
     if nlf_bg is None:
         return image_float
     nlf_fg = nlf_fg or (0.0, 0.0)
@@ -234,8 +236,9 @@ def estimate_jpeg_quality(image_uint8: np.ndarray) -> int | None:
     y = rgb @ np.array([0.299, 0.587, 0.114]) - 128.0
     if min(y.shape) < 32:
         return None
-    coef = _block_dct(y)
-    steps = [_lattice_step(coef[:, :, u, v].ravel()) for u, v in _PROBE_FREQS]
+    coef = _block_dct(y).reshape(-1, 8, 8)
+    coef = coef[:: max(1, len(coef) // 2000)]  # 2000 blocks are plenty and bound the cost
+    steps = [_lattice_step(coef[:, u, v]) for u, v in _PROBE_FREQS]
     found = [(f, s) for f, s in zip(_PROBE_FREQS, steps) if s is not None]
     if len(found) < 3:
         return None
@@ -282,29 +285,33 @@ def reapply_jpeg(image_uint8: np.ndarray, fg: np.ndarray, quality: int, subsampl
 # ------------------------------------------------------------------------------------------------------- composition
 def camera_match(image_uint8: np.ndarray, mask_bool: np.ndarray, rng: np.random.Generator,
                  params: CameraMatchParams = CameraMatchParams(), object_depth_m=None) -> np.ndarray:
-    """All stages; returns a new uint8 image (only foreground pixels differ). ``object_depth_m``: scalar or (H, W)."""
+    """All stages; returns a new uint8 image (only foreground pixels differ). ``object_depth_m``: scalar or (H, W).
+
+    Each connected component is processed in its own context crop (4 x its box side): gains from its ring, blur and
+    noise statistics from the crop's background, so the cost does not grow with the image size.
+    """
     srgb = image_uint8.astype(np.float32) / 255.0
     # JPEG parameters describe the source, so they are read before anything is changed.
     quality = params.jpeg_quality if params.jpeg_quality is not None else (
         estimate_jpeg_quality(image_uint8) if params.match_jpeg else None)
-    lin = srgb_to_linear(srgb)
+    airlight = estimate_airlight(srgb) if object_depth_m is not None and params.atmosphere_beta_per_m > 0 else None
+    depth = None if airlight is None else np.broadcast_to(np.asarray(object_depth_m, np.float32), mask_bool.shape)
+    out = srgb.copy()
     for comp in components(mask_bool):
-        width = max(3, int(round(params.ring_width_frac * np.sqrt(comp.sum()))))
-        surround = ring(comp, width) & ~mask_bool
-        lin[comp] *= estimate_gains(lin, comp, surround, params)
-    out = linear_to_srgb(lin)
-    if object_depth_m is not None and params.atmosphere_beta_per_m > 0:
-        hazy = apply_atmosphere(out, object_depth_m, estimate_airlight(srgb), params.atmosphere_beta_per_m)
-        out[mask_bool] = hazy[mask_bool]
-    if params.match_sharpness:
-        for comp in components(mask_bool):
-            x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, 3.0)
-            crop_fg = comp[y0:y1, x0:x1]
-            width = max(3, int(round(params.ring_width_frac * np.sqrt(comp.sum()))))
-            surround = ring(crop_fg, width) & ~mask_bool[y0:y1, x0:x1]
-            out[y0:y1, x0:x1] = match_blur(out[y0:y1, x0:x1], crop_fg, surround, params)
-    if params.match_noise:
-        out = match_noise(out, mask_bool, rng)
+        x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, 4.0)
+        fg, others = comp[y0:y1, x0:x1], mask_bool[y0:y1, x0:x1] & ~comp[y0:y1, x0:x1]
+        width = max(3, int(round(params.ring_width_frac * np.sqrt(fg.sum()))))
+        surround = ring(fg, width) & ~others
+        lin = srgb_to_linear(out[y0:y1, x0:x1])
+        lin[fg] *= estimate_gains(lin, fg, surround, params)
+        crop = linear_to_srgb(lin)
+        if airlight is not None:
+            crop[fg] = apply_atmosphere(crop, depth[y0:y1, x0:x1], airlight, params.atmosphere_beta_per_m)[fg]
+        if params.match_sharpness:
+            crop = match_blur(crop, fg, surround, params)
+        if params.match_noise:
+            crop = match_noise(crop, fg, rng, background=~fg & ~others)
+        out[y0:y1, x0:x1][fg] = crop[fg]
     result = to_uint8(out)
     if params.match_jpeg and quality:
         result = reapply_jpeg(result, mask_bool, quality, chroma_subsampled(image_uint8))

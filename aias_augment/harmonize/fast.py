@@ -18,29 +18,14 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..config import from_dict
-from .network import CHECKPOINT_FORMAT, load_checkpoint_dict, network_inputs, to_tensor
+from .network import CHECKPOINT_FORMAT, load_checkpoint_dict, masked_stats, network_inputs, to_tensor
 from .regions import components, context_box, mask_box, resize
-
-# Added to the masked pixel count before dividing (pixels) so an empty region gives zeros, not NaN.
-EPS_COUNT = 1.0
-
 
 @dataclass(frozen=True)
 class FastConfig:
     thumbnail_px: int = 64
     channels: int = 16
     context: float = 2.4
-
-
-def masked_stats(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """(B,3,H,W), (B,1,H,W) -> (B,12): mean and std of the foreground, then of the background."""
-    out = []
-    for m in (mask, 1 - mask):
-        n = m.sum(dim=(2, 3)) + EPS_COUNT
-        mean = (image * m).sum(dim=(2, 3)) / n
-        var = ((image - mean[..., None, None]) ** 2 * m).sum(dim=(2, 3)) / n
-        out += [mean, torch.sqrt(var + 1e-8)]
-    return torch.cat(out, dim=1)
 
 
 class FastColorNet(nn.Module):

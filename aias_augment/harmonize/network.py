@@ -7,8 +7,14 @@ Inputs (all in [0, 1], NCHW):
 Each stage is DeepFill v1's encoder (5x5 conv, two stride-2 3x3 convs), a chain of dilated 3x3 convs at 1/4
 resolution (dilations 2, 4, 8, 16 give the receptive field to see the surroundings) and a nearest-upsampling
 decoder, ELU activations. Differences from DeepFill v1, and why:
-  * the stage output is a tanh *residual* added to its input foreground (harmonization keeps the object's content;
-    starting at the identity lets a CPU-sized training budget reach a useful model);
+  * the stage output is a per-pixel affine colour transform (3x3 matrix + offset, HDRNet-style) of its input
+    foreground, zero-initialised to the identity (``output_mode="affine"``; ``"residual"`` = a tanh RGB residual).
+    Harmonization keeps the object's content and mismatches are mostly gains (exposure, white balance): a gain is
+    linear in the affine coefficients but a product the residual form must learn. Measured here: the residual form
+    did not move the held-out fMSE in 250 CPU steps;
+  * at the bottleneck, features pooled over the foreground and over the background (mask-weighted means) are mixed
+    back into every position (``global_context``): the comparison "object vs surroundings" is global, which 3x3
+    convs alone reach only through many layers;
   * no contextual-attention branch (it copies background patches into a hole; here nothing is missing);
   * one global critic that sees (image, mask) instead of DeepFill's global + local pair.
 The WGAN-GP gradient penalty is weighted by the mask as in DeepFill v1: only gradients w.r.t. foreground pixels are
@@ -32,6 +38,8 @@ from .regions import components, context_box, mask_box, resize
 CHECKPOINT_FORMAT = "aias-harmonizer-v1"
 # Added under the square root of the masked gradient norm so its gradient stays finite at zero gradient.
 GP_EPS = 1e-12
+# Added to mask-pooling denominators (in bottleneck pixels) so an empty foreground or background pools to 0.
+POOL_EPS = 1e-3
 
 
 @dataclass(frozen=True)
@@ -40,6 +48,12 @@ class NetworkConfig:
     base_channels: int = 16  # width of the first layer; 1/4-resolution layers have 4x this
     dilations: tuple[int, ...] = (2, 4, 8, 16)
     levels: int = 2  # stride-2 steps before the dilated convs (DeepFill v1: 2)
+    output_mode: str = "affine"  # "affine": per-pixel 3x4 colour transform; "residual": tanh RGB residual
+    global_context: bool = True  # mix mask-pooled foreground/background features into the bottleneck
+
+    def __post_init__(self):
+        if self.output_mode not in ("affine", "residual"):
+            raise ValueError(f"NetworkConfig.output_mode must be 'affine' or 'residual', got {self.output_mode!r}")
     critic_channels: int = 16
     context: float = 2.4  # inference crop = this x the object's box side (training draws a range around it)
 
@@ -50,13 +64,14 @@ def _conv(cin: int, cout: int, k: int = 3, stride: int = 1, dilation: int = 1, a
 
 
 class StageNet(nn.Module):
-    """One DeepFill-v1 stage; returns a residual in [-1, 1] for the 3 colour channels.
+    """One DeepFill-v1 stage; returns ``out_channels`` maps (zero at initialisation).
 
     ``levels`` stride-2 steps (DeepFill v1: 2, i.e. the dilated convs run at 1/4 resolution); widths double per
     level up to 4 x ``c``. The decoder mirrors the encoder with nearest upsampling.
     """
 
-    def __init__(self, in_channels: int, c: int, dilations: tuple[int, ...], levels: int = 2):
+    def __init__(self, in_channels: int, c: int, dilations: tuple[int, ...], levels: int = 2,
+                 out_channels: int = 3, global_context: bool = False):
         super().__init__()
         widths = [c] + [c * min(2 ** (i + 1), 4) for i in range(levels)]
         enc = [_conv(in_channels, c, 5)]
@@ -64,20 +79,56 @@ class StageNet(nn.Module):
             enc += [_conv(a, b, 3, 2), _conv(b, b)]
         self.encoder = nn.Sequential(*enc)
         w = widths[-1]
-        self.middle = nn.Sequential(*[_conv(w, w, 3, dilation=d) for d in dilations], _conv(w, w), _conv(w, w))
+        self.dilated = nn.Sequential(*[_conv(w, w, 3, dilation=d) for d in dilations])
+        self.global_mix = nn.Sequential(nn.Linear(2 * w + 12, w), nn.ELU()) if global_context else None
+        # A spatially constant part of the output predicted from the pooled features (zero-initialised): one colour
+        # transform for the whole object gets the gradient of every foreground pixel, so it is learnt first.
+        self.global_head = nn.Linear(w, out_channels) if global_context else None
+        if self.global_head is not None:
+            nn.init.zeros_(self.global_head.weight)
+            nn.init.zeros_(self.global_head.bias)
+        self.middle = nn.Sequential(_conv(w, w), _conv(w, w))
         self.decoder = nn.ModuleList(
             nn.Sequential(_conv(b, a), _conv(a, a)) for a, b in reversed(list(zip(widths[:-1], widths[1:])))
         )
         self.tail = _conv(c, max(c // 2, 4))
-        self.head = _conv(max(c // 2, 4), 3, act=False)
-        nn.init.zeros_(self.head.weight)  # start at the identity (zero residual)
+        self.head = _conv(max(c // 2, 4), out_channels, act=False)
+        nn.init.zeros_(self.head.weight)  # start at the identity
         nn.init.zeros_(self.head.bias)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        h = self.middle(self.encoder(x))
+    def forward(self, x: torch.Tensor, mask: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
+        """``image``: the (B,3,H,W) image this stage transforms; its masked colour statistics join the pooling."""
+        h = self.dilated(self.encoder(x))
+        constant = 0.0
+        if self.global_mix is not None:
+            m = F.adaptive_avg_pool2d(mask, h.shape[-2:])
+            fg = (h * m).sum(dim=(2, 3)) / (m.sum(dim=(2, 3)) + POOL_EPS)
+            bg = (h * (1 - m)).sum(dim=(2, 3)) / ((1 - m).sum(dim=(2, 3)) + POOL_EPS)
+            g = self.global_mix(torch.cat([fg, bg, masked_stats(image, mask)], 1))
+            h = h + g[..., None, None]
+            constant = self.global_head(g)[..., None, None]
+        h = self.middle(h)
         for up in self.decoder:
             h = up(F.interpolate(h, scale_factor=2.0, mode="nearest"))
-        return torch.tanh(self.head(self.tail(h)))
+        return self.head(self.tail(h)) + constant
+
+
+def apply_pixel_affine(image: torch.Tensor, coeffs: torch.Tensor) -> torch.Tensor:
+    """image (B,3,H,W), coeffs (B,12,H,W) = per-pixel [dM (3x3, row-major) | b (3)]: (I + dM) x + b, clamped."""
+    b, _, hgt, wid = image.shape
+    dm = coeffs[:, :9].view(b, 3, 3, hgt, wid)
+    return (image + torch.einsum("bijhw,bjhw->bihw", dm, image) + coeffs[:, 9:12]).clamp(0, 1)
+
+
+def masked_stats(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(B,3,H,W), (B,1,H,W) -> (B,12): mean and std of the foreground colours, then of the background's."""
+    out = []
+    for m in (mask, 1 - mask):
+        n = m.sum(dim=(2, 3)) + POOL_EPS
+        mean = (image * m).sum(dim=(2, 3)) / n
+        var = ((image - mean[..., None, None]) ** 2 * m).sum(dim=(2, 3)) / n
+        out += [mean, torch.sqrt(var + 1e-8)]
+    return torch.cat(out, dim=1)
 
 
 def network_inputs(composite: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
@@ -89,8 +140,15 @@ class Generator(nn.Module):
     def __init__(self, cfg: NetworkConfig):
         super().__init__()
         self.cfg = cfg
-        self.coarse = StageNet(7, cfg.base_channels, cfg.dilations, cfg.levels)
-        self.refine = StageNet(10, cfg.base_channels, cfg.dilations, cfg.levels)
+        out = 12 if cfg.output_mode == "affine" else 3
+        args = (cfg.base_channels, cfg.dilations, cfg.levels, out, cfg.global_context)
+        self.coarse = StageNet(7, *args)
+        self.refine = StageNet(10, *args)
+
+    def _apply(self, image: torch.Tensor, maps: torch.Tensor) -> torch.Tensor:
+        if self.cfg.output_mode == "affine":
+            return apply_pixel_affine(image, maps)
+        return (image + torch.tanh(maps)).clamp(0, 1)
 
     def forward(self, composite: torch.Tensor, mask: torch.Tensor) -> dict[str, torch.Tensor]:
         """Returns ``coarse`` and ``output`` (refined), both composited: background pixels equal the input's."""
@@ -98,8 +156,8 @@ class Generator(nn.Module):
         if composite.shape[-1] % k or composite.shape[-2] % k:
             raise ValueError(f"Generator: H and W must be multiples of {k}, got {tuple(composite.shape[-2:])}")
         x = network_inputs(composite, mask)
-        coarse = mask * (composite + self.coarse(x)).clamp(0, 1) + (1 - mask) * composite
-        refined = (coarse + self.refine(torch.cat([x, coarse], dim=1))).clamp(0, 1)
+        coarse = mask * self._apply(composite, self.coarse(x, mask, composite)) + (1 - mask) * composite
+        refined = self._apply(coarse, self.refine(torch.cat([x, coarse], dim=1), mask, coarse))
         return {"coarse": coarse, "output": mask * refined + (1 - mask) * composite}
 
 

@@ -57,6 +57,8 @@ class TrainConfig:
     batch_size: int = 8
     lr_generator: float = 3e-4
     lr_critic: float = 3e-4
+    betas_generator: tuple[float, float] = (0.9, 0.999)
+    betas_critic: tuple[float, float] = (0.5, 0.9)  # DeepFill v1 / WGAN-GP
     l1_coarse_weight: float = 1.2  # DeepFill v1's l1_loss_alpha
     l1_refine_weight: float = 1.2
     gan_weight: float = 0.001  # DeepFill v1's gan_loss_alpha
@@ -193,8 +195,8 @@ def train_step(gen: Generator, critic: Critic, opt_g, opt_d, comp, target, mask,
 
 
 def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
-    return (torch.optim.Adam(gen.parameters(), lr=cfg.lr_generator, betas=(0.5, 0.9)),
-            torch.optim.Adam(critic.parameters(), lr=cfg.lr_critic, betas=(0.5, 0.9)))
+    return (torch.optim.Adam(gen.parameters(), lr=cfg.lr_generator, betas=cfg.betas_generator),
+            torch.optim.Adam(critic.parameters(), lr=cfg.lr_critic, betas=cfg.betas_critic))
 
 
 def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None, meta: dict | None = None) -> dict:
