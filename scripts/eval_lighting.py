@@ -9,8 +9,9 @@ Three measurements per map:
 3. Image cues: perspective crops with a known camera (pinhole, level roll, yaw all around the sun, pitch and field of
    view drawn per seed), exposed like a camera (median metering, clip, sRGB, 8 bit), run through
    ``sun.sun_cue_from_image``; azimuth error against the map's sun; single frames and all crops of a map fused in world
-   coordinates (``sun.fuse_sun_cues``). Only maps with a dominant sun (``estimate.lighting_from_envmap``) count in the
-   headline numbers.
+   coordinates (``sun.fuse_sun_cues``). Crops are made of the maps whose brightest light is a compact source above the
+   horizon (< 0.05 sr, elevation > 0) and that are not named with ``--sunless`` (indoor lamps, street lights at night:
+   sky cues do not apply there).
 
 Usage: python scripts/eval_lighting.py /usr/share/blender/datafiles/studiolights/world --out results/lighting
 """
@@ -167,6 +168,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--views", type=int, default=12, help="crops per map and seed, spread all around the sun")
     ap.add_argument("--size", type=int, nargs=2, default=[480, 300], metavar=("W", "H"))
+    ap.add_argument("--sunless", nargs="*", default=[], help="map names (stems) whose light is not the sun")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -191,7 +193,8 @@ def main(argv=None) -> int:
             "dominant_sun": est.dominant_sun, "sun_sky_ratio": est.sun_sky_ratio, "sun_from_envmap_seconds": t_sun,
         }
         entry.update(sh_errors(rad, found, est.dominant_sun))
-        if est.dominant_sun:
+        entry["image_cue_eval"] = bool(path.stem not in args.sunless and found.solid_angle_sr <= 0.05 and el > 0)
+        if entry["image_cue_eval"]:
             cues = crop_eval(rad, found.direction_in_env, args.seeds, args.views, *args.size)
             entry["image_cues"] = cues
             entry["image_cues_summary"] = {
@@ -208,7 +211,8 @@ def main(argv=None) -> int:
         print(f"{path.stem:12s} sun az {entry['sun_azimuth_deg']:7.1f} el {entry['sun_elevation_deg']:5.1f} "
               f"vs brightest {entry['sun_vs_brightest_deg']:5.2f} deg  dominant {est.dominant_sun!s:5s} "
               f"SH full {entry['sh_full_rel_rms']:.3f} split {entry['sh_ambient_plus_sun_rel_rms']:.3f}"
-              + (f"  cue median {entry['image_cues_summary']['all']['median_deg']:.1f} deg" if est.dominant_sun else ""))
+              + (f"  cue median {entry['image_cues_summary']['all']['median_deg']:.1f} deg" if "image_cues_summary" in entry
+                 else ""))
     report["headline"] = {
         "image_cue_azimuth_all_crops": summarize([c["azimuth_error_deg"] for c in headline_single]),
         "image_cue_azimuth_sun_in_view": summarize([c["azimuth_error_deg"] for c in headline_single if c["sun_in_view"]]),
@@ -251,7 +255,8 @@ def write_markdown(report: dict, path: Path) -> None:
         return "n=0" if s["n"] == 0 else (f"n={s['n']}, median {s['median_deg']:.1f} deg, p75 {s['p75_deg']:.1f} deg, "
                                           f"{s['frac_below_25deg'] * 100:.0f} % below 25 deg")
 
-    lines += ["", "Headline (maps with a dominant sun; single crops over all seeds):", "",
+    evaluated = [n for n, m in report["maps"].items() if m.get("image_cue_eval")]
+    lines += ["", f"Headline (image cues on crops of {', '.join(evaluated)}; single crops over all seeds):", "",
               f"- image-cue azimuth, all crops: {fmt(h['image_cue_azimuth_all_crops'])}",
               f"- sun in view: {fmt(h['image_cue_azimuth_sun_in_view'])}",
               f"- sun out of view: {fmt(h['image_cue_azimuth_sun_out_of_view'])}",

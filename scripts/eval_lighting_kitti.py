@@ -7,9 +7,11 @@ posteriors only); real shadow/lit = median shadowed / median lit linear luminanc
 
 Inserted shadows: ``pipeline.insert_into_image`` inserts one object (harmonization off, so only the shadow changes
 the road) with the KITTI intrinsics; per road pixel q = output / input linear luminance. The inserted shadow is where
-q < 0.97 outside the object's own mask (dilated by 2 px); its umbra is that set eroded by 2 px (away from the soft
+q < 0.97 outside the object's own mask (dilated by 2 px) and away from its base (ground within half the footprint
+diagonal + 0.75 x height of the object's origin is excluded: there the pipeline's contact occlusion, not the sun
+shadow, darkens the road); its umbra is that set eroded by 2 px (away from the soft
 edge); inserted shadow/lit = median q over the umbra of pixels that were lit in the input. Two variants:
-"road_placement" stands the object on the road box (drawn per seed) and runs the pipeline's own shading, shadow-catcher
+"road_placement" stands the object just left of the road box (drawn per seed, like this street's poles) and runs the pipeline's own shading, shadow-catcher
 (``pipeline._object_shadow``) and compositing functions with ``estimate_lighting`` measured on the road box (the public
 ``insert_into_image`` cannot be told to place on the road); "pipeline" is ``insert_into_image`` end to end (camera
 given, no depth), counted only when its shadow falls on the road box.
@@ -61,13 +63,25 @@ def real_shadow(img: np.ndarray, road: np.ndarray) -> ratio.LitShadowMeasurement
     return m
 
 
+def near_object(K: Intrinsics, cam_from_object: np.ndarray, asset, radius_factor: float = 0.75) -> np.ndarray:
+    """Ground pixels within (half the footprint diagonal + ``radius_factor`` x height) of the object's origin: where
+    the pipeline's contact occlusion (e-folding 0.25 x height) still darkens the ground by > 5 %."""
+    g, ok = ratio.ground_coordinates(K, np.array([0.0, -1.0, 0.0]), KITTI_CAMERA_HEIGHT_M)
+    origin = cam_from_object[:3, 3]
+    ext = np.asarray(asset.extents_m, dtype=np.float64)
+    r = 0.5 * float(np.hypot(ext[0], ext[1])) + radius_factor * float(ext[2])
+    return ok & (np.hypot(g[..., 0] - origin[0], g[..., 1] - origin[2]) < r)
+
+
 def inserted_shadow(img_in: np.ndarray, img_out: np.ndarray, road: np.ndarray, lit_in: np.ndarray,
-                    object_mask: np.ndarray) -> dict:
+                    object_mask: np.ndarray, exclude: np.ndarray | None = None) -> dict:
     y_in = hdr.luminance(hdr.srgb_to_linear(img_in)).astype(np.float64)
     y_out = hdr.luminance(hdr.srgb_to_linear(img_out)).astype(np.float64)
     q = y_out / np.maximum(y_in, 1e-4)  # eps: black input pixels are excluded below anyway
     obj = ndimage.binary_dilation(object_mask, iterations=2)
     valid = road & ~obj & (y_in > 1e-3) & (img_in.max(axis=2) < 250)
+    if exclude is not None:
+        valid &= ~exclude
     shadow = valid & (q < 0.97)
     umbra = ndimage.binary_erosion(shadow, iterations=2) & lit_in
     out = {"shadow_pixels": int(shadow.sum()), "umbra_pixels": int(umbra.sum())}
@@ -126,12 +140,15 @@ def main(argv=None) -> int:
                 # (a) "road_placement": the object stands on the road box (lateral, forward drawn per seed) and goes
                 # through the pipeline's own shading, shadow-catcher and compositing functions with the lighting
                 # estimated on the road box. (b) "pipeline": insert_into_image end to end, wherever it places.
-                lateral = rng.uniform(-0.5, 1.0)
-                forward = rng.uniform(9.0, 14.0)
+                # Like the real occluders of this street (poles on the left verge), the object stands just left of the
+                # road box so that its shadow can cross the lit asphalt instead of hiding behind the object itself.
                 yaw = rng.uniform(-np.pi, np.pi)
                 base = default_asset(cat)
                 lo_h, hi_h = CATEGORY_HEIGHT_RANGE_M.get(cat, (base.height_m, base.height_m))
                 asset = base.scaled(rng.uniform(lo_h, hi_h) / base.height_m)
+                half_diag = 0.5 * float(np.hypot(*np.asarray(asset.extents_m)[:2]))
+                lateral = ROAD_LATERAL_M[0] - half_diag - rng.uniform(0.2, 1.0)
+                forward = rng.uniform(8.0, 14.0)
                 c, s_ = np.cos(yaw), np.sin(yaw)
                 R_up = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])  # object z-up -> camera -y
                 cam_from_object = np.eye(4)
@@ -143,7 +160,8 @@ def main(argv=None) -> int:
                 bg = comp.apply_shadow(comp.to_linear(img), shadow_ratio)
                 shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lighting_road)
                 out_a = comp.to_uint8(comp.alpha_over(bg, shaded, rl.alpha))
-                runs = [("road_placement", out_a, rl.alpha > 0, lighting_road, time.perf_counter() - t)]
+                runs = [("road_placement", out_a, rl.alpha > 0, lighting_road, time.perf_counter() - t,
+                         near_object(K, cam_from_object, asset))]
                 cfg = replace(pipeline.InsertionConfig(categories=(cat,)), harmonize=False, min_objects=1, max_objects=1)
                 t = time.perf_counter()
                 res = pipeline.insert_into_image(img, rng=np.random.default_rng(seed), cfg=cfg, intrinsics=K, n_objects=1)
@@ -154,9 +172,14 @@ def main(argv=None) -> int:
                         rle = dict(a.rle)
                         rle["counts"] = rle["counts"].encode("ascii")
                         obj |= mask_utils.decode(rle).astype(bool)
-                    runs.append(("pipeline", res.image, obj, res.record.lighting, dt))
-                for variant, out_img, obj, light, dt in runs:
-                    meas, umbra = inserted_shadow(img, out_img, road, m.lit_mask, obj)
+                    near = np.zeros(img.shape[:2], bool)
+                    for p in res.record.placements:
+                        T = np.asarray(p.cam_from_object, dtype=np.float64)
+                        ext_asset = default_asset(cat).scaled(float(p.scale))  # pipeline default asset
+                        near |= near_object(K, T, ext_asset)
+                    runs.append(("pipeline", res.image, obj, res.record.lighting, dt, near))
+                for variant, out_img, obj, light, dt, near in runs:
+                    meas, umbra = inserted_shadow(img, out_img, road, m.lit_mask, obj, near)
                     row = {"frame": idx, "category": cat, "seed": seed, "variant": variant, "seconds": dt,
                            "estimated_sun_sky_ratio": light.sun_sky_ratio if light is not None else None,
                            "dominant_sun": bool(light.dominant_sun) if light is not None else None,
