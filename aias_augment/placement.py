@@ -37,7 +37,14 @@ class PlacementConfig:
     local_min_inliers: int = 10
     local_max_depth_m: float = 40.0         # depth pixels farther than this are not used (stereo noise ~ z^2)
     local_max_points: int = 200_000         # random subset of the band points (speed)
-    local_fallback: str = "global"          # when the refit fails: "global" (coarse plane) | "reject" the candidate
+    local_fallback: str = "global"          # too few points for a refit: "global" (coarse plane) | "reject"
+    # The local plane must agree with the measured points right under the object: median |residual| of the band
+    # points within local_support_radius_m of the new contact <= local_support_max_residual_m. Otherwise (a kerb or a ramp
+    # inside the 3 m window, where the bigger surface wins the RANSAC vote) the refit is retried with half the
+    # radius, then a quarter. Fewer than local_support_min_points points there: no evidence, the plane is kept.
+    local_support_radius_m: float = 1.0
+    local_support_min_points: int = 5
+    local_support_max_residual_m: float = 0.025   # half a kerb step; LiDAR/stereo noise (< ~3 cm sigma) passes
 
     def __post_init__(self):
         if self.local_fallback not in ("global", "reject"):
@@ -151,13 +158,58 @@ def ground_band_points(ground: GroundPlane, intrinsics: Intrinsics, rng: np.rand
     return pts
 
 
+class UnevenGroundError(GroundFitError):
+    """Measured points are under the contact, but no local plane agrees with them (kerb edge, ramp, clutter)."""
+
+
+def _support_residual_m(points: np.ndarray, plane: GroundPlane, contact_in_cam: np.ndarray, radius_m: float,
+                        min_points: int) -> float | None:
+    """Median |distance to plane| of the points within ``radius_m`` (along the plane) of the contact; None when
+    fewer than ``min_points`` are there."""
+    rel = points - contact_in_cam
+    along = rel - (rel @ plane.normal)[:, None] * plane.normal
+    near = points[np.einsum("ij,ij->i", along, along) < radius_m ** 2]
+    if len(near) < min_points:
+        return None
+    return float(np.median(np.abs(plane.signed_distance(near))))
+
+
 def refit_local_ground(band_points: np.ndarray, ground: GroundPlane, contact_in_cam: np.ndarray,
-                       rng: np.random.Generator, cfg: PlacementConfig = PlacementConfig()) -> GroundPlane:
-    """Ground plane refit on ``band_points`` within ``cfg.local_radius_m`` (horizontally) of ``contact_in_cam``,
-    normal within ``cfg.local_max_tilt_deg`` of the coarse ``ground``'s. Raises GroundFitError when no such plane."""
-    return fit_ground_plane(band_points, rng, up_hint=ground.normal, max_tilt_deg=cfg.local_max_tilt_deg,
-                            threshold_m=cfg.local_threshold_m, local_center=contact_in_cam,
-                            local_radius_m=cfg.local_radius_m, min_inliers=cfg.local_min_inliers, source="local")
+                       rng: np.random.Generator, cfg: PlacementConfig = PlacementConfig(),
+                       pixel_uv: np.ndarray | None = None, intrinsics: Intrinsics | None = None
+                       ) -> tuple[GroundPlane, np.ndarray]:
+    """(local plane, contact on it): ground refit on ``band_points`` within ``cfg.local_radius_m`` (horizontally) of
+    ``contact_in_cam``, normal within ``cfg.local_max_tilt_deg`` of the coarse ``ground``'s.
+
+    The contact is re-intersected along ``pixel_uv``'s ray (given with ``intrinsics``), else projected onto the
+    plane. A plane that disagrees with the points under the new contact (see ``local_support_radius_m``) is refit
+    with half, then a quarter of the radius. Raises UnevenGroundError when planes were found but none agrees with
+    the points under the contact, GroundFitError when there are too few points for a plane.
+    """
+    last_error, uneven = "no radius tried", None
+    for radius in (cfg.local_radius_m, cfg.local_radius_m / 2, cfg.local_radius_m / 4):
+        try:
+            local = fit_ground_plane(band_points, rng, up_hint=ground.normal, max_tilt_deg=cfg.local_max_tilt_deg,
+                                     threshold_m=cfg.local_threshold_m, local_center=contact_in_cam,
+                                     local_radius_m=radius, min_inliers=cfg.local_min_inliers, source="local")
+        except GroundFitError as e:
+            last_error = str(e)
+            break  # a smaller window has even fewer points
+        if pixel_uv is not None:
+            contact = local.intersect_pixels(np.asarray(pixel_uv, float), intrinsics)
+            if not np.all(np.isfinite(contact)):
+                last_error = "the pixel's ray misses the local plane"
+                continue
+        else:
+            contact = local.project_to_plane(np.asarray(contact_in_cam, float))
+        res = _support_residual_m(band_points, local, contact, cfg.local_support_radius_m,
+                                  cfg.local_support_min_points)
+        if res is None or res <= cfg.local_support_max_residual_m:
+            return local, contact
+        uneven = f"local plane ({radius:.2g} m window) is {res:.3f} m off the points under the contact"
+    if uneven is not None:
+        raise UnevenGroundError(uneven)
+    raise GroundFitError(last_error)
 
 
 def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, rng: np.random.Generator, *,
@@ -216,12 +268,14 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
         plane, used = ground, "global"
         if band is not None:
             try:
-                local = refit_local_ground(band, ground, p, refit_rng, cfg)
-                p_local = local.intersect_pixels(uv, intrinsics)
-                if not np.all(np.isfinite(p_local)):
-                    raise GroundFitError("the pixel's ray misses the local plane")
+                local, p_local = refit_local_ground(band, ground, p, refit_rng, cfg, pixel_uv=uv,
+                                                    intrinsics=intrinsics)
                 plane, used, p = local, "local", p_local
                 dist = float(np.linalg.norm(p))
+            except UnevenGroundError:
+                # Points are there but the ground under the object is not one plane: do not stand it there.
+                report.rejected["uneven ground under the contact point"] += 1
+                continue
             except GroundFitError:
                 report.local_refit_failed += 1
                 if cfg.local_fallback == "reject":

@@ -6,10 +6,11 @@ Takes any KITTI-odometry-layout sequence (stereo -> SGBM depth) or DGP-style sce
     python scripts/eval_placement.py $AIAS_DATA/dgp_scene  --out results/placement --seeds 0 1 2
 
 Per frame: measured points (stereo or LiDAR, camera frame) -> coarse ground (RANSAC) -> placeable region
-(depth evidence) -> the project's ``placement.sample_placement`` chooses a contact pixel / pose -> the ground is
-refitted LOCALLY around that contact point (radius ``--local-radius``) and the contact point re-intersected with
-it -> collision checks (scene points in the box, existing 3D boxes, depth occlusion); a rejected candidate keeps
-its reason and the next is drawn.
+(depth evidence) -> the production ``placement.sample_placement`` with those points: it chooses a contact pixel,
+refits the ground LOCALLY around it (radius ``--local-radius``, points within ``--ground-band`` of the coarse
+plane), re-intersects the pixel's ray with the local plane, orients the object by the local normal and runs the
+collision checks (scene points in the box, existing 3D boxes incl. earlier insertions, depth occlusion). A
+rejected candidate keeps its reason and the next is drawn.
 
 Measurement (independent of any fitted plane): the measured points within ``--measure-radius`` metres of the
 contact point horizontally (perpendicular to the rig's up: KITTI camera -y, DGP vehicle z) whose height is within
@@ -32,10 +33,10 @@ import numpy as np
 from sklearn.cluster import DBSCAN
 
 from aias_augment.assets import default_asset
-from aias_augment.collision import CollisionConfig, OrientedBox, check_candidate, points_inside_box
+from aias_augment.collision import OrientedBox, points_inside_box
 from aias_augment.geometry import project_points
 from aias_augment.ground import GroundFitError, depth_to_points, fit_ground_plane
-from aias_augment.placement import PlacementConfig, object_pose_on_ground, sample_placement
+from aias_augment.placement import PlacementConfig, sample_placement
 from aias_augment.region import RegionConfig, placeable_region
 
 log = logging.getLogger("eval_placement")
@@ -84,6 +85,8 @@ def above_ground_clusters(points, up, contact, radius_m, ground_height_offset):
 
 
 def place_one(frame, points, up, existing, asset, rng, args, reasons: Counter):
+    """One placement through the production path: coarse ground, placeable region, then ``sample_placement`` with
+    the measured points (local refit + 3D collision checks happen inside it)."""
     intr = frame.intrinsics
     try:
         coarse = fit_ground_plane(points[points[:, 2] < 30], rng, up_hint=up, max_tilt_deg=15,
@@ -92,42 +95,23 @@ def place_one(frame, points, up, existing, asset, rng, args, reasons: Counter):
         reasons[f"no coarse ground: {e}"] += 1
         return None
     region = placeable_region(intr, coarse, depth=frame.depth, cfg=RegionConfig())
-    pcfg = PlacementConfig(max_tries=30, max_distance_m=args.max_distance, min_distance_m=3.0)
-    for _ in range(args.max_candidates):
-        placement, report = sample_placement(asset, coarse, intr, rng, depth=frame.depth, region_mask=region.mask,
-                                             cfg=pcfg)
-        for k, v in report.rejected.items():
-            reasons[f"placement: {k}"] += v
-        if placement is None:
-            reasons["placement: no candidate"] += 1
-            return None
-        contact_coarse = np.array(placement.contact_point_in_cam)
-        # Local refit only on points near the coarse ground: a car's trunk or a low wall is a horizontal plane
-        # too, and without this band a local fit can choose it as "ground".
-        near_coarse = points[np.abs(coarse.signed_distance(points)) < args.ground_band]
-        try:
-            local = fit_ground_plane(near_coarse, rng, up_hint=coarse.normal, max_tilt_deg=10, threshold_m=0.05,
-                                     local_center=contact_coarse, local_radius_m=args.local_radius,
-                                     min_inliers=10, source="local")
-        except GroundFitError:
-            reasons["no local ground around the contact point"] += 1
-            continue
-        contact = local.intersect_pixels(np.array(placement.contact_pixel), intr)
-        if not np.all(np.isfinite(contact)):
-            reasons["contact ray misses the local ground"] += 1
-            continue
-        cam_from_object = object_pose_on_ground(contact, local, placement.yaw_rad)
-        size = asset.extents_m * placement.scale
-        box = OrientedBox.standing_on_ground(cam_from_object, tuple(size), asset.category)
-        reason = check_candidate(box, local, intr, points_in_cam=points, existing=existing, depth=frame.depth,
-                                 cfg=CollisionConfig())
-        if reason is not None:
-            reasons[reason.split(":")[0]] += 1
-            continue
-        return {"contact": contact, "box": box, "local": local, "coarse": coarse, "placement": placement,
-                "region": region.to_dict()}
-    reasons["no candidate passed within max_candidates"] += 1
-    return None
+    pcfg = PlacementConfig(max_tries=args.max_tries, max_distance_m=args.max_distance, min_distance_m=3.0,
+                           local_radius_m=args.local_radius, local_ground_band_m=args.ground_band,
+                           local_fallback=args.local_fallback)
+    placement, report = sample_placement(asset, coarse, intr, rng, depth=frame.depth, region_mask=region.mask,
+                                         cfg=pcfg, points_in_cam=points, existing_objects=existing)
+    for k, v in report.rejected.items():
+        reasons[k] += v
+    reasons["local refit failed (candidates)"] += report.local_refit_failed
+    if placement is None:
+        reasons["no candidate passed"] += 1
+        return None
+    contact = np.array(placement.contact_point_in_cam)
+    box = OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m * placement.scale),
+                                         asset.category)
+    coarse_contact = coarse.intersect_pixels(np.array(placement.contact_pixel), intr)
+    return {"contact": contact, "box": box, "coarse": coarse, "coarse_contact": coarse_contact,
+            "placement": placement, "region": region.to_dict()}
 
 
 def draw(frame, placed, points, path):
@@ -145,7 +129,7 @@ def draw(frame, placed, points, path):
             nuv, _ = project_points(near, intr.K)
             for q in nuv[np.isfinite(nuv).all(1)]:
                 cv2.circle(img, tuple(np.round(q).astype(int)), 2, (255, 255, 0), -1)
-    cv2.imwrite(str(path), img[..., ::-1])
+    cv2.imwrite(str(path), img[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 85])
 
 
 def main(argv=None) -> int:
@@ -161,7 +145,9 @@ def main(argv=None) -> int:
     ap.add_argument("--max-distance", type=float, default=25.0, help="m, farthest contact point")
     ap.add_argument("--ground-band", type=float, default=0.4,
                     help="m, local refit uses points within this distance of the coarse ground")
-    ap.add_argument("--max-candidates", type=int, default=20)
+    ap.add_argument("--max-tries", type=int, default=300, help="candidates per object (PlacementConfig.max_tries)")
+    ap.add_argument("--local-fallback", choices=("global", "reject"), default="global",
+                    help="when the local refit fails: use the coarse plane (production default) or reject")
     ap.add_argument("--pictures", type=int, default=3)
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -203,16 +189,19 @@ def main(argv=None) -> int:
                        "distance_m": float(np.linalg.norm(p["contact"])),
                        "contact_err_m": err, "measured_points_near": n_near, "measure_radius_m": radius,
                        "coarse_plane_contact_err_m": measured_contact_error(
-                           np.array(p["placement"].contact_point_in_cam), points, up, radius)[0],
-                       "coarse_vs_local_contact_m": float(np.linalg.norm(
-                           np.array(p["placement"].contact_point_in_cam) - p["contact"])),
-                       "local_ground": p["local"].to_dict(), "clustered_points_inside_box": hits,
+                           p["coarse_contact"], points, up, radius)[0],
+                       "coarse_vs_local_contact_m": float(np.linalg.norm(p["coarse_contact"] - p["contact"])),
+                       "ground_used": p["placement"].ground_used,
+                       "ground": {"normal": p["placement"].ground_normal_in_cam, "d": p["placement"].ground_d,
+                                  "num_inliers": p["placement"].ground_num_inliers,
+                                  "rms_m": p["placement"].ground_rms_m},
+                       "clustered_points_inside_box": hits,
                        "region": p["region"]}
                 rows.append(row)
                 if err is not None:
                     errs.append(abs(err))
             if pictures < args.pictures and seed == args.seeds[0] and placed:
-                draw(frame, placed, points, args.out / f"placement_{tag}_{pictures}.png")
+                draw(frame, placed, points, args.out / f"placement_{tag}_{pictures}.jpg")
                 pictures += 1
         per_seed.append({"seed": seed, "placements": sum(r["seed"] == seed for r in rows),
                          "median_abs_contact_err_m": float(np.median(errs)) if errs else None})
@@ -232,6 +221,10 @@ def main(argv=None) -> int:
         "median_distance_m": float(np.median([r["distance_m"] for r in rows])) if rows else None,
         "median_abs_contact_err_if_coarse_plane_m": float(np.median(
             [abs(r["coarse_plane_contact_err_m"]) for r in rows if r["coarse_plane_contact_err_m"] is not None])),
+        "placements_on_local_plane": int(sum(r["ground_used"] == "local" for r in rows)),
+        "median_abs_contact_err_local_plane_m": float(np.median(
+            [abs(r["contact_err_m"]) for r in rows if r["contact_err_m"] is not None and r["ground_used"] == "local"]
+            or [np.nan])),
         "median_coarse_vs_local_contact_shift_m": float(np.median([r["coarse_vs_local_contact_m"] for r in rows])),
         "rejected_candidates": dict(reasons.most_common()),
         "seconds": elapsed,

@@ -6,7 +6,7 @@ import trimesh
 from aias_augment.assets import Asset
 from aias_augment.geometry import Intrinsics
 from aias_augment.ground import GroundPlane, prior_ground_plane
-from aias_augment.placement import PlacementConfig, sample_placement
+from aias_augment.placement import PlacementConfig, refit_local_ground, sample_placement
 
 K = Intrinsics(500.0, 500.0, 319.5, 239.5, 640, 480)
 CAM_HEIGHT = 1.6
@@ -68,6 +68,40 @@ def test_sidewalk_contact_gets_sidewalk_height_and_normal():
     assert n_local == 4
 
 
+def test_contact_near_the_kerb_follows_the_surface_under_it():
+    """Sidewalk contacts 1.1-1.6 m from the kerb: the 3 m window also holds road, which may win the RANSAC vote;
+    the support check (points under the contact) must still give the sidewalk height, else reject."""
+    depth, on_side, _, x_m = _scene()
+    region = on_side & (x_m > KERB_X + 1.1) & (x_m < KERB_X + 1.6) & (depth > 5) & (depth < 12)
+    cfg = PlacementConfig(max_tries=40, min_box_height_px=4)
+    for seed in range(4):
+        pl, report = sample_placement(_asset(), ROAD, K, np.random.default_rng(seed), depth=depth,
+                                      region_mask=region, cfg=cfg, height_range_m=(1.0, 1.0))
+        assert pl is not None, report.to_dict()
+        assert pl.ground_used == "local"
+        assert abs(float(SIDEWALK.signed_distance(np.array(pl.contact_point_in_cam)))) < 0.01
+
+
+def test_support_check_keeps_the_contact_on_a_narrow_raised_island():
+    """A 1.6 m wide island 10 cm above the road: within the 3 m window the road wins the vote. Without the support
+    check the contact lands on the road (10 cm off); with it, within local_support_max_residual_m of the island."""
+    xs, zs = np.meshgrid(np.arange(-6, 9, 0.1), np.arange(5, 20, 0.1))
+    xs, zs = xs.ravel(), zs.ravel()
+    island = (xs > 2.2) & (xs < 3.8)
+    pts = np.column_stack([xs, np.where(island, CAM_HEIGHT - 0.1, CAM_HEIGHT), zs])
+    coarse_contact = np.array([3.0, CAM_HEIGHT, 12.0])
+    cfg = PlacementConfig()
+    off = PlacementConfig(local_support_min_points=10**9)  # never enough points: check disabled
+    errs_on, errs_off = [], []
+    for seed in range(3):
+        _, c = refit_local_ground(pts, ROAD, coarse_contact, np.random.default_rng(seed), cfg)
+        errs_on.append(abs(c[1] - (CAM_HEIGHT - 0.1)))
+        _, c = refit_local_ground(pts, ROAD, coarse_contact, np.random.default_rng(seed), off)
+        errs_off.append(abs(c[1] - (CAM_HEIGHT - 0.1)))
+    assert max(errs_on) <= cfg.local_support_max_residual_m, errs_on
+    assert max(errs_off) > 0.09, errs_off
+
+
 def test_road_contact_corrects_a_biased_coarse_plane():
     """Coarse plane 5 cm too low: a road contact (> 3 m from the kerb) is refitted onto the true road."""
     depth, _, on_road, x_m = _scene()
@@ -96,8 +130,8 @@ def test_without_measurements_the_global_plane_is_used_and_candidates_match():
 
 
 def test_refit_failure_falls_back_or_rejects_as_configured():
-    """Measured points only beyond the farthest contact (z > 70 m): no local ground near any contact -> global, or a counted
-    rejection with local_fallback='reject'."""
+    """Measured points only beyond the farthest contact (z > 70 m): no local ground near any contact -> global plane,
+    or a counted rejection with local_fallback='reject'."""
     xs, zs = np.meshgrid(np.linspace(-20, 20, 41), np.linspace(70, 80, 11))
     far = np.column_stack([xs.ravel(), np.full(xs.size, CAM_HEIGHT), zs.ravel()])
     cfg = PlacementConfig(max_tries=10, local_max_depth_m=100.0)
