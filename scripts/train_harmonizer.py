@@ -14,13 +14,14 @@ import sys
 import time
 
 from aias_augment.config import load_config
-from aias_augment.harmonize.train import TrainConfig, cached_pool, train_fast, train_network
+from aias_augment.harmonize.train import TrainConfig, cached_pool, train_fast, train_network, tune_camera_strengths
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--config", default="configs/harmonize_small.yaml")
-    ap.add_argument("--which", choices=["network", "fast", "both"], default="both")
+    ap.add_argument("--which", choices=["network", "fast", "both", "camera"], default="both",
+                    help="camera: grid-search the camera matching's gain strengths on training pairs (no checkpoint)")
     ap.add_argument("--out-network", default="checkpoints/harmonizer_small.pt")
     ap.add_argument("--out-fast", default="checkpoints/harmonizer_fast.pt")
     args = ap.parse_args(argv)
@@ -31,6 +32,10 @@ def main(argv=None) -> int:
     pool = cached_pool(cfg.data, cfg.network.resolution_px, cfg.seed)
     meta["pool_time_s"] = round(time.perf_counter() - t0, 1)
     results = {}
+    if args.which == "camera":
+        r = tune_camera_strengths(cfg, pool)
+        print(json.dumps({k: v for k, v in r.items() if k != "table"}))
+        return 0
     if args.which in ("fast", "both"):
         results["fast"] = train_fast(cfg, args.out_fast, pool, meta)
     if args.which in ("network", "both"):

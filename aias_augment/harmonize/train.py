@@ -291,3 +291,35 @@ def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = N
                "history": history, **(meta or {})}
     save_fast_checkpoint(out_path, model, summary)
     return summary
+
+
+# ------------------------------------------------------------------------------------------ camera-matching strengths
+def tune_camera_strengths(cfg: TrainConfig, pool: PairPool | None = None, n_pairs: int = 60,
+                          grid: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)) -> dict:
+    """Grid-search ``exposure_strength`` x ``wb_strength`` of the camera matching on *training* pairs (fMSE).
+
+    Only the gain stage is searched (blur/noise/JPEG off): those stages cannot undo a perturbation, they add the
+    scene's degradations to clean renders.
+    """
+    from .camera_pipeline import CameraMatchParams, camera_match
+    from .metrics import fmse
+
+    pool = pool or cached_pool(cfg.data, cfg.network.resolution_px, cfg.seed)
+    train_idx, _ = split_pool(pool, cfg.data.holdout_fraction, np.random.default_rng(cfg.seed))
+    rng = np.random.default_rng(cfg.seed + 11)
+    idx = rng.choice(train_idx, min(n_pairs, len(train_idx)), replace=False)
+    pairs = []
+    for i in idx:
+        m = pool.masks[i].astype(np.float32)
+        pairs.append((apply_perturbation(pool.images[i], m, sample_perturbation(cfg.perturb, rng), rng),
+                      pool.images[i], m.astype(bool)))
+    table = {}
+    for e in grid:
+        for w in grid:
+            p = CameraMatchParams(exposure_strength=e, wb_strength=w, match_sharpness=False, match_noise=False,
+                                  match_jpeg=False)
+            table[(e, w)] = float(np.mean([fmse(camera_match(c, m, rng, p), t, m) for c, t, m in pairs]))
+    best = min(table, key=table.get)
+    raw = float(np.mean([fmse(c, t, m) for c, t, m in pairs]))
+    return {"pairs": len(pairs), "raw_fmse": raw, "best": {"exposure_strength": best[0], "wb_strength": best[1]},
+            "best_fmse": table[best], "table": {f"{e},{w}": v for (e, w), v in table.items()}}
