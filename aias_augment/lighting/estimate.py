@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import Sequence
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from .sky import preetham_sky_radiance
 from .sun import (_posterior_summary, _rot3, frame_from_up, remove_sun, solar_direction_enu, sun_cue_from_image,
                   sun_direction_in_cam_from_metadata, sun_from_envmap, sun_direction_grid)
 
-__all__ = ["LightingEstimate", "LightingConfig", "estimate_lighting", "lighting_from_envmap"]
+__all__ = ["LightingEstimate", "LightingConfig", "estimate_lighting", "estimate_lighting_clip", "lighting_from_envmap"]
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +46,7 @@ class LightingEstimate:
     ambient_sh: (9, 3) SH of the incident radiance without the sun (``sh`` conventions).
     sun_sky_ratio: sun / sky irradiance on the horizontal ground (0 without a dominant sun).
     dominant_sun: whether shadows should be cast. confidence: in [0, 1], of the sun direction.
-    source: 'envmap' | 'metadata' | 'image_cues' | 'none'. up_in_cam: unit (3,) up used for the ground.
+    source: 'envmap' | 'metadata' | 'image_cues' | 'image_cues_clip' | 'none'. up_in_cam: unit (3,) up used for the ground.
     """
 
     sun_direction_in_cam: np.ndarray | None
@@ -197,6 +198,136 @@ def _ambient_from_image(linear: np.ndarray, K: Intrinsics, up_in_cam: np.ndarray
     return project_envmap_to_sh(radiance, cam_from_env)
 
 
+@dataclass
+class _FrameContext:
+    """Everything about one frame that the sun evidence and the final estimate need."""
+
+    img: np.ndarray
+    meta: dict
+    K: Intrinsics
+    known_camera: bool
+    R_cw: np.ndarray
+    up_in_world: np.ndarray
+    up_in_cam: np.ndarray
+    indoor: bool
+    small: np.ndarray
+    K_small: Intrinsics
+    linear_small: np.ndarray
+    region: np.ndarray | None
+    measurement: LitShadowMeasurement | None
+
+
+def _check_image(image_rgb_uint8) -> np.ndarray:
+    img = np.asarray(image_rgb_uint8)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError(f"estimate_lighting: image must be (H, W, 3) uint8 RGB, got {img.shape} {img.dtype}")
+    if img.shape[0] < 8 or img.shape[1] < 8:
+        raise ValueError(f"estimate_lighting: image too small ({img.shape[1]}x{img.shape[0]})")
+    return img
+
+
+def _up_vectors(R_cw: np.ndarray, meta: dict) -> tuple[np.ndarray, np.ndarray]:
+    if "up_in_world" in meta:
+        up_in_world = np.asarray(meta["up_in_world"], dtype=np.float64).reshape(3)
+    else:
+        up_in_world = R_cw.T @ np.array([0.0, -1.0, 0.0])
+    n = np.linalg.norm(up_in_world)
+    if not np.isfinite(n) or n < 1e-9:
+        raise ValueError(f"estimate_lighting: invalid up_in_world {up_in_world}")
+    up_in_world = up_in_world / n
+    return up_in_world, R_cw @ up_in_world
+
+
+def _prepare(img: np.ndarray, intrinsics: Intrinsics | None, R_cw: np.ndarray, meta: dict,
+             config: LightingConfig, rng: np.random.Generator) -> _FrameContext:
+    h, w = img.shape[:2]
+    up_in_world, up_in_cam = _up_vectors(R_cw, meta)
+    known_camera = intrinsics is not None
+    K = intrinsics if known_camera else Intrinsics.from_fov(w, h, config.prior_hfov_deg)
+    if (K.width, K.height) != (w, h):
+        raise ValueError(f"estimate_lighting: intrinsics are for {K.width}x{K.height}, image is {w}x{h}")
+    small, K_small = _downscale(img, K, config.analysis_width)
+    linear_small = inverse_tone_map(small, InverseToneMapParams())
+    # Sun strength: lit vs shadowed ground, at full resolution (thin cast shadows matter).
+    region = meta.get("ground_mask")
+    if region is None:
+        region = ground_region_mask(K, up_in_cam, config.camera_height_m, config.ground_lateral_range_m,
+                                    config.ground_forward_range_m)
+    region = np.asarray(region, bool)
+    if region.shape != (h, w):
+        raise ValueError(f"estimate_lighting: ground_mask must be {(h, w)}, got {region.shape}")
+    measurement = measure_lit_shadow(srgb_to_linear(img), region, rng=rng)
+    return _FrameContext(img, meta, K, known_camera, R_cw, up_in_world, up_in_cam, bool(meta.get("indoor", False)),
+                         small, K_small, linear_small, region, measurement)
+
+
+def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, config: LightingConfig,
+                  rng: np.random.Generator):
+    """Log-likelihood of each world-grid sun direction from this frame: sky / sun-disc cue, elevation from GPS + time
+    when given without an orientation, cast-shadow axis on the ground. Returns (loglik, cue, axis_strength)."""
+    cue = sun_cue_from_image(ctx.small, ctx.K_small, ctx.R_cw, ctx.up_in_world, grid_world, rng=rng)
+    loglik = cue.log_likelihood.copy()
+    meta = ctx.meta
+    if all(k in meta for k in ("lat", "lon", "utc")):
+        # Position and time without orientation still fix the sun's elevation.
+        el = np.arcsin(np.clip(solar_direction_enu(meta["lat"], meta["lon"], meta["utc"])[2], -1, 1))
+        loglik -= 0.5 * ((azel[:, 1] - el) / np.deg2rad(3.0)) ** 2
+    axis_strength = 0.0
+    m = ctx.measurement
+    if m is not None and m.dominant_sun:
+        # Visible cast shadows need a sun clearly above the horizon.
+        loglik = np.where(azel[:, 1] > np.deg2rad(3.0), loglik, loglik - 1e3)
+        # Cast shadows on the ground are bands along the sun's azimuth (180 deg ambiguous: the sky cue, or other
+        # frames of the clip, pick the side).
+        ground_xy, _ = ground_coordinates(ctx.K, ctx.up_in_cam, config.camera_height_m)
+        axis, axis_strength = shadow_axis_on_ground(m.shadow_mask, ctx.region, ground_xy)
+        if axis_strength > 0:
+            d_cam = grid_world @ ctx.R_cw.T
+            fwd = np.array([0.0, 0.0, 1.0]) - ctx.up_in_cam[2] * ctx.up_in_cam
+            fwd /= np.linalg.norm(fwd)
+            phi = np.arctan2(d_cam @ fwd, d_cam @ np.cross(fwd, ctx.up_in_cam))
+            loglik = loglik + config.shadow_axis_kappa * axis_strength * np.cos(2.0 * (phi - axis))
+    return loglik, cue, axis_strength
+
+
+def _finish(ctx: _FrameContext, sun_dir: np.ndarray | None, confidence: float, source: str, cue,
+            config: LightingConfig) -> LightingEstimate:
+    """Dominance, sun strength from lit/shadow, ambient SH from the frame + Preetham sky."""
+    measurement, up_in_cam = ctx.measurement, ctx.up_in_cam
+    if ctx.indoor:
+        dominant = False
+    elif measurement is not None and measurement.dominant_sun:
+        dominant = True
+    else:
+        dominant = cue is not None and (cue.sun_visible or cue.confidence >= config.min_cue_confidence) and (
+            measurement is None or measurement.shadow_fraction < 0.01)
+        dominant = dominant or (source == "metadata" and measurement is None)
+    if sun_dir is not None and float(sun_dir @ up_in_cam) <= 0.0:
+        dominant = False  # the sun is at or below the horizon: no direct light
+    sh = _ambient_from_image(ctx.linear_small, ctx.K_small, up_in_cam, sun_dir if dominant else None, config)
+    if not dominant or sun_dir is None:
+        return LightingEstimate(None, np.zeros(3), sh, 0.0, False, confidence, source, up_in_cam)
+    e_sky = sh_irradiance(sh, up_in_cam)
+    cos_z = max(float(sun_dir @ up_in_cam), config.min_sun_cos)
+    if measurement is not None and measurement.dominant_sun:
+        # Per channel: lit / shadow - 1 = E_sun,c cos(z) / E_sky,c.
+        r_rgb = np.clip(measurement.lit_rgb / np.maximum(measurement.shadow_rgb, 1e-6) - 1.0, 0.0, None)
+        ratio = measurement.sun_sky_ratio
+    else:
+        r_rgb = np.full(3, config.default_sun_sky_ratio)
+        ratio = config.default_sun_sky_ratio
+    sun_irr = np.nan_to_num(r_rgb * e_sky / cos_z, nan=0.0, posinf=0.0)
+    return LightingEstimate(sun_dir, sun_irr, sh, float(ratio), True, confidence, source, up_in_cam)
+
+
+def _metadata_sun(ctx: _FrameContext, cam_from_world_given: bool) -> np.ndarray | None:
+    try:
+        return sun_direction_in_cam_from_metadata(ctx.meta, ctx.R_cw if cam_from_world_given else None)
+    except ValueError as e:
+        log.warning("lighting: metadata sun position unusable (%s); falling back to image cues", e)
+        return None
+
+
 def estimate_lighting(
     image_rgb_uint8: np.ndarray,
     intrinsics: Intrinsics | None = None,
@@ -213,105 +344,77 @@ def estimate_lighting(
     ground region used for lit/shadow); 'world_from_env' (3x3, orientation of ``envmap`` given as an array).
     ``rng`` only subsamples pixels (None -> a fixed seed). The result is always finite.
     """
-    img = np.asarray(image_rgb_uint8)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise ValueError(f"estimate_lighting: image must be (H, W, 3) uint8 RGB, got {img.shape} {img.dtype}")
-    h, w = img.shape[:2]
-    if h < 8 or w < 8:
-        raise ValueError(f"estimate_lighting: image too small ({w}x{h})")
+    img = _check_image(image_rgb_uint8)
     meta = dict(meta or {})
     rng = np.random.default_rng(0) if rng is None else rng
     R_cw = np.eye(3) if cam_from_world is None else _rot3(cam_from_world)
-    if "up_in_world" in meta:
-        up_in_world = np.asarray(meta["up_in_world"], dtype=np.float64).reshape(3)
-    else:
-        up_in_world = R_cw.T @ np.array([0.0, -1.0, 0.0])
-    up_in_world = up_in_world / np.linalg.norm(up_in_world)
-    up_in_cam = R_cw @ up_in_world
-    indoor = bool(meta.get("indoor", False))
-
     if envmap is not None:
+        up_in_world, _ = _up_vectors(R_cw, meta)
         env = envmap if isinstance(envmap, EnvironmentMap) else EnvironmentMap(
             np.asarray(envmap, dtype=np.float32), np.asarray(meta.get("world_from_env", np.eye(3))))
-        return lighting_from_envmap(env, R_cw, up_in_world if "up_in_world" in meta else None, config, indoor)
+        return lighting_from_envmap(env, R_cw, up_in_world if "up_in_world" in meta else None, config,
+                                    bool(meta.get("indoor", False)))
+    ctx = _prepare(img, intrinsics, R_cw, meta, config, rng)
+    if ctx.indoor:
+        return _finish(ctx, None, 0.0, "none", None, config)
+    sun_dir = _metadata_sun(ctx, cam_from_world is not None)
+    if sun_dir is not None:
+        return _finish(ctx, sun_dir, 0.95, "metadata", None, config)
+    grid_up, azel = sun_direction_grid()
+    grid_world = grid_up @ frame_from_up(ctx.up_in_world)
+    loglik, cue, axis_strength = _sun_evidence(ctx, grid_world, azel, config, rng)
+    _, concentration = _posterior_summary(grid_world, loglik, ctx.up_in_world)
+    confidence = max(cue.confidence, 0.5 * axis_strength * concentration) * (1.0 if ctx.known_camera else 0.5)
+    sun_dir = ctx.R_cw @ grid_world[int(np.argmax(loglik))]
+    return _finish(ctx, sun_dir, confidence, "image_cues", cue, config)
 
-    known_camera = intrinsics is not None
-    K = intrinsics if known_camera else Intrinsics.from_fov(w, h, config.prior_hfov_deg)
-    if (K.width, K.height) != (w, h):
-        raise ValueError(f"estimate_lighting: intrinsics are for {K.width}x{K.height}, image is {w}x{h}")
-    unclipped_linear = srgb_to_linear(img)  # full resolution: thin cast shadows matter for the lit/shadow ratio
-    small, K_small = _downscale(img, K, config.analysis_width)
-    linear_small = inverse_tone_map(small, InverseToneMapParams())
 
-    # Sun strength: lit vs shadowed ground.
-    region = meta.get("ground_mask")
-    if region is None:
-        region = ground_region_mask(K, up_in_cam, config.camera_height_m, config.ground_lateral_range_m,
-                                    config.ground_forward_range_m)
-    measurement: LitShadowMeasurement | None = measure_lit_shadow(unclipped_linear, np.asarray(region, bool), rng=rng)
-    # Sun direction.
-    sun_dir, confidence, source, cue = None, 0.0, "none", None
-    if not indoor:
-        try:
-            sun_dir = sun_direction_in_cam_from_metadata(meta, R_cw if cam_from_world is not None else None)
-        except ValueError as e:
-            log.warning("lighting: metadata sun position unusable (%s); falling back to image cues", e)
-            sun_dir = None
-        if sun_dir is not None:
-            confidence, source = 0.95, "metadata"
+def estimate_lighting_clip(
+    images: Sequence[np.ndarray],
+    intrinsics: Sequence[Intrinsics | None] | Intrinsics | None,
+    cams_from_world: Sequence[np.ndarray],
+    metas: Sequence[dict] | dict | None = None,
+    rng: np.random.Generator | None = None,
+    config: LightingConfig = LightingConfig(),
+) -> list[LightingEstimate]:
+    """Lighting of the frames of one clip with known poses: one sun, fused in world coordinates.
+
+    The per-frame sun evidence (sky, sun disc, cast-shadow axis) is a log-likelihood on one grid of world directions;
+    the clip's evidence is its sum (frames as independent views of the same, distant sun), and each frame gets the
+    fused direction rotated into its camera. Metadata (GPS + UTC + orientation) on every frame overrides fusion. Sun
+    strength and ambient stay per frame. The world's up is ``metas[0]['up_in_world']`` or the first camera's -y.
+    """
+    n = len(images)
+    if n == 0 or len(cams_from_world) != n:
+        raise ValueError("estimate_lighting_clip: need one pose per image and at least one image")
+    Ks = list(intrinsics) if isinstance(intrinsics, (list, tuple)) else [intrinsics] * n
+    ms = [dict(m or {}) for m in metas] if isinstance(metas, (list, tuple)) else [dict(metas or {})] * n
+    if len(Ks) != n or len(ms) != n:
+        raise ValueError("estimate_lighting_clip: intrinsics and metas must match the number of images")
+    rng = np.random.default_rng(0) if rng is None else rng
+    R0 = _rot3(cams_from_world[0])
+    up_in_world, _ = _up_vectors(R0, ms[0])
+    for m in ms:
+        m.setdefault("up_in_world", up_in_world)
+    ctxs = [_prepare(_check_image(img), K, _rot3(T), m, config, rng) for img, K, T, m in zip(images, Ks, cams_from_world, ms)]
+    meta_suns = [None if c.indoor else _metadata_sun(c, True) for c in ctxs]
+    if all(s is not None for s in meta_suns):
+        return [_finish(c, s, 0.95, "metadata", None, config) for c, s in zip(ctxs, meta_suns)]
+    grid_up, azel = sun_direction_grid()
+    grid_world = grid_up @ frame_from_up(up_in_world)
+    evidence = [_sun_evidence(c, grid_world, azel, config, rng) for c in ctxs if not c.indoor]
+    if not evidence:
+        return [_finish(c, None, 0.0, "none", None, config) for c in ctxs]
+    loglik = np.sum([e[0] for e in evidence], axis=0)
+    d_world = grid_world[int(np.argmax(loglik))]
+    _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
+    confidence = max(max(e[1].confidence for e in evidence), 0.5 * max(e[2] for e in evidence) * concentration)
+    cue = evidence[0][1]
+    out = []
+    for c in ctxs:
+        if c.indoor:
+            out.append(_finish(c, None, 0.0, "none", None, config))
         else:
-            grid_up, azel = sun_direction_grid()
-            grid_world = grid_up @ frame_from_up(up_in_world)
-            cue = sun_cue_from_image(small, K_small, R_cw, up_in_world, grid_world, rng=rng)
-            loglik = cue.log_likelihood
-            if all(k in meta for k in ("lat", "lon", "utc")):
-                # Position and time without orientation still fix the sun's elevation.
-                el = np.arcsin(np.clip(solar_direction_enu(meta["lat"], meta["lon"], meta["utc"])[2], -1, 1))
-                loglik = loglik - 0.5 * ((azel[:, 1] - el) / np.deg2rad(3.0)) ** 2
-            axis_strength = 0.0
-            if measurement is not None and measurement.dominant_sun:
-                # Cast shadows on the ground are bands along the sun's azimuth (ambiguous by 180 deg: the sky cue
-                # picks the side).
-                ground_xy, _ = ground_coordinates(K, up_in_cam, config.camera_height_m)
-                axis, axis_strength = shadow_axis_on_ground(measurement.shadow_mask, np.asarray(region, bool),
-                                                            ground_xy)
-                # Visible cast shadows need a sun clearly above the horizon.
-                loglik = np.where(azel[:, 1] > np.deg2rad(3.0), loglik, loglik - 1e3)
-                if axis_strength > 0:
-                    d_cam = grid_world @ R_cw.T
-                    fwd = np.array([0.0, 0.0, 1.0]) - up_in_cam[2] * up_in_cam
-                    fwd /= np.linalg.norm(fwd)
-                    phi = np.arctan2(d_cam @ fwd, d_cam @ np.cross(fwd, up_in_cam))
-                    loglik = loglik + config.shadow_axis_kappa * axis_strength * np.cos(2.0 * (phi - axis))
-            best = int(np.argmax(loglik))
-            sun_dir = R_cw @ grid_world[best]
-            _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
-            confidence = max(cue.confidence, 0.5 * axis_strength * concentration) * (1.0 if known_camera else 0.5)
-            source = "image_cues"
-
-    if indoor:
-        dominant = False
-    elif measurement is not None and measurement.dominant_sun:
-        dominant = True
-    else:
-        dominant = cue is not None and (cue.sun_visible or cue.confidence >= config.min_cue_confidence) and (
-            measurement is None or measurement.shadow_fraction < 0.01)
-        dominant = dominant or (source == "metadata" and measurement is None)
-    if sun_dir is not None and float(sun_dir @ up_in_cam) <= 0.0:
-        dominant = False  # the sun is at or below the horizon: no direct light
-    sh = _ambient_from_image(linear_small, K_small, up_in_cam, sun_dir if dominant else None, config)
-    if not dominant or sun_dir is None:
-        return LightingEstimate(None, np.zeros(3), sh, 0.0, False, confidence, source, up_in_cam)
-
-    e_sky = sh_irradiance(sh, up_in_cam)
-    cos_z = max(float(sun_dir @ up_in_cam), config.min_sun_cos)
-    if measurement is not None and measurement.dominant_sun:
-        # Per channel: lit / shadow - 1 = E_sun,c cos(z) / E_sky,c.
-        r_rgb = np.clip(measurement.lit_rgb / np.maximum(measurement.shadow_rgb, 1e-6) - 1.0, 0.0, None)
-        ratio = measurement.sun_sky_ratio
-    else:
-        r_rgb = np.full(3, config.default_sun_sky_ratio)
-        ratio = config.default_sun_sky_ratio
-    sun_irr = r_rgb * e_sky / cos_z
-    sun_irr = np.nan_to_num(sun_irr, nan=0.0, posinf=0.0)
-    return LightingEstimate(sun_dir, sun_irr, sh, float(ratio), True, confidence, source, up_in_cam)
+            conf = confidence * (1.0 if c.known_camera else 0.5)
+            out.append(_finish(c, c.R_cw @ d_world, conf, "image_cues_clip", cue, config))
+    return out

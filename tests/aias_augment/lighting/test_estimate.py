@@ -5,7 +5,7 @@ from hypothesis import given, settings, strategies as st
 from aias_augment.config import data_root
 from aias_augment.geometry import Intrinsics
 from aias_augment.lighting import envmap as em, sun
-from aias_augment.lighting.estimate import LightingConfig, LightingEstimate, estimate_lighting
+from aias_augment.lighting.estimate import LightingConfig, LightingEstimate, estimate_lighting, estimate_lighting_clip
 
 KITTI = data_root() / "kitti06_color_snippet"
 
@@ -97,3 +97,38 @@ def test_random_images_never_nan(seed):
 def test_config_validation():
     with pytest.raises(ValueError):
         LightingConfig(ambient_map_height=2)
+
+
+def test_clip_fusion_gives_one_world_sun():
+    from aias_augment.lighting import hdr, sky
+
+    h = 128
+    d = em.pixel_directions(h)
+    s = em.azimuth_elevation_to_direction(np.deg2rad(-60.0), np.deg2rad(25.0))
+    rad = sky.preetham_sky_radiance(d, s) * 0.01
+    rad[d[..., 2] < 0] = 0.05
+    rad = rad.astype(np.float32)
+    K = Intrinsics.from_fov(160, 100, 70.0)
+    images, poses = [], []
+    for yaw in (-10.0, -120.0):  # neither view contains the sun
+        R = em.cam_from_env_look(np.deg2rad(yaw), np.deg2rad(5.0))
+        view = em.render_perspective(rad, K, R)
+        exposure = 0.18 / float(np.median(hdr.luminance(view)))
+        images.append(np.round(hdr.linear_to_srgb(view * exposure) * 255).astype(np.uint8))
+        T = np.eye(4)
+        T[:3, :3] = R
+        poses.append(T)
+    ests = estimate_lighting_clip(images, K, poses, {"up_in_world": [0.0, 0.0, 1.0]})
+    assert len(ests) == 2 and all(e.source == "image_cues_clip" for e in ests)
+    worlds = []
+    for e, T in zip(ests, poses):
+        _finite(e)
+        assert e.sun_direction_in_cam is not None or not e.dominant_sun
+        if e.sun_direction_in_cam is not None:
+            worlds.append(T[:3, :3].T @ e.sun_direction_in_cam)
+    for w in worlds:
+        assert abs((np.rad2deg(np.arctan2(w[1], w[0])) + 60.0 + 180) % 360 - 180) < 25.0
+    if len(worlds) == 2:
+        assert np.allclose(worlds[0], worlds[1], atol=1e-9)
+    with pytest.raises(ValueError):
+        estimate_lighting_clip(images, K, poses[:1])
