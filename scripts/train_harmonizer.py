@@ -42,7 +42,8 @@ def main(argv=None) -> int:
         results["network"] = train_network(cfg, args.out_network, pool, meta)
     for k, r in results.items():
         print(json.dumps({"which": k, "steps": r["steps"], "train_time_s": r["train_time_s"],
-                          "holdout_raw_fmse": round(r["holdout_raw_fmse"], 2), "holdout_fmse": round(r["holdout_fmse"], 2)}))
+                          "holdout_raw_fmse": round(r["holdout_raw_fmse"], 2),
+                          "holdout_fmse": round(r["holdout_fmse"], 2)}))
     print(f"total wall time {time.perf_counter() - t0:.1f} s")
     return 0
 

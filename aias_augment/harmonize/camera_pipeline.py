@@ -16,7 +16,8 @@ Stages, in the order a camera applies them (each a pure function, composed by ``
 
 Limits: the gain estimate assumes the object's colour statistics resemble its surroundings' (that is what
 "match" can mean without knowing its albedo), so a strongly coloured object is pulled towards its surroundings'
-colour; the default strengths (exposure 0.5, white balance 0.25, fitted on training pairs) trade that off. Blur and noise can only be added, never removed.
+colour; the default strengths (exposure 0.5, white balance 0.25, fitted on training pairs) trade that off.
+Blur and noise can only be added, never removed.
 """
 from __future__ import annotations
 
@@ -67,7 +68,8 @@ def illuminant(linear: np.ndarray, region: np.ndarray, p: float) -> np.ndarray:
 
 def estimate_gains(linear: np.ndarray, fg: np.ndarray, surround: np.ndarray, params: CameraMatchParams) -> np.ndarray:
     """Per-channel linear gains for the foreground; (1, 1, 1) when either region has no usable pixel."""
-    ill_f, ill_s = illuminant(linear, fg, params.illuminant_norm_p), illuminant(linear, surround, params.illuminant_norm_p)
+    p = params.illuminant_norm_p
+    ill_f, ill_s = illuminant(linear, fg, p), illuminant(linear, surround, p)
     if not (np.isfinite(ill_f).all() and np.isfinite(ill_s).all()):
         return np.ones(3, np.float32)
     log_ratio = np.log(np.maximum(ill_s, EPS_ILLUMINANT)) - np.log(np.maximum(ill_f, EPS_ILLUMINANT))

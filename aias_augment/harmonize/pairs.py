@@ -64,7 +64,8 @@ def sample_perturbation(ranges: PerturbRanges, rng: np.random.Generator) -> Pert
     )
 
 
-def apply_perturbation(image_uint8: np.ndarray, mask: np.ndarray, p: Perturbation, rng: np.random.Generator) -> np.ndarray:
+def apply_perturbation(image_uint8: np.ndarray, mask: np.ndarray, p: Perturbation,
+                       rng: np.random.Generator) -> np.ndarray:
     """Perturb the pixels under ``mask`` (float (H, W) in [0, 1]); returns a new uint8 image.
 
     Exposure and white balance act on linear light, saturation around linear luminance, gamma on the encoded values

@@ -2,8 +2,8 @@
 the background's. The classic baseline of the harmonization literature; it ignores that the object has its own
 colours, so it over-corrects strongly coloured objects.
 
-CIELAB via OpenCV (float input in [0, 1]: L in [0, 100], a and b about [-127, 127]) stands in for Reinhard's l-alpha-beta;
-both are decorrelated opponent spaces and the transfer is the same mean/std matching.
+CIELAB via OpenCV (float input in [0, 1]: L in [0, 100], a and b about [-127, 127]) stands in for Reinhard's
+l-alpha-beta; both are decorrelated opponent spaces and the transfer is the same mean/std matching.
 """
 from __future__ import annotations
 

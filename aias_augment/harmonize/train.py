@@ -152,7 +152,9 @@ def make_batch(pool: PairPool, idx: np.ndarray, perturb: PerturbRanges, rng: np.
             img, m = img[:, ::-1], m[:, ::-1]
         comps.append(apply_perturbation(img, m, sample_perturbation(perturb, rng), rng))
         targets.append(img), masks.append(m)
-    to_t = lambda a: torch.from_numpy(np.ascontiguousarray(np.stack(a))).permute(0, 3, 1, 2).float() / 255.0  # noqa: E731
+    def to_t(a):
+        return torch.from_numpy(np.ascontiguousarray(np.stack(a))).permute(0, 3, 1, 2).float() / 255.0
+
     return to_t(comps), to_t(targets), torch.from_numpy(np.ascontiguousarray(np.stack(masks)))[:, None]
 
 
@@ -199,7 +201,8 @@ def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
             torch.optim.Adam(critic.parameters(), lr=cfg.lr_critic, betas=cfg.betas_critic))
 
 
-def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None, meta: dict | None = None) -> dict:
+def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None,
+                  meta: dict | None = None) -> dict:
     """Train the generator + critic; saves ``out_path`` every ``save_every`` steps and at the end. Returns a summary."""
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)

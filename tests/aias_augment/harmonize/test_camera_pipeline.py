@@ -102,8 +102,10 @@ def test_blur_is_matched_to_a_defocused_background(street_rgb):
 @pytest.mark.parametrize("quality", [50, 75, 90])
 def test_jpeg_quality_and_subsampling_are_estimated(street_rgb, quality):
     bgr = cv2.cvtColor(street_rgb, cv2.COLOR_RGB2BGR)
-    for sampling, expect in ((cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420, True), (cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444, False)):
-        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, sampling])
+    samplings = ((cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420, True), (cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444, False))
+    for sampling, expect in samplings:
+        params = [cv2.IMWRITE_JPEG_QUALITY, quality, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, sampling]
+        ok, buf = cv2.imencode(".jpg", bgr, params)
         dec = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
         q = estimate_jpeg_quality(dec)
         assert q is not None and abs(q - quality) <= 5, (quality, q)

@@ -1,7 +1,8 @@
 import numpy as np
 import torch
 
-from aias_augment.harmonize.fast import FastColorNet, FastConfig, apply_affine, load_fast, run_fast, save_fast_checkpoint
+from aias_augment.harmonize.fast import (FastColorNet, FastConfig, apply_affine, load_fast, run_fast,
+                                         save_fast_checkpoint)
 from aias_augment.harmonize.network import masked_stats
 
 
