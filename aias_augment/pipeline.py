@@ -24,6 +24,7 @@ from .lighting.shadows import (contact_occlusion, occluder_distance_from_footpri
                                soften_shadow)
 from .ground import GroundFitError, GroundPlane, ground_plane_from_depth, prior_ground_plane
 from .region import placeable_region
+from .collision import OrientedBox
 from .placement import Placement, PlacementConfig, box_of_points, sample_placement
 from .render import render_ground_shadow, render_object
 
@@ -255,6 +256,13 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
 
     existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
     taken = [b for b in existing_xyxy]
+    # DGP-style 3D scene info (meta "lidar_points_in_cam" (N, 3), "boxes_in_cam" [OrientedBox]): candidates must not
+    # intersect LiDAR clusters, existing 3D boxes, or the objects inserted before them.
+    scene_points = meta.get("lidar_points_in_cam")
+    boxes_3d = list(meta.get("boxes_in_cam") or [])
+    if cfg.placement and (scene_points is not None or boxes_3d):
+        mods["collision"] = (f"3D checks: {0 if scene_points is None else len(scene_points)} scene points, "
+                             f"{len(boxes_3d)} existing 3D boxes, earlier insertions")
     layers = []   # (placement, asset, RenderLayers, shaded_linear)
     for _ in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
@@ -262,7 +270,9 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
         if cfg.placement:
             placement, report = sample_placement(base, ground, intr, rng, existing_boxes_xyxy=np.array(taken),
                                                  depth=depth, cfg=cfg.placement_cfg, region_mask=region.mask,
-                                                 height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category))
+                                                 height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
+                                                 points_in_cam=scene_points,
+                                                 existing_objects=boxes_3d if "collision" in mods else None)
             record.placement_reports.append(report.to_dict())
             if placement is None:
                 log.info("no valid placement for %s: %s", category, dict(report.rejected))
@@ -286,6 +296,8 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
         shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lighting)
         layers.append((placement, asset, rl, shaded, cam_from_object))
         taken.append(np.array(placement.amodal_box_xyxy))
+        if cfg.placement and "collision" in mods:
+            boxes_3d.append(OrientedBox.standing_on_ground(cam_from_object, tuple(asset.extents_m), category))
         record.placements.append(placement)
 
     # Composite far to near.

@@ -82,7 +82,9 @@ def test_sample_placement_rejects_candidates_inside_point_clusters():
         [0, 0, 0.5])),), "test")
     xs, ys, zs = np.meshgrid(np.linspace(-30, 30, 121), np.linspace(0.6, 1.4, 5), np.linspace(2, 40, 77))
     forest = np.column_stack([xs.ravel(), ys.ravel(), zs.ravel()])  # points 0.1..0.9 m above the ground
-    cfg = PlacementConfig(max_tries=20)
+    # No local ground refit: these points are a 'forest' above the ground, not ground (the refit would reject
+    # every candidate as uneven ground before the collision check this test is about).
+    cfg = PlacementConfig(max_tries=20, local_refit=False)
     placed, _ = sample_placement(asset, GROUND, INTR, np.random.default_rng(0), cfg=cfg, height_range_m=(1.0, 1.0))
     assert placed is not None
     none, report = sample_placement(asset, GROUND, INTR, np.random.default_rng(0), cfg=cfg, points_in_cam=forest,

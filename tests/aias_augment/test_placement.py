@@ -148,3 +148,47 @@ def test_refit_failure_falls_back_or_rejects_as_configured():
 def test_bad_config_raises():
     with pytest.raises(ValueError, match="local_fallback"):
         PlacementConfig(local_fallback="nearest")
+
+
+def test_pipeline_passes_dgp_meta_so_insertions_avoid_lidar_clusters_and_3d_boxes():
+    """insert_into_image(meta={"lidar_points_in_cam", "boxes_in_cam"}): no inserted object intersects an existing
+    3D box, a LiDAR cluster, or another insertion; the same seeds without meta do hit them (the test can fail)."""
+    from aias_augment.collision import OrientedBox, boxes_intersect, points_inside_box
+    from aias_augment.geometry import make_rigid
+    from aias_augment.pipeline import InsertionConfig, insert_into_image
+    from tests.aias_augment.fixtures import box_asset
+
+    class OneAsset:
+        def __init__(self, asset):
+            self.asset = asset
+
+        def sample(self, category, rng):
+            return self.asset
+
+    intr = Intrinsics(250.0, 250.0, 159.5, 119.5, 320, 240)
+    img = np.full((240, 320, 3), 110, np.uint8)
+    asset = box_asset(extents=(0.8, 0.8, 1.2), category="box")
+    # Existing car-sized box on the ground straight ahead (object z up = camera -y), 6 m wide, 12 m long.
+    R_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)
+    car = OrientedBox.standing_on_ground(make_rigid(R_up, [0.5, CAM_HEIGHT, 13.0]), (6.0, 12.0, 1.5), "car")
+    # A LiDAR "hedge" on the left: points 0.3..2 m above the ground.
+    xs, hs, zs = np.meshgrid(np.linspace(-9, -2.5, 27), np.linspace(0.3, 2.0, 6), np.linspace(3.5, 25, 87))
+    hedge = np.column_stack([xs.ravel(), CAM_HEIGHT - hs.ravel(), zs.ravel()])
+    cfg = InsertionConfig(categories=("box",), harmonize=False, lighting=False, shadow=False, ssaa=1)
+    hits = {True: 0, False: 0}
+    placed = {True: 0, False: 0}
+    for with_meta in (True, False):
+        meta = {"lidar_points_in_cam": hedge, "boxes_in_cam": [car]} if with_meta else None
+        for seed in range(4):
+            res = insert_into_image(img, rng=np.random.default_rng(seed), cfg=cfg, intrinsics=intr, meta=meta,
+                                    bank=OneAsset(asset), n_objects=3)
+            boxes = [OrientedBox.standing_on_ground(p.cam_from_object_matrix,
+                                                    tuple(asset.extents_m * p.scale)) for p in res.record.placements]
+            placed[with_meta] += len(boxes)
+            for i, b in enumerate(boxes):
+                hits[with_meta] += int(boxes_intersect(b, car) or points_inside_box(hedge, b).sum() >= 3
+                                       or any(boxes_intersect(b, o) for o in boxes[:i]))
+            if with_meta:
+                assert res.record.modules["collision"].startswith(f"3D checks: {len(hedge)} scene points, 1 existing")
+    assert placed[True] >= 8 and hits[True] == 0
+    assert hits[False] >= 2
