@@ -54,7 +54,7 @@ class Hit:
 @dataclass(frozen=True)
 class QueryConfig:
     top_k: int = 5
-    rerank: int = 10              # candidates geometrically verified
+    rerank: int = 25              # candidates geometrically verified (R@1 0.918 with 10, 0.964 with 25 in the bench)
     matching: str = "words"       # tentative matches: "words" (shared visual word) or "descriptors" (ratio test)
     max_per_word: int = 4         # words matching: skip words this frequent in either frame
     ratio: float = 0.85           # descriptors matching: Lowe ratio test on RootSIFT

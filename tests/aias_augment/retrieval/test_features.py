@@ -3,7 +3,7 @@ import pytest
 
 from aias_augment.retrieval.features import FeatureConfig, extract_features, rootsift, to_bgr
 
-from conftest import SMALL  # noqa: E402  (pytest puts this folder on sys.path)
+SMALL = FeatureConfig(max_side_px=480, seg_max_side_px=240, n_features=500)
 
 
 def test_rootsift_is_unit_norm_hellinger():
