@@ -209,7 +209,7 @@ def main(argv=None) -> int:
 
     width = max(v.shape[1] for v in vis_rows)
     Image.fromarray(np.concatenate([np.pad(v, ((0, 0), (0, width - v.shape[1]), (0, 0))) for v in vis_rows], 0)[::2, ::2]
-                    ).save(out / "kitti_shadows.png")
+                    ).save(out / "kitti_shadows.jpg", quality=80)
     lines = ["# KITTI 06: inserted vs real shadow depth on the road", "", f"Command: `{report['command']}`", "",
              "Real shadow/lit per frame (road box, lit vs shadowed asphalt):", "",
              "| frame | real shadow/lit | sun/sky ratio | Ashman D | shadow fraction | dominant sun |", "|---|---|---|---|---|---|"]
@@ -227,7 +227,7 @@ def main(argv=None) -> int:
         for k, s in summary.items():
             lines.append(f"- {k}: n={s['n']}, median rel. error {100 * s['median_rel_error']:.1f} %, max "
                          f"{100 * s['max_rel_error']:.1f} %, {100 * s['frac_within_15pct']:.0f} % within 15 %")
-    lines += ["", "![overlay](kitti_shadows.png)", "",
+    lines += ["", "![overlay](kitti_shadows.jpg)", "",
               "Overlay: green = road box, red = real shadow pixels, blue = real lit pixels; below each frame, one "
               "insertion with the umbra of its shadow in magenta.", ""]
     (out / "kitti_shadow_report.md").write_text("\n".join(lines))
