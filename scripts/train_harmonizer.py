@@ -24,6 +24,7 @@ def main(argv=None) -> int:
                     help="camera: grid-search the camera matching's gain strengths on training pairs (no checkpoint)")
     ap.add_argument("--out-network", default="checkpoints/harmonizer_small.pt")
     ap.add_argument("--out-fast", default="checkpoints/harmonizer_fast.pt")
+    ap.add_argument("--init-network", default=None, help="continue training from this network checkpoint")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     cfg = load_config(TrainConfig, args.config)
@@ -39,7 +40,7 @@ def main(argv=None) -> int:
     if args.which in ("fast", "both"):
         results["fast"] = train_fast(cfg, args.out_fast, pool, meta)
     if args.which in ("network", "both"):
-        results["network"] = train_network(cfg, args.out_network, pool, meta)
+        results["network"] = train_network(cfg, args.out_network, pool, meta, init_from=args.init_network)
     for k, r in results.items():
         print(json.dumps({"which": k, "steps": r["steps"], "train_time_s": r["train_time_s"],
                           "holdout_raw_fmse": round(r["holdout_raw_fmse"], 2),

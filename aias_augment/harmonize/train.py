@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
-from ..config import REPO_ROOT, data_root
+from ..config import REPO_ROOT, data_root, from_dict
 from .fast import FastColorNet, FastConfig, apply_affine, save_fast_checkpoint, thumbnail
-from .network import Critic, Generator, NetworkConfig, masked_gradient_penalty, save_checkpoint
+from .network import (Critic, Generator, NetworkConfig, load_checkpoint_dict, masked_gradient_penalty,
+                      save_checkpoint)
 from .pairs import (PerturbRanges, apply_perturbation, grabcut_mask, labelled_images, load_boxes, object_crop,
                     random_region_mask, read_image_rgb, sample_perturbation)
 from .regions import mask_box
@@ -202,8 +202,12 @@ def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
 
 
 def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None,
-                  meta: dict | None = None) -> dict:
-    """Train the generator + critic; saves ``out_path`` every ``save_every`` steps and at the end. Returns a summary."""
+                  meta: dict | None = None, init_from: str | Path | None = None) -> dict:
+    """Train the generator + critic; saves ``out_path`` every ``save_every`` steps and at the end. Returns a summary.
+
+    ``init_from``: continue from a saved generator (same network config); its steps and training time are carried
+    into the summary (the critic and optimiser states start afresh).
+    """
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
@@ -212,8 +216,15 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
     train_idx, hold_idx = split_pool(pool, cfg.data.holdout_fraction, np.random.default_rng(cfg.seed))
     hold = _fixed_holdout(pool, hold_idx, cfg)
     gen, critic = Generator(cfg.network), Critic(cfg.network.critic_channels)
+    prior = {"steps": 0, "train_time_s": 0.0, "history": []}
+    if init_from is not None:
+        ckpt = load_checkpoint_dict(init_from, "network")
+        if from_dict(NetworkConfig, ckpt["config"]) != cfg.network:
+            raise ValueError(f"{init_from}: network config differs from the training config")
+        gen.load_state_dict(ckpt["state_dict"])
+        prior = {k: ckpt["meta"].get(k, prior[k]) for k in prior}
     opt_g, opt_d = make_optimizers(gen, critic, cfg)
-    history, t0, step = [], time.perf_counter(), 0
+    history, t0, step = list(prior["history"]), time.perf_counter(), 0
 
     def evaluate():
         gen.eval()
@@ -230,13 +241,17 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
         elapsed = time.perf_counter() - t0
         if step % cfg.log_every == 0:
             _, net_fmse = evaluate()
-            rec = {"step": step, "time_s": round(elapsed, 1), **losses, "holdout_fmse": net_fmse}
+            rec = {"step": prior["steps"] + step, "time_s": round(prior["train_time_s"] + elapsed, 1), **losses,
+                   "holdout_fmse": net_fmse}
             history.append(rec)
             log.info("step %d %.0fs l1 %.4f/%.4f D %.3f gp %.3f holdout fMSE %.1f (raw %.1f)", step, elapsed,
                      rec["l1_coarse"], rec["l1_refine"], rec["loss_d"], rec["gp"], net_fmse, raw_fmse)
         done = elapsed > cfg.time_limit_s or step == cfg.steps
         if step % cfg.save_every == 0 or done:
-            summary = {"steps": step, "train_time_s": round(elapsed, 1), "holdout_raw_fmse": raw_fmse,
+            summary = {"steps": prior["steps"] + step, "train_time_s": round(prior["train_time_s"] + elapsed, 1),
+                       "segments": [*(ckpt["meta"].get("segments", []) if init_from else []),
+                                    {"steps": step, "train_time_s": round(elapsed, 1), "init_from": str(init_from)}],
+                       "holdout_raw_fmse": raw_fmse,
                        "holdout_fmse": evaluate()[1], "pool_items": len(pool.sources), "threads": cfg.threads,
                        "config": dataclasses.asdict(cfg), "history": history, **(meta or {})}
             save_checkpoint(out_path, gen, summary)
