@@ -63,8 +63,8 @@ class TrainConfig:
     l1_refine_weight: float = 1.2
     gan_weight: float = 0.001  # DeepFill v1's gan_loss_alpha
     gp_weight: float = 10.0  # DeepFill v1's wgan_gp_lambda
-    log_every: int = 25
-    save_every: int = 100
+    log_every: int = 25  # also how often the holdout is scored; the best-scoring generator is the one saved
+    grad_clip_norm: float = 1.0
     # fast harmonizer
     fast_steps: int = 1500
     fast_time_limit_s: float = 240.0
@@ -191,6 +191,7 @@ def train_step(gen: Generator, critic: Critic, opt_g, opt_d, comp, target, mask,
     adv = -critic(out["output"], mask).mean()
     loss_g = cfg.l1_coarse_weight * l1_c + cfg.l1_refine_weight * l1_r + cfg.gan_weight * adv
     loss_g.backward()
+    torch.nn.utils.clip_grad_norm_(gen.parameters(), cfg.grad_clip_norm)
     opt_g.step()
     return {k: float(v.detach()) for k, v in
             {"l1_coarse": l1_c, "l1_refine": l1_r, "loss_d": loss_d, "gp": gp, "adv": adv}.items()}
@@ -203,7 +204,8 @@ def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
 
 def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None,
                   meta: dict | None = None, init_from: str | Path | None = None) -> dict:
-    """Train the generator + critic; saves ``out_path`` every ``save_every`` steps and at the end. Returns a summary.
+    """Train the generator + critic; returns a summary. ``out_path`` holds the generator that scored best on the
+    holdout so far (rewritten at each improvement, so a stopped run keeps its best model).
 
     ``init_from``: continue from a saved generator (same network config); its steps and training time are carried
     into the summary (the critic and optimiser states start afresh).
@@ -233,30 +235,37 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
         gen.train()
         return fmse_255(hold[0], hold[1], hold[2]), fmse_255(out, hold[1], hold[2])
 
-    raw_fmse, _ = evaluate()
+    raw_fmse, best_fmse = evaluate()
+    best_step = prior["steps"]
+
+    def summarize(step: int, elapsed: float) -> dict:
+        return {"steps": prior["steps"] + step, "best_step": best_step,
+                "train_time_s": round(prior["train_time_s"] + elapsed, 1),
+                "segments": [*(ckpt["meta"].get("segments", []) if init_from else []),
+                             {"steps": step, "train_time_s": round(elapsed, 1), "init_from": str(init_from)}],
+                "holdout_raw_fmse": raw_fmse, "holdout_fmse": best_fmse, "pool_items": len(pool.sources),
+                "threads": cfg.threads, "config": dataclasses.asdict(cfg), "history": history, **(meta or {})}
+
     log.info("holdout: %d pairs, raw composite fMSE %.1f", len(hold_idx[:48]), raw_fmse)
+    save_checkpoint(out_path, gen, summarize(0, 0.0))
     for step in range(1, cfg.steps + 1):
         comp, target, mask = make_batch(pool, rng.choice(train_idx, cfg.batch_size), cfg.perturb, rng)
         losses = train_step(gen, critic, opt_g, opt_d, comp, target, mask, cfg, tgen)
         elapsed = time.perf_counter() - t0
-        if step % cfg.log_every == 0:
+        done = elapsed > cfg.time_limit_s or step == cfg.steps
+        if step % cfg.log_every == 0 or done:
             _, net_fmse = evaluate()
             rec = {"step": prior["steps"] + step, "time_s": round(prior["train_time_s"] + elapsed, 1), **losses,
                    "holdout_fmse": net_fmse}
             history.append(rec)
             log.info("step %d %.0fs l1 %.4f/%.4f D %.3f gp %.3f holdout fMSE %.1f (raw %.1f)", step, elapsed,
                      rec["l1_coarse"], rec["l1_refine"], rec["loss_d"], rec["gp"], net_fmse, raw_fmse)
-        done = elapsed > cfg.time_limit_s or step == cfg.steps
-        if step % cfg.save_every == 0 or done:
-            summary = {"steps": prior["steps"] + step, "train_time_s": round(prior["train_time_s"] + elapsed, 1),
-                       "segments": [*(ckpt["meta"].get("segments", []) if init_from else []),
-                                    {"steps": step, "train_time_s": round(elapsed, 1), "init_from": str(init_from)}],
-                       "holdout_raw_fmse": raw_fmse,
-                       "holdout_fmse": evaluate()[1], "pool_items": len(pool.sources), "threads": cfg.threads,
-                       "config": dataclasses.asdict(cfg), "history": history, **(meta or {})}
-            save_checkpoint(out_path, gen, summary)
+            if net_fmse < best_fmse:  # keep the generator that scores best on the holdout (training images)
+                best_fmse, best_step = net_fmse, prior["steps"] + step
+                save_checkpoint(out_path, gen, summarize(step, elapsed))
         if done:
             break
+    return summarize(step, elapsed)
     return summary
 
 
