@@ -137,6 +137,10 @@ def import_record(record: CatalogRecord, cache: MeshCache, taxonomy: Taxonomy, *
     except AssetError as e:
         log.warning("rejected %s: %s", record.id, e)
         return replace(record, status="rejected", notes=(str(e),)), None
+    except (ValueError, OSError, KeyError, IndexError) as e:  # broken files surface as these from zip/PIL/trimesh
+        reason = f"{record.source}: unreadable ({type(e).__name__}: {e})"
+        log.warning("rejected %s: %s", record.id, reason)
+        return replace(record, status="rejected", notes=(reason,)), None
     if fresh and cache.save(key, list(parts), notes):
         notes = notes + ["texture downscaled to at most 2048 px"]
     status = "repaired" if notes else "ok"
