@@ -129,6 +129,9 @@ def draw(frame, placed, points, path):
             nuv, _ = project_points(near, intr.K)
             for q in nuv[np.isfinite(nuv).all(1)]:
                 cv2.circle(img, tuple(np.round(q).astype(int)), 2, (255, 255, 0), -1)
+    if img.shape[1] > 1280:  # keep committed pictures small: at most 1280 px wide, JPEG quality 85
+        f = 1280 / img.shape[1]
+        img = cv2.resize(img, (1280, round(img.shape[0] * f)), interpolation=cv2.INTER_AREA)
     cv2.imwrite(str(path), img[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 85])
 
 
