@@ -20,7 +20,8 @@ class BaseConv(nn.Module):
     def __init__(self, c_in, c_out, k=1, s=1, groups=1):
         super().__init__()
         self.conv = nn.Conv2d(c_in, c_out, k, s, padding=(k - 1) // 2, groups=groups, bias=False)
-        self.bn = nn.BatchNorm2d(c_out, eps=1e-3, momentum=0.1)  # PyTorch default: short CPU runs need stats that settle fast
+        # momentum 0.1 (PyTorch default, YOLOX uses 0.03): short CPU runs need running statistics that settle fast
+        self.bn = nn.BatchNorm2d(c_out, eps=1e-3, momentum=0.1)
         self.act = nn.SiLU(inplace=True)
 
     def forward(self, x):
@@ -134,7 +135,8 @@ class EfficientNetLite0Backbone(nn.Module):
             state = torch.load(efficientnet_lite0_weights_path(), map_location="cpu", weights_only=True)
             missing, unexpected = net.load_state_dict(state, strict=False)
             if missing or unexpected:
-                raise RuntimeError(f"EfficientNet-Lite0 weights do not match: missing {missing}, unexpected {unexpected}")
+                raise RuntimeError(f"EfficientNet-Lite0 weights do not match: missing {missing}, "
+                                   f"unexpected {unexpected}")
         self.conv_stem, self.bn0, self.act = net._conv_stem, net._bn0, nn.ReLU6(inplace=True)
         self.blocks = net._blocks
         # The last block at each cumulative stride 8 / 16 / 32 gives the feature levels.

@@ -161,8 +161,8 @@ def generate_arm_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet,
     seconds = time.perf_counter() - t0
     write_classes(out, cfg.class_names)
     (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
-    done.write_text(json.dumps({**wanted, **code, "num_images": len(manifest), "num_boxes": n_boxes, "failures": failures,
-                                "seconds": seconds, "seconds_per_image": seconds / max(len(background_idx), 1)},
+    done.write_text(json.dumps({**wanted, **code, "num_images": len(manifest), "num_boxes": n_boxes,
+                                "failures": failures, "seconds": seconds, "seconds_per_image": seconds / max(len(background_idx), 1)},
                                indent=1))
     log.info("%s seed %d: %d images, %d inserted boxes in %.0f s", arm, seed, len(manifest), n_boxes, seconds)
     return out
@@ -210,7 +210,7 @@ def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: Det
     from .inference import evaluate_dataset
     from .train import save_checkpoint, train_detector
 
-    result_path = _repo_path(cfg.results_dir) / "runs" / f"{arm}_seed{seed}.json"
+    result_path = _repo_path(cfg.results_dir) / "run_metrics" / f"{arm}_seed{seed}.json"
     if result_path.exists() and not force:
         log.info("%s seed %d: result exists (%s), skipping", arm, seed, result_path)
         return json.loads(result_path.read_text())
@@ -317,10 +317,10 @@ def plot_summary(rows: list[dict], path: Path, reference: str = "original") -> N
 
 def write_summary(cfg: StudyConfig, config_path: str, command: str) -> str:
     results = _repo_path(cfg.results_dir)
-    rows = [json.loads(p.read_text()) for p in sorted((results / "runs").glob("*.json"))]
+    rows = [json.loads(p.read_text()) for p in sorted((results / "run_metrics").glob("*.json"))]
     rows = [r for r in rows if r["arm"] in ARM_FLAGS]
     if not rows:
-        raise FileNotFoundError(f"no run results under {results / 'runs'}")
+        raise FileNotFoundError(f"no run results under {results / 'run_metrics'}")
     order = {a: i for i, a in enumerate(ARM_FLAGS)}
     rows.sort(key=lambda r: (order[r["arm"]], r["seed"]))
     table, summary = summarize(rows, cfg.reference_arm)
