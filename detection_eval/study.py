@@ -162,8 +162,8 @@ def generate_arm_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet,
     write_classes(out, cfg.class_names)
     (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
     done.write_text(json.dumps({**wanted, **code, "num_images": len(manifest), "num_boxes": n_boxes,
-                                "failures": failures, "seconds": seconds, "seconds_per_image": seconds / max(len(background_idx), 1)},
-                               indent=1))
+                                "failures": failures, "seconds": seconds,
+                                "seconds_per_image": seconds / max(len(background_idx), 1)}, indent=1))
     log.info("%s seed %d: %d images, %d inserted boxes in %.0f s", arm, seed, len(manifest), n_boxes, seconds)
     return out
 
