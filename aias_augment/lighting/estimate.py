@@ -103,6 +103,8 @@ class LightingConfig:
     min_dominant_sun_sky_ratio: float = 0.3
     #: Sun/sky ratio assumed when the image shows the sun (disc or confident cue) but no lit/shadow ground pair.
     default_sun_sky_ratio: float = 3.0
+    #: Fraction of the above-horizon pixels that must be sky before image cues may declare a sun (indoor guard).
+    min_sky_fraction_for_sun: float = 0.08
     #: Minimum image-cue confidence to declare a sun without a lit/shadow measurement.
     min_cue_confidence: float = 0.6
     #: Field of view prior when no intrinsics are given (deg, horizontal).
@@ -215,6 +217,7 @@ class _FrameContext:
     linear_small: np.ndarray
     region: np.ndarray | None
     measurement: LitShadowMeasurement | None
+    n_above_small: int  # pixels of the analysis copy more than 2 deg above the horizon
 
 
 def _check_image(image_rgb_uint8) -> np.ndarray:
@@ -257,8 +260,9 @@ def _prepare(img: np.ndarray, intrinsics: Intrinsics | None, R_cw: np.ndarray, m
     if region.shape != (h, w):
         raise ValueError(f"estimate_lighting: ground_mask must be {(h, w)}, got {region.shape}")
     measurement = measure_lit_shadow(srgb_to_linear(img), region, rng=rng)
+    n_above = int(np.sum(camera_ray_directions(K_small) @ up_in_cam > np.sin(np.deg2rad(2.0))))
     return _FrameContext(img, meta, K, known_camera, R_cw, up_in_world, up_in_cam, bool(meta.get("indoor", False)),
-                         small, K_small, linear_small, region, measurement)
+                         small, K_small, linear_small, region, measurement, n_above)
 
 
 def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, config: LightingConfig,
@@ -294,14 +298,22 @@ def _finish(ctx: _FrameContext, sun_dir: np.ndarray | None, confidence: float, s
             config: LightingConfig) -> LightingEstimate:
     """Dominance, sun strength from lit/shadow, ambient SH from the frame + Preetham sky."""
     measurement, up_in_cam = ctx.measurement, ctx.up_in_cam
+    sky_fraction = 0.0 if cue is None else cue.n_sky_pixels / max(ctx.n_above_small, 1)
     if ctx.indoor:
+        dominant = False
+    elif source.startswith("image_cues") and sky_fraction < config.min_sky_fraction_for_sun:
+        # Without metadata, a sun is only declared where the frame shows open sky: indoors, dark and bright materials
+        # (and lamps) look like lit/shadowed ground and sun discs.
         dominant = False
     elif measurement is not None and measurement.dominant_sun:
         dominant = True
     else:
-        dominant = cue is not None and (cue.sun_visible or cue.confidence >= config.min_cue_confidence) and (
-            measurement is None or measurement.shadow_fraction < 0.01)
-        dominant = dominant or (source == "metadata" and measurement is None)
+        # No lit/shadow evidence on the ground: a sun needs a visible disc, or a confident sky when no ground could be
+        # measured at all. Ground measured without cast shadows (overcast, or an open road with no occluders) counts
+        # as no dominant sun: a missing shadow looks less wrong than a shadow under an overcast sky.
+        dominant = cue is not None and (cue.sun_visible or (measurement is None
+                                                            and cue.confidence >= config.min_cue_confidence))
+        dominant = dominant or (source == "metadata" and (measurement is None or measurement.shadow_fraction >= 0.01))
     if sun_dir is not None and float(sun_dir @ up_in_cam) <= 0.0:
         dominant = False  # the sun is at or below the horizon: no direct light
     sh = _ambient_from_image(ctx.linear_small, ctx.K_small, up_in_cam, sun_dir if dominant else None, config)
@@ -409,12 +421,12 @@ def estimate_lighting_clip(
     d_world = grid_world[int(np.argmax(loglik))]
     _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
     confidence = max(max(e[1].confidence for e in evidence), 0.5 * max(e[2] for e in evidence) * concentration)
-    cue = evidence[0][1]
+    cues = iter([e[1] for e in evidence])
     out = []
     for c in ctxs:
         if c.indoor:
             out.append(_finish(c, None, 0.0, "none", None, config))
         else:
             conf = confidence * (1.0 if c.known_camera else 0.5)
-            out.append(_finish(c, c.R_cw @ d_world, conf, "image_cues_clip", cue, config))
+            out.append(_finish(c, c.R_cw @ d_world, conf, "image_cues_clip", next(cues), config))
     return out

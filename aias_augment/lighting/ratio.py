@@ -141,7 +141,7 @@ def measure_lit_shadow(
     usable &= np.abs(dev).max(axis=2) < max_chroma_dev * 2.0
     if usable.sum() < 200:
         return None
-    logY = np.log(Y)
+    logY = np.log(np.maximum(Y, 1e-6))  # eps: only usable pixels (Y > 1e-4) are read below
     idx = np.flatnonzero(usable.ravel())
     fit_idx = rng.choice(idx, max_samples, replace=False) if idx.size > max_samples else idx
     n = int(usable.sum())

@@ -132,3 +132,33 @@ def test_clip_fusion_gives_one_world_sun():
         assert np.allclose(worlds[0], worlds[1], atol=1e-9)
     with pytest.raises(ValueError):
         estimate_lighting_clip(images, K, poses[:1])
+
+
+NYU = data_root() / "nyu_rgbd"
+VIDEO = data_root() / "video" / "vtest.avi"
+
+
+@pytest.mark.skipif(not (NYU / "color" / "1.png").is_file(), reason="shared NYU data not present")
+@pytest.mark.parametrize("idx", [1, 2, 5])
+def test_indoor_frames_have_no_dominant_sun(idx):
+    # Without any 'indoor' flag: dark and bright furniture must not pass for lit and shadowed ground.
+    from PIL import Image
+
+    img = np.array(Image.open(NYU / "color" / f"{idx}.png").convert("RGB"))
+    e = estimate_lighting(img, Intrinsics(518.0, 519.0, 325.5, 253.5, 640, 480))
+    _finite(e)
+    assert not e.dominant_sun and e.sun_direction_in_cam is None
+
+
+@pytest.mark.skipif(not VIDEO.is_file(), reason="shared video not present")
+def test_overcast_video_frame_has_no_dominant_sun():
+    import cv2
+
+    cap = cv2.VideoCapture(str(VIDEO))
+    cap.set(cv2.CAP_PROP_POS_FRAMES, 240)
+    ok, frame = cap.read()
+    cap.release()
+    assert ok
+    e = estimate_lighting(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB))
+    _finite(e)
+    assert not e.dominant_sun
