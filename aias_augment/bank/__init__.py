@@ -24,7 +24,7 @@ from ..assets import Asset, AssetError
 from .cache import MeshCache, default_cache_dir, source_stamp
 from .catalog import CatalogRecord, load_catalog, save_catalog
 from .meshio import part_texture_image
-from .gazebo import default_gazebo_dir, load_gazebo_parts, read_gazebo_records
+from .gazebo import IMPORTER_VERSION as GAZEBO_VERSION, default_gazebo_dir, load_gazebo_parts, read_gazebo_records
 from .procedural import ProceduralSpec, generate
 from .sh3f import DEFAULT_SH3F_DIR, IMPORTER_VERSION as SH3F_VERSION, find_sh3f_files, load_sh3f_parts, read_sh3f_catalog
 from .sidecar import load_sidecar_parts, read_sidecar_records
@@ -60,7 +60,7 @@ def _record_stamp(r: CatalogRecord) -> str:
         extra = (SH3F_VERSION, r.params["member"], r.dimensions_m, r.params.get("model_rotation"))
     elif r.importer == "gazebo":
         src = Path(r.params["model_dir"]) / "model.sdf"
-        extra = ()
+        extra = (GAZEBO_VERSION,)
     elif r.importer == "sidecar":
         src = r.params["mesh"]
         extra = (r.params.get("height_m"), r.params.get("scale"), r.params.get("up_axis"))

@@ -7,15 +7,17 @@ from pathlib import Path
 
 import trimesh
 
-from ..assets import AssetError, load_asset, normalise_meshes
+from ..assets import AssetError, _gazebo_visual_mesh, load_asset, normalise_meshes
 from ..config import data_root
 from .catalog import CatalogRecord
+from .meshio import load_raw_parts, missing_obj_textures
 from .taxonomy import Taxonomy
 from .validate import repair_parts
 
-__all__ = ["default_gazebo_dir", "find_gazebo_models", "read_gazebo_records", "load_gazebo_parts"]
+__all__ = ["IMPORTER_VERSION", "default_gazebo_dir", "find_gazebo_models", "read_gazebo_records", "load_gazebo_parts"]
 
 GAZEBO_LICENCE = "CC-BY-3.0 (osrf/gazebo_models)"
+IMPORTER_VERSION = 2  # 2: OBJ models keep their UVs and find their textures in materials/textures
 
 
 def default_gazebo_dir() -> Path:
@@ -54,8 +56,19 @@ def read_gazebo_records(directory: str | Path, taxonomy: Taxonomy) -> list[Catal
 
 
 def load_gazebo_parts(record: CatalogRecord) -> tuple[tuple[trimesh.Trimesh, ...], list[str]]:
+    """COLLADA models through ``load_asset`` (sdf scale x COLLADA unit); OBJ models through the bank's raw reader
+    with the same sdf scale and gazebo's z-up, because ``load_mesh_file`` loses OBJ UVs (see ``meshio``)."""
+    model_dir = Path(record.params["model_dir"])
     try:
-        asset = load_asset(record.params["model_dir"], category=record.category, name=record.name)
+        mesh_path, sdf_scale = _gazebo_visual_mesh(model_dir)
+        if mesh_path.suffix.lower() == ".obj":
+            tex_dirs = (model_dir / "materials" / "textures",)
+            notes = [f"missing texture {t}: diffuse colour used" for t in missing_obj_textures(mesh_path, tex_dirs)]
+            parts, rep = repair_parts(load_raw_parts(mesh_path, tex_dirs), where=str(mesh_path))
+            for p in parts:
+                p.apply_scale(sdf_scale)  # gazebo meshes are in the model's z-up frame: no axis change
+            return normalise_meshes(parts), notes + rep
+        asset = load_asset(model_dir, category=record.category, name=record.name)
     except (ET.ParseError, OSError) as e:
         raise AssetError(f"{record.source}: unreadable gazebo model ({type(e).__name__}: {e})") from e
     parts, notes = repair_parts(list(asset.meshes), where=record.source)

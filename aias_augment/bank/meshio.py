@@ -20,15 +20,48 @@ log = logging.getLogger(__name__)
 __all__ = ["load_raw_parts", "missing_obj_textures", "part_texture_image", "part_base_color"]
 
 
-def load_raw_parts(path: str | Path) -> list[trimesh.Trimesh]:
-    """All triangle parts of a mesh file in file units and axes (scene graph transforms applied), one per material."""
+class _SearchResolver(trimesh.resolvers.FilePathResolver):
+    """Finds referenced files (MTL, textures) beside the mesh, else by base name in extra folders (gazebo keeps
+    textures in ``materials/textures`` and names them ``model://<model>/...``)."""
+
+    def __init__(self, mesh_path: Path, search_dirs: tuple[Path, ...]):
+        super().__init__(str(mesh_path))
+        self.search_dirs = search_dirs
+
+    def get(self, name: str) -> bytes:
+        try:
+            return super().get(name)
+        except Exception:  # noqa: BLE001 - fall back to the search folders below
+            base = Path(name.replace("\\", "/").split("model://", 1)[-1]).name
+            for d in self.search_dirs:
+                if (d / base).is_file():
+                    return (d / base).read_bytes()
+            raise
+
+
+def _find_texture(name: str, mtl_dir: Path, search_dirs: tuple[Path, ...]) -> bool:
+    if (mtl_dir / name.replace("\\", "/")).is_file():
+        return True
+    base = Path(name.replace("\\", "/").split("model://", 1)[-1]).name
+    return any((d / base).is_file() for d in search_dirs)
+
+
+def load_raw_parts(path: str | Path, search_dirs: tuple[Path, ...] = ()) -> list[trimesh.Trimesh]:
+    """All triangle parts of a mesh file in file units and axes (scene graph transforms applied), one per material.
+
+    ``search_dirs``: extra folders where referenced textures are looked up by base name."""
     path = Path(path)
     if not path.is_file():
         raise AssetError(f"mesh file not found: {path}")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise AssetError(f"{path}: unsupported mesh format {path.suffix!r} (supported: {sorted(MESH_SUFFIXES)})")
     try:
-        loaded = trimesh.load(str(path), process=False)
+        if search_dirs:
+            with open(path, "rb") as f:
+                loaded = trimesh.load(f, file_type=path.suffix.lower()[1:], process=False,
+                                      resolver=_SearchResolver(path, tuple(search_dirs)))
+        else:
+            loaded = trimesh.load(str(path), process=False)
     except Exception as e:  # trimesh raises many types for broken files
         raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
     if isinstance(loaded, trimesh.Trimesh):
@@ -52,7 +85,7 @@ def load_raw_parts(path: str | Path) -> list[trimesh.Trimesh]:
 _MAP_RE = re.compile(r"^\s*map_Kd\s+(?:-\S+\s+\S+\s+)*(.+?)\s*$", re.IGNORECASE)
 
 
-def missing_obj_textures(obj_path: str | Path) -> list[str]:
+def missing_obj_textures(obj_path: str | Path, search_dirs: tuple[Path, ...] = ()) -> list[str]:
     """Diffuse texture files named by an OBJ's MTL libraries that do not exist (an unreadable MTL counts too)."""
     obj_path = Path(obj_path)
     missing = []
@@ -68,7 +101,7 @@ def missing_obj_textures(obj_path: str | Path) -> list[str]:
             continue
         for ln in mtl.read_text(errors="replace").splitlines():
             m = _MAP_RE.match(ln)
-            if m and not (mtl.parent / m.group(1).replace("\\", "/")).is_file():
+            if m and not _find_texture(m.group(1), mtl.parent, tuple(search_dirs)):
                 missing.append(m.group(1))
     return missing
 

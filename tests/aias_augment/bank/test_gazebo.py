@@ -28,3 +28,14 @@ def test_cone_size_from_sdf_scale_and_collada_unit(records):
     ext = b[:, 1].max(0) - b[:, 0].min(0)
     np.testing.assert_allclose(ext[:2], [0.50292, 0.50292], rtol=1e-4)
     assert 1.0 < ext[2] < 1.2 and b[:, 0, 2].min() == pytest.approx(0, abs=1e-9)
+
+
+def test_obj_model_keeps_textures_and_size(records):
+    """The hatchback is an OBJ whose MTL names textures that live in materials/textures (gazebo layout)."""
+    from aias_augment.assets import load_asset
+    parts, notes = load_gazebo_parts(records["gazebo:hatchback"])
+    assert all(p.visual.uv is not None and p.visual.material.image is not None for p in parts)
+    assert notes == []
+    b = np.array([p.bounds for p in parts])
+    ref = load_asset(records["gazebo:hatchback"].params["model_dir"]).extents_m  # sdf scale 0.0254
+    np.testing.assert_allclose(b[:, 1].max(0) - b[:, 0].min(0), ref, rtol=1e-9)
