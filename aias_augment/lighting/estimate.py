@@ -112,19 +112,25 @@ class LightingConfig:
     #: Resolution of the ambient maps built internally (rows; width is twice).
     ambient_map_height: int = 32
     #: cos(sun zenith) is clamped to at least this when turning the ground ratio into normal-incidence irradiance.
-    min_sun_cos: float = 0.1
+    min_sun_cos: float = 0.05
+    #: ... and to at least this when the elevation comes from image cues (sin 15 deg): their elevation is uncertain and
+    #: a too-low sun would make surfaces facing it 1 / sin(el) times brighter than the ground (blown-out objects).
+    min_sun_cos_image_cues: float = 0.26
     camera_height_m: float = 1.65
     #: Ground box used for lit/shadow when no ground mask is given (m, gravity-aligned camera frame).
     ground_lateral_range_m: tuple[float, float] = (-1.5, 1.5)
     ground_forward_range_m: tuple[float, float] = (5.0, 20.0)
     turbidity: float = 3.0
+    #: Mean and standard deviation (deg) of the weak prior on the sun elevation used with image cues.
+    elevation_prior_deg: tuple[float, float] = (30.0, 20.0)
     #: Weight of the cast-shadow axis term (log-likelihood kappa x strength x cos 2 dphi) against the sky cue.
     shadow_axis_kappa: float = 20.0
     #: Sun cues and the ambient map are computed on a copy at most this wide (pixels).
     analysis_width: int = 400
 
     def __post_init__(self):
-        if self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or self.default_sun_sky_ratio < 0:
+        if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
+                or self.default_sun_sky_ratio < 0):
             raise ValueError("LightingConfig: invalid values")
 
 
@@ -294,6 +300,13 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
     return loglik, cue, axis_strength
 
 
+def _elevation_prior(azel: np.ndarray, config: LightingConfig) -> np.ndarray:
+    """Weak Gaussian log-prior on the sun's elevation for image cues (sky fits are biased low: a hazy horizon looks
+    like a low sun). Added once per estimate (once per clip, not per frame)."""
+    mean, sigma = np.deg2rad(config.elevation_prior_deg[0]), np.deg2rad(config.elevation_prior_deg[1])
+    return -0.5 * ((azel[:, 1] - mean) / sigma) ** 2
+
+
 def _finish(ctx: _FrameContext, sun_dir: np.ndarray | None, confidence: float, source: str, cue,
             config: LightingConfig) -> LightingEstimate:
     """Dominance, sun strength from lit/shadow, ambient SH from the frame + Preetham sky."""
@@ -320,7 +333,8 @@ def _finish(ctx: _FrameContext, sun_dir: np.ndarray | None, confidence: float, s
     if not dominant or sun_dir is None:
         return LightingEstimate(None, np.zeros(3), sh, 0.0, False, confidence, source, up_in_cam)
     e_sky = sh_irradiance(sh, up_in_cam)
-    cos_z = max(float(sun_dir @ up_in_cam), config.min_sun_cos)
+    min_cos = config.min_sun_cos_image_cues if source.startswith("image_cues") else config.min_sun_cos
+    cos_z = max(float(sun_dir @ up_in_cam), min_cos)
     if measurement is not None and measurement.dominant_sun:
         # Per channel: lit / shadow - 1 = E_sun,c cos(z) / E_sky,c.
         r_rgb = np.clip(measurement.lit_rgb / np.maximum(measurement.shadow_rgb, 1e-6) - 1.0, 0.0, None)
@@ -375,6 +389,7 @@ def estimate_lighting(
     grid_up, azel = sun_direction_grid()
     grid_world = grid_up @ frame_from_up(ctx.up_in_world)
     loglik, cue, axis_strength = _sun_evidence(ctx, grid_world, azel, config, rng)
+    loglik = loglik + _elevation_prior(azel, config)
     _, concentration = _posterior_summary(grid_world, loglik, ctx.up_in_world)
     confidence = max(cue.confidence, 0.5 * axis_strength * concentration) * (1.0 if ctx.known_camera else 0.5)
     sun_dir = ctx.R_cw @ grid_world[int(np.argmax(loglik))]
@@ -417,7 +432,7 @@ def estimate_lighting_clip(
     evidence = [_sun_evidence(c, grid_world, azel, config, rng) for c in ctxs if not c.indoor]
     if not evidence:
         return [_finish(c, None, 0.0, "none", None, config) for c in ctxs]
-    loglik = np.sum([e[0] for e in evidence], axis=0)
+    loglik = np.sum([e[0] for e in evidence], axis=0) + _elevation_prior(azel, config)
     d_world = grid_world[int(np.argmax(loglik))]
     _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
     confidence = max(max(e[1].confidence for e in evidence), 0.5 * max(e[2] for e in evidence) * concentration)
