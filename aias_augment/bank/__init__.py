@@ -22,7 +22,7 @@ import trimesh
 
 from ..assets import Asset, AssetError
 from .cache import MeshCache, default_cache_dir, source_stamp
-from .catalog import CatalogRecord, load_catalog, save_catalog
+from .catalog import CatalogRecord, load_catalog
 from .meshio import part_texture_image
 from .gazebo import IMPORTER_VERSION as GAZEBO_VERSION, default_gazebo_dir, load_gazebo_parts, read_gazebo_records
 from .procedural import ProceduralSpec, generate

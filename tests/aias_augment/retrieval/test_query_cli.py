@@ -1,7 +1,6 @@
 import json
 
 import cv2
-import numpy as np
 
 from aias_augment.query_cli import main
 
