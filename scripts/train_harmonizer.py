@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import shlex
@@ -25,9 +26,12 @@ def main(argv=None) -> int:
     ap.add_argument("--out-network", default="checkpoints/harmonizer_small.pt")
     ap.add_argument("--out-fast", default="checkpoints/harmonizer_fast.pt")
     ap.add_argument("--init-network", default=None, help="continue training from this network checkpoint")
+    ap.add_argument("--time-limit-s", type=float, default=None, help="override the config's network time limit")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     cfg = load_config(TrainConfig, args.config)
+    if args.time_limit_s is not None:
+        cfg = dataclasses.replace(cfg, time_limit_s=args.time_limit_s)
     meta = {"command": " ".join(shlex.quote(a) for a in [sys.executable.split("/")[-1], *sys.argv])}
     t0 = time.perf_counter()
     pool = cached_pool(cfg.data, cfg.network.resolution_px, cfg.seed)

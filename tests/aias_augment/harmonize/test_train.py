@@ -28,17 +28,17 @@ def tiny_pairs(street_rgb, n=4, size=32):
 def test_network_overfits_a_tiny_pair_set(street_rgb):
     torch.manual_seed(0)
     comp, target, mask = tiny_pairs(street_rgb)
-    cfg = TrainConfig(network=NetworkConfig(resolution_px=32, base_channels=8, levels=2, dilations=(2, 4),
+    cfg = TrainConfig(network=NetworkConfig(resolution_px=32, base_channels=4, levels=2, dilations=(2,),
                                             critic_channels=4), lr_generator=3e-3)
     gen, critic = Generator(cfg.network), Critic(cfg.network.critic_channels)
     opt_g, opt_d = make_optimizers(gen, critic, cfg)
     before = fmse_255(comp, target, mask)
-    for _ in range(150):
+    for _ in range(25):
         losses = train_step(gen, critic, opt_g, opt_d, comp, target, mask, cfg, torch.Generator().manual_seed(0))
     assert np.isfinite(list(losses.values())).all()
     with torch.no_grad():
         after = fmse_255(gen.eval()(comp, mask)["output"], target, mask)
-    assert after < 0.25 * before, (before, after)
+    assert after < 0.1 * before, (before, after)
 
 
 def test_fast_harmonizer_overfits_a_tiny_pair_set(street_rgb):
@@ -47,7 +47,7 @@ def test_fast_harmonizer_overfits_a_tiny_pair_set(street_rgb):
     model = FastColorNet(FastConfig(thumbnail_px=32, channels=8))
     opt = torch.optim.Adam(model.parameters(), lr=3e-3)
     before = fmse_255(comp, target, mask)
-    for _ in range(150):
+    for _ in range(100):
         fast_train_step(model, opt, comp, target, mask)
     with torch.no_grad():
         after = fmse_255(fast_predict(model, comp, mask), target, mask)
