@@ -115,7 +115,7 @@ def measure_lit_shadow(
     min_separation: float = 2.0,
     min_fraction: float = 0.01,
     min_lit_to_shadow: float = 1.5,
-    max_samples: int = 20000,
+    max_samples: int = 8000,
     rng: np.random.Generator | None = None,
 ) -> LitShadowMeasurement | None:
     """Measure lit and shadowed luminance of the ground in ``region_mask``; None if fewer than 200 usable pixels.
@@ -148,7 +148,7 @@ def measure_lit_shadow(
     if float(np.ptp(logY.ravel()[fit_idx])) < 1e-3:  # one flat colour: nothing to separate
         rgb, y = np.median(img[usable], 0), float(np.median(Y[usable]))
         return LitShadowMeasurement(rgb, rgb, y, y, 1.0, 0.0, 0.0, 0.0, n, False, usable, np.zeros_like(usable))
-    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=2).fit(logY.ravel()[fit_idx, None])
+    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=1).fit(logY.ravel()[fit_idx, None])
     mu = gm.means_.ravel()
     sd = np.sqrt(gm.covariances_.ravel())
     dark, bright = int(np.argmin(mu)), int(np.argmax(mu))
