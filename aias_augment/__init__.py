@@ -1,7 +1,17 @@
-"""aias-augment: photorealistic 3D object insertion for detector training data."""
+"""aias-augment: photorealistic 3D object insertion for detector training data.
+
+The top-level names are imported lazily: ``import aias_augment.bank`` must not pay for albumentations and torch.
+"""
 __version__ = "0.1.0"
 
-from .pipeline import InsertionConfig, insert_into_image, load_preset  # noqa: E402
-from .transform import InsertObjects  # noqa: E402
-
 __all__ = ["InsertObjects", "InsertionConfig", "insert_into_image", "load_preset"]
+
+
+def __getattr__(name):
+    if name == "InsertObjects":
+        from .transform import InsertObjects
+        return InsertObjects
+    if name in ("InsertionConfig", "insert_into_image", "load_preset"):
+        from . import pipeline
+        return getattr(pipeline, name)
+    raise AttributeError(f"module 'aias_augment' has no attribute {name!r}")

@@ -101,7 +101,7 @@ class Asset:
         return int(sum(len(m.faces) for m in self.meshes))
 
 
-def _axis_rotation_to_z_up(up_axis: str) -> np.ndarray:
+def axis_rotation_to_z_up(up_axis: str) -> np.ndarray:
     up_axis = up_axis.upper().replace("_UP", "")
     if up_axis == "Z":
         return np.eye(4)
@@ -166,12 +166,12 @@ def load_mesh_file(path: str | Path, *, scale: float | None = None, up_axis: str
     if path.suffix.lower() == ".dae":
         file_scale, file_up = read_collada_unit(path)
     try:
-        loaded = trimesh.load(str(path), process=False, maintain_order=True)
+        loaded = trimesh.load(str(path), process=False)  # no maintain_order: it drops OBJ UVs when vt != v counts
     except Exception as e:  # trimesh raises many types for broken files
         raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
     meshes = _flatten(loaded, path)
     s = file_scale * (1.0 if scale is None else scale)
-    R = _axis_rotation_to_z_up(up_axis or file_up)
+    R = axis_rotation_to_z_up(up_axis or file_up)
     for m in meshes:
         m.apply_transform(R)
         m.apply_scale(s)
@@ -194,7 +194,7 @@ def normalise_meshes(meshes: list[trimesh.Trimesh]) -> tuple[trimesh.Trimesh, ..
     return tuple(out)
 
 
-def _gazebo_visual_mesh(model_dir: Path) -> tuple[Path, float]:
+def gazebo_visual_mesh(model_dir: Path) -> tuple[Path, float]:
     sdf = model_dir / "model.sdf"
     root = ET.parse(sdf).getroot()
     mesh_el = root.find(".//visual//mesh") or root.find(".//mesh")
@@ -219,7 +219,7 @@ def load_asset(path: str | Path, *, category: str = "object", name: str | None =
     if path.is_dir():
         if not (path / "model.sdf").is_file():
             raise AssetError(f"{path}: a folder asset needs a model.sdf (gazebo layout)")
-        mesh_path, sdf_scale = _gazebo_visual_mesh(path)
+        mesh_path, sdf_scale = gazebo_visual_mesh(path)
         # gazebo meshes are in the model's z-up frame; the COLLADA unit still applies.
         meshes = load_mesh_file(mesh_path, scale=sdf_scale * (scale or 1.0), up_axis=up_axis or "Z_UP")
         if not licence and (path.parent / "LICENSE").exists():

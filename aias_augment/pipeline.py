@@ -14,7 +14,7 @@ import numpy as np
 
 from . import composite as comp
 from .annotate import ObjectAnnotation, annotate_object, box_visibility_under_cover
-from .assets import CATEGORY_HEIGHT_RANGE_M, Asset, default_asset
+from .assets import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
 from .config import CONFIG_DIR, from_dict, load_config
 from .geometry import (Intrinsics, invert_rigid, make_rigid, project_points, transform_points,
                        unproject_points)
@@ -24,6 +24,7 @@ from .lighting.shadows import (contact_occlusion, occluder_distance_from_footpri
                                soften_shadow)
 from .ground import GroundFitError, GroundPlane, ground_plane_from_depth, prior_ground_plane
 from .region import placeable_region
+from .scenes.single_image import SingleImageConfig, estimate_camera_from_image
 from .collision import OrientedBox
 from .placement import Placement, PlacementConfig, box_of_points, sample_placement
 from .render import render_ground_shadow, render_object
@@ -46,9 +47,11 @@ class InsertionConfig:
     harmonize: bool = True
     naive_paste: bool = False
     harmonize_method: str = "camera"
+    asset_source: str = "default"        # "default": shared-data model per category, bank for others; "bank": all bank
     ssaa: int = 2                        # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Priors when the scene does not say.
     camera_height_m: float = 1.6
+    estimate_camera: bool = True         # horizon/pitch/roll (and focal when unknown) from vanishing lines
     default_hfov_deg: float = 60.0
     naive_height_frac_range: tuple[float, float] = (0.05, 0.4)
     placement_cfg: PlacementConfig = PlacementConfig()
@@ -60,6 +63,8 @@ class InsertionConfig:
             raise ValueError(f"need 0 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
         if self.ssaa < 1:
             raise ValueError("ssaa must be >= 1")
+        if self.asset_source not in ("default", "bank"):
+            raise ValueError(f"asset_source must be 'default' or 'bank', got {self.asset_source!r}")
 
 
 def load_preset(name: str, **overrides) -> InsertionConfig:
@@ -103,29 +108,41 @@ class InsertionResult:
     record: InsertionRecord
 
 
-def _scene_camera(image: np.ndarray, intrinsics: Intrinsics | np.ndarray | None, cfg: InsertionConfig,
-                  modules: dict) -> Intrinsics:
+def _scene_geometry(image: np.ndarray, intrinsics, depth, rng, cfg: InsertionConfig, modules: dict,
+                    need_ground: bool) -> tuple[Intrinsics, GroundPlane | None]:
+    """Camera and ground plane from what the scene offers: depth (RANSAC) > vanishing lines in the image (horizon,
+    pitch, roll, focal when unknown) > priors (FOV, level camera at the configured height)."""
     h, w = image.shape[:2]
+    if intrinsics is not None and not isinstance(intrinsics, Intrinsics):
+        intrinsics = Intrinsics.from_matrix(np.asarray(intrinsics), w, h)
+    modules["camera"] = "given" if intrinsics is not None else "unknown"
+    if not need_ground:
+        if intrinsics is None:
+            modules["camera"] = f"prior: hfov {cfg.default_hfov_deg} deg (no placement: only the size matters)"
+            intrinsics = Intrinsics.from_fov(w, h, cfg.default_hfov_deg)
+        return intrinsics, None
+    if depth is not None and intrinsics is not None:
+        try:
+            g = ground_plane_from_depth(depth, intrinsics, rng)
+            modules["ground"] = f"RANSAC on depth ({g.inlier_ratio:.2f} inliers, rms {g.rms_m:.3f} m)"
+            return intrinsics, g
+        except GroundFitError as e:
+            modules["ground"] = f"depth fit failed ({e}); "
+    elif depth is not None:
+        modules["ground"] = "depth ignored: no intrinsics to unproject it; "
+    if cfg.estimate_camera:
+        cam = estimate_camera_from_image(image, rng, intrinsics=intrinsics, cfg=SingleImageConfig(
+            hfov_prior_deg=cfg.default_hfov_deg, camera_height_m=cfg.camera_height_m))
+        if intrinsics is None:
+            modules["camera"] = f"estimated: focal from {cam.focal_source}"
+        modules["ground"] = modules.get("ground", "") + (
+            f"horizon from {cam.horizon_source}, camera {cfg.camera_height_m} m above the ground (prior)")
+        return cam.intrinsics, cam.ground
     if intrinsics is None:
         modules["camera"] = f"prior: unknown camera, hfov {cfg.default_hfov_deg} deg, principal point at centre"
-        return Intrinsics.from_fov(w, h, cfg.default_hfov_deg)
-    if not isinstance(intrinsics, Intrinsics):
-        intrinsics = Intrinsics.from_matrix(np.asarray(intrinsics), w, h)
-    modules["camera"] = "given"
-    return intrinsics
-
-
-def _scene_ground(depth, intr: Intrinsics, rng, cfg: InsertionConfig, modules: dict) -> GroundPlane:
-    if depth is not None:
-        try:
-            g = ground_plane_from_depth(depth, intr, rng)
-            modules["ground"] = f"RANSAC on depth ({g.inlier_ratio:.2f} inliers, rms {g.rms_m:.3f} m)"
-            return g
-        except GroundFitError as e:
-            modules["ground"] = f"prior: depth fit failed ({e})"
-    else:
-        modules["ground"] = f"prior: no depth, camera {cfg.camera_height_m} m above level ground"
-    return prior_ground_plane(cfg.camera_height_m)
+        intrinsics = Intrinsics.from_fov(w, h, cfg.default_hfov_deg)
+    modules["ground"] = modules.get("ground", "") + f"prior: level camera {cfg.camera_height_m} m above the ground"
+    return intrinsics, prior_ground_plane(cfg.camera_height_m)
 
 
 def _scene_lighting(image, intr: Intrinsics, ground: GroundPlane, rng, cfg: InsertionConfig, meta: dict,
@@ -205,10 +222,15 @@ def _naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tu
     return make_rigid(R_up @ R_yaw, t), yaw
 
 
-def _choose_asset(category: str, rng, bank=None) -> Asset:
+def _choose_asset(category: str, rng, cfg: InsertionConfig, bank=None) -> Asset:
+    """The caller's asset source, else the shared-data default of the category (asset_source "default"), else the
+    asset bank (``aias_augment.bank``: sweethome3d catalogs, gazebo models, procedural debris), real-size jittered."""
     if bank is not None:
         return bank.sample(category, rng)
-    return default_asset(category)
+    if cfg.asset_source == "default" and category in DEFAULT_ASSETS:
+        return default_asset(category)
+    from .bank import get_bank  # lazy: the bank catalog is only read when a category needs it
+    return get_bank().sample(category, rng)
 
 
 def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.random.Generator | None = None,
@@ -241,8 +263,7 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
     if cfg.naive_paste:
         cfg = replace(cfg, placement=False, shadow=False, lighting=False, harmonize=False)
         mods["mode"] = "naive paste: random position/scale, no geometry/lighting/shadow/harmonization"
-    intr = _scene_camera(img, intrinsics, cfg, mods)
-    ground = _scene_ground(depth, intr, rng, cfg, mods) if cfg.placement else None
+    intr, ground = _scene_geometry(img, intrinsics, depth, rng, cfg, mods, need_ground=cfg.placement)
     if not cfg.placement:
         mods["placement"] = "skipped: disabled (ablation or naive paste); random 2D position and size"
     region = None
@@ -266,7 +287,7 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
     layers = []   # (placement, asset, RenderLayers, shaded_linear)
     for _ in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
-        base = _choose_asset(category, rng, bank)
+        base = _choose_asset(category, rng, cfg, bank)
         if cfg.placement:
             placement, report = sample_placement(base, ground, intr, rng, existing_boxes_xyxy=np.array(taken),
                                                  depth=depth, cfg=cfg.placement_cfg, region_mask=region.mask,

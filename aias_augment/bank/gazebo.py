@@ -7,7 +7,7 @@ from pathlib import Path
 
 import trimesh
 
-from ..assets import AssetError, _gazebo_visual_mesh, load_asset, normalise_meshes
+from ..assets import AssetError, gazebo_visual_mesh, load_asset, normalise_meshes
 from ..config import data_root
 from .catalog import CatalogRecord
 from .meshio import load_raw_parts, missing_obj_textures
@@ -60,7 +60,7 @@ def load_gazebo_parts(record: CatalogRecord) -> tuple[tuple[trimesh.Trimesh, ...
     with the same sdf scale and gazebo's z-up, because ``load_mesh_file`` loses OBJ UVs (see ``meshio``)."""
     model_dir = Path(record.params["model_dir"])
     try:
-        mesh_path, sdf_scale = _gazebo_visual_mesh(model_dir)
+        mesh_path, sdf_scale = gazebo_visual_mesh(model_dir)
         if mesh_path.suffix.lower() == ".obj":
             tex_dirs = (model_dir / "materials" / "textures",)
             notes = [f"missing texture {t}: diffuse colour used" for t in missing_obj_textures(mesh_path, tex_dirs)]

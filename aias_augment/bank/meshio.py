@@ -1,8 +1,7 @@
 """Raw mesh reading for the importers: every part with its material, no checks (those live in ``validate``).
 
-Why not ``assets.load_mesh_file``: it loads with ``maintain_order=True``, and trimesh 4.8 then drops the UVs of OBJ
-files whose ``vt`` count differs from their ``v`` count (about every Blender export in the sweethome3d catalogs),
-so the textures would be lost; it also rejects non-finite vertices before the validator can repair them.
+Why not ``assets.load_mesh_file``: it rejects non-finite vertices before the validator can repair them, and
+the importers need every part with its raw material.
 """
 from __future__ import annotations
 

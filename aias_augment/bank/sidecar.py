@@ -19,7 +19,7 @@ import numpy as np
 import trimesh
 import yaml
 
-from ..assets import MESH_SUFFIXES, AssetError, _axis_rotation_to_z_up, normalise_meshes
+from ..assets import MESH_SUFFIXES, AssetError, axis_rotation_to_z_up, normalise_meshes
 from ..config import from_dict
 from .catalog import CatalogRecord
 from .meshio import load_raw_parts, missing_obj_textures
@@ -92,7 +92,7 @@ def load_sidecar_parts(record: CatalogRecord) -> tuple[tuple[trimesh.Trimesh, ..
     notes = [f"missing texture {t}: diffuse colour used" for t in missing_obj_textures(mesh)]
     parts, rep = repair_parts(load_raw_parts(mesh), where=str(mesh))
     up = record.params.get("up_axis") or ("Y" if mesh.suffix.lower() in {".obj", ".gltf", ".glb"} else "Z")
-    R = _axis_rotation_to_z_up(up)
+    R = axis_rotation_to_z_up(up)
     for p in parts:
         p.apply_transform(R)
     if record.params.get("scale") is not None:
