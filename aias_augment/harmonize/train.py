@@ -236,7 +236,7 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
         return fmse_255(hold[0], hold[1], hold[2]), fmse_255(out, hold[1], hold[2])
 
     raw_fmse, best_fmse = evaluate()
-    best_step = prior["steps"]
+    best_step, best_state = prior["steps"], {k: v.detach().clone() for k, v in gen.state_dict().items()}
 
     def summarize(step: int, elapsed: float) -> dict:
         return {"steps": prior["steps"] + step, "best_step": best_step,
@@ -262,10 +262,15 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
                      rec["l1_coarse"], rec["l1_refine"], rec["loss_d"], rec["gp"], net_fmse, raw_fmse)
             if net_fmse < best_fmse:  # keep the generator that scores best on the holdout (training images)
                 best_fmse, best_step = net_fmse, prior["steps"] + step
+                best_state = {k: v.detach().clone() for k, v in gen.state_dict().items()}
                 save_checkpoint(out_path, gen, summarize(step, elapsed))
         if done:
             break
-    return summarize(step, elapsed)
+    # The best weights with the whole run's record (steps and time include those after the best step).
+    gen.load_state_dict(best_state)
+    summary = summarize(step, elapsed)
+    save_checkpoint(out_path, gen, summary)
+    return summary
     return summary
 
 
