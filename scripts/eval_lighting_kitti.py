@@ -85,7 +85,7 @@ def inserted_shadow(img_in: np.ndarray, img_out: np.ndarray, road: np.ndarray, l
     shadow = valid & (q < 0.97)
     umbra = ndimage.binary_erosion(shadow, iterations=2) & lit_in
     out = {"shadow_pixels": int(shadow.sum()), "umbra_pixels": int(umbra.sum())}
-    if umbra.sum() >= 10:
+    if umbra.sum() >= 100:  # fewer umbra pixels: a sliver of penumbra or contact shade, not a measurable shadow
         out["inserted_shadow_to_lit"] = float(np.median(q[umbra]))
     return out, umbra
 
