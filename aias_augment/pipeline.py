@@ -23,7 +23,7 @@ from .lighting.shading import shade_object
 from .lighting.shadows import (contact_occlusion, occluder_distance_from_footprint, shadow_ratio_from_sun_sky,
                                soften_shadow)
 from .ground import GroundFitError, GroundPlane, ground_plane_from_depth, prior_ground_plane
-from .region import placeable_region
+from .region import PlaceableRegion, below_horizon_mask, placeable_region
 from .scenes.single_image import SingleImageConfig, estimate_camera_from_image
 from .collision import OrientedBox
 from .placement import Placement, PlacementConfig, box_of_points, sample_placement
@@ -242,6 +242,9 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
     image: (H, W, 3) uint8 RGB. bboxes_xywh: (N, 4) COCO boxes already in the image, labels their labels.
     intrinsics: Intrinsics or 3x3 K (None: FOV prior). depth: (H, W) metres (0/NaN unknown) or None.
     min_visibility: existing boxes whose visible fraction under the inserted objects drops below it are dropped.
+    meta: optional scene facts: 'placeable_mask' ((H, W) bool, where objects may stand), 'semantic' (label map for
+        the placeable region), 'lidar_points_in_cam' / 'boxes_in_cam' (3D collision checks), lighting keys of
+        :func:`aias_augment.lighting.estimate_lighting` ('lat', 'lon', 'utc', 'indoor', ...).
     """
     if rng is None:
         raise ValueError("insert_into_image needs an explicit numpy Generator (rng) for reproducibility")
@@ -268,11 +271,18 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
         mods["placement"] = "skipped: disabled (ablation or naive paste); random 2D position and size"
     region = None
     if cfg.placement:
-        region = placeable_region(intr, ground, depth=depth, semantic=meta.get("semantic"))
+        if meta.get("placeable_mask") is not None:  # the caller says where objects may stand (e.g. road pixels)
+            m = np.asarray(meta["placeable_mask"], bool)
+            if m.shape != (h, w):
+                raise ValueError(f"meta['placeable_mask'] must be {(h, w)}, got {m.shape}")
+            region = PlaceableRegion(m & below_horizon_mask(ground, intr), "given", float(m.mean()))
+        else:
+            region = placeable_region(intr, ground, depth=depth, semantic=meta.get("semantic"))
         mods["region"] = f"{region.evidence} ({100 * region.fraction:.0f}% of the image placeable)"
         if region.evidence != "prior:below_horizon" and "ground_mask" not in meta:
             meta = {**meta, "ground_mask": region.mask}  # lit/shadowed ground for the sun/sky ratio
     lighting = _scene_lighting(img, intr, ground or prior_ground_plane(cfg.camera_height_m), rng, cfg, meta, mods)
+    record.lighting = lighting
     k = int(n_objects if n_objects is not None else rng.integers(cfg.min_objects, cfg.max_objects + 1))
 
     existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]

@@ -269,9 +269,11 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     pts = [corners, np.array([[lo[0] - ring, lo[1] - ring, 0], [hi[0] + ring, lo[1] - ring, 0],
                               [lo[0] - ring, hi[1] + ring, 0], [hi[0] + ring, hi[1] + ring, 0]])]
     if sun[2] > 0.02:
-        # Sun below 10 deg elevation still gets its full shadow length (cot 10 deg ~ 5.7 x height), capped at 30 m.
-        reach = min(corners[:, 2].max() / max(sun[2], 0.17), 30.0)
-        pts.append(corners - (corners[:, 2:3] / max(sun[2], 0.17)) * sun)
+        # The whole shadow: each corner projected along the sun onto z = 0 (length height / tan(elevation)), with the
+        # ray length capped at 60 m for a sun grazing the horizon.
+        t = np.minimum(corners[:, 2:3] / sun[2], 60.0)
+        reach = float(t.max())
+        pts.append(corners - t * sun)
         radius_default = float(max(np.abs(corners[:, :2]).max() + reach, ring) * 1.2)
     else:
         radius_default = float(np.abs(corners[:, :2]).max() + ring)

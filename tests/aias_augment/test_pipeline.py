@@ -38,8 +38,10 @@ CFG = InsertionConfig(categories=("box",), harmonize=False, ssaa=1)
 def test_depth_wall_in_front_lowers_visibility_and_shrinks_visible_box():
     asset = box_asset(extents=(0.6, 0.6, 1.2), category="box")
     depth = _ground_depth()
+    # The same placeable region in both runs (the wall would otherwise change where objects may stand).
+    meta = {"placeable_mask": depth > 0}
     a = insert_into_image(_image(), rng=np.random.default_rng(3), cfg=CFG, intrinsics=K, depth=depth,
-                          bank=OneAsset(asset), n_objects=1)
+                          bank=OneAsset(asset), n_objects=1, meta=meta)
     ann = a.record.annotations[0]
     assert ann.visibility > 0.99
     x, y, w, h = ann.visible_box_xywh
@@ -47,7 +49,7 @@ def test_depth_wall_in_front_lowers_visibility_and_shrinks_visible_box():
     wall = depth.copy()
     wall[: int(y + h / 2), int(x) - 5: int(x + w) + 5] = z * 0.5  # a wall half way to the object, upper half
     b = insert_into_image(_image(), rng=np.random.default_rng(3), cfg=CFG, intrinsics=K, depth=wall,
-                          bank=OneAsset(asset), n_objects=1)
+                          bank=OneAsset(asset), n_objects=1, meta=meta)
     ann_b = b.record.annotations[0]
     assert np.allclose(ann_b.amodal_box_xywh, ann.amodal_box_xywh, atol=2)  # same placement
     assert 0.3 < ann_b.visibility < 0.7
@@ -111,3 +113,12 @@ def test_bad_inputs_raise_clearly():
         from_dict(InsertionConfig, {"ssaa": 2, "shadows": True})
     with pytest.raises(ValueError, match="preset"):
         load_preset("ultra")
+
+
+def test_placeable_mask_restricts_contact_points():
+    mask = np.zeros((K.height, K.width), bool)
+    mask[:, 400:] = True
+    res = insert_into_image(_image(), rng=np.random.default_rng(2), cfg=CFG, intrinsics=K, bank=OneAsset(box_asset()),
+                            n_objects=3, meta={"placeable_mask": mask})
+    assert res.record.placements and all(p.contact_pixel[0] >= 399.5 for p in res.record.placements)
+    assert res.record.lighting is not None  # the replay record carries the lighting used
