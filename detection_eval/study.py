@@ -52,6 +52,7 @@ ARM_FLAGS: dict[str, dict | None] = {
 @dataclass(frozen=True)
 class InsertionStudyConfig:
     preset: str = "fast"                      # aias_augment configs/presets/<preset>.yaml
+    harmonize_method: str = "camera"          # pinned, so every arm and seed uses the same harmonizer
     categories: tuple[str, ...] = ("traffic_cone",)
     min_objects: int = 1
     max_objects: int = 3
@@ -129,7 +130,7 @@ def generate_arm_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet,
             return out
         log.info("%s seed %d: cache parameters changed, regenerating", arm, seed)
     ins_cfg = load_preset(ic.preset, categories=tuple(ic.categories), min_objects=ic.min_objects,
-                          max_objects=ic.max_objects, **ARM_FLAGS[arm])
+                          max_objects=ic.max_objects, harmonize_method=ic.harmonize_method, **ARM_FLAGS[arm])
     t0 = time.perf_counter()
     n_boxes, failures, manifest = 0, {}, []
     for k, i in enumerate(background_idx):
