@@ -132,21 +132,25 @@ def read_collada_unit(path: Path) -> tuple[float, str]:
     return meter, up
 
 
-def _flatten(loaded, path: Path) -> list[trimesh.Trimesh]:
+def scene_parts(loaded, path: Path) -> list[trimesh.Trimesh]:
+    """Every triangle mesh of a loaded file, its scene-graph transform applied, materials kept (no checks)."""
     if isinstance(loaded, trimesh.Trimesh):
-        meshes = [loaded]
-    elif isinstance(loaded, trimesh.Scene):
-        meshes = []
-        for node in loaded.graph.nodes_geometry:
-            transform, geom_name = loaded.graph[node]
-            g = loaded.geometry[geom_name]
-            if isinstance(g, trimesh.Trimesh):
-                g = g.copy()
-                g.apply_transform(transform)
-                meshes.append(g)
-    else:
-        raise AssetError(f"{path}: unsupported geometry type {type(loaded).__name__}")
-    meshes = [m for m in meshes if len(m.faces) > 0]
+        return [loaded]
+    if not isinstance(loaded, trimesh.Scene):
+        raise AssetError(f"{path}: unsupported geometry type {type(loaded).__name__} (no triangles)")
+    parts = []
+    for node in loaded.graph.nodes_geometry:
+        transform, geom_name = loaded.graph[node]
+        g = loaded.geometry[geom_name]
+        if isinstance(g, trimesh.Trimesh):
+            g = g.copy()
+            g.apply_transform(transform)
+            parts.append(g)
+    return parts
+
+
+def _flatten(loaded, path: Path) -> list[trimesh.Trimesh]:
+    meshes = [m for m in scene_parts(loaded, path) if len(m.faces) > 0]
     if not meshes:
         raise AssetError(f"{path}: contains no triangles")
     for m in meshes:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..assets import MESH_SUFFIXES, AssetError
+from ..assets import MESH_SUFFIXES, AssetError, scene_parts
 
 log = logging.getLogger(__name__)
 
@@ -63,19 +63,7 @@ def load_raw_parts(path: str | Path, search_dirs: tuple[Path, ...] = ()) -> list
             loaded = trimesh.load(str(path), process=False)
     except Exception as e:  # trimesh raises many types for broken files
         raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
-    if isinstance(loaded, trimesh.Trimesh):
-        parts = [loaded]
-    elif isinstance(loaded, trimesh.Scene):
-        parts = []
-        for node in loaded.graph.nodes_geometry:
-            transform, geom_name = loaded.graph[node]
-            g = loaded.geometry[geom_name]
-            if isinstance(g, trimesh.Trimesh):
-                g = g.copy()
-                g.apply_transform(transform)
-                parts.append(g)
-    else:
-        raise AssetError(f"{path}: unsupported geometry type {type(loaded).__name__} (no triangles)")
+    parts = scene_parts(loaded, path)
     if not parts:
         raise AssetError(f"{path}: contains no triangle meshes")
     return parts
