@@ -32,6 +32,8 @@ __all__ = [
     "SunCue",
     "sun_direction_grid",
     "sun_cue_from_image",
+    "sun_exclusion_by_visible_sky",
+    "sun_whiteness_loglik",
     "fuse_sun_cues",
     "angle_between_deg",
     "frame_from_up",
@@ -317,6 +319,8 @@ def sun_cue_from_image(
     turbidities: Sequence[float] = (2.5, 4.0, 7.0),
     max_sky_pixels: int = 800,
     effective_samples: float = 30.0,
+    exclusion_kappa: float = 40.0,
+    whiteness_weight: float = 3.0,
     rng: np.random.Generator | None = None,
 ) -> SunCue:
     """Score candidate sun directions from one image with a known camera.
@@ -328,6 +332,13 @@ def sun_cue_from_image(
     ``effective_samples`` independent samples (neighbouring sky pixels are strongly correlated).
     Sky pixels: above the horizon by > 2 deg, smooth (local log-luminance std < 0.06), not clipped, not dark, and
     blue-dominant or bright; or ``sky_mask`` if given.
+    (3) circumsolar colour (:func:`sun_whiteness_loglik`): the sky is less blue (whiter, or warmer at sunset) toward
+    the sun, independently of its brightness; weighted by ``whiteness_weight``. When the luminance fit and the colour
+    cue favour azimuths dphi apart, the confidence is scaled by max(0.2, (1 + cos dphi) / 2).
+    (4) exclusion by visible sky (:func:`sun_exclusion_by_visible_sky`): when no sun disc is found, a candidate that
+    lies on (or within a few degrees of) unclipped open sky cannot be the sun, since the sun and its aureole would clip
+    there; ``exclusion_kappa`` x the exclusion score is added. This removes the Preetham fit's favourite failure, a
+    hazy horizon in front of the camera read as a low sun in view.
     """
     img = np.asarray(image_rgb_uint8)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
@@ -351,6 +362,7 @@ def sun_cue_from_image(
     elev_sin = rays @ up_in_cam
     above = elev_sin > np.sin(np.deg2rad(2.0))
     loglik = np.zeros(len(grid_in_world))
+    cue_agreement = 1.0  # 1: the luminance and colour sky cues point to the same azimuth; down to 0.2 when opposite
 
     disc = _find_sun_disc(unit, above)
     if disc is not None:
@@ -389,15 +401,100 @@ def sun_cue_from_image(
         sigma2 = max(float(best_cost.min()), 1e-4)  # eps: a perfect fit would otherwise be infinitely sharp
         # How much better the best sun explains the sky than a typical candidate: 0 = no azimuthal information.
         sky_contrast = float(np.clip(1.0 - best_cost.min() / max(float(np.median(best_cost)), 1e-12), 0.0, 1.0))
-        loglik += -0.5 * effective_samples * (best_cost - best_cost.min()) / sigma2
+        sky_loglik = -0.5 * effective_samples * (best_cost - best_cost.min()) / sigma2
+        blue = _blue_chromaticity(lin.reshape(-1, 3)[idx])
+        colour_loglik = whiteness_weight * sun_whiteness_loglik(blue, cos_gamma, cos_theta, effective_samples)
+        if colour_loglik.max() - colour_loglik.min() > 1.0:  # the colour says something: compare the two sky cues
+            h = grid_in_world - (grid_in_world @ up_in_world)[:, None] * up_in_world
+            a, b = h[int(np.argmax(sky_loglik))], h[int(np.argmax(colour_loglik))]
+            cos_dphi = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)  # eps: zenith candidate
+            cue_agreement = max(0.2, 0.5 * (1.0 + cos_dphi))
+        sky_loglik = sky_loglik + colour_loglik
+        loglik += sky_loglik
+    exclusion = np.zeros(len(grid_in_world))
+    if disc is None and n_sky >= 50:
+        exclusion = sun_exclusion_by_visible_sky(rays[sky], grid_in_cam)
+        loglik += exclusion_kappa * exclusion
     direction, concentration = _posterior_summary(grid_in_world, loglik, up_in_world)
     if disc is not None:
         confidence = 0.9 * concentration
     elif n_sky < 50:
         confidence = 0.0
     else:
-        confidence = concentration * sky_contrast * min(1.0, n_sky / 400.0)
+        confidence = concentration * sky_contrast * min(1.0, n_sky / 400.0) * cue_agreement
+        # Honesty: when the sky fit's favourite is a sun the visible sky rules out, the cues disagree and what is left
+        # (the best of the remaining candidates) is weaker evidence.
+        if exclusion[int(np.argmax(sky_loglik))] < -0.5:
+            confidence *= 0.5
     return SunCue(grid_in_world, loglik, direction, confidence, disc is not None, n_sky, up_in_world)
+
+
+def _blue_chromaticity(linear_rgb: np.ndarray) -> np.ndarray:
+    """Blue chromaticity B / (R + G + B) of linear RGB, (P, 3) -> (P,) in [0, 1] (eps 1e-6 for black)."""
+    rgb = np.asarray(linear_rgb, dtype=np.float64)
+    return rgb[..., 2] / np.maximum(rgb.sum(axis=-1), 1e-6)
+
+
+def sun_whiteness_loglik(saturation: np.ndarray, cos_gamma: np.ndarray, cos_theta: np.ndarray,
+                         effective_samples: float = 30.0) -> np.ndarray:
+    """Log-likelihood per candidate sun from the colour of sky pixels: less blue toward the sun.
+
+    Physics: near a high sun, forward (Mie) scattering by aerosols adds nearly white light to the blue Rayleigh sky;
+    near a low sun the circumsolar sky turns yellow-orange (blue scattered out of the long path). Either way the blue
+    chromaticity B / (R + G + B) falls as the angle gamma to the sun decreases (a plain saturation measure would not:
+    an orange sunset glow is saturated). Near the horizon the long air path lowers it too, in every azimuth. Model per
+    candidate: ``blue = a + b cos(gamma) + c cos(theta)`` (theta: view zenith angle), least squares with the physical
+    sign ``b <= 0`` (a candidate that needs b > 0 gets the fit without the gamma term).
+    ``saturation`` (P,): the blue chromaticity of the sky pixels; ``cos_gamma`` (N, P), ``cos_theta`` (P,). Returns (N,) ``-0.5 n_eff (cost - min) / var0`` (var0: residual variance without
+    the gamma term) with ``n_eff = effective_samples`` (neighbouring sky pixels are correlated); a uniform sky gives ~0 everywhere.
+    """
+    y = np.asarray(saturation, dtype=np.float64)
+    cg = np.asarray(cos_gamma, dtype=np.float64)
+    ct = np.asarray(cos_theta, dtype=np.float64)
+    n, p = cg.shape
+    if y.shape != (p,) or ct.shape != (p,):
+        raise ValueError("sun_whiteness_loglik: saturation, cos_theta must be (P,) matching cos_gamma (N, P)")
+    if p < 10:
+        return np.zeros(n)
+    # Residualise against the gamma-free model [1, cos theta] (Frisch-Waugh): then the gamma coefficient is a 1-D fit.
+    A = np.stack([np.ones(p), ct], axis=1)
+    proj = A @ np.linalg.pinv(A)
+    y_r = y - proj @ y
+    g_r = cg - cg @ proj.T  # (N, P)
+    base = float(np.mean(y_r * y_r))
+    gg = np.sum(g_r * g_r, axis=1)
+    b = np.sum(g_r * y_r[None, :], axis=1) / np.maximum(gg, 1e-12)  # eps: a constant gamma column has no slope
+    b = np.minimum(b, 0.0)
+    cost = base - (b * b * gg) / p
+    cost = np.maximum(cost, 0.0)
+    # Normalised by the gamma-free residual variance (eps 1e-9 for a flat sky): the term is bounded by n_eff / 2 nats,
+    # so a near-perfect fit of a few pixels cannot override a sun disc or the luminance fit.
+    return -0.5 * effective_samples * (cost - cost.min()) / max(base, 1e-9)
+
+
+def sun_exclusion_by_visible_sky(sky_rays_in_cam: np.ndarray, grid_in_cam: np.ndarray, radius_deg: float = 4.0,
+                                  min_pixels: int = 12, max_pixels: int = 4000) -> np.ndarray:
+    """Score in [-1, 0] per candidate: -1 where the candidate sun lies on open, unclipped sky in the image.
+
+    Physics: the solar disc is ~1e5 x brighter than the sky and its aureole (a few degrees) ~10-100 x; an exposure that
+    leaves the sky unclipped clips them. So sky pixels seen *unclipped* within ``radius_deg`` of a direction rule it out
+    as the sun (clouds that hide the sun leave a bright white glow that the sky mask rejects as clipped or textured;
+    buildings and trees are not sky). ``sky_rays_in_cam`` (P, 3) unit rays of the sky pixels; ``grid_in_cam`` (N, 3).
+    The score ramps from 0 to -1 as the number of such pixels goes from 0 to ``min_pixels`` (a few stray pixels, e.g.
+    a misclassified sliver, do not veto). Candidates out of view get 0 (no information).
+    """
+    rays = np.asarray(sky_rays_in_cam, dtype=np.float64).reshape(-1, 3)
+    grid = np.asarray(grid_in_cam, dtype=np.float64)
+    if len(rays) == 0:
+        return np.zeros(len(grid))
+    scale = 1.0
+    if len(rays) > max_pixels:  # a regular stride (deterministic, consumes no randomness): counts scale back up
+        step = int(np.ceil(len(rays) / max_pixels))
+        scale = len(rays) / len(rays[::step])
+        rays = rays[::step]
+    near = (grid @ rays.T) >= np.cos(np.deg2rad(radius_deg))  # (N, P)
+    count = near.sum(axis=1) * scale
+    return -np.clip(count / float(min_pixels), 0.0, 1.0)
 
 
 def fuse_sun_cues(cues: Sequence[SunCue]) -> SunCue:

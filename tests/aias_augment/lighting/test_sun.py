@@ -122,3 +122,81 @@ def test_image_cue_uniform_images_have_no_confidence(value):
     cue = sun.sun_cue_from_image(np.full((48, 64, 3), value, np.uint8), K)
     assert cue.confidence < 0.05
     assert np.all(np.isfinite(cue.log_likelihood)) and np.all(np.isfinite(cue.direction_in_world))
+
+
+def _sky_sample(n_pixels, view_az_deg, rng, hfov_deg=70.0):
+    """Unit rays of sky pixels in a wedge of azimuths around ``view_az_deg`` (z up, 3-40 deg elevation)."""
+    az = np.deg2rad(view_az_deg + rng.uniform(-hfov_deg / 2, hfov_deg / 2, n_pixels))
+    el = np.deg2rad(rng.uniform(3.0, 40.0, n_pixels))
+    return em.azimuth_elevation_to_direction(az, el)
+
+
+@pytest.mark.parametrize("sun_az_deg,view_az_deg", [(40.0, 150.0), (-100.0, 60.0), (10.0, 10.0)])
+def test_whiteness_cue_points_to_the_less_blue_side(sun_az_deg, view_az_deg):
+    """Synthetic sky whose blue chromaticity falls toward a known sun (and toward the horizon), seen in a wedge that
+    does not contain the sun: the cue's best azimuth is the sun's; reversing the colour gradient moves it away."""
+    rng = np.random.default_rng(3)
+    rays = _sky_sample(600, view_az_deg, rng)
+    s = em.azimuth_elevation_to_direction(np.deg2rad(sun_az_deg), np.deg2rad(25.0))
+    grid, azel = sun.sun_direction_grid()
+    cos_gamma, cos_theta = grid @ rays.T, rays[:, 2]
+    blue = 0.40 - 0.06 * (rays @ s) + 0.03 * cos_theta + rng.normal(0, 0.004, len(rays))
+    ll = sun.sun_whiteness_loglik(blue, cos_gamma, cos_theta)
+    assert ll.shape == (len(grid),) and np.all(np.isfinite(ll)) and ll.max() == 0.0
+    best_az = np.rad2deg(azel[int(np.argmax(ll)), 0])
+    assert abs((best_az - sun_az_deg + 180) % 360 - 180) < 25.0
+    # Bluer toward the "sun" is unphysical (b <= 0): the true direction then gets no support (the gamma-free fit).
+    ll_rev = sun.sun_whiteness_loglik(0.80 - blue, cos_gamma, cos_theta)
+    k_true = int(np.argmax(grid @ s))
+    assert ll_rev[k_true] < ll_rev.max() - 1.0
+    # A sky of one colour carries no information.
+    flat = sun.sun_whiteness_loglik(np.full(len(rays), 0.4), cos_gamma, cos_theta)
+    assert np.allclose(flat, 0.0)
+    with pytest.raises(ValueError):
+        sun.sun_whiteness_loglik(blue[:-1], cos_gamma, cos_theta)
+
+
+def test_visible_unclipped_sky_excludes_the_sun_there():
+    """Candidates on open sky in the view are ruled out; out-of-view candidates and ones on non-sky pixels are not."""
+    K = Intrinsics.from_fov(120, 80, 60.0)
+    rays = em.camera_ray_directions(K)  # OpenCV camera: y down, so the upper half is above a level horizon
+    sky_rays = rays[:30].reshape(-1, 3)  # the top 30 rows are sky
+    up_in_cam = np.array([0.0, -1.0, 0.0])
+    in_sky = rays[10, 60]
+    on_ground = rays[70, 60]
+    behind = -rays[10, 60] * np.array([1.0, -1.0, 1.0])  # behind the camera, same elevation
+    score = sun.sun_exclusion_by_visible_sky(sky_rays, np.stack([in_sky, on_ground, behind]))
+    assert score[0] == -1.0 and score[1] == 0.0 and score[2] == 0.0
+    assert float(behind @ up_in_cam) > 0  # the "behind" candidate is a real sky direction
+    assert np.all(sun.sun_exclusion_by_visible_sky(np.zeros((0, 3)), np.stack([in_sky])) == 0.0)
+
+
+def _colour_gradient_sky(h, az_deg, el_deg):
+    """Equirect sky whose luminance is the same in every azimuth (brighter toward the horizon only) and whose blue
+    chromaticity falls toward the sun at (az, el) and toward the horizon: only the colour says where the sun is."""
+    d = em.pixel_directions(h)
+    s = em.azimuth_elevation_to_direction(np.deg2rad(az_deg), np.deg2rad(el_deg))
+    cz = np.clip(d[..., 2], 0, 1)
+    blue = 0.42 - 0.07 * (d @ s) - 0.04 * (1 - cz)
+    red = (1 - blue) * 0.45
+    rgb = np.stack([red, 1 - blue - red, blue], -1)
+    rgb = rgb * ((1.0 + (1 - cz) ** 3) / hdr.luminance(rgb))[..., None]
+    rgb[d[..., 2] < 0] = 0.3
+    return rgb.astype(np.float32)
+
+
+@pytest.mark.parametrize("offset_deg", [130.0, -130.0, 160.0])
+def test_image_cue_colour_resolves_sun_behind_camera(offset_deg):
+    """Sun 130-160 deg behind the camera (out of view, known side) on a sky with no azimuthal luminance cue: with the
+    colour cue the azimuth error is < 30 deg and smaller than without it (whiteness_weight=0)."""
+    rad = _colour_gradient_sky(128, 20.0, 30.0)
+    K = Intrinsics.from_fov(200, 120, 70.0)
+    R = em.cam_from_env_look(np.deg2rad(20.0 + offset_deg), np.deg2rad(10.0))
+    img = _ldr(em.render_perspective(rad, K, R))
+    errs = []
+    for w in (3.0, 0.0):
+        cue = sun.sun_cue_from_image(img, K, cam_from_world=R, up_in_world=np.array([0.0, 0, 1]), whiteness_weight=w)
+        az, _ = em.direction_to_azimuth_elevation(cue.direction_in_world)
+        errs.append(abs((np.rad2deg(az) - 20.0 + 180) % 360 - 180))
+        assert not cue.sun_visible and 0 <= cue.confidence <= 1
+    assert errs[0] < 30.0 and errs[0] < errs[1] - 10.0
