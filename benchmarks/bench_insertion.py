@@ -9,6 +9,7 @@ same placement (edge quality), and the harmonizer used.
 from __future__ import annotations
 
 import argparse
+import sys
 import json
 import time
 from dataclasses import replace
@@ -79,7 +80,7 @@ def main(argv=None) -> int:
         print(rows[-1])
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    cmd = "python benchmarks/bench_insertion.py " + " ".join(argv or [])
+    cmd = "python benchmarks/bench_insertion.py " + " ".join(argv if argv is not None else sys.argv[1:])
     (out / "insertion.json").write_text(json.dumps({"command": cmd, "rows": rows}, indent=2))
     lines = ["# Insertion presets: speed vs accuracy", "", f"Command: `{cmd.strip()}` (2 CPU cores, llvmpipe EGL)", "",
              f"{len(inputs)} real images (KITTI with stereo depth, TraCon roads), 2 cones each, {a.repeats} repeats.", "",
