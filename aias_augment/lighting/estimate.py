@@ -300,6 +300,22 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
     return loglik, cue, axis_strength
 
 
+def _side_agreement(cue_dir: np.ndarray, chosen_dir: np.ndarray, up: np.ndarray, axis_strength: float) -> float:
+    """Confidence factor in [0.5, 1] for the side of the cast-shadow axis: the axis fixes the azimuth up to 180 deg and
+    the image cues pick the end. When the cues' own best azimuth is nearly perpendicular to the chosen one (|cos| ~ 0)
+    they barely prefer either end and the side is close to a coin flip; when they point away from it, other evidence
+    overrode them: factor 0.5 + 0.5 max(0, cos dphi). 1 without an axis.
+    """
+    if axis_strength <= 0:
+        return 1.0
+    a = cue_dir - (cue_dir @ up) * up
+    b = chosen_dir - (chosen_dir @ up) * up
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    if na < 1e-6 or nb < 1e-6:  # a zenith direction has no azimuth
+        return 0.5
+    return 0.5 + 0.5 * max(0.0, float(a @ b) / (na * nb))
+
+
 def _elevation_prior(azel: np.ndarray, config: LightingConfig) -> np.ndarray:
     """Weak Gaussian log-prior on the sun's elevation for image cues (sky fits are biased low: a hazy horizon looks
     like a low sun). Added once per estimate (once per clip, not per frame)."""
@@ -392,7 +408,9 @@ def estimate_lighting(
     loglik = loglik + _elevation_prior(azel, config)
     _, concentration = _posterior_summary(grid_world, loglik, ctx.up_in_world)
     confidence = max(cue.confidence, 0.5 * axis_strength * concentration) * (1.0 if ctx.known_camera else 0.5)
-    sun_dir = ctx.R_cw @ grid_world[int(np.argmax(loglik))]
+    best_world = grid_world[int(np.argmax(loglik))]
+    confidence *= _side_agreement(cue.direction_in_world, best_world, ctx.up_in_world, axis_strength)
+    sun_dir = ctx.R_cw @ best_world
     return _finish(ctx, sun_dir, confidence, "image_cues", cue, config)
 
 
@@ -436,6 +454,7 @@ def estimate_lighting_clip(
     d_world = grid_world[int(np.argmax(loglik))]
     _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
     confidence = max(max(e[1].confidence for e in evidence), 0.5 * max(e[2] for e in evidence) * concentration)
+    confidence *= min(_side_agreement(e[1].direction_in_world, d_world, up_in_world, e[2]) for e in evidence)
     cues = iter([e[1] for e in evidence])
     out = []
     for c in ctxs:

@@ -162,3 +162,14 @@ def test_overcast_video_frame_has_no_dominant_sun():
     e = estimate_lighting(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB))
     _finite(e)
     assert not e.dominant_sun
+
+
+def test_side_agreement_lowers_confidence_when_cues_do_not_pick_the_shadow_end():
+    from aias_augment.lighting.estimate import _side_agreement
+
+    up = np.array([0.0, 0.0, 1.0])
+    east, north = np.array([1.0, 0, 0.3]), np.array([0, 1.0, 0.3])
+    assert _side_agreement(east, east, up, 0.5) == pytest.approx(1.0)
+    assert _side_agreement(north, east, up, 0.5) == pytest.approx(0.5)  # perpendicular: a coin flip
+    assert _side_agreement(-east * np.array([1, 1, -1]), east, up, 0.5) == pytest.approx(0.5)  # opposite end
+    assert _side_agreement(north, east, up, 0.0) == 1.0  # no cast-shadow axis: nothing to qualify
