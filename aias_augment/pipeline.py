@@ -52,6 +52,8 @@ class InsertionConfig:
     # Priors when the scene does not say.
     camera_height_m: float = 1.6
     estimate_camera: bool = True         # horizon/pitch/roll (and focal when unknown) from vanishing lines
+    max_camera_pitch_deg: float = 25.0  # estimates beyond these bounds fall back to the level-camera prior
+    max_camera_roll_deg: float = 10.0
     default_hfov_deg: float = 60.0
     naive_height_frac_range: tuple[float, float] = (0.05, 0.4)
     placement_cfg: PlacementConfig = PlacementConfig()
@@ -133,11 +135,18 @@ def _scene_geometry(image: np.ndarray, intrinsics, depth, rng, cfg: InsertionCon
     if cfg.estimate_camera:
         cam = estimate_camera_from_image(image, rng, intrinsics=intrinsics, cfg=SingleImageConfig(
             hfov_prior_deg=cfg.default_hfov_deg, camera_height_m=cfg.camera_height_m))
-        if intrinsics is None:
-            modules["camera"] = f"estimated: focal from {cam.focal_source}"
+        pitch, roll = (np.degrees(x) for x in cam.ground.pitch_roll_rad())
+        if abs(pitch) <= cfg.max_camera_pitch_deg and abs(roll) <= cfg.max_camera_roll_deg:
+            if intrinsics is None:
+                modules["camera"] = f"estimated: focal from {cam.focal_source}"
+            modules["ground"] = modules.get("ground", "") + (
+                f"horizon from {cam.horizon_source} (pitch {pitch:.1f}, roll {roll:.1f} deg), camera "
+                f"{cfg.camera_height_m} m above the ground (prior)")
+            return cam.intrinsics, cam.ground
+        # A vanishing-line estimate outside what a road camera does is more likely wrong than the level prior.
         modules["ground"] = modules.get("ground", "") + (
-            f"horizon from {cam.horizon_source}, camera {cfg.camera_height_m} m above the ground (prior)")
-        return cam.intrinsics, cam.ground
+            f"vanishing-line camera rejected (pitch {pitch:.0f}, roll {roll:.0f} deg beyond "
+            f"{cfg.max_camera_pitch_deg}/{cfg.max_camera_roll_deg}); ")
     if intrinsics is None:
         modules["camera"] = f"prior: unknown camera, hfov {cfg.default_hfov_deg} deg, principal point at centre"
         intrinsics = Intrinsics.from_fov(w, h, cfg.default_hfov_deg)

@@ -1,6 +1,9 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from aias_augment.config import data_root
 from aias_augment.geometry import Intrinsics
 from aias_augment.ground import prior_ground_plane
 from aias_augment.pipeline import InsertionConfig, insert_into_image, load_preset
@@ -122,3 +125,25 @@ def test_placeable_mask_restricts_contact_points():
                             n_objects=3, meta={"placeable_mask": mask})
     assert res.record.placements and all(p.contact_pixel[0] >= 399.5 for p in res.record.placements)
     assert res.record.lighting is not None  # the replay record carries the lighting used
+
+
+SUNSET = Path(data_root()) / "tracon" / "images" / "train" / "imh_154_00000000.jpg"
+
+
+@pytest.mark.skipif(not SUNSET.exists(), reason="shared data not present")
+def test_implausible_vanishing_line_camera_falls_back_to_level_prior():
+    """On this real sunset road the vanishing-line estimate says roll ~90 deg (checked below, so the test can
+    fail); the pipeline must not stand objects on such a ground: it falls back to the level prior."""
+    import cv2
+    from aias_augment.scenes.single_image import estimate_camera_from_image
+    img = np.ascontiguousarray(cv2.imread(str(SUNSET))[..., ::-1])
+    raw_roll = np.degrees(estimate_camera_from_image(img, np.random.default_rng(0)).ground.pitch_roll_rad()[1])
+    assert abs(raw_roll) > 45
+    cfg = InsertionConfig(categories=("box",), harmonize=False, ssaa=1, max_camera_roll_deg=10.0,
+                          max_camera_pitch_deg=25.0)
+    res = insert_into_image(img, rng=np.random.default_rng(0), cfg=cfg, bank=OneAsset(box_asset()), n_objects=2)
+    assert "rejected" in res.record.modules["ground"]
+    for p in res.record.placements:
+        n = np.array(p.ground_normal_in_cam)
+        assert abs(np.degrees(np.arctan2(n[0], -n[1]))) <= 10.0 + 1e-6
+        assert abs(np.degrees(np.arcsin(-n[2]))) <= 25.0 + 1e-6
