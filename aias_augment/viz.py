@@ -30,9 +30,9 @@ def contact_sheet(images: list[np.ndarray], cols: int = 3, cell_width: int = 480
         if titles:
             cv2.putText(c, str(titles[i]), (5, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
         cells.append(c)
-    cell_h = max(c.shape[0] for c in cells)
     rows = []
     for r in range(0, len(cells), cols):
+        cell_h = max(c.shape[0] for c in cells[r:r + cols])  # each row as tall as its tallest image
         row = [np.pad(c, ((0, cell_h - c.shape[0]), (0, 0), (0, 0))) for c in cells[r:r + cols]]
         row += [np.zeros((cell_h, cell_width, 3), np.uint8)] * (cols - len(row))
         rows.append(np.concatenate(row, axis=1))
