@@ -320,6 +320,7 @@ def sun_cue_from_image(
     max_sky_pixels: int = 800,
     effective_samples: float = 30.0,
     exclusion_kappa: float = 40.0,
+    exclusion_min_elevation_deg: float = 10.0,
     whiteness_weight: float = 3.0,
     rng: np.random.Generator | None = None,
 ) -> SunCue:
@@ -414,6 +415,9 @@ def sun_cue_from_image(
     exclusion = np.zeros(len(grid_in_world))
     if disc is None and n_sky >= 50:
         exclusion = sun_exclusion_by_visible_sky(rays[sky], grid_in_cam)
+        # A sun low on the horizon is dimmed by the long air path (air mass > 5 below 10 deg) and may not clip its
+        # surroundings: no exclusion there.
+        exclusion = np.where(grid_in_cam @ up_in_cam > np.sin(np.deg2rad(exclusion_min_elevation_deg)), exclusion, 0.0)
         loglik += exclusion_kappa * exclusion
     direction, concentration = _posterior_summary(grid_in_world, loglik, up_in_world)
     if disc is not None:
@@ -445,8 +449,8 @@ def sun_whiteness_loglik(saturation: np.ndarray, cos_gamma: np.ndarray, cos_thet
     an orange sunset glow is saturated). Near the horizon the long air path lowers it too, in every azimuth. Model per
     candidate: ``blue = a + b cos(gamma) + c cos(theta)`` (theta: view zenith angle), least squares with the physical
     sign ``b <= 0`` (a candidate that needs b > 0 gets the fit without the gamma term).
-    ``saturation`` (P,): the blue chromaticity of the sky pixels; ``cos_gamma`` (N, P), ``cos_theta`` (P,). Returns (N,) ``-0.5 n_eff (cost - min) / var0`` (var0: residual variance without
-    the gamma term) with ``n_eff = effective_samples`` (neighbouring sky pixels are correlated); a uniform sky gives ~0 everywhere.
+    ``saturation`` (P,): the blue chromaticity of the sky pixels; ``cos_gamma`` (N, P), ``cos_theta`` (P,). Returns (N,)
+    ``-0.5 n_eff (cost - min) / var0`` (var0: residual variance without the gamma term) with ``n_eff = effective_samples`` (neighbouring sky pixels are correlated); a uniform sky gives ~0 everywhere.
     """
     y = np.asarray(saturation, dtype=np.float64)
     cg = np.asarray(cos_gamma, dtype=np.float64)
