@@ -87,7 +87,8 @@ def azimuth_error_deg(d: np.ndarray, ref: np.ndarray) -> float:
     return float(abs((np.rad2deg(a - b) + 180.0) % 360.0 - 180.0))
 
 
-def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: int, width: int, height: int) -> dict:
+def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: int, width: int, height: int,
+              whiteness_weight: float | None = None) -> dict:
     sun_az, sun_el = em.direction_to_azimuth_elevation(sun_dir)
     grid, _ = sun.sun_direction_grid()
     up = np.array([0.0, 0.0, 1.0])
@@ -103,7 +104,8 @@ def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: i
             R = em.cam_from_env_look(sun_az + np.deg2rad(offset), np.deg2rad(pitch))
             img = expose_ldr(em.render_perspective(rad, K, R))
             t = time.perf_counter()
-            cue = sun.sun_cue_from_image(img, K, R, up, grid, rng=rng)
+            kw = {} if whiteness_weight is None else {"whiteness_weight": whiteness_weight}
+            cue = sun.sun_cue_from_image(img, K, R, up, grid, rng=rng, **kw)
             dt = time.perf_counter() - t
             cues.append(cue)
             sun_in_cam = R @ sun_dir
@@ -168,6 +170,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--views", type=int, default=12, help="crops per map and seed, spread all around the sun")
     ap.add_argument("--size", type=int, nargs=2, default=[480, 300], metavar=("W", "H"))
+    ap.add_argument("--whiteness-weight", type=float, default=None,
+                    help="weight of the sky colour cue in sun.sun_cue_from_image (default: the library default)")
     ap.add_argument("--sunless", nargs="*", default=[], help="map names (stems) whose light is not the sun")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -195,7 +199,7 @@ def main(argv=None) -> int:
         entry.update(sh_errors(rad, found, est.dominant_sun))
         entry["image_cue_eval"] = bool(path.stem not in args.sunless and found.solid_angle_sr <= 0.05 and el > 0)
         if entry["image_cue_eval"]:
-            cues = crop_eval(rad, found.direction_in_env, args.seeds, args.views, *args.size)
+            cues = crop_eval(rad, found.direction_in_env, args.seeds, args.views, *args.size, args.whiteness_weight)
             entry["image_cues"] = cues
             entry["image_cues_summary"] = {
                 "all": summarize([c["azimuth_error_deg"] for c in cues["crops"]]),
