@@ -1,0 +1,54 @@
+import json
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from aias_augment.assets import DEFAULT_ASSETS
+from aias_augment.config import data_root
+from aias_augment.offline import Item, items_from_yolo, run
+from aias_augment.pipeline import load_preset
+from tests.aias_augment.test_pipeline import _image
+
+pytestmark = pytest.mark.skipif(not (data_root() / DEFAULT_ASSETS["traffic_cone"][0]).exists(),
+                                reason="shared data not present")
+CFG = replace(load_preset("fast"), categories=("traffic_cone",), max_objects=2, harmonize=False)
+
+
+def _items(tmp_path, n=3):
+    items = []
+    for i in range(n):
+        p = tmp_path / "in" / f"im{i}.png"
+        p.parent.mkdir(exist_ok=True)
+        cv2.imwrite(str(p), _image()[..., ::-1])
+        items.append(Item(str(p), [[5.0, 5.0, 20.0, 20.0]], ["sign"]))
+    items.append(Item(str(tmp_path / "in" / "missing.png")))  # a bad input: counted skip, not a crash
+    return items
+
+
+def test_same_output_for_one_or_two_workers_and_resume(tmp_path):
+    s1 = run(_items(tmp_path), CFG, seed=4, out_dir=str(tmp_path / "w1"), workers=1)
+    s2 = run(_items(tmp_path), CFG, seed=4, out_dir=str(tmp_path / "w2"), workers=2)
+    assert s1["skipped"] == s2["skipped"] == 1 and s1["inserted"] == s2["inserted"] >= 3
+    for name in sorted(p.name for p in (tmp_path / "w1" / "images").iterdir()):
+        a = cv2.imread(str(tmp_path / "w1" / "images" / name))
+        b = cv2.imread(str(tmp_path / "w2" / "images" / name))
+        assert np.array_equal(a, b)
+    coco = json.loads((tmp_path / "w1" / "annotations.json").read_text())
+    assert {c["name"] for c in coco["categories"]} == {"sign", "traffic_cone"}
+    assert sum(a["inserted"] for a in coco["annotations"]) == s1["inserted"]
+    # Resume: records exist, nothing is recomputed or overwritten.
+    rec = tmp_path / "w1" / "records" / "000000.json"
+    before = rec.stat().st_mtime_ns
+    run(_items(tmp_path), CFG, seed=4, out_dir=str(tmp_path / "w1"), workers=1)
+    assert rec.stat().st_mtime_ns == before
+
+
+def test_yolo_items(tmp_path):
+    (tmp_path / "images").mkdir()
+    (tmp_path / "labels").mkdir()
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), _image()[..., ::-1])
+    (tmp_path / "labels" / "a.txt").write_text("0 0.5 0.5 0.1 0.2\n")
+    items = items_from_yolo(str(tmp_path / "images"))
+    assert len(items) == 1 and items[0].meta["yolo_rows"] == [["0", "0.5", "0.5", "0.1", "0.2"]]
