@@ -8,7 +8,6 @@ transfer needs; its last layer starts at zero so an untrained model is the ident
 from __future__ import annotations
 
 import dataclasses
-import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +17,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..config import from_dict
-from .network import CHECKPOINT_FORMAT, load_checkpoint_dict, masked_stats, network_inputs, to_tensor
+from .network import CHECKPOINT_FORMAT, load_model, masked_stats, network_inputs, to_tensor
 from .regions import components, context_box, mask_box, resize
 
 @dataclass(frozen=True)
@@ -70,19 +69,9 @@ def save_fast_checkpoint(path: str | Path, model: FastColorNet, meta: dict) -> N
     tmp.replace(path)
 
 
-@functools.lru_cache(maxsize=4)
-def _load_fast_cached(path: str, mtime_ns: int) -> FastColorNet:
-    ckpt = load_checkpoint_dict(path, "fast")
-    model = FastColorNet(from_dict(FastConfig, ckpt["config"]))
-    model.load_state_dict(ckpt["state_dict"])
-    return model.eval()
-
-
 def load_fast(path: str | Path) -> FastColorNet:
-    p = Path(path).resolve()
-    if not p.is_file():
-        raise FileNotFoundError(p)
-    return _load_fast_cached(str(p), p.stat().st_mtime_ns)
+    """Load (once per process and file version) the fast harmonizer."""
+    return load_model(path, "fast", FastColorNet, FastConfig)
 
 
 @torch.no_grad()

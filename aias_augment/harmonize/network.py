@@ -212,20 +212,25 @@ def load_checkpoint_dict(path: str | Path, kind: str) -> dict:
     return ckpt
 
 
-@functools.lru_cache(maxsize=4)
-def _load_generator_cached(path: str, mtime_ns: int) -> Generator:
-    ckpt = load_checkpoint_dict(path, "network")
-    gen = Generator(from_dict(NetworkConfig, ckpt["config"]))
-    gen.load_state_dict(ckpt["state_dict"])
-    return gen.eval()
+@functools.lru_cache(maxsize=8)
+def _load_model_cached(path: str, mtime_ns: int, kind: str, model_cls: type, config_cls: type) -> nn.Module:
+    ckpt = load_checkpoint_dict(path, kind)
+    model = model_cls(from_dict(config_cls, ckpt["config"]))
+    model.load_state_dict(ckpt["state_dict"])
+    return model.eval()
 
 
-def load_generator(path: str | Path) -> Generator:
-    """Load (once per process and file version) a generator for inference."""
+def load_model(path: str | Path, kind: str, model_cls: type, config_cls: type) -> nn.Module:
+    """Load (once per process and file version) a checkpoint of ``kind`` into ``model_cls(config_cls(...))``."""
     p = Path(path).resolve()
     if not p.is_file():
         raise FileNotFoundError(p)
-    return _load_generator_cached(str(p), p.stat().st_mtime_ns)
+    return _load_model_cached(str(p), p.stat().st_mtime_ns, kind, model_cls, config_cls)
+
+
+def load_generator(path: str | Path) -> "Generator":
+    """Load (once per process and file version) a generator for inference."""
+    return load_model(path, "network", Generator, NetworkConfig)
 
 
 # --------------------------------------------------------------------------------------------------------- inference
