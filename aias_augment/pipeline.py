@@ -8,14 +8,13 @@ from __future__ import annotations
 
 import logging
 from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
 from . import composite as comp
 from .annotate import ObjectAnnotation, annotate_object, box_visibility_under_cover
 from .assets import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
-from .config import CONFIG_DIR, from_dict, load_config
+from .config import CONFIG_DIR, load_config
 from .geometry import (Intrinsics, invert_rigid, make_rigid, project_points, transform_points,
                        unproject_points)
 from .lighting.estimate import LightingEstimate, estimate_lighting

@@ -9,7 +9,6 @@ Put it first in the pipeline: later geometric transforms do not update ``camera_
 from __future__ import annotations
 
 import logging
-from dataclasses import replace
 from typing import Any
 
 import albumentations as A
