@@ -29,6 +29,7 @@ from .ratio import (LitShadowMeasurement, ground_coordinates, ground_region_mask
                     shadow_axis_on_ground)
 from .sh import project_envmap_to_sh, sh_irradiance
 from .sky import preetham_sky_radiance
+from .sun_side import SunSideCue, sun_side_cue
 from .sun import (_posterior_summary, _rot3, frame_from_up, remove_sun, solar_direction_enu, sun_cue_from_image,
                   sun_direction_in_cam_from_metadata, sun_from_envmap, sun_direction_grid)
 
@@ -127,10 +128,23 @@ class LightingConfig:
     shadow_axis_kappa: float = 20.0
     #: Sun cues and the ambient map are computed on a copy at most this wide (pixels).
     analysis_width: int = 400
+    #: Weight of the sky cue's log-likelihood when no sun disc is visible. Its side of the sun is unreliable: on the
+    #: out-of-view HDR crops (results/lighting/report.json, before the side cues) the sky cue put the sun on the correct
+    #: half-plane in 44 % (city), 29 % (forest), 62 % (sunrise), 65 % (sunset) of crops, i.e. log-odds of at most
+    #: ln(0.65 / 0.35) = 0.6 nats, whereas its raw margin between the two ends of the shadow axis is ~5 nats on KITTI;
+    #: 0.25 tempers it toward that calibration while keeping its shape.
+    sky_out_of_view_weight: float = 0.25
+    #: Vertical-surface cue (``sun_side``): effective number of independent facades (bound: n_eff / 2 nats).
+    facade_effective_samples: float = 8.0
+    #: Shadow-end cue (``sun_side``): log-likelihood scale of the mean base score (as ``shadow_axis_kappa``).
+    shadow_end_kappa: float = 20.0
+    #: The side cues run on a copy at most this wide (their pixel tolerances are set for ~800 px).
+    side_analysis_width: int = 800
 
     def __post_init__(self):
         if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
-                or self.default_sun_sky_ratio < 0):
+                or self.default_sun_sky_ratio < 0 or not 0.0 <= self.sky_out_of_view_weight <= 1.0
+                or self.facade_effective_samples < 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
             raise ValueError("LightingConfig: invalid values")
 
 
@@ -273,10 +287,19 @@ def _prepare(img: np.ndarray, intrinsics: Intrinsics | None, R_cw: np.ndarray, m
 
 def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, config: LightingConfig,
                   rng: np.random.Generator):
-    """Log-likelihood of each world-grid sun direction from this frame: sky / sun-disc cue, elevation from GPS + time
-    when given without an orientation, cast-shadow axis on the ground. Returns (loglik, cue, axis_strength)."""
+    """Log-likelihood of each world-grid sun direction from this frame: sky / sun-disc cue (tempered when no disc is
+    visible), elevation from GPS + time when given without an orientation, cast-shadow axis on the ground, and the
+    side cues (vertical surfaces, shadow ends). Returns (loglik, cue, axis_strength, side_loglik, side) where
+    side_loglik is the part of the evidence that can tell the two ends of the shadow axis apart (all but the axis)."""
     cue = sun_cue_from_image(ctx.small, ctx.K_small, ctx.R_cw, ctx.up_in_world, grid_world, rng=rng)
-    loglik = cue.log_likelihood.copy()
+    sky_weight = 1.0 if cue.sun_visible else config.sky_out_of_view_weight
+    loglik = sky_weight * cue.log_likelihood
+    side = sun_side_cue(ctx.img, ctx.K, ctx.up_in_cam, grid_world @ ctx.R_cw.T,
+                        camera_height_m=config.camera_height_m, analysis_width=config.side_analysis_width,
+                        facade_effective_samples=config.facade_effective_samples,
+                        shadow_end_kappa=config.shadow_end_kappa)
+    loglik = loglik + side.log_likelihood
+    side_loglik = loglik.copy()
     meta = ctx.meta
     if all(k in meta for k in ("lat", "lon", "utc")):
         # Position and time without orientation still fix the sun's elevation.
@@ -287,8 +310,8 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
     if m is not None and m.dominant_sun:
         # Visible cast shadows need a sun clearly above the horizon.
         loglik = np.where(azel[:, 1] > np.deg2rad(3.0), loglik, loglik - 1e3)
-        # Cast shadows on the ground are bands along the sun's azimuth (180 deg ambiguous: the sky cue, or other
-        # frames of the clip, pick the side).
+        # Cast shadows on the ground are bands along the sun's azimuth (180 deg ambiguous: the sky and side cues, or
+        # other frames of the clip, pick the end).
         ground_xy, _ = ground_coordinates(ctx.K, ctx.up_in_cam, config.camera_height_m)
         axis, axis_strength = shadow_axis_on_ground(m.shadow_mask, ctx.region, ground_xy)
         if axis_strength > 0:
@@ -297,23 +320,28 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
             fwd /= np.linalg.norm(fwd)
             phi = np.arctan2(d_cam @ fwd, d_cam @ np.cross(fwd, ctx.up_in_cam))
             loglik = loglik + config.shadow_axis_kappa * axis_strength * np.cos(2.0 * (phi - axis))
-    return loglik, cue, axis_strength
+    return loglik, cue, axis_strength, side_loglik, side
 
 
-def _side_agreement(cue_dir: np.ndarray, chosen_dir: np.ndarray, up: np.ndarray, axis_strength: float) -> float:
+def _side_agreement(side_loglik: np.ndarray, grid: np.ndarray, chosen_dir: np.ndarray, up: np.ndarray,
+                    axis_strength: float) -> float:
     """Confidence factor in [0.5, 1] for the side of the cast-shadow axis: the axis fixes the azimuth up to 180 deg and
-    the image cues pick the end. When the cues' own best azimuth is nearly perpendicular to the chosen one (|cos| ~ 0)
-    they barely prefer either end and the side is close to a coin flip; when they point away from it, other evidence
-    overrode them: factor 0.5 + 0.5 max(0, cos dphi). 1 without an axis.
+    the other cues (sky, vertical surfaces, shadow ends: ``side_loglik``) pick the end. Their log-odds for the chosen
+    half-plane is the margin between their best candidate on that side and their best on the other side; as a
+    probability p = sigmoid(margin), the factor is 0.5 + 0.5 max(0, 2p - 1) = 0.5 + 0.5 tanh(max(margin, 0) / 2):
+    0.5 for a coin flip (or when the axis term overrode them), 1 when they are decisive. 1 without an axis.
     """
     if axis_strength <= 0:
         return 1.0
-    a = cue_dir - (cue_dir @ up) * up
     b = chosen_dir - (chosen_dir @ up) * up
-    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
-    if na < 1e-6 or nb < 1e-6:  # a zenith direction has no azimuth
+    if float(np.linalg.norm(b)) < 1e-6:  # a zenith direction has no azimuth
         return 0.5
-    return 0.5 + 0.5 * max(0.0, float(a @ b) / (na * nb))
+    h = grid - (grid @ up)[:, None] * up
+    same = h @ b > 0
+    if same.all() or not same.any():
+        return 0.5
+    margin = float(side_loglik[same].max() - side_loglik[~same].max())
+    return 0.5 + 0.5 * float(np.tanh(max(margin, 0.0) / 2.0))
 
 
 def _elevation_prior(azel: np.ndarray, config: LightingConfig) -> np.ndarray:
@@ -404,12 +432,12 @@ def estimate_lighting(
         return _finish(ctx, sun_dir, 0.95, "metadata", None, config)
     grid_up, azel = sun_direction_grid()
     grid_world = grid_up @ frame_from_up(ctx.up_in_world)
-    loglik, cue, axis_strength = _sun_evidence(ctx, grid_world, azel, config, rng)
+    loglik, cue, axis_strength, side_loglik, side = _sun_evidence(ctx, grid_world, azel, config, rng)
     loglik = loglik + _elevation_prior(azel, config)
     _, concentration = _posterior_summary(grid_world, loglik, ctx.up_in_world)
     confidence = max(cue.confidence, 0.5 * axis_strength * concentration) * (1.0 if ctx.known_camera else 0.5)
     best_world = grid_world[int(np.argmax(loglik))]
-    confidence *= _side_agreement(cue.direction_in_world, best_world, ctx.up_in_world, axis_strength)
+    confidence *= _side_agreement(side_loglik, grid_world, best_world, ctx.up_in_world, axis_strength)
     sun_dir = ctx.R_cw @ best_world
     return _finish(ctx, sun_dir, confidence, "image_cues", cue, config)
 
@@ -454,7 +482,8 @@ def estimate_lighting_clip(
     d_world = grid_world[int(np.argmax(loglik))]
     _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
     confidence = max(max(e[1].confidence for e in evidence), 0.5 * max(e[2] for e in evidence) * concentration)
-    confidence *= min(_side_agreement(e[1].direction_in_world, d_world, up_in_world, e[2]) for e in evidence)
+    confidence *= _side_agreement(np.sum([e[3] for e in evidence], axis=0), grid_world, d_world, up_in_world,
+                                  max(e[2] for e in evidence))
     cues = iter([e[1] for e in evidence])
     out = []
     for c in ctxs:
