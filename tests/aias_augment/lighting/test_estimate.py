@@ -168,8 +168,30 @@ def test_side_agreement_lowers_confidence_when_cues_do_not_pick_the_shadow_end()
     from aias_augment.lighting.estimate import _side_agreement
 
     up = np.array([0.0, 0.0, 1.0])
-    east, north = np.array([1.0, 0, 0.3]), np.array([0, 1.0, 0.3])
-    assert _side_agreement(east, east, up, 0.5) == pytest.approx(1.0)
-    assert _side_agreement(north, east, up, 0.5) == pytest.approx(0.5)  # perpendicular: a coin flip
-    assert _side_agreement(-east * np.array([1, 1, -1]), east, up, 0.5) == pytest.approx(0.5)  # opposite end
-    assert _side_agreement(north, east, up, 0.0) == 1.0  # no cast-shadow axis: nothing to qualify
+    grid, _ = sun.sun_direction_grid()
+    east = np.array([1.0, 0, 0.3])
+    east_side = grid[:, 0]  # side evidence: linear in the east component
+    # Decisive evidence for the chosen end (margin 2 x 10 x cos(el) >> 1 nat): factor ~1.
+    assert _side_agreement(10.0 * east_side, grid, east, up, 0.5) == pytest.approx(1.0, abs=1e-3)
+    # Evidence symmetric about the axis (north-south only): a coin flip.
+    assert _side_agreement(10.0 * grid[:, 1], grid, east, up, 0.5) == pytest.approx(0.5, abs=1e-3)
+    # Evidence for the other end (the axis term overrode it): a coin flip at best.
+    assert _side_agreement(-10.0 * east_side, grid, east, up, 0.5) == pytest.approx(0.5)
+    # Margin m nats: 0.5 + 0.5 tanh(m / 2) (log-odds -> probability of the side).
+    m = float(0.5 * east_side.max() - 0.5 * east_side[grid[:, 0] < 0].max())
+    assert _side_agreement(0.5 * east_side, grid, east, up, 0.5) == pytest.approx(0.5 + 0.5 * np.tanh(m / 2))
+    assert _side_agreement(-east_side, grid, east, up, 0.0) == 1.0  # no cast-shadow axis: nothing to qualify
+
+
+@pytest.mark.skipif(not (KITTI / "kitti06-12-color.png").is_file(), reason="shared KITTI data not present")
+@pytest.mark.parametrize("idx", [12, 14])
+def test_kitti_sun_is_on_the_left(idx):
+    """Reference read off the frames by eye (results/lighting/README.md): the facades facing the road from the right are
+    sunlit, the left ones shaded, and the poles' shadows run across the road to the right: the sun is LEFT (x < 0)."""
+    from PIL import Image
+
+    img = np.array(Image.open(KITTI / f"kitti06-{idx}-color.png").convert("RGB"))
+    K = Intrinsics(707.0912, 707.0912, 601.8873, 183.1104, 1226, 370)
+    e = estimate_lighting(img, K)
+    _finite(e)
+    assert e.dominant_sun and e.sun_direction_in_cam[0] < 0
