@@ -9,7 +9,10 @@ Three measurements per map:
 3. Image cues: perspective crops with a known camera (pinhole, level roll, yaw all around the sun, pitch and field of
    view drawn per seed), exposed like a camera (median metering, clip, sRGB, 8 bit), run through
    ``sun.sun_cue_from_image``; azimuth error against the map's sun; single frames and all crops of a map fused in world
-   coordinates (``sun.fuse_sun_cues``). Crops are made of the maps whose brightest light is a compact source above the
+   coordinates (``sun.fuse_sun_cues``). Each crop is scored twice: the sky cue alone (as before) and the sky cue
+   combined with the side cues of ``sun_side`` (vertical surfaces, shadow ends) the way ``estimate_lighting`` combines
+   them (sky log-likelihood x ``LightingConfig.sky_out_of_view_weight`` when no sun disc is seen, plus the side
+   log-likelihoods). Crops are made of the maps whose brightest light is a compact source above the
    horizon (< 0.05 sr, elevation > 0) and that are not named with ``--sunless`` (indoor lamps, street lights at night:
    sky cues do not apply there).
 
@@ -28,8 +31,8 @@ from scipy import ndimage
 
 from aias_augment.geometry import Intrinsics
 from aias_augment.lighting import envmap as em
-from aias_augment.lighting import hdr, sh, sun
-from aias_augment.lighting.estimate import lighting_from_envmap
+from aias_augment.lighting import hdr, sh, sun, sun_side
+from aias_augment.lighting.estimate import LightingConfig, lighting_from_envmap
 
 
 def find_maps(paths: list[str]) -> list[Path]:
@@ -88,14 +91,14 @@ def azimuth_error_deg(d: np.ndarray, ref: np.ndarray) -> float:
 
 
 def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: int, width: int, height: int,
-              whiteness_weight: float | None = None) -> dict:
+              whiteness_weight: float | None = None, config: LightingConfig = LightingConfig()) -> dict:
     sun_az, sun_el = em.direction_to_azimuth_elevation(sun_dir)
     grid, _ = sun.sun_direction_grid()
     up = np.array([0.0, 0.0, 1.0])
     rows, fused = [], []
     for seed in seeds:
         rng = np.random.default_rng(seed)
-        cues = []
+        cues, combined = [], []
         for k in range(n_views):
             offset = 360.0 * k / n_views + rng.uniform(-10, 10)
             pitch = rng.uniform(0.0, 15.0)
@@ -107,22 +110,72 @@ def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: i
             kw = {} if whiteness_weight is None else {"whiteness_weight": whiteness_weight}
             cue = sun.sun_cue_from_image(img, K, R, up, grid, rng=rng, **kw)
             dt = time.perf_counter() - t
+            t = time.perf_counter()
+            # Camera height is unknown in a panorama; it only scales ground distances (the default 1.65 m is used).
+            side = sun_side.sun_side_cue(img, K, R @ up, grid @ R.T, camera_height_m=config.camera_height_m,
+                                         analysis_width=config.side_analysis_width,
+                                         facade_effective_samples=config.facade_effective_samples,
+                                         shadow_end_kappa=config.shadow_end_kappa)
+            dt_side = time.perf_counter() - t
+            w_sky = 1.0 if cue.sun_visible else config.sky_out_of_view_weight
+            ll = w_sky * cue.log_likelihood + side.log_likelihood
+            d_comb, conc = sun._posterior_summary(grid, ll, up)
             cues.append(cue)
+            combined.append(ll)
             sun_in_cam = R @ sun_dir
             uv = (K.fx * sun_in_cam[0] / max(sun_in_cam[2], 1e-9) + K.cx, K.fy * sun_in_cam[1] / max(sun_in_cam[2], 1e-9) + K.cy)
             in_view = bool(sun_in_cam[2] > 0 and 0 <= uv[0] < width and 0 <= uv[1] < height)
+            # Does the crop carry a side cue? Facades in >= 2 orientations with a fit, or a decisive shadow end.
+            has_facade = bool(side.n_facade_samples >= 4 and side.facade_orientation_spread > 0.1 and side.facade_r2 > 0.1)
+            has_shadow_end = bool(side.shadow_end_confidence >= 0.05)
             rows.append({"seed": seed, "yaw_offset_deg": round(offset, 2), "pitch_deg": round(pitch, 2),
                          "hfov_deg": round(hfov, 2), "sun_in_view": in_view, "sun_visible_detected": cue.sun_visible,
                          "azimuth_error_deg": azimuth_error_deg(cue.direction_in_world, sun_dir),
-                         "confidence": cue.confidence, "seconds": dt})
+                         "confidence": cue.confidence, "seconds": dt,
+                         "with_side_azimuth_error_deg": azimuth_error_deg(d_comb, sun_dir),
+                         "with_side_concentration": conc, "side_seconds": dt_side,
+                         "facade_only_azimuth_error_deg": azimuth_error_deg(grid[int(np.argmax(side.facade_loglik))], sun_dir)
+                         if np.ptp(side.facade_loglik) > 0 else None,
+                         "shadow_end_only_azimuth_error_deg": azimuth_error_deg(
+                             grid[int(np.argmax(side.shadow_end_loglik))], sun_dir) if np.ptp(side.shadow_end_loglik) > 0 else None,
+                         "facade_samples": side.n_facade_samples, "facade_r2": side.facade_r2,
+                         "facade_orientation_spread": side.facade_orientation_spread, "bases": side.n_bases,
+                         "shadow_end_confidence": side.shadow_end_confidence, "has_facade_cue": has_facade,
+                         "has_shadow_end_cue": has_shadow_end})
         f = sun.fuse_sun_cues(cues)
+        d_fc, _ = sun._posterior_summary(grid, np.sum(combined, axis=0), up)
         fused.append({"seed": seed, "azimuth_error_deg": azimuth_error_deg(f.direction_in_world, sun_dir),
                       "elevation_est_deg": float(np.rad2deg(em.direction_to_azimuth_elevation(f.direction_in_world)[1])),
-                      "elevation_true_deg": float(np.rad2deg(sun_el)), "confidence": f.confidence})
+                      "elevation_true_deg": float(np.rad2deg(sun_el)), "confidence": f.confidence,
+                      "with_side_azimuth_error_deg": azimuth_error_deg(d_fc, sun_dir)})
     return {"crops": rows, "fused": fused}
 
 
+def side_summary(crops: list[dict], fused: list[float]) -> dict:
+    """Azimuth errors of the sky + side-cue combination, and which crops carry a side cue."""
+    e = "with_side_azimuth_error_deg"
+    fac = [c for c in crops if c["has_facade_cue"]]
+    end = [c for c in crops if c["has_shadow_end_cue"]]
+    return {
+        "all": summarize([c[e] for c in crops]),
+        "sun_in_view": summarize([c[e] for c in crops if c["sun_in_view"]]),
+        "sun_out_of_view": summarize([c[e] for c in crops if not c["sun_in_view"]]),
+        "concentration_ge_0.5": summarize([c[e] for c in crops if c["with_side_concentration"] >= 0.5]),
+        "fused_clip": summarize(fused),
+        "crops_with_facade_cue": summarize([c[e] for c in fac]),
+        "crops_with_shadow_end_cue": summarize([c[e] for c in end]),
+        "crops_without_side_cue_out_of_view": summarize(
+            [c[e] for c in crops if not (c["has_facade_cue"] or c["has_shadow_end_cue"]) and not c["sun_in_view"]]),
+        "facade_only_on_crops_with_facade_cue": summarize([c["facade_only_azimuth_error_deg"] for c in fac]),
+        "shadow_end_only_on_crops_with_shadow_end_cue": summarize([c["shadow_end_only_azimuth_error_deg"] for c in end]),
+        "sky_only_on_crops_with_facade_cue": summarize([c["azimuth_error_deg"] for c in fac]),
+        "sky_only_on_crops_with_shadow_end_cue": summarize([c["azimuth_error_deg"] for c in end]),
+        "median_side_seconds_per_crop": float(np.median([c["side_seconds"] for c in crops])) if crops else 0.0,
+    }
+
+
 def summarize(errors: list[float]) -> dict:
+    errors = [e for e in errors if e is not None]
     if not errors:
         return {"n": 0}
     e = np.asarray(errors)
@@ -178,7 +231,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     report = {"command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
               "maps": {}}
-    headline_single, headline_fused = [], []
+    headline_single, headline_fused, headline_fused_side = [], [], []
     for path in find_maps(args.maps):
         rad = hdr.read_hdr_image(path)
         if rad.shape[1] != 2 * rad.shape[0]:
@@ -209,8 +262,11 @@ def main(argv=None) -> int:
                 "fused_clip": summarize([f["azimuth_error_deg"] for f in cues["fused"]]),
                 "median_seconds_per_crop": float(np.median([c["seconds"] for c in cues["crops"]])),
             }
+            entry["with_side_cues_summary"] = side_summary(cues["crops"],
+                                                           [f["with_side_azimuth_error_deg"] for f in cues["fused"]])
             headline_single += [c for c in cues["crops"]]
             headline_fused += [f["azimuth_error_deg"] for f in cues["fused"]]
+            headline_fused_side += [f["with_side_azimuth_error_deg"] for f in cues["fused"]]
         report["maps"][path.stem] = entry
         print(f"{path.stem:12s} sun az {entry['sun_azimuth_deg']:7.1f} el {entry['sun_elevation_deg']:5.1f} "
               f"vs brightest {entry['sun_vs_brightest_deg']:5.2f} deg  dominant {est.dominant_sun!s:5s} "
@@ -227,6 +283,7 @@ def main(argv=None) -> int:
         "coverage_confident_ge_0.5": float(np.mean([c["confidence"] >= 0.5 for c in headline_single]))
         if headline_single else 0.0,
         "image_cue_azimuth_fused_clips": summarize(headline_fused),
+        "with_side_cues": side_summary(headline_single, headline_fused_side),
         "sh_full_rel_rms_max": max(m["sh_full_rel_rms"] for m in report["maps"].values()),
         "sh_ambient_plus_sun_rel_rms_max": max(m["sh_ambient_plus_sun_rel_rms"] for m in report["maps"].values()),
         "sh_estimator_rel_rms_max": max(m["sh_estimator_rel_rms"] for m in report["maps"].values()),
@@ -266,7 +323,23 @@ def write_markdown(report: dict, path: Path) -> None:
               f"- sun out of view: {fmt(h['image_cue_azimuth_sun_out_of_view'])}",
               f"- confidence >= 0.5 ({h['coverage_confident_ge_0.5'] * 100:.0f} % of crops): "
               f"{fmt(h['image_cue_azimuth_confident_ge_0.5'])}",
-              f"- all crops of a map fused in world coordinates: {fmt(h['image_cue_azimuth_fused_clips'])}",
+              f"- all crops of a map fused in world coordinates: {fmt(h['image_cue_azimuth_fused_clips'])}", "",
+              "Sky cue + side cues (vertical surfaces, shadow ends; combined as in `estimate_lighting`):", ""]
+    ws = h["with_side_cues"]
+    lines += [f"- {k.replace('_', ' ')}: {fmt(v)}" for k, v in ws.items() if isinstance(v, dict)]
+    lines += ["", "| map | with side cues: all / in view / out of view / fused | crops with facade cue | with shadow-end cue |",
+              "|---|---|---|---|"]
+    for name, m in report["maps"].items():
+        w = m.get("with_side_cues_summary")
+        if w is None:
+            continue
+        lines.append(f"| {name} | {w['all'].get('median_deg', float('nan')):.1f} / "
+                     f"{w['sun_in_view'].get('median_deg', float('nan')):.1f} / "
+                     f"{w['sun_out_of_view'].get('median_deg', float('nan')):.1f} / "
+                     f"{w['fused_clip'].get('median_deg', float('nan')):.1f} | {w['crops_with_facade_cue']['n']} "
+                     f"(median {w['crops_with_facade_cue'].get('median_deg', float('nan')):.1f}) | "
+                     f"{w['crops_with_shadow_end_cue']['n']} (median {w['crops_with_shadow_end_cue'].get('median_deg', float('nan')):.1f}) |")
+    lines += ["",
               f"- SH irradiance rel. RMS, worst map: full map {h['sh_full_rel_rms_max'] * 100:.1f} %, "
               f"ambient + separate sun {h['sh_ambient_plus_sun_rel_rms_max'] * 100:.1f} %, as used by the estimator "
               f"(ambient + sun only where the sun is dominant) {h['sh_estimator_rel_rms_max'] * 100:.1f} % (target < 15 %)",

@@ -223,11 +223,14 @@ def vertical_surface_loglik(samples: FacadeSamples, grid_in_cam: np.ndarray, up_
 
 
 def occluder_bases(segments: LineSegments, intrinsics: Intrinsics, up_in_cam: np.ndarray,
-                   min_depression_deg: float = 1.0, line_tol_px: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
+                   min_depression_deg: float = 1.0, line_tol_px: float = 3.0, occluder_halfwidth_m: float = 0.3,
+                   camera_height_m: float = 1.65) -> tuple[np.ndarray, np.ndarray]:
     """Lower end points of 3D-vertical segments that lie below the horizon by more than ``min_depression_deg``:
-    candidate bases where an upright occluder meets the ground. An edge broken into pieces (stripes, windows) yields
-    one base only, the lowest: a lower end that lies within ``line_tol_px`` of another vertical segment whose own
-    lower end is further down is a break in the edge, not a ground contact. Returns the base pixels (B, 2) and the
+    candidate bases where an upright occluder meets the ground. An occluder whose edges are broken into pieces
+    (stripes, windows, leaves) or seen as two edges (a pole's left and right sides) yields one base only, the lowest:
+    a lower end that lies within ``max(line_tol_px, 2 x occluder_halfwidth_m`` projected at the lower base's depth)
+    of another vertical segment whose own lower end is further down, and above that end, is not a ground contact.
+    Returns the base pixels (B, 2) and the
     image direction of world up at each base (B, 2) (unit; the occluder extends from the base along it)."""
     up = np.asarray(up_in_cam, dtype=np.float64) / max(float(np.linalg.norm(up_in_cam)), EPS)
     Kinv = np.linalg.inv(intrinsics.K)
@@ -241,6 +244,9 @@ def occluder_bases(segments: LineSegments, intrinsics: Intrinsics, up_in_cam: np
         lows.append(ends[lo])
         highs.append(ends[1 - lo])
         depress.append(-float(rays[lo] @ up))
+    # Depth of each lower end if it stood on the ground (only its scale matters: the tolerance in pixels).
+    tol = [max(line_tol_px, 2.0 * intrinsics.fx * occluder_halfwidth_m * max(dp, 1e-6) / camera_height_m)
+           for dp in depress]
     bases, dirs = [], []
     for i in range(len(lows)):
         if depress[i] < np.sin(np.deg2rad(min_depression_deg)):
@@ -253,7 +259,7 @@ def occluder_bases(segments: LineSegments, intrinsics: Intrinsics, up_in_cam: np
             L = max(float(np.linalg.norm(d)), EPS)
             rel = lows[i] - lows[j]
             # distance of base i from the (infinite) image line of segment j, and i above j's lower end
-            if abs(rel[0] * d[1] - rel[1] * d[0]) / L < line_tol_px and float(rel @ d) / L > -line_tol_px:
+            if abs(rel[0] * d[1] - rel[1] * d[0]) / L < tol[j] and float(rel @ d) / L > -line_tol_px:
                 covered = True
                 break
         if covered:
@@ -315,7 +321,7 @@ def shadow_end_scores(darkness: np.ndarray, bases_px: np.ndarray, base_up_dirs_p
                       intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = 1.65,
                       reach_m: tuple[float, float] = (0.4, 5.0), n_steps: int = 16, n_azimuths: int = 180,
                       tolerance_deg: float = 6.0, occluder_halfwidth_m: float = 0.3, min_halfwidth_px: float = 3.0,
-                      min_valid: int = 3) -> tuple[np.ndarray, np.ndarray]:
+                      min_valid: int = 3, contiguous: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Per base and sun azimuth: darkness on the ground away from the sun minus toward it, (B, A) in [-1, 1] with NaN
     where either side is unreadable; and the A sun azimuths (rad, ``atan2(forward, right)``, uniform in [-pi, pi)).
 
@@ -363,7 +369,12 @@ def shadow_end_scores(darkness: np.ndarray, bases_px: np.ndarray, base_up_dirs_p
         ui = np.clip(np.round(uv[..., 0]).astype(int), 0, W - 1)
         vi = np.clip(np.round(uv[..., 1]).astype(int), 0, H - 1)
         cnt = ok.sum(axis=1)
-        D = np.where(cnt >= min_valid, np.where(ok, darkness[vi, ui], 0.0).sum(axis=1) / np.maximum(cnt, 1), np.nan)
+        dk = darkness[vi, ui]
+        if contiguous:
+            # The shadow must start at the base and continue: darkness counts only up to where the ground first turns
+            # lit (running minimum along the ray over readable samples; unreadable ones neither break nor extend it).
+            dk = np.minimum.accumulate(np.where(ok, dk, 1.0), axis=1)
+        D = np.where(cnt >= min_valid, np.where(ok, dk, 0.0).sum(axis=1) / np.maximum(cnt, 1), np.nan)
         D = _circular_nanmax(D, half)
         scores[b] = np.roll(D, -n_azimuths // 2) - D  # D(a + pi) - D(a)
     return scores, alphas
@@ -457,7 +468,7 @@ def sun_side_cue(image_rgb_uint8: np.ndarray, intrinsics: Intrinsics, up_in_cam:
     fs = facade_samples(lin, K, up, segs, exclude_mask=sky_mask)
     spread = _orientation_spread(fs)
     ll_f, r2 = vertical_surface_loglik(fs, grid_in_cam, up, facade_effective_samples)
-    bases, dirs = occluder_bases(segs, K, up)
+    bases, dirs = occluder_bases(segs, K, up, camera_height_m=camera_height_m)
     dark = ground_darkness(img)
     scores, alphas = shadow_end_scores(dark, bases, dirs, K, up, camera_height_m)
     ll_e, conf_e = shadow_end_loglik(scores, alphas, grid_in_cam, up, shadow_end_kappa)

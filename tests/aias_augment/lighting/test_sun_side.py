@@ -76,7 +76,7 @@ def test_vertical_surface_loglik_is_silent_when_all_facades_face_one_way():
 
 def _poles() -> list[Box]:
     return [Box((x, -1.35, z), (x + 0.15, 1.65, z + 0.15), (0.3, 0.3, 0.3))
-            for x, z in [(-3.0, 6.0), (2.0, 8.0), (-1.0, 12.0), (3.0, 14.0), (-4.0, 16.0)]]
+            for x, z in [(-3.0, 6.0), (2.0, 8.0), (-1.0, 12.0), (5.0, 14.0), (-4.0, 16.0)]]
 
 
 @pytest.mark.parametrize("sun_az_deg", [-150.0, -30.0, 30.0, 150.0, 100.0])
@@ -88,13 +88,16 @@ def test_shadow_end_puts_the_sun_on_the_side_of_the_occluders(sun_az_deg):
     grid = _grid_in_cam(R)
     segs = ss.classify_segments(ss.detect_line_segments(img, 16.0), K, up)
     bases, dirs = ss.occluder_bases(segs, K, up)
-    assert len(bases) >= 5  # each pole gives at least one base
+    assert len(bases) >= 5  # each pole gives one base (they do not hide behind one another in the image)
     scores, alphas = ss.shadow_end_scores(ss.ground_darkness(img), bases, dirs, K, up)
     ll, conf = ss.shadow_end_loglik(scores, alphas, grid, up)
     az = np.rad2deg(ss.grid_ground_azimuths(grid, up))
     true_az = float(np.rad2deg(ss.grid_ground_azimuths((R @ sun_direction(sun_az_deg, 35.0))[None], up))[0])
     assert _az_err(az[int(np.argmax(ll))], true_az) < 20.0
-    assert conf > 0.05  # thin shadows fill only part of each ray: well below 1, but not zero
+    assert conf > 0.02  # thin shadows fill only part of each ray: well below 1, but not zero
+    near_true = np.array([_az_err(a, true_az) < 10.0 for a in az])
+    near_mirror = np.array([_az_err(a, true_az + 180.0) < 10.0 for a in az])
+    assert ll[near_true].max() - ll[near_mirror].max() > 0.5  # nats in favour of the right end of the axis
     # Antisymmetric: the mean score at a and a + 180 deg are opposite.
     v = np.isfinite(scores)
     mean = np.where(v, scores, 0).sum(0) / np.maximum(v.sum(0), 1)
