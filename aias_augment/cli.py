@@ -1,4 +1,8 @@
-"""``aias-augment``: offline augmentation of a COCO or YOLO dataset."""
+"""``aias-augment``: offline augmentation of a COCO or YOLO dataset, or of one posed clip.
+
+  aias-augment --input train.json --images train/ --categories traffic_cone --per-image 2 --out train_aug/
+  aias-augment --input clip.mp4 --camera calib.txt --poses poses.txt --categories traffic_cone --out clip_aug/
+"""
 from __future__ import annotations
 
 import argparse
@@ -12,7 +16,8 @@ from .pipeline import PRESETS, load_preset
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="aias-augment", description=__doc__)
     src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--input", help="COCO json of the dataset (with --images)")
+    src.add_argument("--input", help="COCO json of the dataset (with --images), or a clip: a video file or a folder "
+                                     "of frames (with --camera and --poses)")
     src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
     ap.add_argument("--images", help="image folder for --input")
     ap.add_argument("--class-names", nargs="*", default=None, help="YOLO class names by index")
@@ -23,8 +28,27 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--limit", type=int, default=None, help="process only the first N images")
+    clip = ap.add_argument_group("clip (--input is a video file or a frame folder)")
+    clip.add_argument("--camera", help="KITTI calib.txt, pyslam KITTI*.yaml, or a yaml with fx, fy, cx, cy")
+    clip.add_argument("--poses", help="one pose per frame: KITTI (12 numbers) or TUM (tx ty tz qx qy qz qw) lines")
+    clip.add_argument("--colour", action="store_true", help="KITTI calib.txt: the colour camera (P2)")
+    clip.add_argument("--start", type=int, default=0, help="first frame")
+    clip.add_argument("--stride", type=int, default=1)
+    clip.add_argument("--max-frames", type=int, default=None)
+    clip.add_argument("--camera-height", type=float, default=1.65, help="metres above the ground")
+    clip.add_argument("--lighting", choices=("clip", "ambient"), default="clip")
     a = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    if a.input and (a.camera or a.poses):
+        if not (a.camera and a.poses):
+            ap.error("a clip needs both --camera and --poses")
+        from .offline_video import ClipJob, augment_clip
+
+        record = augment_clip(ClipJob(a.input, a.camera, a.poses, a.out, tuple(a.categories), a.seed, a.start,
+                                      a.max_frames, a.stride, a.colour,
+                                      a.camera_height, lighting=a.lighting))
+        print({k: record[k] for k in ("category", "asset", "frames", "visible_frames", "wall_s")})
+        return 0
     if a.input and not a.images:
         ap.error("--input needs --images")
     items = items_from_coco(a.input, a.images) if a.input else items_from_yolo(a.yolo)

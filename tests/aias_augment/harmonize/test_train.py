@@ -8,7 +8,8 @@ from aias_augment.harmonize.fast import FastColorNet, FastConfig
 from aias_augment.harmonize.network import Critic, Generator, NetworkConfig
 from aias_augment.harmonize.pairs import Perturbation, apply_perturbation, random_region_mask
 from aias_augment.harmonize.train import (PairPool, TrainConfig, fast_predict, fast_train_step, fmse_255,
-                                          make_optimizers, split_pool, train_step)
+                                          make_batch, make_optimizers, masked_mse_per_image, recon_loss, split_pool,
+                                          train_step)
 
 
 def tiny_pairs(street_rgb, n=4, size=32):
@@ -70,3 +71,50 @@ def test_config_rejects_unknown_keys(tmp_path):
     for name in ("harmonize_small", "harmonize_256"):
         cfg = load_config(TrainConfig, name)
         assert dataclasses.is_dataclass(cfg.network)
+
+
+def test_network_overfits_with_the_fmse_loss(street_rgb):
+    torch.manual_seed(0)
+    comp, target, mask = tiny_pairs(street_rgb)
+    cfg = TrainConfig(network=NetworkConfig(resolution_px=32, base_channels=4, levels=2, dilations=(2,),
+                                            critic_channels=4), lr_generator=3e-3, recon_loss="fmse")
+    gen, critic = Generator(cfg.network), Critic(cfg.network.critic_channels)
+    opt_g, opt_d = make_optimizers(gen, critic, cfg)
+    before = fmse_255(comp, target, mask)
+    for _ in range(25):
+        train_step(gen, critic, opt_g, opt_d, comp, target, mask, cfg, torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        after = fmse_255(gen.eval()(comp, mask)["output"], target, mask)
+    assert after < 0.1 * before, (before, after)
+
+
+def test_fmse_loss_weighs_every_image_equally():
+    """A small object's error counts as much as a large one's (unlike L1 over the batch's pixels)."""
+    target = torch.zeros(2, 3, 8, 8)
+    mask = torch.zeros(2, 1, 8, 8)
+    mask[0, :, :1, :1] = 1  # 1 px object
+    mask[1] = 1  # 64 px object
+    pred = target.clone()
+    pred[0] += 0.5  # only the small object is wrong, by 0.5 everywhere
+    # image 0: 3 * 0.25 / (3 + 1); image 1: 0 -> mean over the 2 images
+    assert float(masked_mse_per_image(pred, target, mask)) == pytest.approx(0.75 / 4 / 2)
+    assert float(recon_loss(pred, target, mask, "l1")) == pytest.approx(1.5 / (3 * 65 + 1))
+    with pytest.raises(ValueError, match="recon_loss"):
+        recon_loss(pred, target, mask, "l2")
+
+
+def test_scene_jitter_changes_target_and_composite_background_alike():
+    rng = np.random.default_rng(0)
+    img = rng.integers(40, 200, (1, 16, 16, 3)).astype(np.uint8)
+    m = np.zeros((1, 16, 16), np.uint8)
+    m[0, 4:10, 4:10] = 1
+    pool = PairPool(img, m, ["a"])
+    comp, target, mask = make_batch(pool, np.array([0, 0, 0]), TrainConfig().perturb, np.random.default_rng(1),
+                                    flip=False, scene_jitter=TrainConfig().scene_jitter, scene_jitter_probability=1.0)
+    bg = (mask == 0).expand_as(comp)
+    assert torch.equal(comp[bg], target[bg])  # the background of a pair is untouched by the foreground perturbation
+    original = torch.from_numpy(img).permute(0, 3, 1, 2).float() / 255
+    for t in target:  # ... but every target differs from the pool image (its whole crop was jittered)
+        assert float((t - original[0]).abs().mean()) > 1 / 255
+    plain, plain_t, _ = make_batch(pool, np.array([0]), TrainConfig().perturb, np.random.default_rng(1), flip=False)
+    assert torch.equal(plain_t[0], original[0])
