@@ -33,7 +33,8 @@ from .sun_side import SunSideCue, sun_side_cue
 from .sun import (_posterior_summary, _rot3, frame_from_up, remove_sun, solar_direction_enu, sun_cue_from_image,
                   sun_direction_in_cam_from_metadata, sun_from_envmap, sun_direction_grid)
 
-__all__ = ["LightingEstimate", "LightingConfig", "estimate_lighting", "estimate_lighting_clip", "lighting_from_envmap"]
+__all__ = ["LightingEstimate", "LightingConfig", "SunDirectionEstimate", "estimate_lighting", "estimate_lighting_clip",
+           "estimate_sun_direction", "estimate_sun_direction_clip", "lighting_from_envmap"]
 
 log = logging.getLogger(__name__)
 
@@ -134,8 +135,8 @@ class LightingConfig:
     #: ln(0.65 / 0.35) = 0.6 nats, whereas its raw margin between the two ends of the shadow axis is ~5 nats on KITTI;
     #: 0.25 tempers it toward that calibration while keeping its shape.
     sky_out_of_view_weight: float = 0.25
-    #: Vertical-surface cue (``sun_side``): effective number of independent facades (bound: n_eff / 2 nats).
-    facade_effective_samples: float = 8.0
+    #: Vertical-surface cue (``sun_side``): spread of wall albedos (ln units) around the Lambertian model.
+    facade_albedo_sigma: float = 0.7
     #: Shadow-end cue (``sun_side``): log-likelihood scale of the mean base score (as ``shadow_axis_kappa``).
     shadow_end_kappa: float = 20.0
     #: The side cues run on a copy at most this wide (their pixel tolerances are set for ~800 px).
@@ -144,7 +145,7 @@ class LightingConfig:
     def __post_init__(self):
         if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
                 or self.default_sun_sky_ratio < 0 or not 0.0 <= self.sky_out_of_view_weight <= 1.0
-                or self.facade_effective_samples < 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
+                or self.facade_albedo_sigma <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
             raise ValueError("LightingConfig: invalid values")
 
 
@@ -290,15 +291,22 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
     """Log-likelihood of each world-grid sun direction from this frame: sky / sun-disc cue (tempered when no disc is
     visible), elevation from GPS + time when given without an orientation, cast-shadow axis on the ground, and the
     side cues (vertical surfaces, shadow ends). Returns (loglik, cue, axis_strength, side_loglik, side) where
-    side_loglik is the part of the evidence that can tell the two ends of the shadow axis apart (all but the axis)."""
+    side_loglik is the part of the evidence that can tell the two ends of the shadow axis apart (all but the axis) and
+    side the :class:`SunSideCue` (None where there is no sign of direct sun)."""
     cue = sun_cue_from_image(ctx.small, ctx.K_small, ctx.R_cw, ctx.up_in_world, grid_world, rng=rng)
     sky_weight = 1.0 if cue.sun_visible else config.sky_out_of_view_weight
     loglik = sky_weight * cue.log_likelihood
-    side = sun_side_cue(ctx.img, ctx.K, ctx.up_in_cam, grid_world @ ctx.R_cw.T,
-                        camera_height_m=config.camera_height_m, analysis_width=config.side_analysis_width,
-                        facade_effective_samples=config.facade_effective_samples,
-                        shadow_end_kappa=config.shadow_end_kappa)
-    loglik = loglik + side.log_likelihood
+    m = ctx.measurement
+    side = None
+    if (m is not None and m.dominant_sun) or cue.sun_visible:
+        # Lit walls brighter than shaded ones and shadows running from their occluders presume direct sunlight: the
+        # side cues run only where the ground shows cast shadows or the sun itself is seen (under an overcast sky
+        # albedo differences between walls would read as a sun).
+        side = sun_side_cue(ctx.img, ctx.K, ctx.up_in_cam, grid_world @ ctx.R_cw.T,
+                            camera_height_m=config.camera_height_m, analysis_width=config.side_analysis_width,
+                            facade_albedo_sigma=config.facade_albedo_sigma,
+                            shadow_end_kappa=config.shadow_end_kappa)
+        loglik = loglik + side.log_likelihood
     side_loglik = loglik.copy()
     meta = ctx.meta
     if all(k in meta for k in ("lat", "lon", "utc")):
@@ -306,7 +314,6 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
         el = np.arcsin(np.clip(solar_direction_enu(meta["lat"], meta["lon"], meta["utc"])[2], -1, 1))
         loglik -= 0.5 * ((azel[:, 1] - el) / np.deg2rad(3.0)) ** 2
     axis_strength = 0.0
-    m = ctx.measurement
     if m is not None and m.dominant_sun:
         # Visible cast shadows need a sun clearly above the horizon.
         loglik = np.where(azel[:, 1] > np.deg2rad(3.0), loglik, loglik - 1e3)
@@ -398,6 +405,105 @@ def _metadata_sun(ctx: _FrameContext, cam_from_world_given: bool) -> np.ndarray 
         return None
 
 
+@dataclass(frozen=True)
+class SunDirectionEstimate:
+    """The image-cue sun of a frame or clip, whether or not it is dominant (see :func:`estimate_sun_direction`).
+
+    direction_in_world: unit (3,) toward the sun in the world frame of ``cam_from_world``; confidence in [0, 1] (before
+    the unknown-camera factor 0.5); axis_strength: strongest cast-shadow axis among the frames (0 = none);
+    side_margin_nats: log-odds of the chosen end of that axis from the non-axis cues (sky, walls, shadow ends);
+    sky_cues / side_cues: per frame (a side cue is None where the frame shows no sign of direct sun).
+    """
+
+    direction_in_world: np.ndarray
+    confidence: float
+    axis_strength: float
+    side_margin_nats: float
+    sky_cues: tuple
+    side_cues: tuple
+
+
+def _side_margin(side_loglik: np.ndarray, grid: np.ndarray, chosen_dir: np.ndarray, up: np.ndarray) -> float:
+    b = chosen_dir - (chosen_dir @ up) * up
+    h = grid - (grid @ up)[:, None] * up
+    same = h @ b > 0
+    if float(np.linalg.norm(b)) < 1e-6 or same.all() or not same.any():
+        return 0.0
+    return float(side_loglik[same].max() - side_loglik[~same].max())
+
+
+def _image_cue_sun(ctxs: list, up_in_world: np.ndarray, config: LightingConfig,
+                   rng: np.random.Generator) -> SunDirectionEstimate:
+    """Sum the frames' sun evidence on one world grid (frames as independent views of one distant sun), add the
+    elevation prior once, take the best candidate; confidence = max(sky-cue confidence, 0.5 x axis strength x
+    posterior concentration) x the side-agreement factor (``_side_agreement``)."""
+    grid_up, azel = sun_direction_grid()
+    grid_world = grid_up @ frame_from_up(up_in_world)
+    evidence = [_sun_evidence(c, grid_world, azel, config, rng) for c in ctxs]
+    loglik = np.sum([e[0] for e in evidence], axis=0) + _elevation_prior(azel, config)
+    d_world = grid_world[int(np.argmax(loglik))]
+    _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
+    axis = max(e[2] for e in evidence)
+    side_loglik = np.sum([e[3] for e in evidence], axis=0)
+    confidence = max(max(e[1].confidence for e in evidence), 0.5 * axis * concentration)
+    confidence *= _side_agreement(side_loglik, grid_world, d_world, up_in_world, axis)
+    return SunDirectionEstimate(d_world, float(np.clip(confidence, 0.0, 1.0)), float(axis),
+                                _side_margin(side_loglik, grid_world, d_world, up_in_world),
+                                tuple(e[1] for e in evidence), tuple(e[4] for e in evidence))
+
+
+def estimate_sun_direction(
+    image_rgb_uint8: np.ndarray,
+    intrinsics: Intrinsics | None = None,
+    cam_from_world: np.ndarray | None = None,
+    meta: dict | None = None,
+    rng: np.random.Generator | None = None,
+    config: LightingConfig = LightingConfig(),
+) -> SunDirectionEstimate:
+    """The image-cue sun direction of one frame (sky or sun disc, cast-shadow axis, walls, shadow ends), as
+    :func:`estimate_lighting` picks it, returned even where the sun is not dominant (for evaluation and for callers
+    that decide dominance themselves). ``meta``: 'up_in_world', 'ground_mask', 'lat'/'lon'/'utc' (elevation only)."""
+    img = _check_image(image_rgb_uint8)
+    meta = dict(meta or {})
+    rng = np.random.default_rng(0) if rng is None else rng
+    R_cw = np.eye(3) if cam_from_world is None else _rot3(cam_from_world)
+    ctx = _prepare(img, intrinsics, R_cw, meta, config, rng)
+    return _image_cue_sun([ctx], ctx.up_in_world, config, rng)
+
+
+def estimate_sun_direction_clip(
+    images: Sequence[np.ndarray],
+    intrinsics: Sequence[Intrinsics | None] | Intrinsics | None,
+    cams_from_world: Sequence[np.ndarray],
+    metas: Sequence[dict] | dict | None = None,
+    rng: np.random.Generator | None = None,
+    config: LightingConfig = LightingConfig(),
+) -> SunDirectionEstimate:
+    """The image-cue sun of a clip with known poses, fused in world coordinates as :func:`estimate_lighting_clip` does
+    (the world's up: ``metas[0]['up_in_world']`` or the first camera's -y)."""
+    rng = np.random.default_rng(0) if rng is None else rng
+    ctxs, up_in_world = _prepare_clip(images, intrinsics, cams_from_world, metas, config, rng)
+    return _image_cue_sun([c for c in ctxs if not c.indoor] or ctxs, up_in_world, config, rng)
+
+
+def _prepare_clip(images, intrinsics, cams_from_world, metas, config: LightingConfig, rng: np.random.Generator):
+    """Frame contexts of a clip and its world up (``metas[0]['up_in_world']`` or the first camera's -y)."""
+    n = len(images)
+    if n == 0 or len(cams_from_world) != n:
+        raise ValueError("estimate_lighting_clip: need one pose per image and at least one image")
+    Ks = list(intrinsics) if isinstance(intrinsics, (list, tuple)) else [intrinsics] * n
+    ms = [dict(m or {}) for m in metas] if isinstance(metas, (list, tuple)) else [dict(metas or {})] * n
+    if len(Ks) != n or len(ms) != n:
+        raise ValueError("estimate_lighting_clip: intrinsics and metas must match the number of images")
+    R0 = _rot3(cams_from_world[0])
+    up_in_world, _ = _up_vectors(R0, ms[0])
+    for m in ms:
+        m.setdefault("up_in_world", up_in_world)
+    ctxs = [_prepare(_check_image(img), K, _rot3(T), m, config, rng)
+            for img, K, T, m in zip(images, Ks, cams_from_world, ms)]
+    return ctxs, up_in_world
+
+
 def estimate_lighting(
     image_rgb_uint8: np.ndarray,
     intrinsics: Intrinsics | None = None,
@@ -430,15 +536,10 @@ def estimate_lighting(
     sun_dir = _metadata_sun(ctx, cam_from_world is not None)
     if sun_dir is not None:
         return _finish(ctx, sun_dir, 0.95, "metadata", None, config)
-    grid_up, azel = sun_direction_grid()
-    grid_world = grid_up @ frame_from_up(ctx.up_in_world)
-    loglik, cue, axis_strength, side_loglik, side = _sun_evidence(ctx, grid_world, azel, config, rng)
-    loglik = loglik + _elevation_prior(azel, config)
-    _, concentration = _posterior_summary(grid_world, loglik, ctx.up_in_world)
-    confidence = max(cue.confidence, 0.5 * axis_strength * concentration) * (1.0 if ctx.known_camera else 0.5)
-    best_world = grid_world[int(np.argmax(loglik))]
-    confidence *= _side_agreement(side_loglik, grid_world, best_world, ctx.up_in_world, axis_strength)
-    sun_dir = ctx.R_cw @ best_world
+    sun_est = _image_cue_sun([ctx], ctx.up_in_world, config, rng)
+    sun_dir = ctx.R_cw @ sun_est.direction_in_world
+    confidence = sun_est.confidence * (1.0 if ctx.known_camera else 0.5)
+    cue = sun_est.sky_cues[0]
     return _finish(ctx, sun_dir, confidence, "image_cues", cue, config)
 
 
@@ -452,39 +553,23 @@ def estimate_lighting_clip(
 ) -> list[LightingEstimate]:
     """Lighting of the frames of one clip with known poses: one sun, fused in world coordinates.
 
-    The per-frame sun evidence (sky, sun disc, cast-shadow axis) is a log-likelihood on one grid of world directions;
+    The per-frame sun evidence (sky, sun disc, cast-shadow axis, walls, shadow ends) is a log-likelihood on one grid
+    of world directions;
     the clip's evidence is its sum (frames as independent views of the same, distant sun), and each frame gets the
     fused direction rotated into its camera. Metadata (GPS + UTC + orientation) on every frame overrides fusion. Sun
     strength and ambient stay per frame. The world's up is ``metas[0]['up_in_world']`` or the first camera's -y.
     """
-    n = len(images)
-    if n == 0 or len(cams_from_world) != n:
-        raise ValueError("estimate_lighting_clip: need one pose per image and at least one image")
-    Ks = list(intrinsics) if isinstance(intrinsics, (list, tuple)) else [intrinsics] * n
-    ms = [dict(m or {}) for m in metas] if isinstance(metas, (list, tuple)) else [dict(metas or {})] * n
-    if len(Ks) != n or len(ms) != n:
-        raise ValueError("estimate_lighting_clip: intrinsics and metas must match the number of images")
     rng = np.random.default_rng(0) if rng is None else rng
-    R0 = _rot3(cams_from_world[0])
-    up_in_world, _ = _up_vectors(R0, ms[0])
-    for m in ms:
-        m.setdefault("up_in_world", up_in_world)
-    ctxs = [_prepare(_check_image(img), K, _rot3(T), m, config, rng) for img, K, T, m in zip(images, Ks, cams_from_world, ms)]
+    ctxs, up_in_world = _prepare_clip(images, intrinsics, cams_from_world, metas, config, rng)
     meta_suns = [None if c.indoor else _metadata_sun(c, True) for c in ctxs]
     if all(s is not None for s in meta_suns):
         return [_finish(c, s, 0.95, "metadata", None, config) for c, s in zip(ctxs, meta_suns)]
-    grid_up, azel = sun_direction_grid()
-    grid_world = grid_up @ frame_from_up(up_in_world)
-    evidence = [_sun_evidence(c, grid_world, azel, config, rng) for c in ctxs if not c.indoor]
-    if not evidence:
+    live = [c for c in ctxs if not c.indoor]
+    if not live:
         return [_finish(c, None, 0.0, "none", None, config) for c in ctxs]
-    loglik = np.sum([e[0] for e in evidence], axis=0) + _elevation_prior(azel, config)
-    d_world = grid_world[int(np.argmax(loglik))]
-    _, concentration = _posterior_summary(grid_world, loglik, up_in_world)
-    confidence = max(max(e[1].confidence for e in evidence), 0.5 * max(e[2] for e in evidence) * concentration)
-    confidence *= _side_agreement(np.sum([e[3] for e in evidence], axis=0), grid_world, d_world, up_in_world,
-                                  max(e[2] for e in evidence))
-    cues = iter([e[1] for e in evidence])
+    sun_est = _image_cue_sun(live, up_in_world, config, rng)
+    d_world, confidence = sun_est.direction_in_world, sun_est.confidence
+    cues = iter(sun_est.sky_cues)
     out = []
     for c in ctxs:
         if c.indoor:

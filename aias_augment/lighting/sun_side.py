@@ -36,6 +36,7 @@ __all__ = [
     "classify_segments",
     "FacadeSamples",
     "facade_samples",
+    "facade_clusters",
     "vertical_surface_loglik",
     "occluder_bases",
     "ground_darkness",
@@ -188,38 +189,77 @@ def _horizontal_units(grid_in_cam: np.ndarray, up_in_cam: np.ndarray) -> np.ndar
     return np.where(n > 1e-6, gh / np.maximum(n, EPS), 0.0)  # zenith candidates have no azimuth: zero vector
 
 
-def vertical_surface_loglik(samples: FacadeSamples, grid_in_cam: np.ndarray, up_in_cam: np.ndarray,
-                            effective_samples: float = 8.0) -> tuple[np.ndarray, float]:
-    """Log-likelihood (N,) of candidate suns from the brightness of vertical surfaces, and the fit's R^2 in [0, 1].
+def facade_clusters(samples: FacadeSamples, up_in_cam: np.ndarray, merge_deg: float = 10.0,
+                    min_segments: int = 3) -> FacadeSamples:
+    """Group facade samples into orientation clusters, one per physical wall direction: (C, 3) mean normals, (C,)
+    weighted-mean log luminance, (C,) number of segments as weights.
 
-    Model per candidate s (horizontal unit part s_h): ``log L_i = a + b max(0, n_i . s_h)`` by weighted least squares
-    with the physical sign ``b >= 0`` (a candidate that needs b < 0, facades facing it darker, gets the constant fit).
-    Cost = weighted residual variance; ``loglik = -0.5 n_eff (cost - min cost) / var0`` with var0 the variance of the
-    constant model (eps 1e-9 for identical samples) and ``n_eff = min(effective_samples, number of samples)``:
-    samples of the same facade are correlated, so the term is bounded by ``n_eff / 2`` nats. Samples that all face the
-    same way carry no side information (the regressor is constant): the result is 0 everywhere and R^2 = 0.
+    Samples are sorted by the azimuth of their normal about ``up`` and split wherever two neighbours differ by more
+    than ``merge_deg`` (single linkage, on the circle). A wall carries several parallel horizontal lines (floors,
+    window rows, its roof and base); a cluster of fewer than ``min_segments`` segments is more likely foliage, a
+    fence or a car than a wall, and is dropped.
+    """
+    P = len(samples.log_luminance)
+    if P == 0:
+        return samples
+    up = np.asarray(up_in_cam, dtype=np.float64) / max(float(np.linalg.norm(up_in_cam)), EPS)
+    right, fwd = _horizontal_frame(up)
+    az = np.arctan2(samples.normals_in_cam @ fwd, samples.normals_in_cam @ right)
+    order = np.argsort(az)
+    a = az[order]
+    gaps = np.diff(np.concatenate([a, a[:1] + 2.0 * np.pi]))  # gap after each sorted sample, wrapping around
+    cut = gaps > np.deg2rad(merge_deg)
+    if not cut.any():  # one cluster all around (only with dense, spread normals)
+        groups = [order]
+    else:
+        start = (int(np.argmax(cut)) + 1) % P  # begin right after a gap
+        rolled = np.roll(order, -start)
+        cuts = np.flatnonzero(np.roll(cut, -start)) + 1
+        groups = [g for g in np.split(rolled, cuts) if len(g)]
+    normals, logs, counts = [], [], []
+    for g in groups:
+        if len(g) < min_segments:
+            continue
+        w = samples.weights[g] / max(float(samples.weights[g].sum()), EPS)
+        n = w @ samples.normals_in_cam[g]
+        normals.append(n / max(float(np.linalg.norm(n)), EPS))
+        logs.append(float(w @ samples.log_luminance[g]))
+        counts.append(float(len(g)))
+    if not normals:
+        return FacadeSamples(np.zeros((0, 3)), np.zeros(0), np.zeros(0))
+    return FacadeSamples(np.array(normals), np.array(logs), np.array(counts))
+
+
+def vertical_surface_loglik(walls: FacadeSamples, grid_in_cam: np.ndarray, up_in_cam: np.ndarray,
+                            albedo_sigma: float = 0.7) -> tuple[np.ndarray, float]:
+    """Log-likelihood (N,) of candidate suns from the brightness of walls of different orientations, and the fit's
+    R^2 in [0, 1]. ``walls``: one sample per wall direction (:func:`facade_clusters`), each an independent unit.
+
+    Model per candidate s (horizontal unit part s_h): ``log L_c = a + b max(0, n_c . s_h) + e_c`` with e_c ~ N(0,
+    albedo_sigma^2) the walls' unknown albedos (ln units; 0.7 ~ a factor 2 between typical building materials), a
+    and b profiled out by least squares with the physical sign ``b >= 0`` (a candidate that needs b < 0, walls facing
+    it darker, gets the constant fit). ``loglik = -0.5 (cost - min cost) / albedo_sigma^2`` with cost the residual
+    sum of squares: two walls whose luminances differ by d give up to d^2 / (4 albedo_sigma^2) nats. Walls that all
+    face the same way carry no side information (the regressor is constant): 0 everywhere and R^2 = 0.
     """
     grid_h = _horizontal_units(grid_in_cam, np.asarray(up_in_cam, dtype=np.float64))
     N = len(grid_h)
-    P = len(samples.log_luminance)
-    if P < 2:
+    C = len(walls.log_luminance)
+    if C < 2 or albedo_sigma <= 0:
         return np.zeros(N), 0.0
-    w = np.asarray(samples.weights, dtype=np.float64)
-    w = w / max(float(w.sum()), EPS)
-    y = samples.log_luminance - float(w @ samples.log_luminance)
-    var0 = float(w @ (y * y))
-    if var0 < 1e-9:
+    y = walls.log_luminance - float(np.mean(walls.log_luminance))
+    ss0 = float(y @ y)
+    if ss0 < 1e-9:
         return np.zeros(N), 0.0
-    f = np.maximum(grid_h @ samples.normals_in_cam.T, 0.0)  # (N, P)
-    fc = f - (f @ w)[:, None]
-    ff = fc * fc @ w
-    fy = fc @ (w * y)
+    f = np.maximum(grid_h @ walls.normals_in_cam.T, 0.0)  # (N, C)
+    fc = f - f.mean(axis=1, keepdims=True)
+    ff = np.sum(fc * fc, axis=1)
+    fy = fc @ y
     b = np.where(ff > 1e-9, fy / np.maximum(ff, 1e-9), 0.0)  # eps: a constant regressor has no slope
     b = np.maximum(b, 0.0)
-    cost = np.maximum(var0 - b * b * ff, 0.0)
-    n_eff = min(float(effective_samples), float(P))
-    r2 = float(np.clip(1.0 - cost.min() / var0, 0.0, 1.0))
-    return -0.5 * n_eff * (cost - cost.min()) / var0, r2
+    cost = np.maximum(ss0 - b * b * ff, 0.0)
+    r2 = float(np.clip(1.0 - cost.min() / ss0, 0.0, 1.0))
+    return -0.5 * (cost - cost.min()) / albedo_sigma ** 2, r2
 
 
 def occluder_bases(segments: LineSegments, intrinsics: Intrinsics, up_in_cam: np.ndarray,
@@ -439,7 +479,7 @@ def _orientation_spread(samples: FacadeSamples) -> float:
 
 def sun_side_cue(image_rgb_uint8: np.ndarray, intrinsics: Intrinsics, up_in_cam: np.ndarray,
                  grid_in_cam: np.ndarray, sky_mask: np.ndarray | None = None, camera_height_m: float = 1.65,
-                 analysis_width: int = 800, facade_effective_samples: float = 8.0,
+                 analysis_width: int = 800, facade_albedo_sigma: float = 0.7,
                  shadow_end_kappa: float = 20.0) -> SunSideCue:
     """Both side cues on one frame (resampled to at most ``analysis_width`` pixels wide so that pixel tolerances mean
     the same at any input size). ``sky_mask`` (H, W) bool at the input size, excluded from facade samples."""
@@ -465,9 +505,9 @@ def sun_side_cue(image_rgb_uint8: np.ndarray, intrinsics: Intrinsics, up_in_cam:
     if sky_mask is None:
         sky_mask = default_sky_mask(img, K, up)
     lin = srgb_to_linear(img.astype(np.float32) / 255.0)
-    fs = facade_samples(lin, K, up, segs, exclude_mask=sky_mask)
+    fs = facade_clusters(facade_samples(lin, K, up, segs, exclude_mask=sky_mask), up)
     spread = _orientation_spread(fs)
-    ll_f, r2 = vertical_surface_loglik(fs, grid_in_cam, up, facade_effective_samples)
+    ll_f, r2 = vertical_surface_loglik(fs, grid_in_cam, up, facade_albedo_sigma)
     bases, dirs = occluder_bases(segs, K, up, camera_height_m=camera_height_m)
     dark = ground_darkness(img)
     scores, alphas = shadow_end_scores(dark, bases, dirs, K, up, camera_height_m)
