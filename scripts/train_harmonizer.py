@@ -26,6 +26,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out-network", default="checkpoints/harmonizer_small.pt")
     ap.add_argument("--out-fast", default="checkpoints/harmonizer_fast.pt")
     ap.add_argument("--init-network", default=None, help="continue training from this network checkpoint")
+    ap.add_argument("--init-global", default=None,
+                    help="fast-harmonizer checkpoint that starts the network's global stage (network.global_stage)")
     ap.add_argument("--time-limit-s", type=float, default=None, help="override the config's network time limit")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
@@ -44,7 +46,8 @@ def main(argv=None) -> int:
     if args.which in ("fast", "both"):
         results["fast"] = train_fast(cfg, args.out_fast, pool, meta)
     if args.which in ("network", "both"):
-        results["network"] = train_network(cfg, args.out_network, pool, meta, init_from=args.init_network)
+        results["network"] = train_network(cfg, args.out_network, pool, meta, init_from=args.init_network,
+                                           init_global_from=args.init_global)
     for k, r in results.items():
         print(json.dumps({"which": k, "steps": r["steps"], "train_time_s": r["train_time_s"],
                           "holdout_raw_fmse": round(r["holdout_raw_fmse"], 2),

@@ -50,6 +50,12 @@ class NetworkConfig:
     levels: int = 2  # stride-2 steps before the dilated convs (DeepFill v1: 2)
     output_mode: str = "affine"  # "affine": per-pixel 3x4 colour transform; "residual": tanh RGB residual
     global_context: bool = True  # mix mask-pooled foreground/background features into the bottleneck
+    # Stage 0 (optional): one affine colour transform for the whole object, predicted from a thumbnail (the fast
+    # harmonizer's model, ``fast.FastColorNet``), applied before the coarse stage. It can start from a trained fast
+    # checkpoint, so the dilated-conv stages learn only what a global transform cannot fix.
+    global_stage: bool = False
+    global_thumbnail_px: int = 64
+    global_channels: int = 16
 
     def __post_init__(self):
         if self.output_mode not in ("affine", "residual"):
@@ -144,6 +150,11 @@ class Generator(nn.Module):
         args = (cfg.base_channels, cfg.dilations, cfg.levels, out, cfg.global_context)
         self.coarse = StageNet(7, *args)
         self.refine = StageNet(10, *args)
+        self.global_stage = None
+        if cfg.global_stage:
+            from .fast import FastColorNet, FastConfig  # fast.py imports this module at load time
+
+            self.global_stage = FastColorNet(FastConfig(cfg.global_thumbnail_px, cfg.global_channels))
 
     def _apply(self, image: torch.Tensor, maps: torch.Tensor) -> torch.Tensor:
         if self.cfg.output_mode == "affine":
@@ -151,14 +162,22 @@ class Generator(nn.Module):
         return (image + torch.tanh(maps)).clamp(0, 1)
 
     def forward(self, composite: torch.Tensor, mask: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Returns ``coarse`` and ``output`` (refined), both composited: background pixels equal the input's."""
+        """Returns ``coarse`` and ``output`` (refined), and ``global`` with a global stage; all composited:
+        background pixels equal the input's."""
         k = 2**self.cfg.levels
         if composite.shape[-1] % k or composite.shape[-2] % k:
             raise ValueError(f"Generator: H and W must be multiples of {k}, got {tuple(composite.shape[-2:])}")
+        out = {}
+        if self.global_stage is not None:
+            from .fast import apply_affine, thumbnail
+
+            thumb, tmask = thumbnail(composite, mask, self.cfg.global_thumbnail_px)
+            composite = mask * apply_affine(composite, self.global_stage(thumb, tmask)) + (1 - mask) * composite
+            out["global"] = composite
         x = network_inputs(composite, mask)
         coarse = mask * self._apply(composite, self.coarse(x, mask, composite)) + (1 - mask) * composite
         refined = self._apply(coarse, self.refine(torch.cat([x, coarse], dim=1), mask, coarse))
-        return {"coarse": coarse, "output": mask * refined + (1 - mask) * composite}
+        return {**out, "coarse": coarse, "output": mask * refined + (1 - mask) * composite}
 
 
 class Critic(nn.Module):

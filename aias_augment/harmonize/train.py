@@ -238,6 +238,8 @@ def train_step(gen: Generator, critic: Critic, opt_g, opt_d, comp, target, mask,
     l1_r = recon_loss(out["output"], target, mask, cfg.recon_loss)
     adv = -critic(out["output"], mask).mean()
     loss_g = cfg.l1_coarse_weight * l1_c + cfg.l1_refine_weight * l1_r + cfg.gan_weight * adv
+    if "global" in out:  # deep supervision of the global stage, weighted as the coarse stage
+        loss_g = loss_g + cfg.l1_coarse_weight * recon_loss(out["global"], target, mask, cfg.recon_loss)
     loss_g.backward()
     torch.nn.utils.clip_grad_norm_(gen.parameters(), cfg.grad_clip_norm)
     opt_g.step()
@@ -251,12 +253,14 @@ def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
 
 
 def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None,
-                  meta: dict | None = None, init_from: str | Path | None = None) -> dict:
+                  meta: dict | None = None, init_from: str | Path | None = None,
+                  init_global_from: str | Path | None = None) -> dict:
     """Train the generator + critic; returns a summary. ``out_path`` holds the generator that scored best on the
     holdout so far (rewritten at each improvement, so a stopped run keeps its best model).
 
     ``init_from``: continue from a saved generator (same network config); its steps and training time are carried
-    into the summary (the critic and optimiser states start afresh).
+    into the summary (the critic and optimiser states start afresh). ``init_global_from``: a fast-harmonizer
+    checkpoint whose weights start the generator's global stage (``network.global_stage``).
     """
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
@@ -273,6 +277,13 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
             raise ValueError(f"{init_from}: network config differs from the training config")
         gen.load_state_dict(ckpt["state_dict"])
         prior = {k: ckpt["meta"].get(k, prior[k]) for k in prior}
+    if init_global_from is not None:
+        if gen.global_stage is None:
+            raise ValueError("init_global_from needs network.global_stage: true")
+        fast = load_checkpoint_dict(init_global_from, "fast")
+        if from_dict(FastConfig, fast["config"]) != gen.global_stage.cfg:
+            raise ValueError(f"{init_global_from}: fast config {fast['config']} differs from the global stage's")
+        gen.global_stage.load_state_dict(fast["state_dict"])
     opt_g, opt_d = make_optimizers(gen, critic, cfg)
     history, t0, step = list(prior["history"]), time.perf_counter(), 0
 

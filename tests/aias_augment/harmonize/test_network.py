@@ -83,3 +83,32 @@ def test_checkpoint_round_trip_and_full_image_inference(tmp_path):
     out = run_network(loaded, image, mask)
     np.testing.assert_array_equal(out[~mask], image[~mask])
     assert np.abs(out[mask] - image[mask]).max() > 0
+
+
+def test_global_stage_is_the_fast_harmonizer_it_was_started_from(tmp_path):
+    """A generator whose global stage is initialised from a fast checkpoint reproduces that model's output there."""
+    from aias_augment.harmonize.fast import FastColorNet, FastConfig, save_fast_checkpoint
+    from aias_augment.harmonize.network import Generator, NetworkConfig
+    from aias_augment.harmonize.train import fast_predict
+
+    torch.manual_seed(0)
+    fast = FastColorNet(FastConfig(thumbnail_px=16, channels=4))
+    torch.nn.init.normal_(fast.mlp[-1].weight, std=0.1)  # not the identity
+    save_fast_checkpoint(tmp_path / "fast.pt", fast, {})
+    cfg = NetworkConfig(resolution_px=32, base_channels=4, levels=2, dilations=(2,), critic_channels=4,
+                        global_stage=True, global_thumbnail_px=16, global_channels=4)
+    gen = Generator(cfg)
+    from aias_augment.harmonize.network import load_checkpoint_dict
+
+    gen.global_stage.load_state_dict(load_checkpoint_dict(tmp_path / "fast.pt", "fast")["state_dict"])
+    comp = torch.rand(2, 3, 32, 32)
+    mask = torch.zeros(2, 1, 32, 32)
+    mask[:, :, 8:24, 10:20] = 1
+    with torch.no_grad():
+        out = gen(comp, mask)
+        expected = fast_predict(fast, comp, mask)
+    assert torch.allclose(out["global"], expected, atol=1e-6)
+    assert not torch.allclose(out["global"], comp)
+    # The later stages start at the identity: the untrained generator's output is the global stage's.
+    assert torch.allclose(out["output"], expected, atol=1e-6)
+    assert torch.equal(out["output"][(mask == 0).expand_as(comp)], comp[(mask == 0).expand_as(comp)])
