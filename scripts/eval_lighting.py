@@ -9,10 +9,9 @@ Three measurements per map:
 3. Image cues: perspective crops with a known camera (pinhole, level roll, yaw all around the sun, pitch and field of
    view drawn per seed), exposed like a camera (median metering, clip, sRGB, 8 bit), run through
    ``sun.sun_cue_from_image``; azimuth error against the map's sun; single frames and all crops of a map fused in world
-   coordinates (``sun.fuse_sun_cues``). Each crop is scored twice: the sky cue alone (as before) and the sky cue
-   combined with the side cues of ``sun_side`` (vertical surfaces, shadow ends) the way ``estimate_lighting`` combines
-   them (sky log-likelihood x ``LightingConfig.sky_out_of_view_weight`` when no sun disc is seen, plus the side
-   log-likelihoods). Crops are made of the maps whose brightest light is a compact source above the
+   coordinates (``sun.fuse_sun_cues``). Each crop is scored twice: the sky cue alone (as before) and the production
+   estimator ``estimate.estimate_sun_direction`` (what ``estimate_lighting`` uses: tempered sky, cast-shadow axis,
+   walls and shadow ends of ``sun_side``), the clip with ``estimate_sun_direction_clip``. Crops are made of the maps whose brightest light is a compact source above the
    horizon (< 0.05 sr, elevation > 0) and that are not named with ``--sunless`` (indoor lamps, street lights at night:
    sky cues do not apply there).
 
@@ -31,8 +30,9 @@ from scipy import ndimage
 
 from aias_augment.geometry import Intrinsics
 from aias_augment.lighting import envmap as em
-from aias_augment.lighting import hdr, sh, sun, sun_side
-from aias_augment.lighting.estimate import LightingConfig, lighting_from_envmap
+from aias_augment.lighting import hdr, sh, sun
+from aias_augment.lighting.estimate import (LightingConfig, estimate_sun_direction, estimate_sun_direction_clip,
+                                            lighting_from_envmap)
 
 
 def find_maps(paths: list[str]) -> list[Path]:
@@ -98,7 +98,7 @@ def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: i
     rows, fused = [], []
     for seed in seeds:
         rng = np.random.default_rng(seed)
-        cues, combined = [], []
+        cues, images, Ks, Rs = [], [], [], []
         for k in range(n_views):
             offset = 360.0 * k / n_views + rng.uniform(-10, 10)
             pitch = rng.uniform(0.0, 15.0)
@@ -111,39 +111,44 @@ def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: i
             cue = sun.sun_cue_from_image(img, K, R, up, grid, rng=rng, **kw)
             dt = time.perf_counter() - t
             t = time.perf_counter()
-            # Camera height is unknown in a panorama; it only scales ground distances (the default 1.65 m is used).
-            side = sun_side.sun_side_cue(img, K, R @ up, grid @ R.T, camera_height_m=config.camera_height_m,
-                                         analysis_width=config.side_analysis_width,
-                                         facade_albedo_sigma=config.facade_albedo_sigma,
-                                         shadow_end_kappa=config.shadow_end_kappa)
+            # The production path: every cue estimate_lighting uses (sky tempered out of view, cast-shadow axis of the
+            # ground box, walls and shadow ends where the ground shows cast shadows or the sun is seen). A panorama's
+            # camera height is unknown; it only scales ground distances (the default 1.65 m is used).
+            est = estimate_sun_direction(img, K, R, {"up_in_world": up}, rng=rng, config=config)
             dt_side = time.perf_counter() - t
-            w_sky = 1.0 if cue.sun_visible else config.sky_out_of_view_weight
-            ll = w_sky * cue.log_likelihood + side.log_likelihood
-            d_comb, conc = sun._posterior_summary(grid, ll, up)
+            side = est.side_cues[0]
+            images.append(img)
+            Ks.append(K)
+            Rs.append(R)
             cues.append(cue)
-            combined.append(ll)
             sun_in_cam = R @ sun_dir
             uv = (K.fx * sun_in_cam[0] / max(sun_in_cam[2], 1e-9) + K.cx, K.fy * sun_in_cam[1] / max(sun_in_cam[2], 1e-9) + K.cy)
             in_view = bool(sun_in_cam[2] > 0 and 0 <= uv[0] < width and 0 <= uv[1] < height)
             # Does the crop carry a side cue? Walls in >= 2 orientations, or a shadow end with some evidence.
-            has_facade = bool(side.n_facade_samples >= 2 and side.facade_r2 > 0.0)
-            has_shadow_end = bool(side.shadow_end_confidence >= 0.05)
+            has_facade = bool(side is not None and side.n_facade_samples >= 2 and side.facade_r2 > 0.0)
+            has_shadow_end = bool(side is not None and side.shadow_end_confidence >= 0.05)
+
+            def only(ll):
+                return azimuth_error_deg(grid[int(np.argmax(ll))], sun_dir) if np.ptp(ll) > 0 else None
+
             rows.append({"seed": seed, "yaw_offset_deg": round(offset, 2), "pitch_deg": round(pitch, 2),
                          "hfov_deg": round(hfov, 2), "sun_in_view": in_view, "sun_visible_detected": cue.sun_visible,
                          "azimuth_error_deg": azimuth_error_deg(cue.direction_in_world, sun_dir),
                          "confidence": cue.confidence, "seconds": dt,
-                         "with_side_azimuth_error_deg": azimuth_error_deg(d_comb, sun_dir),
-                         "with_side_concentration": conc, "side_seconds": dt_side,
-                         "facade_only_azimuth_error_deg": azimuth_error_deg(grid[int(np.argmax(side.facade_loglik))], sun_dir)
-                         if np.ptp(side.facade_loglik) > 0 else None,
-                         "shadow_end_only_azimuth_error_deg": azimuth_error_deg(
-                             grid[int(np.argmax(side.shadow_end_loglik))], sun_dir) if np.ptp(side.shadow_end_loglik) > 0 else None,
-                         "facade_samples": side.n_facade_samples, "facade_r2": side.facade_r2,
-                         "facade_orientation_spread": side.facade_orientation_spread, "bases": side.n_bases,
-                         "shadow_end_confidence": side.shadow_end_confidence, "has_facade_cue": has_facade,
-                         "has_shadow_end_cue": has_shadow_end})
+                         "with_side_azimuth_error_deg": azimuth_error_deg(est.direction_in_world, sun_dir),
+                         "with_side_confidence": est.confidence, "side_seconds": dt_side,
+                         "axis_strength": est.axis_strength, "side_margin_nats": est.side_margin_nats,
+                         "direct_sun_evidence": side is not None,
+                         "facade_only_azimuth_error_deg": None if side is None else only(side.facade_loglik),
+                         "shadow_end_only_azimuth_error_deg": None if side is None else only(side.shadow_end_loglik),
+                         "facade_samples": 0 if side is None else side.n_facade_samples,
+                         "facade_r2": 0.0 if side is None else side.facade_r2,
+                         "bases": 0 if side is None else side.n_bases,
+                         "shadow_end_confidence": 0.0 if side is None else side.shadow_end_confidence,
+                         "has_facade_cue": has_facade, "has_shadow_end_cue": has_shadow_end})
         f = sun.fuse_sun_cues(cues)
-        d_fc, _ = sun._posterior_summary(grid, np.sum(combined, axis=0), up)
+        clip = estimate_sun_direction_clip(images, Ks, Rs, {"up_in_world": up}, rng=rng, config=config)
+        d_fc = clip.direction_in_world
         fused.append({"seed": seed, "azimuth_error_deg": azimuth_error_deg(f.direction_in_world, sun_dir),
                       "elevation_est_deg": float(np.rad2deg(em.direction_to_azimuth_elevation(f.direction_in_world)[1])),
                       "elevation_true_deg": float(np.rad2deg(sun_el)), "confidence": f.confidence,
@@ -160,7 +165,11 @@ def side_summary(crops: list[dict], fused: list[float]) -> dict:
         "all": summarize([c[e] for c in crops]),
         "sun_in_view": summarize([c[e] for c in crops if c["sun_in_view"]]),
         "sun_out_of_view": summarize([c[e] for c in crops if not c["sun_in_view"]]),
-        "concentration_ge_0.5": summarize([c[e] for c in crops if c["with_side_concentration"] >= 0.5]),
+        "confidence_ge_0.5": summarize([c[e] for c in crops if c["with_side_confidence"] >= 0.5]),
+        "coverage_confidence_ge_0.5": {"n": sum(c["with_side_confidence"] >= 0.5 for c in crops),
+                                       "fraction": float(np.mean([c["with_side_confidence"] >= 0.5 for c in crops]))
+                                       if crops else 0.0},
+        "crops_with_direct_sun_evidence": summarize([c[e] for c in crops if c["direct_sun_evidence"]]),
         "fused_clip": summarize(fused),
         "crops_with_facade_cue": summarize([c[e] for c in fac]),
         "crops_with_shadow_end_cue": summarize([c[e] for c in end]),
@@ -326,7 +335,7 @@ def write_markdown(report: dict, path: Path) -> None:
               f"- all crops of a map fused in world coordinates: {fmt(h['image_cue_azimuth_fused_clips'])}", "",
               "Sky cue + side cues (vertical surfaces, shadow ends; combined as in `estimate_lighting`):", ""]
     ws = h["with_side_cues"]
-    lines += [f"- {k.replace('_', ' ')}: {fmt(v)}" for k, v in ws.items() if isinstance(v, dict)]
+    lines += [f"- {k.replace('_', ' ')}: {fmt(v)}" for k, v in ws.items() if isinstance(v, dict) and "median_deg" in v or (isinstance(v, dict) and v.get("n") == 0)]
     lines += ["", "| map | with side cues: all / in view / out of view / fused | crops with facade cue | with shadow-end cue |",
               "|---|---|---|---|"]
     for name, m in report["maps"].items():
