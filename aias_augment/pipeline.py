@@ -173,8 +173,8 @@ def _scene_lighting(image, intr: Intrinsics, ground: GroundPlane, rng, cfg: Inse
     return est
 
 
-def _object_shadow(asset: Asset, cam_from_object: np.ndarray, intr: Intrinsics, lighting: LightingEstimate,
-                   scene_depth: np.ndarray | None) -> np.ndarray:
+def object_shadow_ratio(asset: Asset, cam_from_object: np.ndarray, intr: Intrinsics, lighting: LightingEstimate,
+                        scene_depth: np.ndarray | None) -> np.ndarray:
     """Multiplicative shadow ratio (H, W) of one object on the ground: sun visibility from the shadow catcher,
     strength from the sun/sky ratio, penumbra growing with the distance to the occluder, contact occlusion.
     Computed inside the window the catcher rendered (1 elsewhere)."""
@@ -212,6 +212,9 @@ def _object_shadow(asset: Asset, cam_from_object: np.ndarray, intr: Intrinsics, 
     unoccluded = comp.visible_fraction_against_depth(gdepth, sd)
     out[y0:y1, x0:x1] = 1.0 - (1.0 - ratio) * unoccluded
     return out
+
+
+_object_shadow = object_shadow_ratio  # the name scripts/eval_lighting_kitti.py uses
 
 
 def _naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tuple[np.ndarray, float]:
@@ -344,7 +347,7 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
     if cfg.shadow and layers:
         ratio = np.ones((h, w), np.float32)
         for placement, asset, rl, _, cam_from_object in layers:
-            ratio = np.minimum(ratio, _object_shadow(asset, cam_from_object, intr, lighting, depth))
+            ratio = np.minimum(ratio, object_shadow_ratio(asset, cam_from_object, intr, lighting, depth))
         bg = comp.apply_shadow(bg, ratio)  # overlapping shadows of one sun do not darken twice: min, not product
         mods["shadow"] = ("shadow catcher (ground patch with/without the object), soft penumbra, contact occlusion"
                           if lighting.dominant_sun else "contact occlusion only: no dominant sun")

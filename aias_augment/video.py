@@ -8,8 +8,9 @@ given, the ground is re-fitted locally around the projected contact (:func:`aias
 refit_local_ground`); the median of those per-frame height offsets corrects the ONE world pose (per-frame poses
 would jitter). Each frame is rendered with that world pose, shaded with the frame's estimate of ONE clip
 lighting (same sun in the world, e.g. ``estimate_lighting_clip``; default a uniform ambient), composited against
-the frame's depth, and annotated (COCO xywh of the visible part). No cast shadow yet (the image pipeline's shadow
-catcher is per image); no KLT drift correction (poses are trusted).
+the frame's depth, and annotated (COCO xywh of the visible part). The object casts its shadow in every frame with the image pipeline's
+shadow catcher (:func:`aias_augment.pipeline.object_shadow_ratio`): the ONE world pose and the ONE clip sun make it
+a fixed patch of the world ground. No KLT drift correction (poses are trusted).
 
 Poses: ``cams_from_world`` (N, 4, 4) OpenCV ``cam_from_world`` (KITTI poses inverted, DGP world poses, or
 :func:`aias_augment.scenes.video.estimate_video_motion`).
@@ -42,6 +43,7 @@ class VideoInsertionConfig:
     height_m: float | None = None       # object height; None: the asset's own
     local_refit: bool = True            # per-frame local ground refit (needs depths)
     ssaa: int = 1
+    shadow: bool = True                 # cast shadow from the frame's sun (contact occlusion only without one)
     placement_cfg: PlacementConfig = PlacementConfig()
 
     def __post_init__(self):
@@ -179,6 +181,12 @@ def insert_into_clip(frames, intrinsics: Intrinsics, cams_from_world, rng: np.ra
         lights = list(lighting)
         mods["lighting"] = f"given per frame ({lights[start].source})"
 
+    if cfg.shadow:
+        from .pipeline import object_shadow_ratio  # lazy: the pipeline module imports the whole image path
+        mods["shadow"] = ("shadow catcher per frame (one world pose, one sun)" if lights[start].dominant_sun
+                          else "contact occlusion only: no dominant sun")
+    else:
+        mods["shadow"] = "skipped: disabled"
     out_frames, boxes, amodal = [], [], []
     for i in range(n):
         cam_from_object = poses[i] @ world_from_object
@@ -198,7 +206,10 @@ def insert_into_clip(frames, intrinsics: Intrinsics, cams_from_world, rng: np.ra
         shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lights[i])
         depth_i = None if depths is None else depths[i]
         vis = rl.alpha * comp.visible_fraction_against_depth(rl.depth, depth_i)
-        out_frames.append(comp.to_uint8(comp.alpha_over(comp.to_linear(img), shaded, vis)))
+        bg = comp.to_linear(img)
+        if cfg.shadow:
+            bg = comp.apply_shadow(bg, object_shadow_ratio(obj, cam_from_object, intrinsics, lights[i], depth_i))
+        out_frames.append(comp.to_uint8(comp.alpha_over(bg, shaded, vis)))
         ann = annotate_object(obj.category, rl.alpha, vis)
         boxes.append(ann.visible_box_xywh)
         amodal.append(ann.amodal_box_xywh)

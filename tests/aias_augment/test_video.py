@@ -69,3 +69,57 @@ def test_bad_clip_inputs_raise():
                          ground_in_cam0=prior_ground_plane(1.6))
     with pytest.raises(ValueError, match="contact"):
         VideoInsertionConfig(contact="random")
+
+
+def test_clip_shadow_is_fixed_in_the_world_and_points_away_from_the_sun(kitti_clip):
+    """One world pose + one world sun: the cast shadow is the same ground patch in every frame, on the side of the
+    object opposite the sun (derived by unprojecting the darkened pixels onto each frame's ground)."""
+    from aias_augment.geometry import invert_rigid
+    from aias_augment.lighting.estimate import LightingEstimate
+
+    seq, frames, poses = kitti_clip
+    n = 10
+    frames, poses, K = frames[:n], poses[:n], seq.intrinsics
+    up_w = np.linalg.inv(poses[0])[:3, :3] @ np.array([0.0, -1.0, 0.0])
+    right_w = np.linalg.inv(poses[0])[:3, :3] @ np.array([1.0, 0.0, 0.0])
+    elev = np.radians(40.0)
+    sun_w = -np.cos(elev) * right_w + np.sin(elev) * up_w  # sun to the left: the shadow falls to the right
+    sh = np.zeros((9, 3))
+    sh[0] = 0.3
+    lights = [LightingEstimate(poses[i, :3, :3] @ sun_w, np.full(3, 3.0), sh, 4.0, True, 1.0, "test",
+                               poses[i, :3, :3] @ up_w) for i in range(n)]
+    ground0 = prior_ground_plane(1.65)
+    cfg = VideoInsertionConfig(lookahead_frames=n - 1, lateral_offset_m=2.5, height_m=1.0)
+    run = lambda shadow: insert_into_clip(  # noqa: E731
+        frames, K, poses, np.random.default_rng(0), VideoInsertionConfig(**{**cfg.__dict__, "shadow": shadow}),
+        asset=box_asset(), ground_in_cam0=ground0, lighting=lights, yaw_rad=0.0)
+    with_shadow, without = run(True), run(False)
+    assert with_shadow.modules["shadow"].startswith("shadow catcher")
+    c_w = with_shadow.contact_in_world
+    centroids = []
+    for i in range(n):
+        dark = (without.frames[i].astype(int) - with_shadow.frames[i].astype(int)).max(axis=2) > 3
+        if dark.sum() < 20 or dark[:, [0, -1]].any() or dark[[0, -1], :].any():
+            continue  # too small, or cut by the image border (its visible centroid is then not the patch's)
+        vv, uu = np.nonzero(dark)
+        # Ground of frame i: the world ground (the prior plane under the lookahead camera, where the object stands)
+        # seen from camera i.
+        world_ground = ground0.transformed(invert_rigid(poses[n - 1]))
+        g_i = world_ground.transformed(poses[i])
+        pts = g_i.intersect_pixels(np.stack([uu, vv], -1).astype(float), K)
+        ok = np.all(np.isfinite(pts), axis=1)
+        centroids.append(transform_world(invert_rigid(poses[i]), pts[ok]).mean(axis=0))
+    assert len(centroids) >= 4
+    centroids = np.array(centroids)
+    spread = np.linalg.norm(centroids - np.median(centroids, axis=0), axis=1)
+    assert spread.max() < 0.3, spread  # the same world patch from every viewpoint
+    offset = np.median(centroids, axis=0) - c_w
+    offset -= (offset @ up_w) * up_w
+    sun_h = sun_w - (sun_w @ up_w) * up_w
+    cosang = float(offset @ -sun_h / (np.linalg.norm(offset) * np.linalg.norm(sun_h)))
+    assert cosang > np.cos(np.radians(20)), np.degrees(np.arccos(np.clip(cosang, -1, 1)))
+    assert 0.2 < np.linalg.norm(offset) < 2.0  # a 1 m box under a 40 deg sun: shadow ~1.2 m long
+
+
+def transform_world(T, pts):
+    return pts @ T[:3, :3].T + T[:3, 3]
