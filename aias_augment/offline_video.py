@@ -61,6 +61,7 @@ class ClipJob:
     lookahead_frames: int | None = None  # the object stands beside where the camera is at this frame; None: the last
     lateral_offset_m: float = 2.5
     lighting: str = "clip"         # "clip": one sun fused over the clip; "ambient": grey-world ambient only
+    flow_refine: bool = False      # KLT stabilisation of the contact (for drifting poses)
     fps: float = 10.0
 
     def __post_init__(self):
@@ -196,7 +197,7 @@ def augment_clip(job: ClipJob) -> dict:
             lighting_note = f"skipped: {e}"
     last = len(frames) - 1
     cfg = VideoInsertionConfig(lookahead_frames=last if job.lookahead_frames is None else min(job.lookahead_frames, last),
-                               lateral_offset_m=job.lateral_offset_m)
+                               lateral_offset_m=job.lateral_offset_m, flow_refine=job.flow_refine)
     res = insert_into_clip(frames, intr, poses, rng, cfg, asset=asset,
                            ground_in_cam0=prior_ground_plane(job.camera_height_m), lighting=lighting)
 

@@ -10,7 +10,9 @@ would jitter). Each frame is rendered with that world pose, shaded with the fram
 lighting (same sun in the world, e.g. ``estimate_lighting_clip``; default a uniform ambient), composited against
 the frame's depth, and annotated (COCO xywh of the visible part). The object casts its shadow in every frame with the image pipeline's
 shadow catcher (:func:`aias_augment.pipeline.object_shadow_ratio`): the ONE world pose and the ONE clip sun make it
-a fixed patch of the world ground. No KLT drift correction (poses are trusted).
+a fixed patch of the world ground. With ``flow_refine`` the ground patch under the contact is tracked with KLT
+(:mod:`aias_augment.stabilize`) and each frame's object pose slides on its ground so the contact stays on the
+tracked pixel: drifting poses (visual odometry) no longer make the object skate.
 
 Poses: ``cams_from_world`` (N, 4, 4) OpenCV ``cam_from_world`` (KITTI poses inverted, DGP world poses, or
 :func:`aias_augment.scenes.video.estimate_video_motion`).
@@ -31,6 +33,7 @@ from .lighting.shading import shade_object
 from .placement import PlacementConfig, box_of_points, ground_band_points, object_pose_on_ground, \
     refit_local_ground
 from .render import render_object
+from .stabilize import FlowRefineConfig, refined_cam_from_object, track_contact_with_flow
 
 __all__ = ["VideoInsertionConfig", "ClipInsertion", "choose_world_contact", "insert_into_clip"]
 
@@ -44,6 +47,8 @@ class VideoInsertionConfig:
     local_refit: bool = True            # per-frame local ground refit (needs depths)
     ssaa: int = 1
     shadow: bool = True                 # cast shadow from the frame's sun (contact occlusion only without one)
+    flow_refine: bool = False           # KLT-track the ground under the contact and slide the object per frame
+    flow_cfg: FlowRefineConfig = FlowRefineConfig()
     placement_cfg: PlacementConfig = PlacementConfig()
 
     def __post_init__(self):
@@ -187,9 +192,21 @@ def insert_into_clip(frames, intrinsics: Intrinsics, cams_from_world, rng: np.ra
                           else "contact occlusion only: no dominant sun")
     else:
         mods["shadow"] = "skipped: disabled"
+    grounds = [world_ground.transformed(T) for T in poses]
+    flow = None
+    if cfg.flow_refine:
+        flow = track_contact_with_flow(frames, track_uv, grounds, intrinsics, rng.spawn(1)[0], poses, start,
+                                       cfg.flow_cfg)
+        used = sum(st == "flow" for st in flow.status)
+        mods["stabilize"] = f"KLT ground tracking: contact corrected in {used}/{n - 1} frames"
+    else:
+        mods["stabilize"] = "skipped: poses trusted (flow_refine off)"
     out_frames, boxes, amodal = [], [], []
     for i in range(n):
         cam_from_object = poses[i] @ world_from_object
+        if flow is not None and flow.status[i] == "flow":
+            cam_from_object = refined_cam_from_object(cam_from_object, transform_points(poses[i], contact_w),
+                                                      flow.uv[i], grounds[i], intrinsics)
         uvc, z = project_points(transform_points(cam_from_object, obj.corners_m()), intrinsics.K)
         img = np.asarray(frames[i])
         if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
@@ -213,4 +230,6 @@ def insert_into_clip(frames, intrinsics: Intrinsics, cams_from_world, rng: np.ra
         ann = annotate_object(obj.category, rl.alpha, vis)
         boxes.append(ann.visible_box_xywh)
         amodal.append(ann.amodal_box_xywh)
+    if flow is not None:  # the contact track the frames were rendered with
+        track_uv = np.where(np.array([st == "flow" for st in flow.status])[:, None], flow.uv, track_uv)
     return ClipInsertion(out_frames, boxes, amodal, contact_w, world_from_object, track_uv, visible, offsets, mods)

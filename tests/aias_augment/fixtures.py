@@ -9,3 +9,33 @@ def box_asset(extents=(0.4, 0.6, 1.0), category="box", color=(200, 60, 20)) -> A
     m = trimesh.creation.box(extents=extents)
     m.visual.face_colors = np.array([*color, 255], np.uint8)
     return Asset("box", category, normalise_meshes([m]), "tests:box")
+
+
+def synthetic_ground_drive(n: int = 12, height_m: float = 1.5, K=None):
+    """A synthetic drive over a textured ground plane with known poses (world = camera 0, ground y = 1.5 m).
+
+    The texture (seeded grain at two scales, like asphalt) lies on the ground at 20 px per metre; each frame is its
+    exact perspective image (a homography per frame), so the true image track of any ground point is known
+    analytically.
+    """
+    import cv2
+
+    from aias_augment.geometry import Intrinsics, invert_rigid, make_rigid, rotation_about_axis
+
+    K = K or Intrinsics(500.0, 500.0, 320.0, 200.0, 640, 360)
+    rng = np.random.default_rng(0)
+    fine = cv2.GaussianBlur(rng.random((1600, 800)).astype(np.float32), (0, 0), 1.5)
+    coarse = cv2.resize(rng.random((100, 50)).astype(np.float32), (800, 1600), interpolation=cv2.INTER_CUBIC)
+    tex = cv2.normalize(fine + 0.5 * coarse, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)  # asphalt-like grain
+    s, x0, z0 = 20.0, -20.0, 80.0  # texture (u, v) -> ground X = u / s + x0, Z = z0 - v / s
+    gt, frames = [], []
+    for i in range(n):  # 1 m forward per frame, turning 0.4 deg per frame
+        R = rotation_about_axis([0, 1, 0], np.radians(0.4 * i))
+        world_from_cam = make_rigid(R, [0.0, 0.0, 1.0 * i])
+        T = invert_rigid(world_from_cam)
+        A = np.array([[1 / s, 0, x0], [0, 0, height_m], [0, -1 / s, z0]])  # texture (u, v, 1) -> world point
+        H = K.K @ (T[:3, :3] @ A + np.outer(T[:3, 3], [0, 0, 1]))
+        img = cv2.warpPerspective(tex, H, (K.width, K.height), flags=cv2.INTER_LINEAR)
+        frames.append(np.repeat(img[..., None], 3, axis=2))
+        gt.append(T)
+    return K, frames, np.stack(gt)
