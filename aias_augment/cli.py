@@ -37,6 +37,8 @@ def main(argv=None) -> int:
     clip.add_argument("--max-frames", type=int, default=None)
     clip.add_argument("--camera-height", type=float, default=1.65, help="metres above the ground")
     clip.add_argument("--lighting", choices=("clip", "ambient"), default="clip")
+    clip.add_argument("--harmonize", default="fast", choices=("none", "reinhard", "camera", "fast", "network"),
+                      help="clip harmonization ('fast': one colour transform for the whole clip)")
     clip.add_argument("--flow-refine", action="store_true",
                       help="track the ground under the object (KLT) and correct drifting poses per frame")
     a = ap.parse_args(argv)
@@ -49,7 +51,7 @@ def main(argv=None) -> int:
         record = augment_clip(ClipJob(a.input, a.camera, a.poses, a.out, tuple(a.categories), a.seed, a.start,
                                       a.max_frames, a.stride, a.colour,
                                       a.camera_height, lighting=a.lighting,
-                                      flow_refine=a.flow_refine))
+                                      flow_refine=a.flow_refine, harmonize=a.harmonize))
         print({k: record[k] for k in ("category", "asset", "frames", "visible_frames", "wall_s")})
         return 0
     if a.input and not a.images:

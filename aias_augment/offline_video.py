@@ -62,6 +62,7 @@ class ClipJob:
     lateral_offset_m: float = 2.5
     lighting: str = "clip"         # "clip": one sun fused over the clip; "ambient": grey-world ambient only
     flow_refine: bool = False      # KLT stabilisation of the contact (for drifting poses)
+    harmonize: str = "fast"        # harmonize.METHODS; "fast": one colour transform for the clip (median over frames)
     fps: float = 10.0
 
     def __post_init__(self):
@@ -71,6 +72,10 @@ class ClipJob:
             raise ValueError("need stride >= 1, start >= 0 and max_frames >= 1")
         if not self.categories:
             raise ValueError("at least one category")
+        from .harmonize import METHODS
+
+        if self.harmonize not in METHODS:
+            raise ValueError(f"harmonize must be one of {METHODS}, got {self.harmonize!r}")
         if not (np.isfinite(self.camera_height_m) and self.camera_height_m > 0):
             raise ValueError(f"camera_height_m must be positive, got {self.camera_height_m}")
 
@@ -201,6 +206,14 @@ def augment_clip(job: ClipJob) -> dict:
     res = insert_into_clip(frames, intr, poses, rng, cfg, asset=asset,
                            ground_in_cam0=prior_ground_plane(job.camera_height_m), lighting=lighting)
 
+    if job.harmonize != "none":
+        from .harmonize import harmonize_clip
+
+        res.frames = harmonize_clip(res.frames, res.masks, job.harmonize, rng.spawn(1)[0])
+        harmonize_note = (f"{job.harmonize}: one colour transform for the clip (median of the per-frame predictions)"
+                          if job.harmonize == "fast" else f"{job.harmonize}, frame by frame")
+    else:
+        harmonize_note = "skipped: --harmonize none"
     # A grey clip (KITTI image_0/image_l) stays grey: an orange cone in a grey frame would be a give-away.
     grey = all(np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2]) for f in frames)
     if grey:

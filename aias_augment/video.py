@@ -68,6 +68,7 @@ class ClipInsertion:
     contact_track_uv: np.ndarray                 # (N, 2) projection of contact_in_world, NaN behind the camera
     contact_visible: np.ndarray                  # (N,) bool
     refit_offsets_m: list[float | None] = field(default_factory=list)  # per frame: local ground - world contact
+    masks: list[np.ndarray | None] = field(default_factory=list)  # per frame: the object's visible soft alpha
     modules: dict[str, str] = field(default_factory=dict)
 
     def coco_annotations(self, category: str, first_image_id: int = 0) -> list[dict]:
@@ -201,7 +202,7 @@ def insert_into_clip(frames, intrinsics: Intrinsics, cams_from_world, rng: np.ra
         mods["stabilize"] = f"KLT ground tracking: contact corrected in {used}/{n - 1} frames"
     else:
         mods["stabilize"] = "skipped: poses trusted (flow_refine off)"
-    out_frames, boxes, amodal = [], [], []
+    out_frames, boxes, amodal, masks = [], [], [], []
     for i in range(n):
         cam_from_object = poses[i] @ world_from_object
         if flow is not None and flow.status[i] == "flow":
@@ -210,15 +211,15 @@ def insert_into_clip(frames, intrinsics: Intrinsics, cams_from_world, rng: np.ra
         uvc, z = project_points(transform_points(cam_from_object, obj.corners_m()), intrinsics.K)
         img = np.asarray(frames[i])
         if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
-            out_frames.append(img.copy()), boxes.append(None), amodal.append(None)
+            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
             continue
         b = box_of_points(uvc)
         if b[2] < 0 or b[3] < 0 or b[0] > intrinsics.width or b[1] > intrinsics.height:
-            out_frames.append(img.copy()), boxes.append(None), amodal.append(None)
+            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
             continue
         rl = render_object(obj, cam_from_object, intrinsics, ssaa=cfg.ssaa)
         if rl.alpha.max() <= 0.5:
-            out_frames.append(img.copy()), boxes.append(None), amodal.append(None)
+            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
             continue
         shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lights[i])
         depth_i = None if depths is None else depths[i]
@@ -227,9 +228,11 @@ def insert_into_clip(frames, intrinsics: Intrinsics, cams_from_world, rng: np.ra
         if cfg.shadow:
             bg = comp.apply_shadow(bg, object_shadow_ratio(obj, cam_from_object, intrinsics, lights[i], depth_i))
         out_frames.append(comp.to_uint8(comp.alpha_over(bg, shaded, vis)))
+        masks.append(np.clip(vis, 0.0, 1.0).astype(np.float32))
         ann = annotate_object(obj.category, rl.alpha, vis)
         boxes.append(ann.visible_box_xywh)
         amodal.append(ann.amodal_box_xywh)
     if flow is not None:  # the contact track the frames were rendered with
         track_uv = np.where(np.array([st == "flow" for st in flow.status])[:, None], flow.uv, track_uv)
-    return ClipInsertion(out_frames, boxes, amodal, contact_w, world_from_object, track_uv, visible, offsets, mods)
+    return ClipInsertion(out_frames, boxes, amodal, contact_w, world_from_object, track_uv, visible, offsets, masks,
+                         mods)

@@ -26,6 +26,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out-network", default="checkpoints/harmonizer_small.pt")
     ap.add_argument("--out-fast", default="checkpoints/harmonizer_fast.pt")
     ap.add_argument("--init-network", default=None, help="continue training from this network checkpoint")
+    ap.add_argument("--init-fast", default=None, help="continue training the fast model from this checkpoint")
     ap.add_argument("--init-global", default=None,
                     help="fast-harmonizer checkpoint that starts the network's global stage (network.global_stage)")
     ap.add_argument("--time-limit-s", type=float, default=None, help="override the config's network time limit")
@@ -44,7 +45,7 @@ def main(argv=None) -> int:
         print(json.dumps({k: v for k, v in r.items() if k != "table"}))
         return 0
     if args.which in ("fast", "both"):
-        results["fast"] = train_fast(cfg, args.out_fast, pool, meta)
+        results["fast"] = train_fast(cfg, args.out_fast, pool, meta, init_from=args.init_fast)
     if args.which in ("network", "both"):
         results["network"] = train_network(cfg, args.out_network, pool, meta, init_from=args.init_network,
                                            init_global_from=args.init_global)

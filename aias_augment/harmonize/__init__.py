@@ -17,6 +17,6 @@ Modules: ``camera_pipeline`` (WB/exposure, atmosphere, blur, noise, JPEG matchin
 ``fast`` (thumbnail -> affine colour transform), ``network`` (coarse-to-fine DeepFill-v1-style generator + critic,
 mask-weighted WGAN-GP), ``pairs`` (iHarmony4-style training/eval pairs from real images), ``train``, ``metrics``.
 """
-from .api import METHODS, harmonize
+from .api import METHODS, harmonize, harmonize_clip
 
-__all__ = ["harmonize", "METHODS"]
+__all__ = ["harmonize", "harmonize_clip", "METHODS"]

@@ -95,3 +95,34 @@ def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str 
     m = soft[..., None]
     blended = to_uint8(image * (1.0 - m) + result * m)
     return np.where(m > 0, blended, composite_rgb_uint8)
+
+
+def harmonize_clip(frames: list[np.ndarray], fg_masks: list[np.ndarray | None], method: str = "fast",
+                   rng: np.random.Generator | None = None, checkpoint: str | Path | None = None) -> list[np.ndarray]:
+    """Harmonize ONE inserted object through the frames of a clip without flicker.
+
+    ``fg_masks[i]``: the object's soft mask in frame i (None or all-zero: the frame is returned as a copy).
+    "fast": the colour transform is predicted in every frame where the object is visible and their element-wise
+    median is applied to all of them (one camera, one object: one transform; per-frame predictions would flicker).
+    Other methods run frame by frame (``rng`` seeds each frame's stream in order).
+    """
+    if len(frames) != len(fg_masks):
+        raise ValueError(f"harmonize_clip: {len(frames)} frames but {len(fg_masks)} masks")
+    rng = rng if rng is not None else np.random.default_rng(0)
+    softs = [None if m is None else _validate(f, m, method) for f, m in zip(frames, fg_masks)]
+    visible = [i for i, m in enumerate(softs) if m is not None and (m > 0).any()]
+    out = [np.asarray(f).copy() for f in frames]
+    if method != "fast" or not visible:
+        for i in visible:
+            out[i] = harmonize(frames[i], softs[i], method, rng.spawn(1)[0], checkpoint)
+        return out
+    from .fast import apply_affine_np, load_fast, predict_affine
+
+    model = load_fast(_checkpoint(method, checkpoint))
+    affine = np.median(np.stack([predict_affine(model, to_float(frames[i]), softs[i] > 0) for i in visible]), axis=0)
+    for i in visible:
+        image = to_float(frames[i])
+        m = softs[i][..., None]
+        blended = to_uint8(image * (1.0 - m) + apply_affine_np(image, affine) * m)
+        out[i] = np.where(m > 0, blended, frames[i])
+    return out

@@ -17,7 +17,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..config import from_dict
-from .network import CHECKPOINT_FORMAT, load_model, masked_stats, network_inputs, to_tensor
+from .network import CHECKPOINT_FORMAT, POOL_EPS, load_model, masked_stats, network_inputs, to_tensor
 from .regions import components, context_box, mask_box, resize
 
 @dataclass(frozen=True)
@@ -25,6 +25,11 @@ class FastConfig:
     thumbnail_px: int = 64
     channels: int = 16
     context: float = 2.4
+    # Pool the last feature map over the object and over its surroundings separately (mask-weighted means) as
+    # well as over the whole thumbnail: the transform depends on "object vs surroundings", which one global mean
+    # mixes up. False = the first shipped architecture (global mean only).
+    masked_pooling: bool = False
+    hidden: int = 64
 
 
 class FastColorNet(nn.Module):
@@ -36,13 +41,20 @@ class FastColorNet(nn.Module):
             layers += [nn.Conv2d(cin, cout, 3, 2, 1), nn.ReLU()]
             cin = cout
         self.features = nn.Sequential(*layers)
-        self.mlp = nn.Sequential(nn.Linear(cin + 12, 64), nn.ReLU(), nn.Linear(64, 12))
+        pooled = cin * (3 if cfg.masked_pooling else 1)
+        self.mlp = nn.Sequential(nn.Linear(pooled + 12, cfg.hidden), nn.ReLU(), nn.Linear(cfg.hidden, 12))
         nn.init.zeros_(self.mlp[-1].weight)
         nn.init.zeros_(self.mlp[-1].bias)
 
     def forward(self, thumbnail: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         """Thumbnail (B,3,t,t) in [0,1] and binary mask (B,1,t,t) -> affine (B,3,4) = [I + dM | b]."""
-        f = self.features(network_inputs(thumbnail, mask)).mean(dim=(2, 3))
+        h = self.features(network_inputs(thumbnail, mask))
+        f = h.mean(dim=(2, 3))
+        if self.cfg.masked_pooling:
+            m = F.adaptive_avg_pool2d(mask, h.shape[-2:])
+            fg = (h * m).sum(dim=(2, 3)) / (m.sum(dim=(2, 3)) + POOL_EPS)
+            bg = (h * (1 - m)).sum(dim=(2, 3)) / ((1 - m).sum(dim=(2, 3)) + POOL_EPS)
+            f = torch.cat([f, fg, bg], 1)
         delta = self.mlp(torch.cat([f, masked_stats(thumbnail, mask)], 1)).view(-1, 3, 4)
         eye = torch.eye(3, 4, dtype=delta.dtype).expand_as(delta)
         return eye + delta
@@ -75,17 +87,26 @@ def load_fast(path: str | Path) -> FastColorNet:
 
 
 @torch.no_grad()
+def predict_affine(model: FastColorNet, image_float: np.ndarray, comp: np.ndarray) -> np.ndarray:
+    """The (3, 4) sRGB affine ``[M | b]`` for one object (bool mask ``comp``), from its context-crop thumbnail."""
+    t = model.cfg.thumbnail_px
+    x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, model.cfg.context)
+    crop = resize(image_float[y0:y1, x0:x1], (t, t))
+    m = (resize(comp[y0:y1, x0:x1].astype(np.float32), (t, t)) > 0.5).astype(np.float32)
+    if not m.any():
+        m = (resize(comp[y0:y1, x0:x1].astype(np.float32), (t, t)) > 0).astype(np.float32)
+    return model(to_tensor(crop), torch.from_numpy(m)[None, None])[0].numpy()
+
+
+def apply_affine_np(pixels: np.ndarray, affine: np.ndarray) -> np.ndarray:
+    """(..., 3) float sRGB, (3, 4) -> (..., 3) clipped to [0, 1]."""
+    return np.clip(pixels @ affine[:, :3].T + affine[:, 3], 0.0, 1.0)
+
+
+@torch.no_grad()
 def run_fast(model: FastColorNet, image_float: np.ndarray, mask_bool: np.ndarray) -> np.ndarray:
     """One affine per connected component, predicted from its context-crop thumbnail; returns a new float image."""
     out = image_float.copy()
-    t = model.cfg.thumbnail_px
     for comp in components(mask_bool):
-        x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, model.cfg.context)
-        crop = resize(image_float[y0:y1, x0:x1], (t, t))
-        m = (resize(comp[y0:y1, x0:x1].astype(np.float32), (t, t)) > 0.5).astype(np.float32)
-        if not m.any():
-            m = (resize(comp[y0:y1, x0:x1].astype(np.float32), (t, t)) > 0).astype(np.float32)
-        affine = model(to_tensor(crop), torch.from_numpy(m)[None, None])[0].numpy()
-        fg = out[comp]
-        out[comp] = np.clip(fg @ affine[:, :3].T + affine[:, 3], 0.0, 1.0)
+        out[comp] = apply_affine_np(out[comp], predict_affine(model, image_float, comp))
     return out

@@ -56,6 +56,8 @@ class NetworkConfig:
     global_stage: bool = False
     global_thumbnail_px: int = 64
     global_channels: int = 16
+    global_masked_pooling: bool = False
+    global_hidden: int = 64
 
     def __post_init__(self):
         if self.output_mode not in ("affine", "residual"):
@@ -154,7 +156,9 @@ class Generator(nn.Module):
         if cfg.global_stage:
             from .fast import FastColorNet, FastConfig  # fast.py imports this module at load time
 
-            self.global_stage = FastColorNet(FastConfig(cfg.global_thumbnail_px, cfg.global_channels))
+            self.global_stage = FastColorNet(FastConfig(cfg.global_thumbnail_px, cfg.global_channels,
+                                                        masked_pooling=cfg.global_masked_pooling,
+                                                        hidden=cfg.global_hidden))
 
     def _apply(self, image: torch.Tensor, maps: torch.Tensor) -> torch.Tensor:
         if self.cfg.output_mode == "affine":

@@ -61,6 +61,9 @@ class TrainConfig:
     # foreground MSE (the evaluation metric; small objects weigh as much as large ones).
     recon_loss: str = "l1"
     holdout_pairs: int = 48
+    # "constant" or "cosine": the learning rate decays to 0 over ``steps`` (network) / ``fast_steps`` (fast model);
+    # step-based, so a run does not depend on the machine's speed.
+    lr_schedule: str = "constant"
     seed: int = 0
     threads: int = 2
     # network
@@ -69,6 +72,7 @@ class TrainConfig:
     batch_size: int = 8
     lr_generator: float = 3e-4
     lr_critic: float = 3e-4
+    global_lr_scale: float = 0.1  # learning-rate factor of the generator's global stage (see make_optimizers)
     betas_generator: tuple[float, float] = (0.9, 0.999)
     betas_critic: tuple[float, float] = (0.5, 0.9)  # DeepFill v1 / WGAN-GP
     l1_coarse_weight: float = 1.2  # DeepFill v1's l1_loss_alpha
@@ -248,7 +252,13 @@ def train_step(gen: Generator, critic: Critic, opt_g, opt_d, comp, target, mask,
 
 
 def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
-    return (torch.optim.Adam(gen.parameters(), lr=cfg.lr_generator, betas=cfg.betas_generator),
+    """Adam for both; the generator's global stage (when present) learns at ``global_lr_scale`` x the rate: it
+    starts trained (from the fast harmonizer, batch 32) and batch-8 steps at the full rate only shake it."""
+    glob = [] if gen.global_stage is None else list(gen.global_stage.parameters())
+    ids = {id(p) for p in glob}
+    rest = [p for p in gen.parameters() if id(p) not in ids]
+    groups = [{"params": rest}] + ([{"params": glob, "lr": cfg.lr_generator * cfg.global_lr_scale}] if glob else [])
+    return (torch.optim.Adam(groups, lr=cfg.lr_generator, betas=cfg.betas_generator),
             torch.optim.Adam(critic.parameters(), lr=cfg.lr_critic, betas=cfg.betas_critic))
 
 
@@ -285,6 +295,7 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
             raise ValueError(f"{init_global_from}: fast config {fast['config']} differs from the global stage's")
         gen.global_stage.load_state_dict(fast["state_dict"])
     opt_g, opt_d = make_optimizers(gen, critic, cfg)
+    scheds = [torch.optim.lr_scheduler.LambdaLR(o, lr_lambda(cfg.lr_schedule, cfg.steps)) for o in (opt_g, opt_d)]
     history, t0, step = list(prior["history"]), time.perf_counter(), 0
 
     def evaluate():
@@ -310,6 +321,8 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
     for step in range(1, cfg.steps + 1):
         comp, target, mask = batch_for_training(pool, rng.choice(train_idx, cfg.batch_size), cfg, rng)
         losses = train_step(gen, critic, opt_g, opt_d, comp, target, mask, cfg, tgen)
+        for sc in scheds:
+            sc.step()
         elapsed = time.perf_counter() - t0
         done = elapsed > cfg.time_limit_s or step == cfg.steps
         if step % cfg.log_every == 0 or done:
@@ -346,8 +359,18 @@ def fast_train_step(model: FastColorNet, opt, comp, target, mask, kind: str = "l
     return float(loss.detach())
 
 
-def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None, meta: dict | None = None) -> dict:
-    """Train the fast harmonizer; ``out_path`` holds the model that scored best on the holdout (as the network)."""
+def lr_lambda(schedule: str, total_steps: int):
+    if schedule == "constant":
+        return lambda step: 1.0
+    if schedule == "cosine":
+        return lambda step: 0.5 * (1.0 + np.cos(np.pi * min(step, total_steps) / max(total_steps, 1)))
+    raise ValueError(f"lr_schedule must be 'constant' or 'cosine', got {schedule!r}")
+
+
+def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = None, meta: dict | None = None,
+               init_from: str | Path | None = None) -> dict:
+    """Train the fast harmonizer; ``out_path`` holds the model that scored best on the holdout (as the network).
+    ``init_from``: start from a saved fast checkpoint (same config)."""
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed + 7)
@@ -355,7 +378,13 @@ def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = N
     train_idx, hold_idx = split_pool(pool, cfg.data.holdout_fraction, np.random.default_rng(cfg.seed))
     hold = _fixed_holdout(pool, hold_idx, cfg)
     model = FastColorNet(cfg.fast)
+    if init_from is not None:
+        ckpt = load_checkpoint_dict(init_from, "fast")
+        if from_dict(FastConfig, ckpt["config"]) != cfg.fast:
+            raise ValueError(f"{init_from}: fast config differs from the training config")
+        model.load_state_dict(ckpt["state_dict"])
     opt = torch.optim.Adam(model.parameters(), lr=cfg.fast_lr)
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lr_lambda(cfg.lr_schedule, cfg.fast_steps))
 
     def evaluate():
         with torch.no_grad():
@@ -367,6 +396,7 @@ def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = N
     for step in range(1, cfg.fast_steps + 1):
         comp, target, mask = batch_for_training(pool, rng.choice(train_idx, cfg.fast_batch_size), cfg, rng)
         loss = fast_train_step(model, opt, comp, target, mask, cfg.recon_loss)
+        sched.step()
         elapsed = time.perf_counter() - t0
         done = elapsed > cfg.fast_time_limit_s or step == cfg.fast_steps
         if step % (cfg.log_every * 4) == 0 or done:
@@ -380,6 +410,7 @@ def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = N
             break
     model.load_state_dict(best_state)
     summary = {"steps": step, "best_step": best_step, "train_time_s": round(time.perf_counter() - t0, 1),
+               "init_from": None if init_from is None else str(init_from),
                "holdout_raw_fmse": raw, "holdout_fmse": best_fmse, "pool_items": len(pool.sources),
                "threads": cfg.threads, "config": dataclasses.asdict(cfg), "history": history, **(meta or {})}
     save_fast_checkpoint(out_path, model, summary)

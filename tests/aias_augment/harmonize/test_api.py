@@ -86,3 +86,28 @@ def test_missing_checkpoint_names_the_training_command(tmp_path):
     for method in ("network", "fast"):
         with pytest.raises(FileNotFoundError, match="train_harmonizer.py"):
             harmonize(img, mask, method, checkpoint=str(tmp_path / "nope.pt"))
+
+
+def test_harmonize_clip_applies_one_transform_and_leaves_the_background():
+    """Same object in frames whose surroundings differ: 'fast' gives the object the same colours in every frame
+    (one transform for the clip: no flicker); pixels outside the masks are unchanged bit for bit."""
+    from aias_augment.harmonize import harmonize_clip
+
+    rng = np.random.default_rng(0)
+    frames, masks = [], []
+    for k in range(4):
+        f = np.clip(rng.normal(90 + 25 * k, 20, (64, 80, 3)), 0, 255).astype(np.uint8)  # exposure changes per frame
+        f[20:44, 30:50] = (230, 120, 30)  # the object, identical in every frame
+        m = np.zeros((64, 80), np.float32)
+        m[20:44, 30:50] = 1.0
+        frames.append(f), masks.append(m)
+    frames.append(frames[0].copy()), masks.append(None)  # object not visible in the last frame
+    out = harmonize_clip(frames, masks, "fast")
+    obj = [o[20:44, 30:50].reshape(-1, 3) for o in out[:4]]
+    assert all(np.array_equal(obj[0], o) for o in obj[1:])
+    assert not np.array_equal(obj[0], frames[0][20:44, 30:50].reshape(-1, 3))  # it did change the object
+    for o, f, m in zip(out, frames, masks):
+        outside = np.ones(f.shape[:2], bool) if m is None else m == 0
+        assert np.array_equal(o[outside], f[outside])
+    with pytest.raises(ValueError, match="masks"):
+        harmonize_clip(frames, masks[:-1])
