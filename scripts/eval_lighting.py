@@ -114,7 +114,9 @@ def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: i
             # The production path: every cue estimate_lighting uses (sky tempered out of view, cast-shadow axis of the
             # ground box, walls and shadow ends where the ground shows cast shadows or the sun is seen). A panorama's
             # camera height is unknown; it only scales ground distances (the default 1.65 m is used).
-            est = estimate_sun_direction(img, K, R, {"up_in_world": up}, rng=rng, config=config)
+            # Its own generator: the crops' draws (yaw, pitch, fov) must stay those of the sky-only protocol.
+            est = estimate_sun_direction(img, K, R, {"up_in_world": up}, rng=np.random.default_rng([seed, k]),
+                                         config=config)
             dt_side = time.perf_counter() - t
             side = est.side_cues[0]
             images.append(img)
@@ -147,7 +149,8 @@ def crop_eval(rad: np.ndarray, sun_dir: np.ndarray, seeds: list[int], n_views: i
                          "shadow_end_confidence": 0.0 if side is None else side.shadow_end_confidence,
                          "has_facade_cue": has_facade, "has_shadow_end_cue": has_shadow_end})
         f = sun.fuse_sun_cues(cues)
-        clip = estimate_sun_direction_clip(images, Ks, Rs, {"up_in_world": up}, rng=rng, config=config)
+        clip = estimate_sun_direction_clip(images, Ks, Rs, {"up_in_world": up}, rng=np.random.default_rng([seed, 99]),
+                                           config=config)
         d_fc = clip.direction_in_world
         fused.append({"seed": seed, "azimuth_error_deg": azimuth_error_deg(f.direction_in_world, sun_dir),
                       "elevation_est_deg": float(np.rad2deg(em.direction_to_azimuth_elevation(f.direction_in_world)[1])),

@@ -129,13 +129,17 @@ class LightingConfig:
     shadow_axis_kappa: float = 20.0
     #: Sun cues and the ambient map are computed on a copy at most this wide (pixels).
     analysis_width: int = 400
-    #: Weight of the sky cue's log-likelihood when neither a sun disc is visible nor the sky fit's best sun is inside
-    #: the frame. Its side of the sun is unreliable then. Calibration on the HDR crops (sky cue alone, 127 crops of
+    #: Weight of the side vote of the sky cue (the part of its log-likelihood antisymmetric under azimuth + 180 deg)
+    #: when neither a sun disc is visible nor the sky fit's best sun is inside the frame. Its side is unreliable then. Calibration on the HDR crops (sky cue alone, 127 crops of
     #: city, forest, sunrise, sunset without a sun disc, scripts/eval_lighting.py protocol): the sun was on the correct
     #: half-plane in 54 %; by the cue's own side margin m (best log-likelihood on the chosen half-plane minus the best
     #: on the other) m < 2 nats: 18 % correct, 2-5: 57 %, 5-10: 82 %, > 10: 87 %, i.e. calibrated log-odds of at
     #: most ~1.5-1.9 nats where raw margins reach 5-300 nats. 0.25 maps a typical 5-10 nat margin onto ~1.5 nats.
     sky_out_of_view_weight: float = 0.25
+    #: Largest direct-normal / diffuse-horizontal irradiance ratio of a clear sky (DNI ~900-1000 W/m2 against a DHI of
+    #: at least ~80-100 W/m2 in the clearest air): bounds the sun's elevation from below given the measured shadow
+    #: contrast (sin el >= ground sun/sky ratio / this).
+    max_direct_to_diffuse_ratio: float = 12.0
     #: Vertical-surface cue (``sun_side``): spread of wall albedos (ln units) around the Lambertian model.
     facade_albedo_sigma: float = 0.7
     #: Shadow-end cue (``sun_side``): log-likelihood scale of the mean base score (as ``shadow_axis_kappa``).
@@ -146,7 +150,7 @@ class LightingConfig:
     def __post_init__(self):
         if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
                 or self.default_sun_sky_ratio < 0 or not 0.0 <= self.sky_out_of_view_weight <= 1.0
-                or self.facade_albedo_sigma <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
+                or self.facade_albedo_sigma <= 0 or self.max_direct_to_diffuse_ratio <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
             raise ValueError("LightingConfig: invalid values")
 
 
@@ -287,6 +291,22 @@ def _prepare(img: np.ndarray, intrinsics: Intrinsics | None, R_cw: np.ndarray, m
                          small, K_small, linear_small, region, measurement, n_above)
 
 
+def _half_turn_index(azel: np.ndarray) -> np.ndarray:
+    """Index of the candidate at the same elevation and the azimuth + 180 deg, for the grid of ``sun_direction_grid``
+    (azimuth steps that divide 180 deg). (N, 2) -> (N,)."""
+    az_vals = np.unique(np.round(azel[:, 0], 9))
+    el_vals = np.unique(np.round(azel[:, 1], 9))
+    n_az = len(az_vals)
+    i_az = np.searchsorted(az_vals, np.round(azel[:, 0], 9))
+    i_el = np.searchsorted(el_vals, np.round(azel[:, 1], 9))
+    lookup = np.full((len(el_vals), n_az), -1)
+    lookup[i_el, i_az] = np.arange(len(azel))
+    out = lookup[i_el, (i_az + n_az // 2) % n_az]
+    if n_az % 2 or np.any(out < 0):
+        raise ValueError("sun grid has no half-turn symmetry")
+    return out
+
+
 def _in_view(d_cam: np.ndarray, K: Intrinsics) -> bool:
     """Whether a direction (camera frame) projects inside the image."""
     if d_cam[2] <= 1e-6:
@@ -306,9 +326,13 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
     cue = sun_cue_from_image(ctx.small, ctx.K_small, ctx.R_cw, ctx.up_in_world, grid_world, rng=rng)
     # The sky fit is sharp when it puts the sun inside the frame (the circumsolar sky is seen; 1.8 deg median on the HDR
     # crops) and weak on the side when it puts it outside: tempered there (``sky_out_of_view_weight``).
+    # Only its vote for the side is tempered: the part of the log-likelihood that is antisymmetric under a half turn
+    # of the azimuth (what the calibration below measured); its evidence for the azimuth axis and the elevation stays.
     in_view = cue.sun_visible or _in_view(ctx.R_cw @ grid_world[int(np.argmax(cue.log_likelihood))], ctx.K_small)
-    sky_weight = 1.0 if in_view else config.sky_out_of_view_weight
-    loglik = sky_weight * cue.log_likelihood
+    loglik = cue.log_likelihood
+    if not in_view:
+        mirrored = loglik[_half_turn_index(azel)]
+        loglik = 0.5 * (loglik + mirrored) + config.sky_out_of_view_weight * 0.5 * (loglik - mirrored)
     m = ctx.measurement
     side = None
     if (m is not None and m.dominant_sun) or cue.sun_visible:
@@ -331,6 +355,12 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
         # Cast shadows need the sun above the horizon (at a few degrees they are long but real: a sunset's sun at 3.4
         # deg must survive on the 4-deg grid, whose rows sit at -2, 2, 6, ... deg).
         loglik = np.where(azel[:, 1] > 0.0, loglik, loglik - 1e3)
+        # The shadow contrast bounds the elevation from below: on horizontal ground sun/sky = (E_sun,normal / E_sky)
+        # sin(el), and E_sun,normal / E_sky cannot exceed a clear sky's direct-normal to diffuse-horizontal ratio, so
+        # sin(el) >= ratio / max_direct_to_diffuse_ratio (soft: a Gaussian fall-off of 0.05 in sin(el) below it).
+        sin_min = min(m.sun_sky_ratio / config.max_direct_to_diffuse_ratio, 0.95)
+        short = np.clip(sin_min - np.sin(azel[:, 1]), 0.0, None)
+        loglik = loglik - 0.5 * (short / 0.05) ** 2
         # Cast shadows on the ground are bands along the sun's azimuth (180 deg ambiguous: the sky and side cues, or
         # other frames of the clip, pick the end).
         ground_xy, _ = ground_coordinates(ctx.K, ctx.up_in_cam, config.camera_height_m)
