@@ -240,7 +240,7 @@ def augment_clip(job: ClipJob) -> dict:
               "intrinsics": [intr.fx, intr.fy, intr.cx, intr.cy, w, h],
               "world_from_object": res.world_from_object.tolist(), "contact_in_world": res.contact_in_world.tolist(),
               "visible_frames": int(sum(b is not None for b in res.boxes_xywh)),
-              "modules": {**res.modules, "lighting": lighting_note, "harmonize": "skipped: not on the clip path",
+              "modules": {**res.modules, "lighting": lighting_note, "harmonize": harmonize_note,
                           "colour": "grey clip: output converted to grey" if grey else "colour clip"},
               "wall_s": round(time.perf_counter() - t0, 1)}
     atomic_write_json(record_path, record)  # last: its presence marks the clip as done

@@ -50,6 +50,7 @@ def test_clip_boxes_follow_the_analytic_projection_of_one_world_point(clip_run):
             assert v >= y + h - 0.15 * h - 2, (i, v, a["amodal_bbox"])
     img = (out / coco.loadImgs(1)[0]["file_name"])
     assert img.exists() and (out / "side_by_side.mp4").stat().st_size > 0 and (out / "contact_sheet.jpg").exists()
+    assert rec["modules"]["harmonize"].startswith("fast: one colour transform")
 
 
 def test_grey_clip_stays_grey(clip_run):
