@@ -336,10 +336,10 @@ def write_markdown(report: dict, path: Path) -> None:
               f"- confidence >= 0.5 ({h['coverage_confident_ge_0.5'] * 100:.0f} % of crops): "
               f"{fmt(h['image_cue_azimuth_confident_ge_0.5'])}",
               f"- all crops of a map fused in world coordinates: {fmt(h['image_cue_azimuth_fused_clips'])}", "",
-              "Sky cue + side cues (vertical surfaces, shadow ends; combined as in `estimate_lighting`):", ""]
+              "Production estimator `estimate_sun_direction` (sky, cast-shadow axis, walls, shadow ends; the code path of `estimate_lighting`):", ""]
     ws = h["with_side_cues"]
     lines += [f"- {k.replace('_', ' ')}: {fmt(v)}" for k, v in ws.items() if isinstance(v, dict) and "median_deg" in v or (isinstance(v, dict) and v.get("n") == 0)]
-    lines += ["", "| map | with side cues: all / in view / out of view / fused | crops with facade cue | with shadow-end cue |",
+    lines += ["", "| map | production estimator: all / in view / out of view / fused | crops with wall cue (their median) | with shadow-end cue |",
               "|---|---|---|---|"]
     for name, m in report["maps"].items():
         w = m.get("with_side_cues_summary")

@@ -4,7 +4,8 @@ Frames: everything handed to the renderer is in the OpenCV camera frame (x right
 point from the scene toward the sun; environment maps follow Blender's equirectangular convention (``envmap``).
 """
 from .envmap import EnvironmentMap
-from .estimate import LightingConfig, LightingEstimate, estimate_lighting, estimate_lighting_clip, lighting_from_envmap
+from .estimate import (LightingConfig, LightingEstimate, SunDirectionEstimate, estimate_lighting, estimate_lighting_clip,
+                       estimate_sun_direction, estimate_sun_direction_clip, lighting_from_envmap)
 from .shading import shade_object
 from .shadows import contact_occlusion, occluder_distance_from_footprint, shadow_ratio_from_sun_sky, soften_shadow
 
@@ -14,6 +15,9 @@ __all__ = [
     "LightingEstimate",
     "estimate_lighting",
     "estimate_lighting_clip",
+    "SunDirectionEstimate",
+    "estimate_sun_direction",
+    "estimate_sun_direction_clip",
     "lighting_from_envmap",
     "shade_object",
     "soften_shadow",

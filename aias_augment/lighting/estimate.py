@@ -11,7 +11,8 @@ Frames and units:
 - ``sun_sky_ratio`` is for the horizontal ground (normal = up); see ``shadows`` for how it sets shadow strength.
 
 Sources, in order of preference: an environment map (``envmap``), GPS + UTC + camera orientation in ``meta`` (pvlib),
-image cues (visible sun disc, sky gradient) with a known camera. Sun strength always comes from the env map, or else
+image cues with a known camera: visible sun disc, sky gradient, cast-shadow axis on the ground, and for the side of
+that axis the lit versus shaded walls and the ends of cast shadows (``sun_side``). Sun strength always comes from the env map, or else
 from lit vs shadowed ground in the image (``ratio``); ``meta['indoor'] = True`` forces environment light only.
 """
 from __future__ import annotations
@@ -29,7 +30,7 @@ from .ratio import (LitShadowMeasurement, ground_coordinates, ground_region_mask
                     shadow_axis_on_ground)
 from .sh import project_envmap_to_sh, sh_irradiance
 from .sky import preetham_sky_radiance
-from .sun_side import SunSideCue, sun_side_cue
+from .sun_side import sun_side_cue
 from .sun import (_posterior_summary, _rot3, frame_from_up, remove_sun, solar_direction_enu, sun_cue_from_image,
                   sun_direction_in_cam_from_metadata, sun_from_envmap, sun_direction_grid)
 
