@@ -261,25 +261,46 @@ def to_tensor(image_float: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image_float.transpose(2, 0, 1)))[None]
 
 
+TTA_CONTEXTS = (2.0, 2.4, 2.9)  # test-time views (x horizontal flip), as the fast harmonizer's
+
+
 @torch.no_grad()
-def run_network(generator: Generator, image_float: np.ndarray, mask_bool: np.ndarray) -> np.ndarray:
+def _network_delta(generator: Generator, image_float: np.ndarray, comp: np.ndarray, context: float, flip: bool):
+    """(box, delta (h, w, 3)) predicted for one component from one view; None when it is below one network pixel."""
+    s = generator.cfg.resolution_px
+    x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, context)
+    crop, m = image_float[y0:y1, x0:x1], comp[y0:y1, x0:x1]
+    if flip:
+        crop, m = crop[:, ::-1], m[:, ::-1]
+    crop_s = resize(np.ascontiguousarray(crop), (s, s))
+    m_s = (resize(np.ascontiguousarray(m).astype(np.float32), (s, s)) > 0.5).astype(np.float32)
+    if not m_s.any():
+        return None
+    pred = generator(to_tensor(crop_s), torch.from_numpy(m_s)[None, None])["output"][0].numpy().transpose(1, 2, 0)
+    delta = resize(pred - crop_s, (x1 - x0, y1 - y0))
+    return (x0, y0, x1, y1), (delta[:, ::-1] if flip else delta)
+
+
+@torch.no_grad()
+def run_network(generator: Generator, image_float: np.ndarray, mask_bool: np.ndarray, tta: bool = True) -> np.ndarray:
     """Harmonize every connected component of the mask in its own context crop; returns a new float image.
 
     Each crop is resized to the network resolution; the predicted change (output - input) is resized back to the
-    crop's size and added there, so the background and the object's full-resolution detail are kept.
+    crop's size and added there, so the background and the object's full-resolution detail are kept. With ``tta``
+    the change is averaged over the test-time views (context factors x flip), per object pixel.
     """
-    cfg = generator.cfg
-    s = cfg.resolution_px
     out = image_float.copy()
+    views = [(c, f) for c in TTA_CONTEXTS for f in (False, True)] if tta else [(generator.cfg.context, False)]
     for comp in components(mask_bool):
-        x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, cfg.context)
-        crop, m = image_float[y0:y1, x0:x1], comp[y0:y1, x0:x1]
-        crop_s = resize(crop, (s, s))
-        m_s = (resize(m.astype(np.float32), (s, s)) > 0.5).astype(np.float32)
-        if not m_s.any():  # object smaller than one network pixel: leave it
-            continue
-        pred = generator(to_tensor(crop_s), torch.from_numpy(m_s)[None, None])["output"][0].numpy().transpose(1, 2, 0)
-        delta = resize(pred - crop_s, (x1 - x0, y1 - y0))
-        region = out[y0:y1, x0:x1]
-        region[m] = np.clip(crop[m] + delta[m], 0.0, 1.0)
+        total, count = np.zeros_like(image_float), np.zeros(comp.shape, np.float32)
+        for c, f in views:
+            r = _network_delta(generator, image_float, comp, c, f)
+            if r is None:
+                continue
+            (x0, y0, x1, y1), delta = r
+            inside = comp[y0:y1, x0:x1]
+            total[y0:y1, x0:x1][inside] += delta[inside]
+            count[y0:y1, x0:x1][inside] += 1
+        has = comp & (count > 0)  # an object smaller than one network pixel in every view is left as it is
+        out[has] = np.clip(image_float[has] + total[has] / count[has][:, None], 0.0, 1.0)
     return out

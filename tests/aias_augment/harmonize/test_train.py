@@ -60,6 +60,13 @@ def test_holdout_split_is_by_source_image():
     tr, ho = split_pool(pool, 0.34, np.random.default_rng(0))
     assert set(tr) | set(ho) == set(range(6)) and not set(tr) & set(ho)
     assert not {pool.sources[i] for i in tr} & {pool.sources[i] for i in ho}
+    # A photo's random regions go with its objects.
+    pool = PairPool(np.zeros((6, 4, 4, 3), np.uint8), np.ones((6, 4, 4), np.uint8),
+                    ["a", "a:region", "b", "b:region", "c", "c:region"])
+    for seed in range(5):
+        tr, ho = split_pool(pool, 0.34, np.random.default_rng(seed))
+        photos = lambda idx: {pool.sources[i].split(":")[0] for i in idx}  # noqa: E731
+        assert not photos(tr) & photos(ho) and len(ho) == 2
 
 
 def test_config_rejects_unknown_keys(tmp_path):
