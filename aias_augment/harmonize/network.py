@@ -58,6 +58,7 @@ class NetworkConfig:
     global_channels: int = 16
     global_masked_pooling: bool = False
     global_hidden: int = 64
+    global_quantile_stats: bool = False
 
     def __post_init__(self):
         if self.output_mode not in ("affine", "residual"):
@@ -158,7 +159,8 @@ class Generator(nn.Module):
 
             self.global_stage = FastColorNet(FastConfig(cfg.global_thumbnail_px, cfg.global_channels,
                                                         masked_pooling=cfg.global_masked_pooling,
-                                                        hidden=cfg.global_hidden))
+                                                        hidden=cfg.global_hidden,
+                                                        quantile_stats=cfg.global_quantile_stats))
 
     def _apply(self, image: torch.Tensor, maps: torch.Tensor) -> torch.Tensor:
         if self.cfg.output_mode == "affine":

@@ -64,9 +64,10 @@ class TrainConfig:
     # Score the holdout on labelled objects only (what gets inserted), not on random regions: measured here, a
     # model selected on the mixed holdout was not the better one on held-out cones.
     holdout_objects_only: bool = False
-    # "constant" or "cosine": the learning rate decays to 0 over ``steps`` (network) / ``fast_steps`` (fast model);
-    # step-based, so a run does not depend on the machine's speed.
+    # "constant" or "cosine" (decay to 0 over ``steps``) for the network; ``fast_lr_schedule`` likewise over
+    # ``fast_steps`` for the fast model. Step-based, so a run does not depend on the machine's speed.
     lr_schedule: str = "constant"
+    fast_lr_schedule: str = "constant"
     seed: int = 0
     threads: int = 2
     # network
@@ -397,7 +398,7 @@ def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = N
             raise ValueError(f"{init_from}: fast config differs from the training config")
         model.load_state_dict(ckpt["state_dict"])
     opt = torch.optim.Adam(model.parameters(), lr=cfg.fast_lr)
-    sched = torch.optim.lr_scheduler.LambdaLR(opt, lr_lambda(cfg.lr_schedule, cfg.fast_steps))
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lr_lambda(cfg.fast_lr_schedule, cfg.fast_steps))
 
     def evaluate():
         with torch.no_grad():
