@@ -47,8 +47,11 @@ def main(argv=None) -> int:
     if args.which in ("fast", "both"):
         results["fast"] = train_fast(cfg, args.out_fast, pool, meta, init_from=args.init_fast)
     if args.which in ("network", "both"):
+        # "both": the network's global stage starts from the fast model just trained (same architecture)
+        init_global = args.init_global or (args.out_fast if args.which == "both" and cfg.network.global_stage
+                                           and args.init_network is None else None)
         results["network"] = train_network(cfg, args.out_network, pool, meta, init_from=args.init_network,
-                                           init_global_from=args.init_global)
+                                           init_global_from=init_global)
     for k, r in results.items():
         print(json.dumps({"which": k, "steps": r["steps"], "train_time_s": r["train_time_s"],
                           "holdout_raw_fmse": round(r["holdout_raw_fmse"], 2),

@@ -33,6 +33,23 @@ class FastConfig:
     # Luma quantiles of the object and of its surroundings (QUANTILES each) join the mean/std statistics: the
     # brightest object pixels against the scene's white level say more about exposure than means do.
     quantile_stats: bool = False
+    # "luma": quantiles of luma; "rgb": of each colour channel (the object's brightest pixels per channel are a
+    # white-patch estimate of its white balance, e.g. a cone's white stripe).
+    quantile_channels: str = "luma"
+    # Size of the square crop the model receives (0 = thumbnail_px): the CNN sees its thumbnail_px thumbnail, the
+    # colour statistics are taken at this resolution, where thin bright details are not yet averaged away.
+    input_px: int = 0
+
+    def __post_init__(self):
+        if self.quantile_channels not in ("luma", "rgb"):
+            raise ValueError(f"FastConfig.quantile_channels must be 'luma' or 'rgb', got {self.quantile_channels!r}")
+        if self.input_px and self.input_px < self.thumbnail_px:
+            raise ValueError(f"FastConfig.input_px ({self.input_px}) must be 0 or >= thumbnail_px "
+                             f"({self.thumbnail_px})")
+
+    @property
+    def in_px(self) -> int:
+        return self.input_px or self.thumbnail_px
 
 
 QUANTILES = (0.02, 0.1, 0.25, 0.5, 0.75, 0.9, 0.98)
@@ -41,15 +58,23 @@ QUANTILES = (0.02, 0.1, 0.25, 0.5, 0.75, 0.9, 0.98)
 def masked_luma_quantiles(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     """(B,3,H,W), binary (B,1,H,W) -> (B, 2 * len(QUANTILES)): luma quantiles of the foreground, then the background's
     (0.5 where a side is empty)."""
-    y = (0.299 * image[:, 0] + 0.587 * image[:, 1] + 0.114 * image[:, 2]).flatten(1)
+    y = 0.299 * image[:, 0:1] + 0.587 * image[:, 1:2] + 0.114 * image[:, 2:3]
+    return masked_quantiles(y, mask)
+
+
+def masked_quantiles(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(B,C,H,W), binary (B,1,H,W) -> (B, 2 * C * len(QUANTILES)): per-channel quantiles of the foreground, then the
+    background's (0.5 where a side is empty)."""
+    x = image.flatten(2)
     m = mask[:, 0].flatten(1) > 0.5
     q = torch.tensor(QUANTILES, dtype=image.dtype)
     rows = []
     for b in range(image.shape[0]):
         parts = []
         for sel in (m[b], ~m[b]):
-            v = y[b][sel]
-            parts.append(torch.quantile(v, q) if v.numel() else torch.full_like(q, 0.5))
+            v = x[b][:, sel]
+            parts.append(torch.quantile(v, q, dim=1).T.flatten() if v.shape[1]
+                         else torch.full((len(QUANTILES) * x.shape[1],), 0.5, dtype=image.dtype))
         rows.append(torch.cat(parts))
     return torch.stack(rows)
 
@@ -64,23 +89,28 @@ class FastColorNet(nn.Module):
             cin = cout
         self.features = nn.Sequential(*layers)
         pooled = cin * (3 if cfg.masked_pooling else 1)
-        stats = 12 + (2 * len(QUANTILES) if cfg.quantile_stats else 0)
+        per_side = len(QUANTILES) * (3 if cfg.quantile_channels == "rgb" else 1)
+        stats = 12 + (2 * per_side if cfg.quantile_stats else 0)
         self.mlp = nn.Sequential(nn.Linear(pooled + stats, cfg.hidden), nn.ReLU(), nn.Linear(cfg.hidden, 12))
         nn.init.zeros_(self.mlp[-1].weight)
         nn.init.zeros_(self.mlp[-1].bias)
 
-    def forward(self, thumbnail: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        """Thumbnail (B,3,t,t) in [0,1] and binary mask (B,1,t,t) -> affine (B,3,4) = [I + dM | b]."""
-        h = self.features(network_inputs(thumbnail, mask))
+    def forward(self, crop: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """Context crop (B,3,s,s) in [0,1] and binary mask (B,1,s,s), s = ``cfg.in_px`` -> affine (B,3,4) =
+        [I + dM | b]. The CNN sees the ``thumbnail_px`` thumbnail; the statistics come from the crop itself."""
+        t = self.cfg.thumbnail_px
+        small, small_mask = (crop, mask) if crop.shape[-2:] == (t, t) else thumbnail(crop, mask, t)
+        h = self.features(network_inputs(small, small_mask))
         f = h.mean(dim=(2, 3))
         if self.cfg.masked_pooling:
-            m = F.adaptive_avg_pool2d(mask, h.shape[-2:])
+            m = F.adaptive_avg_pool2d(small_mask, h.shape[-2:])
             fg = (h * m).sum(dim=(2, 3)) / (m.sum(dim=(2, 3)) + POOL_EPS)
             bg = (h * (1 - m)).sum(dim=(2, 3)) / ((1 - m).sum(dim=(2, 3)) + POOL_EPS)
             f = torch.cat([f, fg, bg], 1)
-        stats = [masked_stats(thumbnail, mask)]
+        stats = [masked_stats(crop, mask)]
         if self.cfg.quantile_stats:
-            stats.append(masked_luma_quantiles(thumbnail, mask))
+            stats.append(masked_quantiles(crop, mask) if self.cfg.quantile_channels == "rgb"
+                         else masked_luma_quantiles(crop, mask))
         delta = self.mlp(torch.cat([f, *stats], 1)).view(-1, 3, 4)
         eye = torch.eye(3, 4, dtype=delta.dtype).expand_as(delta)
         return eye + delta
@@ -122,7 +152,7 @@ TTA_CONTEXTS = (2.0, 2.4, 2.9)
 def predict_affine(model: FastColorNet, image_float: np.ndarray, comp: np.ndarray, context: float | None = None,
                    flip: bool = False) -> np.ndarray:
     """The (3, 4) sRGB affine ``[M | b]`` for one object (bool mask ``comp``), from its context-crop thumbnail."""
-    t = model.cfg.thumbnail_px
+    t = model.cfg.in_px
     x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, model.cfg.context if context is None else context)
     crop, cm = image_float[y0:y1, x0:x1], comp[y0:y1, x0:x1]
     if flip:

@@ -27,6 +27,7 @@ import functools
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 import torch
 import torch.nn.functional as F
@@ -59,6 +60,8 @@ class NetworkConfig:
     global_masked_pooling: bool = False
     global_hidden: int = 64
     global_quantile_stats: bool = False
+    global_quantile_channels: str = "luma"
+    global_input_px: int = 0
 
     def __post_init__(self):
         if self.output_mode not in ("affine", "residual"):
@@ -160,7 +163,9 @@ class Generator(nn.Module):
             self.global_stage = FastColorNet(FastConfig(cfg.global_thumbnail_px, cfg.global_channels,
                                                         masked_pooling=cfg.global_masked_pooling,
                                                         hidden=cfg.global_hidden,
-                                                        quantile_stats=cfg.global_quantile_stats))
+                                                        quantile_stats=cfg.global_quantile_stats,
+                                                        quantile_channels=cfg.global_quantile_channels,
+                                                        input_px=cfg.global_input_px))
 
     def _apply(self, image: torch.Tensor, maps: torch.Tensor) -> torch.Tensor:
         if self.cfg.output_mode == "affine":
@@ -177,13 +182,17 @@ class Generator(nn.Module):
         if self.global_stage is not None:
             from .fast import apply_affine, thumbnail
 
-            thumb, tmask = thumbnail(composite, mask, self.cfg.global_thumbnail_px)
-            composite = mask * apply_affine(composite, self.global_stage(thumb, tmask)) + (1 - mask) * composite
-            out["global"] = composite
+            thumb, tmask = thumbnail(composite, mask, self.global_stage.cfg.in_px)
+            affine = self.global_stage(thumb, tmask)
+            composite = mask * apply_affine(composite, affine) + (1 - mask) * composite
+            out["global"], out["global_affine"] = composite, affine
         x = network_inputs(composite, mask)
-        coarse = mask * self._apply(composite, self.coarse(x, mask, composite)) + (1 - mask) * composite
-        refined = self._apply(coarse, self.refine(torch.cat([x, coarse], dim=1), mask, coarse))
-        return {**out, "coarse": coarse, "output": mask * refined + (1 - mask) * composite}
+        coarse_maps = self.coarse(x, mask, composite)
+        coarse = mask * self._apply(composite, coarse_maps) + (1 - mask) * composite
+        refine_maps = self.refine(torch.cat([x, coarse], dim=1), mask, coarse)
+        refined = self._apply(coarse, refine_maps)
+        return {**out, "coarse": coarse, "output": mask * refined + (1 - mask) * composite,
+                "coarse_maps": coarse_maps, "refine_maps": refine_maps}
 
 
 class Critic(nn.Module):
@@ -266,20 +275,55 @@ def to_tensor(image_float: np.ndarray) -> torch.Tensor:
 TTA_CONTEXTS = (2.0, 2.4, 2.9)  # test-time views (x horizontal flip), as the fast harmonizer's
 
 
+def _upsample_inside(maps: np.ndarray, mask_s: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(s, s, C) coefficient maps -> (h, w, C) at ``size`` = (w, h), by normalized bilinear interpolation over the
+    object's low-resolution pixels only (coefficients outside the mask were never trained), falling back to their
+    mean where no object pixel is near."""
+    m = mask_s.astype(np.float32)
+    num = cv2.resize(maps * m[..., None], size, interpolation=cv2.INTER_LINEAR)
+    den = cv2.resize(m, size, interpolation=cv2.INTER_LINEAR)[..., None]
+    mean = (maps * m[..., None]).sum(axis=(0, 1)) / max(float(m.sum()), 1.0)
+    return np.where(den > 1e-3, num / np.maximum(den, 1e-3), mean)
+
+
+def _pixel_affine_np(image: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
+    """numpy twin of :func:`apply_pixel_affine`: (h, w, 3), (h, w, 12) -> (I + dM) x + b, clipped."""
+    dm = coeffs[..., :9].reshape(*coeffs.shape[:2], 3, 3)
+    return np.clip(image + np.einsum("hwij,hwj->hwi", dm, image) + coeffs[..., 9:12], 0.0, 1.0)
+
+
 @torch.no_grad()
 def _network_delta(generator: Generator, image_float: np.ndarray, comp: np.ndarray, context: float, flip: bool):
-    """(box, delta (h, w, 3)) predicted for one component from one view; None when it is below one network pixel."""
+    """(box, delta (h, w, 3)) predicted for one component from one view; None when it is below one network pixel.
+
+    In the "affine" output mode the predicted colour transforms (the global stage's affine and the coarse and refine
+    stages' per-pixel coefficient maps, upsampled over the object) are applied to the crop at its full resolution,
+    so texture and edges finer than a network pixel are transformed, not blurred; the "residual" mode upsamples the
+    predicted change.
+    """
     s = generator.cfg.resolution_px
     x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, context)
     crop, m = image_float[y0:y1, x0:x1], comp[y0:y1, x0:x1]
     if flip:
         crop, m = crop[:, ::-1], m[:, ::-1]
-    crop_s = resize(np.ascontiguousarray(crop), (s, s))
+    crop = np.ascontiguousarray(crop)
+    crop_s = resize(crop, (s, s))
     m_s = (resize(np.ascontiguousarray(m).astype(np.float32), (s, s)) > 0.5).astype(np.float32)
     if not m_s.any():
         return None
-    pred = generator(to_tensor(crop_s), torch.from_numpy(m_s)[None, None])["output"][0].numpy().transpose(1, 2, 0)
-    delta = resize(pred - crop_s, (x1 - x0, y1 - y0))
+    out = generator(to_tensor(crop_s), torch.from_numpy(m_s)[None, None])
+    if generator.cfg.output_mode == "affine":
+        full = crop
+        if "global_affine" in out:
+            from .fast import apply_affine_np  # fast.py imports this module at load time
+
+            full = apply_affine_np(full, out["global_affine"][0].numpy())
+        for key in ("coarse_maps", "refine_maps"):
+            maps = out[key][0].numpy().transpose(1, 2, 0)
+            full = _pixel_affine_np(full, _upsample_inside(maps, m_s, (x1 - x0, y1 - y0)))
+        delta = full - crop
+    else:
+        delta = resize(out["output"][0].numpy().transpose(1, 2, 0) - crop_s, (x1 - x0, y1 - y0))
     return (x0, y0, x1, y1), (delta[:, ::-1] if flip else delta)
 
 
@@ -287,8 +331,9 @@ def _network_delta(generator: Generator, image_float: np.ndarray, comp: np.ndarr
 def run_network(generator: Generator, image_float: np.ndarray, mask_bool: np.ndarray, tta: bool = True) -> np.ndarray:
     """Harmonize every connected component of the mask in its own context crop; returns a new float image.
 
-    Each crop is resized to the network resolution; the predicted change (output - input) is resized back to the
-    crop's size and added there, so the background and the object's full-resolution detail are kept. With ``tta``
+    Each crop is resized to the network resolution; the predicted colour transforms are applied to the crop at full
+    resolution (see :func:`_network_delta`) and the change is added there, so the background and the object's
+    full-resolution detail are kept. With ``tta``
     the change is averaged over the test-time views (context factors x flip), per object pixel.
     """
     out = image_float.copy()

@@ -267,10 +267,15 @@ def train_step(gen: Generator, critic: Critic, opt_g, opt_d, comp, target, mask,
 
 def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
     """Adam for both; the generator's global stage (when present) learns at ``global_lr_scale`` x the rate: it
-    starts trained (from the fast harmonizer, batch 32) and batch-8 steps at the full rate only shake it."""
+    starts trained (from the fast harmonizer, batch 32) and batch-8 steps at the full rate only shake it. Scale 0
+    freezes it."""
     glob = [] if gen.global_stage is None else list(gen.global_stage.parameters())
     ids = {id(p) for p in glob}
     rest = [p for p in gen.parameters() if id(p) not in ids]
+    if cfg.global_lr_scale == 0.0:  # frozen: no gradients are computed for it
+        for p in glob:
+            p.requires_grad_(False)
+        glob = []
     groups = [{"params": rest}] + ([{"params": glob, "lr": cfg.lr_generator * cfg.global_lr_scale}] if glob else [])
     return (torch.optim.Adam(groups, lr=cfg.lr_generator, betas=cfg.betas_generator),
             torch.optim.Adam(critic.parameters(), lr=cfg.lr_critic, betas=cfg.betas_critic))
@@ -361,7 +366,7 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
 
 # --------------------------------------------------------------------------------------------------- fast harmonizer
 def fast_predict(model: FastColorNet, comp: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    thumb, tm = thumbnail(comp, mask, model.cfg.thumbnail_px)
+    thumb, tm = thumbnail(comp, mask, model.cfg.in_px)
     return mask * apply_affine(comp, model(thumb, tm)) + (1 - mask) * comp
 
 

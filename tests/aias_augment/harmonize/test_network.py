@@ -112,3 +112,22 @@ def test_global_stage_is_the_fast_harmonizer_it_was_started_from(tmp_path):
     # The later stages start at the identity: the untrained generator's output is the global stage's.
     assert torch.allclose(out["output"], expected, atol=1e-6)
     assert torch.equal(out["output"][(mask == 0).expand_as(comp)], comp[(mask == 0).expand_as(comp)])
+
+
+def test_colour_transforms_are_applied_at_full_resolution():
+    """A generator whose global stage halves every colour (later stages at their identity start) must halve a
+    full-resolution checkerboard object exactly: the transform is applied to the crop's own pixels, not upsampled
+    from the 32-px network output (which would blur the 1-px checks)."""
+    cfg = NetworkConfig(resolution_px=32, base_channels=4, levels=2, dilations=(2,), critic_channels=4,
+                        global_stage=True, global_thumbnail_px=16, global_channels=4)
+    gen = Generator(cfg)
+    with torch.no_grad():
+        gen.global_stage.mlp[-1].bias.copy_(torch.tensor([-0.5, 0, 0, 0, 0, -0.5, 0, 0, 0, 0, -0.5, 0.0]))
+    yy, xx = np.mgrid[0:240, 0:320]
+    image = np.where(((yy + xx) % 2 == 0)[..., None], 0.8, 0.2).astype(np.float32) * np.ones(3, np.float32)
+    mask = np.zeros((240, 320), bool)
+    mask[60:180, 100:220] = True
+    for tta in (False, True):
+        out = run_network(gen, image, mask, tta=tta)
+        np.testing.assert_allclose(out[mask], 0.5 * image[mask], atol=1e-5)
+        np.testing.assert_array_equal(out[~mask], image[~mask])

@@ -125,3 +125,21 @@ def test_scene_jitter_changes_target_and_composite_background_alike():
         assert float((t - original[0]).abs().mean()) > 1 / 255
     plain, plain_t, _ = make_batch(pool, np.array([0]), TrainConfig().perturb, np.random.default_rng(1), flip=False)
     assert torch.equal(plain_t[0], original[0])
+
+
+def test_a_frozen_global_stage_does_not_move_while_the_later_stages_learn(street_rgb):
+    torch.manual_seed(0)
+    comp, target, mask = tiny_pairs(street_rgb)
+    cfg = TrainConfig(network=NetworkConfig(resolution_px=32, base_channels=4, levels=2, dilations=(2,),
+                                            critic_channels=4, global_stage=True, global_thumbnail_px=16,
+                                            global_channels=4), lr_generator=3e-3, global_lr_scale=0.0)
+    gen, critic = Generator(cfg.network), Critic(cfg.network.critic_channels)
+    torch.nn.init.normal_(gen.global_stage.mlp[-1].weight, std=0.05)
+    frozen = {k: v.clone() for k, v in gen.global_stage.state_dict().items()}
+    coarse_head = gen.coarse.head.weight.clone()
+    opt_g, opt_d = make_optimizers(gen, critic, cfg)
+    for _ in range(3):
+        train_step(gen, critic, opt_g, opt_d, comp, target, mask, cfg, torch.Generator().manual_seed(0))
+    for k, v in gen.global_stage.state_dict().items():
+        assert torch.equal(v, frozen[k]), k
+    assert not torch.equal(gen.coarse.head.weight, coarse_head)
