@@ -84,6 +84,26 @@ def side_by_side(pairs, outputs, methods, path: Path, n: int = 5, tile: int = 16
                 [cv2.IMWRITE_JPEG_QUALITY, 90])
 
 
+def network_stage_table(pairs, checkpoint, base_fmse):
+    """fMSE of the network stopped after each of its stages, with one view and with the test-time views."""
+    from aias_augment.harmonize.api import _checkpoint
+    from aias_augment.harmonize.color import to_float, to_uint8
+    from aias_augment.harmonize.network import STAGES, load_generator, run_network, up_to_stage
+
+    gen = load_generator(_checkpoint("network", checkpoint))
+    rows = []
+    for last in STAGES[(0 if gen.global_stage is not None else 1):]:
+        g = up_to_stage(gen, last)
+        row = {"stages": " + ".join(STAGES[(0 if gen.global_stage is not None else 1): STAGES.index(last) + 1])}
+        for key, tta in (("single", False), ("tta", True)):
+            f = float(np.mean([fmse(to_uint8(run_network(g, to_float(p["composite"]), p["mask"].astype(bool), tta)),
+                                    p["target"], p["mask"]) for p in pairs]))
+            row[f"fmse_{key}"], row[f"reduction_{key}"] = f, (1 - f / base_fmse) if base_fmse else float("nan")
+        log.info("network up to %s: fMSE %.1f (1 view) %.1f (6 views)", last, row["fmse_single"], row["fmse_tta"])
+        rows.append(row)
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", required=True, type=Path)
@@ -98,6 +118,8 @@ def main(argv=None) -> int:
     ap.add_argument("--min-box-px", type=int, default=16)
     ap.add_argument("--threads", type=int, default=1, help="torch threads for the learnt methods")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--network-stages", action="store_true",
+                    help="also score the network stopped after each stage, with one view and with the test-time views")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     import torch
@@ -135,6 +157,7 @@ def main(argv=None) -> int:
     base = per_method.get("none", {}).get("fmse")
     for m, r in per_method.items():
         r["fmse_reduction_vs_composite"] = None if not base else float(1 - r["fmse"] / base)
+    stages = network_stage_table(pairs, ckpt["network"], base) if args.network_stages else None
 
     args.out.mkdir(parents=True, exist_ok=True)
     command = " ".join(shlex.quote(a) for a in ["python", "scripts/eval_harmonization.py", *sys.argv[1:]])
@@ -142,7 +165,8 @@ def main(argv=None) -> int:
             "size_wh": size_wh, "torch_threads": args.threads, "seed": args.seed,
             "machine": f"{platform.processor() or platform.machine()}, shared 2-core CPU", "checkpoints": ckpt,
             "eval_wall_s": round(time.perf_counter() - t0, 1)}
-    (args.out / "eval.json").write_text(json.dumps({"meta": meta, "methods": per_method}, indent=2))
+    (args.out / "eval.json").write_text(json.dumps({"meta": meta, "methods": per_method,
+                                                    **({"network_stages": stages} if stages else {})}, indent=2))
     lines = ["# Harmonization on held-out pairs", "", f"Command: `{command}`", "",
              f"{len(pairs)} pairs from {meta['images']} images ({size_wh[0]}x{size_wh[1]}), skipped {skipped}; "
              f"torch threads {args.threads}; time = median of all {len(pairs)} calls of `harmonize()` per method.", "",
@@ -152,6 +176,13 @@ def main(argv=None) -> int:
         red = "" if r["fmse_reduction_vs_composite"] is None else f"{-100 * r['fmse_reduction_vs_composite']:+.1f}%"
         lines.append(f"| {LABELS[m]} | {r['mse']:.1f} | {r['fmse']:.1f} | {r['psnr']:.2f} | {red} | "
                      f"{r['time_ms_median']:.1f} / {r['time_ms_p90']:.1f} |")
+    if stages:
+        lines += ["", "Network stopped after each stage (later stages set to their identity), one view vs the 6 "
+                  "test-time views:", "", "| stages | fMSE (1 view) | vs composite | fMSE (6 views) | vs composite |",
+                  "|---|---:|---:|---:|---:|"]
+        for r in stages:
+            lines.append(f"| {r['stages']} | {r['fmse_single']:.1f} | {-100 * r['reduction_single']:+.1f}% | "
+                         f"{r['fmse_tta']:.1f} | {-100 * r['reduction_tta']:+.1f}% |")
     lines += ["", "![side by side](side_by_side.png)", ""]
     (args.out / "eval.md").write_text("\n".join(lines))
     side_by_side(pairs, outputs, methods, args.out / "side_by_side.png")

@@ -268,6 +268,29 @@ def load_generator(path: str | Path) -> "Generator":
 
 
 # --------------------------------------------------------------------------------------------------------- inference
+STAGES = ("global", "coarse", "refine")
+
+
+def up_to_stage(generator: Generator, last: str) -> Generator:
+    """A copy of ``generator`` that stops after stage ``last`` ("global", "coarse" or "refine"): the later stages'
+    output layers are zeroed, i.e. set to their identity transform (for measuring what each stage adds)."""
+    if last not in STAGES or (last == "global" and generator.global_stage is None):
+        raise ValueError(f"up_to_stage: no stage {last!r} in this generator (stages {STAGES})")
+    if generator.cfg.output_mode != "affine":
+        raise ValueError("up_to_stage needs output_mode 'affine' (zero maps = identity)")
+    import copy
+
+    gen = copy.deepcopy(generator)
+    for name in STAGES[STAGES.index(last) + 1:]:
+        stage = getattr(gen, name)
+        with torch.no_grad():
+            for layer in (stage.head, stage.global_head):
+                if layer is not None:
+                    layer.weight.zero_()
+                    layer.bias.zero_()
+    return gen
+
+
 def to_tensor(image_float: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image_float.transpose(2, 0, 1)))[None]
 

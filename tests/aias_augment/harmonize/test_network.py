@@ -131,3 +131,24 @@ def test_colour_transforms_are_applied_at_full_resolution():
         out = run_network(gen, image, mask, tta=tta)
         np.testing.assert_allclose(out[mask], 0.5 * image[mask], atol=1e-5)
         np.testing.assert_array_equal(out[~mask], image[~mask])
+
+
+def test_up_to_stage_returns_each_stage_output():
+    from aias_augment.harmonize.network import up_to_stage
+
+    torch.manual_seed(1)
+    cfg = NetworkConfig(resolution_px=32, base_channels=4, levels=2, dilations=(2,), critic_channels=4,
+                        global_stage=True, global_thumbnail_px=16, global_channels=4)
+    gen = Generator(cfg)
+    for stage in (gen.global_stage.mlp[-1], gen.coarse.head, gen.refine.head, gen.coarse.global_head):
+        torch.nn.init.normal_(stage.weight, std=0.05)
+    comp, mask = torch.rand(2, 3, 32, 32), torch.zeros(2, 1, 32, 32)
+    mask[:, :, 6:26, 8:22] = 1
+    with torch.no_grad():
+        full = gen(comp, mask)
+        assert torch.allclose(up_to_stage(gen, "global")(comp, mask)["output"], full["global"], atol=1e-6)
+        assert torch.allclose(up_to_stage(gen, "coarse")(comp, mask)["output"], full["coarse"], atol=1e-6)
+        assert torch.equal(up_to_stage(gen, "refine")(comp, mask)["output"], full["output"])
+    assert not torch.allclose(full["coarse"], full["output"])  # the stages do differ here
+    with pytest.raises(ValueError):
+        up_to_stage(Generator(TINY), "global")
