@@ -3,7 +3,9 @@ transform (3x3 matrix + offset, sRGB values) that is then applied to the foregro
 
 Cost is independent of the image size except for the final per-pixel 3x4 multiply. The predictor also receives the
 masked mean and standard deviation of foreground and background colours (12 numbers), the statistics a colour
-transfer needs; its last layer starts at zero so an untrained model is the identity.
+transfer needs, and optionally their quantiles (luma or per channel); its last layer starts at zero so an untrained
+model is the identity. The shipped model (``configs/harmonize_small.yaml``) uses per-channel quantiles and is also
+the frozen global stage of the shipped network.
 """
 from __future__ import annotations
 
