@@ -91,10 +91,11 @@ def network_stage_table(pairs, checkpoint, base_fmse):
     from aias_augment.harmonize.network import STAGES, load_generator, run_network, up_to_stage
 
     gen = load_generator(_checkpoint("network", checkpoint))
+    names = STAGES if gen.global_stage is not None else STAGES[1:]
     rows = []
-    for last in STAGES[(0 if gen.global_stage is not None else 1):]:
+    for i, last in enumerate(names):
         g = up_to_stage(gen, last)
-        row = {"stages": " + ".join(STAGES[(0 if gen.global_stage is not None else 1): STAGES.index(last) + 1])}
+        row = {"stages": " + ".join(names[: i + 1])}
         for key, tta in (("single", False), ("tta", True)):
             scores, times = [], []
             for p in pairs:

@@ -356,8 +356,8 @@ def run_network(generator: Generator, image_float: np.ndarray, mask_bool: np.nda
 
     Each crop is resized to the network resolution; the predicted colour transforms are applied to the crop at full
     resolution (see :func:`_network_delta`) and the change is added there, so the background and the object's
-    full-resolution detail are kept. With ``tta``
-    the change is averaged over the test-time views (context factors x flip), per object pixel.
+    full-resolution detail are kept. With ``tta`` the change is averaged over the test-time views (context factors x
+    flip), per object pixel.
     """
     out = image_float.copy()
     views = [(c, f) for c in TTA_CONTEXTS for f in (False, True)] if tta else [(generator.cfg.context, False)]
