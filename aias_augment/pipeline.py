@@ -46,6 +46,7 @@ class InsertionConfig:
     harmonize: bool = True
     naive_paste: bool = False
     harmonize_method: str = "camera"
+    harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~3-6x faster)
     asset_source: str = "default"        # "default": shared-data model per category, bank for others; "bank": all bank
     ssaa: int = 2                        # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Priors when the scene does not say.
@@ -405,6 +406,7 @@ def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng) -
     except ImportError as e:  # the harmonization package is optional at this stage of the pipeline
         return image, f"skipped: harmonizer unavailable ({e})"
     try:
-        return harmonize(image, mask, method=cfg.harmonize_method, rng=rng), f"harmonized ({cfg.harmonize_method})"
+        return (harmonize(image, mask, method=cfg.harmonize_method, rng=rng,
+                          test_time_views=cfg.harmonize_test_time_views), f"harmonized ({cfg.harmonize_method})")
     except FileNotFoundError as e:
         return image, f"skipped: {e}"

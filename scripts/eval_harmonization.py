@@ -125,6 +125,8 @@ def main(argv=None) -> int:
     ap.add_argument("--min-box-px", type=int, default=16)
     ap.add_argument("--threads", type=int, default=1, help="torch threads for the learnt methods")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--single-view", action="store_true",
+                    help="learnt methods predict from one view instead of averaging the 6 test-time views")
     ap.add_argument("--network-stages", action="store_true",
                     help="also score the network stopped after each stage, with one view and with the test-time views")
     args = ap.parse_args(argv)
@@ -144,12 +146,14 @@ def main(argv=None) -> int:
     methods = [m for m in METHOD_ORDER if m in args.methods]
     per_method, outputs = {}, {}
     for m in methods:
-        harmonize(pairs[0]["composite"], pairs[0]["mask"].astype(np.float32), m, checkpoint=ckpt.get(m))  # warm-up/load
+        views = not args.single_view
+        harmonize(pairs[0]["composite"], pairs[0]["mask"].astype(np.float32), m, checkpoint=ckpt.get(m),
+                  test_time_views=views)  # warm-up/load
         rows, outs = [], []
         for i, pr in enumerate(pairs):
             t = time.perf_counter()
             out = harmonize(pr["composite"], pr["mask"].astype(np.float32), m, np.random.default_rng(args.seed + i),
-                            ckpt.get(m))
+                            ckpt.get(m), test_time_views=views)
             dt = time.perf_counter() - t
             rows.append((mse(out, pr["target"]), fmse(out, pr["target"], pr["mask"]), psnr(out, pr["target"]), dt))
             outs.append(out)
@@ -170,13 +174,15 @@ def main(argv=None) -> int:
     command = " ".join(shlex.quote(a) for a in ["python", "scripts/eval_harmonization.py", *sys.argv[1:]])
     meta = {"command": command, "pairs": len(pairs), "images": len({p["image"] for p in pairs}), "skipped": skipped,
             "size_wh": size_wh, "torch_threads": args.threads, "seed": args.seed,
+            "learnt_methods_views": 1 if args.single_view else 6,
             "machine": f"{platform.processor() or platform.machine()}, shared 2-core CPU", "checkpoints": ckpt,
             "eval_wall_s": round(time.perf_counter() - t0, 1)}
     (args.out / "eval.json").write_text(json.dumps({"meta": meta, "methods": per_method,
                                                     **({"network_stages": stages} if stages else {})}, indent=2))
     lines = ["# Harmonization on held-out pairs", "", f"Command: `{command}`", "",
              f"{len(pairs)} pairs from {meta['images']} images ({size_wh[0]}x{size_wh[1]}), skipped {skipped}; "
-             f"torch threads {args.threads}; time = median of all {len(pairs)} calls of `harmonize()` per method.", "",
+             f"torch threads {args.threads}; learnt methods average {meta['learnt_methods_views']} view(s); "
+             f"time = median of all {len(pairs)} calls of `harmonize()` per method.", "",
              "| method | MSE | fMSE | PSNR (dB) | fMSE vs composite | time / 640x480 image (ms, median / p90) |",
              "|---|---:|---:|---:|---:|---:|"]
     for m, r in per_method.items():

@@ -72,8 +72,12 @@ def _checkpoint(method: str, checkpoint: str | Path | None) -> Path:
 
 
 def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str = "camera",
-              rng: np.random.Generator | None = None, checkpoint: str | Path | None = None) -> np.ndarray:
-    """Harmonize the masked foreground of a composite; see the module docstring. Returns a new (H, W, 3) uint8."""
+              rng: np.random.Generator | None = None, checkpoint: str | Path | None = None,
+              test_time_views: bool = True) -> np.ndarray:
+    """Harmonize the masked foreground of a composite; see the module docstring. Returns a new (H, W, 3) uint8.
+
+    ``test_time_views``: the learnt methods average their prediction over 6 views (3 context sizes x flip); False
+    uses one view, about 3x (fast) to 6x (network) quicker for ~1 point of fMSE (``results/harmonization``)."""
     soft = _validate(composite_rgb_uint8, fg_mask, method)
     hard = soft > 0.0
     if method == "none" or not hard.any():
@@ -87,11 +91,11 @@ def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str 
     elif method == "fast":
         from .fast import load_fast, run_fast  # torch is imported only for the learnt methods
 
-        result = run_fast(load_fast(_checkpoint(method, checkpoint)), image, hard)
+        result = run_fast(load_fast(_checkpoint(method, checkpoint)), image, hard, tta=test_time_views)
     else:
         from .network import load_generator, run_network
 
-        result = run_network(load_generator(_checkpoint(method, checkpoint)), image, hard)
+        result = run_network(load_generator(_checkpoint(method, checkpoint)), image, hard, tta=test_time_views)
     m = soft[..., None]
     blended = to_uint8(image * (1.0 - m) + result * m)
     return np.where(m > 0, blended, composite_rgb_uint8)

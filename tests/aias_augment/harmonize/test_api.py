@@ -28,13 +28,14 @@ def soft_mask(h, w):
     return np.clip((40 - r) / 6, 0, 1).astype(np.float32)  # disc of radius ~37 px with a 6 px soft edge
 
 
+@pytest.mark.parametrize("views", [True, False])
 @pytest.mark.parametrize("method", ["none", "reinhard", "camera", "fast", "network"])
-def test_only_masked_pixels_change_and_input_is_kept(street_rgb, checkpoints, method):
+def test_only_masked_pixels_change_and_input_is_kept(street_rgb, checkpoints, method, views):
     mask = soft_mask(*street_rgb.shape[:2])
     img = street_rgb.copy()
     img[mask > 0] = np.clip(img[mask > 0].astype(int) + (40, 10, -20), 0, 255)  # a visibly mismatched object
     before, mask_before = img.copy(), mask.copy()
-    out = harmonize(img, mask, method, np.random.default_rng(0), checkpoints.get(method))
+    out = harmonize(img, mask, method, np.random.default_rng(0), checkpoints.get(method), test_time_views=views)
     assert out.dtype == np.uint8 and out.shape == img.shape and out is not img
     np.testing.assert_array_equal(img, before)
     np.testing.assert_array_equal(mask, mask_before)
@@ -44,8 +45,12 @@ def test_only_masked_pixels_change_and_input_is_kept(street_rgb, checkpoints, me
     assert harmonize(img, mask.astype(np.float64), method, np.random.default_rng(0), checkpoints.get(method)).shape \
         == img.shape
     # Same rng seed -> same result.
-    again = harmonize(img, mask, method, np.random.default_rng(0), checkpoints.get(method))
+    again = harmonize(img, mask, method, np.random.default_rng(0), checkpoints.get(method), test_time_views=views)
     np.testing.assert_array_equal(out, again)
+    if method in ("fast", "network"):  # the 6-view average is not the one view's prediction
+        other = harmonize(img, mask, method, np.random.default_rng(0), checkpoints.get(method),
+                          test_time_views=not views)
+        assert np.abs(other.astype(int) - out).max() > 0
 
 
 def test_soft_edge_lies_between_input_and_harmonized(street_rgb):
