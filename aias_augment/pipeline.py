@@ -46,7 +46,7 @@ class InsertionConfig:
     harmonize: bool = True
     naive_paste: bool = False
     harmonize_method: str = "camera"
-    harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~3-6x faster)
+    harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~2-6x faster)
     asset_source: str = "default"        # "default": shared-data model per category, bank for others; "bank": all bank
     ssaa: int = 2                        # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Priors when the scene does not say.

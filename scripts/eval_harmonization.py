@@ -145,8 +145,8 @@ def main(argv=None) -> int:
     ckpt = {"network": args.network_checkpoint, "fast": args.fast_checkpoint}
     methods = [m for m in METHOD_ORDER if m in args.methods]
     per_method, outputs = {}, {}
+    views = not args.single_view
     for m in methods:
-        views = not args.single_view
         harmonize(pairs[0]["composite"], pairs[0]["mask"].astype(np.float32), m, checkpoint=ckpt.get(m),
                   test_time_views=views)  # warm-up/load
         rows, outs = [], []
@@ -174,7 +174,7 @@ def main(argv=None) -> int:
     command = " ".join(shlex.quote(a) for a in ["python", "scripts/eval_harmonization.py", *sys.argv[1:]])
     meta = {"command": command, "pairs": len(pairs), "images": len({p["image"] for p in pairs}), "skipped": skipped,
             "size_wh": size_wh, "torch_threads": args.threads, "seed": args.seed,
-            "learnt_methods_views": 1 if args.single_view else 6,
+            "learnt_methods_views": 6 if views else 1,
             "machine": f"{platform.processor() or platform.machine()}, shared 2-core CPU", "checkpoints": ckpt,
             "eval_wall_s": round(time.perf_counter() - t0, 1)}
     (args.out / "eval.json").write_text(json.dumps({"meta": meta, "methods": per_method,

@@ -77,7 +77,7 @@ def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str 
     """Harmonize the masked foreground of a composite; see the module docstring. Returns a new (H, W, 3) uint8.
 
     ``test_time_views``: the learnt methods average their prediction over 6 views (3 context sizes x flip); False
-    uses one view, about 3x (fast) to 6x (network) quicker for ~1 point of fMSE (``results/harmonization``)."""
+    uses one view, about 2x (fast) to 6x (network) quicker for under 1 point of fMSE (``results/harmonization``)."""
     soft = _validate(composite_rgb_uint8, fg_mask, method)
     hard = soft > 0.0
     if method == "none" or not hard.any():
