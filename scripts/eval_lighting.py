@@ -183,7 +183,27 @@ def side_summary(crops: list[dict], fused: list[float]) -> dict:
         "sky_only_on_crops_with_facade_cue": summarize([c["azimuth_error_deg"] for c in fac]),
         "sky_only_on_crops_with_shadow_end_cue": summarize([c["azimuth_error_deg"] for c in end]),
         "median_side_seconds_per_crop": float(np.median([c["side_seconds"] for c in crops])) if crops else 0.0,
+        "risk_coverage": risk_coverage(crops, e, "with_side_confidence"),
+        "risk_coverage_sky_only": risk_coverage(crops, "azimuth_error_deg", "confidence"),
     }
+
+
+COVERAGES = (0.1, 0.25, 0.5, 0.75, 1.0)
+
+
+def risk_coverage(crops: list[dict], error_key: str, confidence_key: str) -> list[dict]:
+    """Median azimuth error of the most confident crops, for each fraction of the crops kept (``COVERAGES``): how the
+    estimate's own confidence ranks its errors (a user keeps the frames above a confidence threshold)."""
+    rows = sorted(crops, key=lambda c: -c[confidence_key])
+    out = []
+    for f in COVERAGES:
+        k = max(1, int(round(f * len(rows))))
+        if not rows:
+            break
+        kept = rows[:k]
+        out.append({"coverage": f, "n": k, "min_confidence": float(kept[-1][confidence_key]),
+                    **summarize([c[error_key] for c in kept])})
+    return out
 
 
 def summarize(errors: list[float]) -> dict:
@@ -339,6 +359,16 @@ def write_markdown(report: dict, path: Path) -> None:
               "Production estimator `estimate_sun_direction` (sky, cast-shadow axis, walls, shadow ends; the code path of `estimate_lighting`):", ""]
     ws = h["with_side_cues"]
     lines += [f"- {k.replace('_', ' ')}: {fmt(v)}" for k, v in ws.items() if isinstance(v, dict) and "median_deg" in v or (isinstance(v, dict) and v.get("n") == 0)]
+    lines += ["", "Risk-coverage: median azimuth error (deg) of the most confident crops, by the fraction kept "
+              "(ranked by each estimator's own confidence):", "",
+              "| crops kept | " + " | ".join(f"{100 * r['coverage']:.0f} %" for r in ws["risk_coverage"]) + " |",
+              "|---|" + "---|" * len(ws["risk_coverage"]),
+              "| production: median (min confidence) | " + " | ".join(
+                  f"{r['median_deg']:.1f} ({r['min_confidence']:.2f})" for r in ws["risk_coverage"]) + " |",
+              "| production: fraction below 25 deg | " + " | ".join(
+                  f"{100 * r['frac_below_25deg']:.0f} %" for r in ws["risk_coverage"]) + " |",
+              "| sky cue alone: median (min confidence) | " + " | ".join(
+                  f"{r['median_deg']:.1f} ({r['min_confidence']:.2f})" for r in ws["risk_coverage_sky_only"]) + " |"]
     lines += ["", "| map | production estimator: all / in view / out of view / fused | crops with wall cue (their median) | with shadow-end cue |",
               "|---|---|---|---|"]
     for name, m in report["maps"].items():

@@ -130,13 +130,16 @@ class LightingConfig:
     shadow_axis_kappa: float = 20.0
     #: Sun cues and the ambient map are computed on a copy at most this wide (pixels).
     analysis_width: int = 400
-    #: Weight of the side vote of the sky cue (the part of its log-likelihood antisymmetric under azimuth + 180 deg)
-    #: when neither a sun disc is visible nor the sky fit's best sun is inside the frame. Its side is unreliable then. Calibration on the HDR crops (sky cue alone, 127 crops of
-    #: city, forest, sunrise, sunset without a sun disc, scripts/eval_lighting.py protocol): the sun was on the correct
-    #: half-plane in 54 %; by the cue's own side margin m (best log-likelihood on the chosen half-plane minus the best
-    #: on the other) m < 2 nats: 18 % correct, 2-5: 57 %, 5-10: 82 %, > 10: 87 %, i.e. calibrated log-odds of at
-    #: most ~1.5-1.9 nats where raw margins reach 5-300 nats. 0.25 maps a typical 5-10 nat margin onto ~1.5 nats.
-    sky_out_of_view_weight: float = 0.25
+    #: Probability that the sky cue's side is right when neither a sun disc is visible nor the sky fit's best sun is
+    #: inside the frame. The sky evidence is then the mixture "the sun is where the sky says (p) or at the mirrored
+    #: azimuth (1 - p)", log L'(d) = logaddexp(log p + log L(d), log(1 - p) + log L(d + 180 deg)): its side vote is
+    #: capped at log(p / (1 - p)) nats (1.7 at 0.85) while the shape of its peak (the azimuth and elevation within the
+    #: chosen half-plane) is kept. Calibration on the HDR crops (sky cue alone, 127 crops of city, forest, sunrise,
+    #: sunset without a sun disc, scripts/eval_lighting.py protocol): by the cue's own side margin m (best
+    #: log-likelihood on the chosen half-plane minus the best on the other) m < 2 nats: 18 % correct, 2-5: 57 %,
+    #: 5-10: 82 %, > 10: 87 %, where raw margins reach 5-300 nats. (Until stop 11 the antisymmetric part was scaled by
+    #: 0.25 instead, which also flattened the peak: a clear sunset sky's 9 deg became 28-60 deg.)
+    sky_out_of_view_side_prob: float = 0.85
     #: Largest direct-normal / diffuse-horizontal irradiance ratio of a clear sky (DNI ~900-1000 W/m2 against a DHI of
     #: at least ~80-100 W/m2 in the clearest air): bounds the sun's elevation from below given the measured shadow
     #: contrast (sin el >= ground sun/sky ratio / this).
@@ -150,7 +153,7 @@ class LightingConfig:
 
     def __post_init__(self):
         if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
-                or self.default_sun_sky_ratio < 0 or not 0.0 <= self.sky_out_of_view_weight <= 1.0
+                or self.default_sun_sky_ratio < 0 or not 0.5 <= self.sky_out_of_view_side_prob < 1.0
                 or self.facade_albedo_sigma <= 0 or self.max_direct_to_diffuse_ratio <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
             raise ValueError("LightingConfig: invalid values")
 
@@ -317,6 +320,17 @@ def _in_view(d_cam: np.ndarray, K: Intrinsics) -> bool:
     return bool(-0.5 <= u <= K.width - 0.5 and -0.5 <= v <= K.height - 0.5)
 
 
+def sky_side_mixture(loglik: np.ndarray, half_turn: np.ndarray, p: float) -> np.ndarray:
+    """Log-likelihood of "the sun is at d with probability p, at d's mirror under a half turn of the azimuth with
+    probability 1 - p": ``logaddexp(log p + l(d), log(1 - p) + l(half_turn(d)))``. ``half_turn`` (N,) indexes each
+    candidate's mirror. The result's side margin is at most log(p / (1 - p)); near the best candidate it equals
+    l + log p (the peak's shape is unchanged); a symmetric l is returned unchanged up to the constant."""
+    if not 0.5 <= p < 1.0:
+        raise ValueError(f"side probability must be in [0.5, 1), got {p}")
+    ll = np.asarray(loglik, dtype=np.float64)
+    return np.logaddexp(np.log(p) + ll, np.log1p(-p) + ll[np.asarray(half_turn)])
+
+
 def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, config: LightingConfig,
                   rng: np.random.Generator):
     """Log-likelihood of each world-grid sun direction from this frame: sky / sun-disc cue (tempered when no disc is
@@ -326,14 +340,13 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
     side the :class:`SunSideCue` (None where there is no sign of direct sun)."""
     cue = sun_cue_from_image(ctx.small, ctx.K_small, ctx.R_cw, ctx.up_in_world, grid_world, rng=rng)
     # The sky fit is sharp when it puts the sun inside the frame (the circumsolar sky is seen; 1.8 deg median on the HDR
-    # crops) and weak on the side when it puts it outside: tempered there (``sky_out_of_view_weight``).
-    # Only its vote for the side is tempered: the part of the log-likelihood that is antisymmetric under a half turn
-    # of the azimuth (what the calibration below measured); its evidence for the azimuth axis and the elevation stays.
+    # crops) and unreliable on the side when it puts it outside: there it becomes a mixture of itself and its mirror
+    # image under a half turn of the azimuth (``sky_out_of_view_side_prob``), which caps its side vote and keeps its
+    # peak.
     in_view = cue.sun_visible or _in_view(ctx.R_cw @ grid_world[int(np.argmax(cue.log_likelihood))], ctx.K_small)
     loglik = cue.log_likelihood
     if not in_view:
-        mirrored = loglik[_half_turn_index(azel)]
-        loglik = 0.5 * (loglik + mirrored) + config.sky_out_of_view_weight * 0.5 * (loglik - mirrored)
+        loglik = sky_side_mixture(loglik, _half_turn_index(azel), config.sky_out_of_view_side_prob)
     m = ctx.measurement
     side = None
     if (m is not None and m.dominant_sun) or cue.sun_visible:

@@ -195,3 +195,31 @@ def test_kitti_sun_is_on_the_left(idx):
     e = estimate_lighting(img, K)
     _finite(e)
     assert e.dominant_sun and e.sun_direction_in_cam[0] < 0
+
+
+def test_sky_side_mixture_caps_the_side_vote_and_keeps_the_peak():
+    from aias_augment.lighting.estimate import _half_turn_index, sky_side_mixture
+
+    grid, azel = sun.sun_direction_grid()
+    half = _half_turn_index(azel)
+    # The half turn maps each candidate to the same elevation and the azimuth + 180 deg.
+    assert np.allclose(grid[half][:, :2], -grid[:, :2], atol=1e-9) and np.allclose(grid[half][:, 2], grid[:, 2])
+    p = 0.85
+    target = np.array([np.cos(0.3), np.sin(0.3), 0.0]) * np.cos(0.2) + np.array([0, 0, np.sin(0.2)])
+    ll = 200.0 * (grid @ target - 1.0)  # a sharp, one-sided sky peak (vMF, kappa 200)
+    out = sky_side_mixture(ll, half, p)
+    best = int(np.argmax(ll))
+    assert int(np.argmax(out)) == best  # the peak stays where the sky put it
+    near = grid @ target > np.cos(np.deg2rad(15.0))
+    # Near the peak the mirror term is negligible (exp(-200 x ~2) apart): the shape is ll + log p.
+    assert np.allclose(out[near], ll[near] + np.log(p), atol=1e-9)
+    # The best candidate on the other half-plane is the mirror of the peak, log(p / (1 - p)) below it.
+    other = grid @ np.array([target[0], target[1], 0.0]) < 0
+    assert out[best] - out[other].max() == pytest.approx(np.log(p / (1 - p)), abs=1e-9)
+    # A sky that says nothing about the side (symmetric under the half turn) is unchanged.
+    sym = 5.0 * grid[:, 2] - 3.0 * (grid[:, 0] ** 2)
+    assert np.allclose(sky_side_mixture(sym, half, p), sym, atol=1e-12)
+    with pytest.raises(ValueError):
+        sky_side_mixture(ll, half, 1.0)
+    with pytest.raises(ValueError):
+        LightingConfig(sky_out_of_view_side_prob=0.3)
