@@ -257,6 +257,8 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, nargs=2, default=[480, 300], metavar=("W", "H"))
     ap.add_argument("--whiteness-weight", type=float, default=None,
                     help="weight of the sky colour cue in sun.sun_cue_from_image (default: the library default)")
+    ap.add_argument("--production-colour-weight", type=float, default=None,
+                    help="LightingConfig.sky_colour_weight of the production estimator (default: the library default)")
     ap.add_argument("--sunless", nargs="*", default=[], help="map names (stems) whose light is not the sun")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -284,7 +286,10 @@ def main(argv=None) -> int:
         entry.update(sh_errors(rad, found, est.dominant_sun))
         entry["image_cue_eval"] = bool(path.stem not in args.sunless and found.solid_angle_sr <= 0.05 and el > 0)
         if entry["image_cue_eval"]:
-            cues = crop_eval(rad, found.direction_in_env, args.seeds, args.views, *args.size, args.whiteness_weight)
+            cfg = LightingConfig() if args.production_colour_weight is None else LightingConfig(
+                sky_colour_weight=args.production_colour_weight)
+            cues = crop_eval(rad, found.direction_in_env, args.seeds, args.views, *args.size, args.whiteness_weight,
+                             config=cfg)
             entry["image_cues"] = cues
             entry["image_cues_summary"] = {
                 "all": summarize([c["azimuth_error_deg"] for c in cues["crops"]]),

@@ -140,6 +140,9 @@ class LightingConfig:
     #: 5-10: 82 %, > 10: 87 %, where raw margins reach 5-300 nats. (Until stop 11 the antisymmetric part was scaled by
     #: 0.25 instead, which also flattened the peak: a clear sunset sky's 9 deg became 28-60 deg.)
     sky_out_of_view_side_prob: float = 0.85
+    #: Weight of the sky colour cue (``sun.sun_whiteness_loglik``: the sky is less blue toward the sun) inside the
+    #: production estimator. 0 (off): see results/lighting/README.md, "Stop 11", for its measured effect.
+    sky_colour_weight: float = 0.0
     #: Largest direct-normal / diffuse-horizontal irradiance ratio of a clear sky (DNI ~900-1000 W/m2 against a DHI of
     #: at least ~80-100 W/m2 in the clearest air): bounds the sun's elevation from below given the measured shadow
     #: contrast (sin el >= ground sun/sky ratio / this).
@@ -153,7 +156,7 @@ class LightingConfig:
 
     def __post_init__(self):
         if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
-                or self.default_sun_sky_ratio < 0 or not 0.5 <= self.sky_out_of_view_side_prob < 1.0
+                or self.default_sun_sky_ratio < 0 or not 0.5 <= self.sky_out_of_view_side_prob < 1.0 or self.sky_colour_weight < 0
                 or self.facade_albedo_sigma <= 0 or self.max_direct_to_diffuse_ratio <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
             raise ValueError("LightingConfig: invalid values")
 
@@ -338,7 +341,8 @@ def _sun_evidence(ctx: _FrameContext, grid_world: np.ndarray, azel: np.ndarray, 
     side cues (vertical surfaces, shadow ends). Returns (loglik, cue, axis_strength, side_loglik, side) where
     side_loglik is the part of the evidence that can tell the two ends of the shadow axis apart (all but the axis) and
     side the :class:`SunSideCue` (None where there is no sign of direct sun)."""
-    cue = sun_cue_from_image(ctx.small, ctx.K_small, ctx.R_cw, ctx.up_in_world, grid_world, rng=rng)
+    cue = sun_cue_from_image(ctx.small, ctx.K_small, ctx.R_cw, ctx.up_in_world, grid_world,
+                             whiteness_weight=config.sky_colour_weight, rng=rng)
     # The sky fit is sharp when it puts the sun inside the frame (the circumsolar sky is seen; 1.8 deg median on the HDR
     # crops) and unreliable on the side when it puts it outside: there it becomes a mixture of itself and its mirror
     # image under a half turn of the azimuth (``sky_out_of_view_side_prob``), which caps its side vote and keeps its

@@ -223,3 +223,35 @@ def test_sky_side_mixture_caps_the_side_vote_and_keeps_the_peak():
         sky_side_mixture(ll, half, 1.0)
     with pytest.raises(ValueError):
         LightingConfig(sky_out_of_view_side_prob=0.3)
+
+
+def test_sky_colour_weight_reaches_the_sky_cue():
+    """The production estimator's colour weight is the sky cue's: on a sky of constant luminance whose blue
+    chromaticity falls toward one side (whiter toward the sun), the estimate moves toward that side only when the weight
+    is on, and to the other side when the gradient is mirrored."""
+    from aias_augment.lighting.estimate import estimate_sun_direction
+
+    with pytest.raises(ValueError):
+        LightingConfig(sky_colour_weight=-1.0)
+    K = Intrinsics.from_fov(320, 200, 70.0)
+    R = em.cam_from_env_look(0.0, np.deg2rad(10.0))
+    d = em.camera_ray_directions(K) @ R  # camera rays in the world (env) frame, z up
+    up = np.array([0.0, 0.0, 1.0])
+
+    def sky(sign: float) -> np.ndarray:
+        # Constant luminance Y (the luminance fit cannot tell left from right), blue chromaticity b = B / (R + G + B)
+        # falling toward sign x world +y (the camera looks along +x, so +y is its left); R = G, so
+        # Y = S ((0.2126 + 0.7152) (1 - b) / 2 + 0.0722 b) with S = R + G + B.
+        blue = 0.42 - 0.10 * sign * d[..., 1]
+        S = 0.35 / ((0.2126 + 0.7152) * (1 - blue) / 2 + 0.0722 * blue)
+        rgb = np.stack([S * (1 - blue) / 2, S * (1 - blue) / 2, S * blue], -1)
+        img = np.round(255 * np.clip(rgb, 0, 1) ** (1 / 2.2)).astype(np.uint8)
+        img[d[..., 2] < 0] = 90  # flat grey ground
+        return img
+
+    def sun_y(img, weight):
+        return estimate_sun_direction(img, K, R, {"up_in_world": up}, rng=np.random.default_rng(0),
+                                      config=LightingConfig(sky_colour_weight=weight)).direction_in_world[1]
+
+    assert abs(sun_y(sky(1.0), 0.0)) < 1e-6 and abs(sun_y(sky(-1.0), 0.0)) < 1e-6  # colour off: no side
+    assert sun_y(sky(1.0), 3.0) > 0.05 and sun_y(sky(-1.0), 3.0) < -0.05  # colour on: toward the whiter side
