@@ -88,11 +88,12 @@ def near_object(K: Intrinsics, cam_from_object: np.ndarray, asset, radius_factor
 def inserted_shadow(img_in: np.ndarray, img_out: np.ndarray, road: np.ndarray, lit_in: np.ndarray,
                     object_mask: np.ndarray, exclude: np.ndarray | None = None) -> dict:
     """The inserted shadow's depth: the median output / input luminance ratio q over its core (q < 0.97, eroded by
-    ``CORE_ERODE_PX``, on road pixels lit in the input; the object and the contact zone at its base excluded): per pixel, so free
-    of the asphalt's albedo variation, but on thin shadow bands the core still mixes in penumbra. Also, measured like
-    the real one, ``ratio.measure_lit_shadow`` (the same Gaussian-mixture split) on the output over the road pixels
-    that were LIT in the input (its dark mode can only be the inserted shadow): same estimator as the real shadow,
-    but shadowed and lit pixels sit on different asphalt (+-5-7 % where the lighting is the road box's own)."""
+    ``CORE_ERODE_PX``, on road pixels lit in the input; the object and the contact zone at its base excluded): per
+    pixel, so free of the asphalt's albedo variation, but on thin shadow bands the core still mixes in penumbra.
+    Also, measured like the real one, ``ratio.measure_lit_shadow`` (the same Gaussian-mixture split) on the output
+    over the road pixels that were LIT in the input (its dark mode can only be the inserted shadow): same estimator as
+    the real shadow, but shadowed and lit pixels sit on different asphalt (+-5-7 % where the lighting is the road
+    box's own)."""
     y_in = hdr.luminance(hdr.srgb_to_linear(img_in)).astype(np.float64)
     y_out = hdr.luminance(hdr.srgb_to_linear(img_out)).astype(np.float64)
     q = y_out / np.maximum(y_in, 1e-4)  # eps: black input pixels are excluded below anyway
@@ -112,6 +113,7 @@ def inserted_shadow(img_in: np.ndarray, img_out: np.ndarray, road: np.ndarray, l
         if inserted.sum() >= 100 and inserted.sum() >= 0.8 * m.shadow_mask.sum():
             out["inserted_shadow_to_lit_mixture"] = float(m.shadow_to_lit)
     return out, umbra
+
 
 def pipeline_object_masks(res, cat: str, K: Intrinsics, shape) -> tuple[np.ndarray, np.ndarray]:
     """The inserted objects' pixels (from the record's RLE masks) and the ground near their bases."""
@@ -300,8 +302,8 @@ def main(argv=None) -> int:
                          f"| {100 * r.get('rel_error_mixture', float('nan')):.1f} % |")
         lines += ["", "Summary (target: within 15 %):", ""]
         for k, s in summary.items():
-            lines.append(f"- {k}: measurable {s['n']} of {s['of']}, median rel. error {100 * s['median_rel_error']:.1f} %, max "
-                         f"{100 * s['max_rel_error']:.1f} %, {100 * s['frac_within_15pct']:.0f} % within 15 %")
+            lines.append(f"- {k}: measurable {s['n']} of {s['of']}, median rel. error {100 * s['median_rel_error']:.1f} "
+                         f"%, max {100 * s['max_rel_error']:.1f} %, {100 * s['frac_within_15pct']:.0f} % within 15 %")
     lines += ["", "![overlay](kitti_shadows.jpg)", "",
               "Overlay: green = road box, red = real shadow pixels, blue = real lit pixels; below each frame, one "
               "end-to-end insertion (pipeline_sun_side, first seed) with the core of its shadow in magenta.", ""]

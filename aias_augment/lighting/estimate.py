@@ -156,8 +156,8 @@ class LightingConfig:
 
     def __post_init__(self):
         if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
-                or self.default_sun_sky_ratio < 0 or not 0.5 <= self.sky_out_of_view_side_prob < 1.0 or self.sky_colour_weight < 0
-                or self.facade_albedo_sigma <= 0 or self.max_direct_to_diffuse_ratio <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
+                or self.default_sun_sky_ratio < 0 or not 0.5 <= self.sky_out_of_view_side_prob < 1.0
+                or self.sky_colour_weight < 0 or self.facade_albedo_sigma <= 0 or self.max_direct_to_diffuse_ratio <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
             raise ValueError("LightingConfig: invalid values")
 
 

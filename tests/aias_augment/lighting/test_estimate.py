@@ -260,7 +260,8 @@ def test_sky_colour_weight_reaches_the_sky_cue():
 @pytest.mark.skipif(not (KITTI / "kitti06-17-color.png").is_file(), reason="shared KITTI data not present")
 def test_kitti_clip_sun_is_on_the_left_and_one_world_direction():
     """The four colour frames fused with their ground-truth poses (06.txt: world_from_cam, 3x4 rows): one sun in the
-    world (stop 11: azimuth -89 deg, elevation 26-27 deg in the cameras), on the left of the camera in every frame (the by-eye reference of test_kitti_sun_is_on_the_left)."""
+    world (stop 11: azimuth -89 deg, elevation 26-27 deg in the cameras), on the left of the camera in every frame
+    (the by-eye reference of test_kitti_sun_is_on_the_left)."""
     from PIL import Image
 
     poses = np.loadtxt(KITTI / "06.txt").reshape(-1, 3, 4)
