@@ -40,7 +40,8 @@ def from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "") -> T:
         tp = hints[name]
         if dataclasses.is_dataclass(tp) and isinstance(value, dict):
             value = from_dict(tp, value, f"{where}.{name}")
-        elif isinstance(value, list) and typing.get_origin(tp) is tuple:
+        elif isinstance(value, list) and (typing.get_origin(tp) is tuple or any(
+                typing.get_origin(a) is tuple for a in typing.get_args(tp))):   # tuple or Optional[tuple]
             value = tuple(value)
         kwargs[name] = value
     return cls(**kwargs)

@@ -45,8 +45,26 @@ class PlacementConfig:
     local_support_radius_m: float = 1.0
     local_support_min_points: int = 5
     local_support_max_residual_m: float = 0.025   # half a kerb step; LiDAR/stereo noise (< ~3 cm sigma) passes
+    # Pixel size of the inserted objects (what a detector learns from). By default a ground pixel is drawn uniformly
+    # below the horizon, so sizes follow the scene's geometry. With a target, each object first draws a target box
+    # height (as a fraction of the image height) from ``box_height_frac_samples`` (an empirical distribution, e.g.
+    # the class's labelled boxes, jittered by ``box_height_jitter`` in log space) or uniformly from
+    # ``box_height_frac_range``, and candidates are restricted to ground pixels whose predicted box height lies within
+    # ``box_height_tolerance`` (relative) of it. A target the scene cannot host (ground too far or too near) falls back
+    # to the 2 % of ground pixels nearest to it, and the report says so.
+    box_height_frac_range: tuple[float, float] | None = None
+    box_height_frac_samples: tuple[float, ...] = ()
+    box_height_jitter: float = 0.1
+    box_height_tolerance: float = 0.2
 
     def __post_init__(self):
+        if self.box_height_frac_range is not None and not (
+                0 < self.box_height_frac_range[0] <= self.box_height_frac_range[1] <= 1):
+            raise ValueError(f"box_height_frac_range must satisfy 0 < lo <= hi <= 1, got {self.box_height_frac_range}")
+        if any(not (0 < f <= 1) for f in self.box_height_frac_samples):
+            raise ValueError("box_height_frac_samples must lie in (0, 1]")
+        if self.box_height_tolerance <= 0 or self.box_height_jitter < 0:
+            raise ValueError("box_height_tolerance must be > 0 and box_height_jitter >= 0")
         if self.local_fallback not in ("global", "reject"):
             raise ValueError(f"local_fallback must be 'global' or 'reject', got {self.local_fallback!r}")
         if self.local_radius_m <= 0 or self.local_ground_band_m <= 0 or self.local_threshold_m <= 0:
@@ -87,10 +105,11 @@ class PlacementReport:
     rejected: Counter = field(default_factory=Counter)
     chosen_because: str = ""
     local_refit_failed: int = 0    # candidates whose local refit failed (then the global plane or a rejection)
+    target_box_height_px: float | None = None   # when the config sets a size target
 
     def to_dict(self) -> dict:
         return {"tries": self.tries, "rejected": dict(self.rejected), "chosen_because": self.chosen_because,
-                "local_refit_failed": self.local_refit_failed}
+                "local_refit_failed": self.local_refit_failed, "target_box_height_px": self.target_box_height_px}
 
 
 def object_pose_on_ground(contact_point_in_cam: np.ndarray, ground: GroundPlane, yaw_rad: float) -> np.ndarray:
@@ -212,6 +231,52 @@ def refit_local_ground(band_points: np.ndarray, ground: GroundPlane, contact_in_
     raise GroundFitError(last_error)
 
 
+def draw_box_height_target(cfg: PlacementConfig, rng: np.random.Generator) -> float | None:
+    """Target box height / image height for one object, or None when the config sets no target."""
+    if cfg.box_height_frac_samples:
+        base = cfg.box_height_frac_samples[int(rng.integers(len(cfg.box_height_frac_samples)))]
+        return float(np.clip(base * np.exp(rng.normal(0.0, cfg.box_height_jitter)), 1e-3, 1.0))
+    if cfg.box_height_frac_range is not None:
+        return float(rng.uniform(*cfg.box_height_frac_range))
+    return None
+
+
+def predicted_box_heights_px(uv: np.ndarray, object_height_m: float, ground: GroundPlane,
+                             intrinsics: Intrinsics) -> np.ndarray:
+    """(N, 2) ground pixels -> (N,) image height in pixels of a vertical segment of ``object_height_m`` standing on
+    the ground there (its base and top projected); nan where the ray misses the ground or the top is behind the
+    camera. An object's box is about this high (a cone's box is its height; wide objects add a little)."""
+    base = ground.intersect_pixels(uv, intrinsics)
+    top = base + object_height_m * ground.normal[None, :]
+    out = np.full(len(uv), np.nan)
+    ok = np.all(np.isfinite(base), axis=1) & (base[:, 2] > 0.05) & (top[:, 2] > 0.05)
+    if ok.any():
+        ub, _ = project_points(base[ok], intrinsics.K)
+        ut, _ = project_points(top[ok], intrinsics.K)
+        out[ok] = np.abs(ub[:, 1] - ut[:, 1])
+    return out
+
+
+def candidates_for_box_height(cand: np.ndarray, target_frac: float, object_height_m: float, ground: GroundPlane,
+                              intrinsics: Intrinsics, tolerance: float) -> tuple[np.ndarray, str]:
+    """Flat pixel indices of ``cand`` whose predicted box height is within ``tolerance`` (relative) of
+    ``target_frac * height``; when none is, the 2 % nearest to it (and a note saying so)."""
+    v, u = np.divmod(cand, intrinsics.width)
+    pred = predicted_box_heights_px(np.c_[u, v].astype(np.float64), object_height_m, ground, intrinsics)
+    target = target_frac * intrinsics.height
+    rel = np.abs(pred / target - 1.0)
+    rel[~np.isfinite(rel)] = np.inf
+    ok = rel <= tolerance
+    if ok.any():
+        return cand[ok], f" (target {target:.0f} px)"
+    finite = np.isfinite(rel)
+    if not finite.any():
+        return cand, f" (target {target:.0f} px: no ground pixel predicts a size, target ignored)"
+    n = max(1, int(0.02 * finite.sum()))
+    nearest = np.argsort(rel)[:n]
+    return cand[nearest], f" (target {target:.0f} px not reachable in this scene: nearest sizes used)"
+
+
 def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, rng: np.random.Generator, *,
                      existing_boxes_xyxy: np.ndarray | None = None, depth: np.ndarray | None = None,
                      region_mask: np.ndarray | None = None, height_range_m: tuple[float, float] | None = None,
@@ -247,6 +312,12 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
     if len(cand) == 0:
         report.rejected["no ground pixels in view"] += 1
         return None, report
+    size_note = ""
+    target_frac = draw_box_height_target(cfg, rng)
+    if target_frac is not None:
+        cand, size_note = candidates_for_box_height(cand, target_frac, float(np.mean(hr)), ground, intrinsics,
+                                                    cfg.box_height_tolerance)
+        report.target_box_height_px = target_frac * h
     # A child generator for the refits, so that how many points the scene has does not change the draws of
     # pixels, heights and yaws from ``rng`` (same seed -> same candidates with or without measured points).
     refit_rng = _child_generator(rng) if cfg.local_refit else None
@@ -322,7 +393,7 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
                 continue
         report.chosen_because = (
             f"first candidate passing all checks (try {report.tries}): ground point at {dist:.1f} m on the "
-            f"{used} plane, box {bh:.0f} px high"
+            f"{used} plane, box {bh:.0f} px high{size_note}"
         )
         placement = Placement(
             category=asset.category, asset_name=asset.name, asset_source=asset.source, scale=float(scale),

@@ -192,3 +192,53 @@ def test_pipeline_passes_dgp_meta_so_insertions_avoid_lidar_clusters_and_3d_boxe
                 assert res.record.modules["collision"].startswith(f"3D checks: {len(hedge)} scene points, 1 existing")
     assert placed[True] >= 8 and hits[True] == 0
     assert hits[False] >= 2
+
+
+# ------------------------------------------------------------------ pixel-size targets
+
+def test_predicted_box_height_matches_pinhole_formula_on_a_level_road():
+    # Level camera CAM_HEIGHT above the road: a ground pixel at row v sees z = f H / (v - cy); a vertical segment
+    # of height h standing there spans f h / z pixels (top at height h is at y = H - h, same z).
+    from aias_augment.placement import predicted_box_heights_px
+    v = np.array([260.0, 300.0, 400.0, 479.0])
+    uv = np.c_[np.full_like(v, 100.0), v]
+    z = K.fy * CAM_HEIGHT / (v - K.cy)
+    expected = K.fy * 0.7 / z
+    np.testing.assert_allclose(predicted_box_heights_px(uv, 0.7, ROAD, K), expected, rtol=1e-9)
+    above = predicted_box_heights_px(np.array([[100.0, 200.0]]), 0.7, ROAD, K)   # above the horizon: no ground
+    assert np.isnan(above).all()
+
+
+@pytest.mark.parametrize("target_frac", [0.06, 0.12, 0.2])
+def test_box_height_target_sets_the_projected_size(target_frac):
+    cfg = PlacementConfig(box_height_frac_range=(target_frac, target_frac), box_height_tolerance=0.1, local_refit=False)
+    heights = []
+    for seed in range(12):
+        p, report = sample_placement(_asset(), ROAD, K, np.random.default_rng(seed), cfg=cfg, height_range_m=(1.0, 1.0))
+        assert p is not None, report.to_dict()
+        heights.append((p.amodal_box_xyxy[3] - p.amodal_box_xyxy[1]) / K.height)
+        assert report.to_dict()["target_box_height_px"] == pytest.approx(target_frac * K.height)
+    # the box of a 0.5 m wide box is a little taller than its vertical edge (its top face shows): within 25 %
+    assert np.median(heights) == pytest.approx(target_frac, rel=0.25), heights
+
+
+def test_unreachable_box_height_target_falls_back_and_says_so():
+    # Nearest visible road (bottom row) is f H / 240 = 3.3 m away: a 1 m object is at most ~150 px; ask for 90 %.
+    cfg = PlacementConfig(box_height_frac_range=(0.9, 0.9), max_box_height_frac=1.0, local_refit=False)
+    p, report = sample_placement(_asset(), ROAD, K, np.random.default_rng(0), cfg=cfg, height_range_m=(1.0, 1.0))
+    assert p is not None
+    assert "not reachable" in report.chosen_because
+    assert p.amodal_box_xyxy[3] > 0.9 * K.height      # the nearest sizes: the bottom of the image
+
+
+def test_box_height_samples_follow_the_given_distribution():
+    small, large = 0.05, 0.2
+    cfg = PlacementConfig(box_height_frac_samples=(small, large), box_height_jitter=0.0, box_height_tolerance=0.1,
+                          local_refit=False)
+    heights = []
+    for seed in range(30):
+        p, _ = sample_placement(_asset(), ROAD, K, np.random.default_rng(seed), cfg=cfg, height_range_m=(1.0, 1.0))
+        heights.append((p.amodal_box_xyxy[3] - p.amodal_box_xyxy[1]) / K.height)
+    heights = np.array(heights)
+    assert ((heights < 0.1).sum() >= 8) and ((heights > 0.14).sum() >= 8)   # both modes drawn
+    assert not ((heights > 0.1) & (heights < 0.14)).any()                    # and nothing between them
