@@ -127,7 +127,7 @@ class EfficientNetLite0Backbone(nn.Module):
     """EfficientNet-Lite0 stem and MBConv blocks; the classifier head is dropped. Inputs must be multiples of 32
     (the wheel's convs use TF 'same' padding computed for even sizes)."""
 
-    def __init__(self, pretrained: bool = True, frozen_blocks: int = 0):
+    def __init__(self, pretrained: bool = True, frozen_blocks: int = 0, bn_mode: str = "train"):
         super().__init__()
         from efficientnet_lite_pytorch import EfficientNet
         net = EfficientNet.from_name("efficientnet-lite0")
@@ -149,33 +149,47 @@ class EfficientNetLite0Backbone(nn.Module):
         self.out_channels = {name: self.blocks[i]._block_args.output_filters for i, name in self.taps.items()}
         if frozen_blocks > len(self.blocks):
             raise ValueError(f"frozen_blocks {frozen_blocks} > {len(self.blocks)} blocks")
+        self.num_frozen = frozen_blocks
         self.frozen = nn.ModuleList([self.conv_stem, self.bn0, *self.blocks[:frozen_blocks]]) if frozen_blocks else \
             nn.ModuleList()
         for p in self.frozen.parameters():
             p.requires_grad_(False)
-        for m in self.blocks.modules():  # the wheel's TF momentum (0.01) is too slow for short fine-tuning runs
-            if isinstance(m, nn.BatchNorm2d):
+        self.bn_mode = bn_mode
+        self.norms = [m for m in self.modules() if isinstance(m, nn.BatchNorm2d)]
+        for m in self.norms:
+            if bn_mode == "frozen":      # statistics and affine stay ImageNet's (detectron2's FrozenBN)
+                m.weight.requires_grad_(False)
+                m.bias.requires_grad_(False)
+            else:                        # the wheel's TF momentum (0.01) is too slow for short fine-tuning runs
                 m.momentum = 0.1
 
     def train(self, mode: bool = True):
         super().train(mode)
         self.frozen.eval()   # frozen layers keep their ImageNet BatchNorm statistics
+        if self.bn_mode == "frozen":
+            for m in self.norms:
+                m.eval()
         return self
 
     def forward(self, x):
-        x = self.act(self.bn0(self.conv_stem(x)))
         out = {}
+        # Frozen leading blocks need no autograd graph: running them without one is most of the saving they give.
+        with torch.set_grad_enabled(torch.is_grad_enabled() and not self.num_frozen):
+            x = self.act(self.bn0(self.conv_stem(x)))
         for i, block in enumerate(self.blocks):
-            x = block(x)
+            with torch.set_grad_enabled(torch.is_grad_enabled() and i >= self.num_frozen):
+                x = block(x)
             if i in self.taps:
                 out[self.taps[i]] = x
         return out
 
 
 def build_backbone(name: str, depth: float, width: float, depthwise: bool, pretrained: bool,
-                   frozen_blocks: int = 0) -> nn.Module:
+                   frozen_blocks: int = 0, bn_mode: str = "train") -> nn.Module:
     if name == "cspdarknet":
+        if bn_mode != "train":
+            raise ValueError("backbone_bn 'frozen' needs a pretrained backbone (efficientnet_lite0)")
         return CSPDarknet(depth, width, depthwise)
     if name == "efficientnet_lite0":
-        return EfficientNetLite0Backbone(pretrained, frozen_blocks)
+        return EfficientNetLite0Backbone(pretrained, frozen_blocks, bn_mode)
     raise ValueError(f"unknown backbone {name!r}")

@@ -12,6 +12,7 @@ from aias_augment.config import CONFIG_DIR, from_dict, load_config
 
 BACKBONES = ("cspdarknet", "efficientnet_lite0")
 OPTIMIZERS = ("sgd", "adamw")
+BN_MODES = ("train", "frozen")
 
 
 @dataclass(frozen=True)
@@ -25,6 +26,8 @@ class ModelConfig:
     prior_prob: float = 0.01         # initial objectness/class probability (bias init)
     frozen_blocks: int = 0           # efficientnet_lite0: stem + this many leading MBConv blocks keep ImageNet weights
                                      # and BatchNorm statistics (5 = everything up to stride 8; halves CPU step time)
+    backbone_bn: str = "train"       # "frozen": every backbone BatchNorm keeps its ImageNet statistics and affine
+                                     # (detectron2's FrozenBN; batch 8 is too small to re-estimate them)
 
     def __post_init__(self):
         if self.backbone not in BACKBONES:
@@ -37,6 +40,8 @@ class ModelConfig:
             raise ValueError(f"frozen_blocks must be >= 0 and is only for efficientnet_lite0, got {self.frozen_blocks}")
         if not 0 < self.prior_prob < 1:
             raise ValueError(f"prior_prob must lie in (0, 1), got {self.prior_prob}")
+        if self.backbone_bn not in BN_MODES:
+            raise ValueError(f"backbone_bn must be one of {BN_MODES}, got {self.backbone_bn!r}")
 
 
 @dataclass(frozen=True)
@@ -82,6 +87,8 @@ class TrainConfig:
     ema_tau: float = 50.0           # ema decay ramps as decay * (1 - exp(-updates / tau))
     num_threads: int = 1
     log_every: int = 20
+    object_image_fraction: float = 0.0  # each epoch's order repeats images with objects so that they make up at least
+                                        # this share of the samples (0: every image once, plain shuffling)
 
     def __post_init__(self):
         if self.img_size % 32 != 0 or self.img_size < 32:
@@ -90,6 +97,8 @@ class TrainConfig:
             raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {self.optimizer!r}")
         if self.batch_size < 1 or self.max_iters < 1 or self.warmup_iters < 0:
             raise ValueError("batch_size and max_iters must be >= 1, warmup_iters >= 0")
+        if not 0 <= self.object_image_fraction < 1:
+            raise ValueError(f"object_image_fraction must lie in [0, 1), got {self.object_image_fraction}")
 
 
 @dataclass(frozen=True)

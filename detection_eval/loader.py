@@ -82,21 +82,39 @@ def collate_targets(boxes: list[np.ndarray], labels: list[np.ndarray]) -> Target
     return Targets(out_boxes, out_labels, torch.tensor([len(b) for b in boxes], dtype=torch.long))
 
 
+def epoch_items(cache: list[CachedImage], object_image_fraction: float) -> np.ndarray:
+    """Indices making up one epoch. Images with objects are repeated ``round(r)`` times (at least once), with r chosen
+    so that they make up ``object_image_fraction`` of the epoch (repeat-factor sampling, as LVIS does for rare
+    classes); with a fraction of 0, or when they already make up that share, every image appears once."""
+    has_obj = np.array([len(c.labels) > 0 for c in cache])
+    n_obj, n_empty = int(has_obj.sum()), int((~has_obj).sum())
+    repeat = 1
+    if object_image_fraction > 0 and n_obj and n_obj / len(cache) < object_image_fraction:
+        repeat = max(1, round(object_image_fraction * n_empty / ((1 - object_image_fraction) * n_obj)))
+    counts = np.where(has_obj, repeat, 1)
+    return np.repeat(np.arange(len(cache)), counts)
+
+
 class TrainBatches:
     """Infinite deterministic stream of augmented batches over a cached dataset (epoch-wise shuffles)."""
 
     def __init__(self, cache: list[CachedImage], size: int, batch_size: int, augment: AugmentConfig, seed: int,
-                 sample_transform: SampleTransform | None = None):
+                 sample_transform: SampleTransform | None = None, object_image_fraction: float = 0.0):
         if not cache:
             raise ValueError("empty training set")
         self.cache, self.size, self.batch_size = cache, size, batch_size
         self.augment, self.seed, self.sample_transform = augment, seed, sample_transform
+        self.epoch_items = epoch_items(cache, object_image_fraction)
+        self._orders: dict[int, np.ndarray] = {}
 
     def _order(self, epoch: int) -> np.ndarray:
-        return np.random.default_rng([self.seed, 1_000_003, epoch]).permutation(len(self.cache))
+        if epoch not in self._orders:
+            perm = np.random.default_rng([self.seed, 1_000_003, epoch]).permutation(len(self.epoch_items))
+            self._orders = {epoch: self.epoch_items[perm]}
+        return self._orders[epoch]
 
     def index_at(self, position: int) -> int:
-        epoch, k = divmod(position, len(self.cache))
+        epoch, k = divmod(position, len(self.epoch_items))
         return int(self._order(epoch)[k])
 
     def _sample(self, idx: int, rng: np.random.Generator):

@@ -115,7 +115,8 @@ class Detector(nn.Module):
         super().__init__()
         m = cfg.model
         self.cfg = cfg
-        self.backbone = build_backbone(m.backbone, m.depth, m.width, m.depthwise, m.pretrained, m.frozen_blocks)
+        self.backbone = build_backbone(m.backbone, m.depth, m.width, m.depthwise, m.pretrained, m.frozen_blocks,
+                                       m.backbone_bn)
         self.neck = PAFPN(self.backbone.out_channels, m.depth, m.width, m.depthwise)
         self.head = DecoupledHead(self.neck.out_channels, m.num_classes, m.width, m.depthwise, m.prior_prob)
         self.register_buffer("mean", torch.tensor(IMAGENET_MEAN).view(1, 3, 1, 1), persistent=False)

@@ -56,8 +56,16 @@ class InsertionStudyConfig:
     categories: tuple[str, ...] = ("traffic_cone",)
     min_objects: int = 1
     max_objects: int = 3
-    images_per_seed: int | None = None        # empty road images that get an inserted copy (None: all 199)
+    pool_size: int = 200                      # inserted images generated once per arm (backgrounds cycle when larger
+                                              # than the 199 empty road images); every run draws its share from it
+    pool_seed: int = 0                        # copy j uses default_rng([pool_seed, j]) in every arm: paired copies
     max_side_px: int = 640                    # backgrounds are downscaled to this before insertion (we train at 320)
+    match_real_sizes: bool = True             # target box heights drawn from the labelled train boxes' heights (as a
+                                              # fraction of image height): inserted objects cover the real sizes
+
+    def __post_init__(self):
+        if self.pool_size < 1:
+            raise ValueError(f"pool_size must be >= 1, got {self.pool_size}")
 
 
 @dataclass(frozen=True)
@@ -67,8 +75,9 @@ class StudyConfig:
     train_split: str = "train"
     val_split: str = "val"
     keep_fraction: float = 0.1                # of the train images that contain cones
-    seeds: tuple[int, ...] = (0, 1, 2)
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
     arms: tuple[str, ...] = ("original", "inserted", "naive_paste")
+    amounts: tuple[int, ...] = (200,)         # inserted images added per run (an axis: a gain may need enough cones)
     detector: str = "lite0_320"               # configs/detector/<name>.yaml
     max_iters: int | None = None              # overrides the detector config: the per-run budget
     insertion: InsertionStudyConfig = field(default_factory=InsertionStudyConfig)
@@ -85,6 +94,9 @@ class StudyConfig:
             raise ValueError(f"keep_fraction must lie in (0, 1], got {self.keep_fraction}")
         if len(set(self.seeds)) != len(self.seeds) or not self.seeds:
             raise ValueError(f"seeds must be distinct and non-empty, got {self.seeds}")
+        if not self.amounts or any(a < 1 or a > self.insertion.pool_size for a in self.amounts):
+            raise ValueError(f"amounts must lie in [1, insertion.pool_size={self.insertion.pool_size}], "
+                             f"got {self.amounts}")
 
 
 def _repo_path(p: str) -> Path:
@@ -108,64 +120,123 @@ def thin_cone_images(train: DetectionSet, keep_fraction: float, seed: int) -> tu
     return train.subset(sorted(int(i) for i in kept) + empty), empty
 
 
-def insertion_backgrounds(empty: list[int], seed: int, n: int | None) -> list[int]:
-    order = np.random.default_rng([seed, 11]).permutation(len(empty))
-    return [empty[int(i)] for i in order[: (len(empty) if n is None else min(n, len(empty)))]]
+def pool_backgrounds(empty: list[int], pool_seed: int, n: int) -> list[int]:
+    """Background of each of the ``n`` pool copies: a seeded order of the empty images, cycled when ``n`` exceeds
+    them (copy j and copy j + len(empty) share a background, with different draws)."""
+    order = np.random.default_rng([pool_seed, 11]).permutation(len(empty))
+    return [empty[int(order[j % len(empty)])] for j in range(n)]
 
 
-def generate_arm_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, background_idx: list[int]) -> Path:
-    """Render the inserted copies for (arm, seed) into a YOLO folder; cached: an existing ``done.json`` is reused."""
+def pool_share(pool_size: int, amount: int, seed: int) -> list[int]:
+    """Which pool copies a run with ``seed`` uses: ``amount`` of them, a seeded subset (all when amount == size)."""
+    return sorted(int(j) for j in np.random.default_rng([seed, 13]).permutation(pool_size)[:amount])
+
+
+def real_box_height_fractions(train: DetectionSet) -> tuple[float, ...]:
+    """Box height / image height of every labelled box (the class's size distribution in the user's data)."""
+    return tuple(float((r.boxes_xyxy[i, 3] - r.boxes_xyxy[i, 1]) / r.height)
+                 for r in train.records for i in range(len(r.labels)))
+
+
+def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
     from aias_augment.pipeline import load_preset
+    from aias_augment.placement import PlacementConfig
 
-    out = _repo_path(cfg.cache_dir) / arm / f"seed{seed}"
-    done = out / "done.json"
     ic = cfg.insertion
-    wanted = {"arm": arm, "seed": seed, "backgrounds": [Path(train.records[i].image_path).name for i in background_idx],
+    overrides = dict(categories=tuple(ic.categories), min_objects=ic.min_objects, max_objects=ic.max_objects,
+                     harmonize_method=ic.harmonize_method, **ARM_FLAGS[arm])
+    if ic.match_real_sizes:
+        fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
+        base = load_preset(ic.preset).placement_cfg
+        overrides["placement_cfg"] = dataclasses.replace(base, box_height_frac_samples=fracs)
+        if ARM_FLAGS[arm].get("naive_paste"):   # naive paste draws its own random sizes from the same distribution
+            overrides["naive_height_frac_samples"] = fracs
+    return load_preset(ic.preset, **overrides)
+
+
+def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: list[int]) -> Path:
+    """Render the arm's pool of ``insertion.pool_size`` inserted copies into a YOLO folder, once for all seeds.
+    Resumable: finished copies are listed in ``progress.jsonl`` and kept when a run with the same parameters is
+    restarted; ``done.json`` marks a complete pool and is reused while its parameters match."""
+    ic = cfg.insertion
+    out = _repo_path(cfg.cache_dir) / arm / "pool"
+    done, progress = out / "done.json", out / "progress.jsonl"
+    backgrounds = pool_backgrounds(empty, ic.pool_seed, ic.pool_size)
+    wanted = {"arm": arm, "backgrounds": [Path(train.records[i].image_path).name for i in backgrounds],
               "insertion": dataclasses.asdict(ic), "flags": ARM_FLAGS[arm]}
-    code = {"code_commit": _git_head()}
+    wanted = json.loads(json.dumps(wanted))   # as it reads back from json (tuples become lists)
     if done.exists():
         prev = json.loads(done.read_text())
         if all(prev.get(k) == v for k, v in wanted.items()):
-            log.info("%s seed %d: using cached %s (%d images)", arm, seed, out, prev["num_images"])
+            log.info("%s: using cached pool %s (%d images)", arm, out, prev["num_images"])
             return out
-        log.info("%s seed %d: cache parameters changed, regenerating", arm, seed)
-    ins_cfg = load_preset(ic.preset, categories=tuple(ic.categories), min_objects=ic.min_objects,
-                          max_objects=ic.max_objects, harmonize_method=ic.harmonize_method, **ARM_FLAGS[arm])
-    t0 = time.perf_counter()
-    n_boxes, failures, manifest = 0, {}, []
-    for k, i in enumerate(background_idx):
-        rec = train.records[i]
-        image = read_image_rgb(rec.image_path)
-        scale = min(1.0, ic.max_side_px / max(image.shape[:2]))
-        if scale < 1:
-            image = cv2.resize(image, (round(image.shape[1] * scale), round(image.shape[0] * scale)),
-                               interpolation=cv2.INTER_AREA)
-        rng = np.random.default_rng([seed, i])       # same draw stream for every arm: paired copies
-        try:
-            res = _insert(image, rng, ins_cfg)
-        except Exception as exc:  # logged and counted; the copy is left out, never written without its boxes
-            reason = f"{type(exc).__name__}: {exc}"[:200]
-            failures[reason] = failures.get(reason, 0) + 1
-            log.warning("%s seed %d: insertion failed on %s: %s", arm, seed, rec.image_path, reason)
-            continue
-        boxes_xywh = np.asarray(res.bboxes, np.float64).reshape(-1, 4)
-        keep = (boxes_xywh[:, 2] >= 1) & (boxes_xywh[:, 3] >= 1)
-        boxes_xyxy = np.c_[boxes_xywh[keep, :2], boxes_xywh[keep, :2] + boxes_xywh[keep, 2:]]
-        stem = f"{Path(rec.image_path).stem}__{arm}_s{seed}"
-        write_yolo_sample(out, stem, res.image, boxes_xyxy, np.zeros(len(boxes_xyxy), np.int64))
-        n_boxes += len(boxes_xyxy)
-        manifest.append({"background": Path(rec.image_path).name, "image": f"{stem}.jpg", "boxes": int(keep.sum()),
-                         "modules": dict(res.record.modules)})
-        if (k + 1) % 10 == 0:
-            log.info("%s seed %d: %d/%d images, %.1f s/image", arm, seed, k + 1, len(background_idx),
-                     (time.perf_counter() - t0) / (k + 1))
-    seconds = time.perf_counter() - t0
+        log.info("%s: pool parameters changed, regenerating", arm)
+        done.unlink()
+        progress.unlink(missing_ok=True)
+    params_file = out / "params.json"
+    if params_file.exists() and json.loads(params_file.read_text()) != wanted:
+        progress.unlink(missing_ok=True)           # a partial pool made with other parameters is not resumed
+    out.mkdir(parents=True, exist_ok=True)
+    params_file.write_text(json.dumps(wanted))
+    finished = {}
+    if progress.exists():
+        for line in progress.read_text().splitlines():
+            try:
+                e = json.loads(line)
+            except json.JSONDecodeError:             # a line cut by a kill
+                continue
+            if (out / "images" / e["image"]).exists() or e.get("failed"):
+                finished[e["copy"]] = e
+    ins_cfg = insertion_config_for_arm(cfg, arm, train)
+    t0, n_new = time.perf_counter(), 0
+    with progress.open("a") as plog:
+        for j, i in enumerate(backgrounds):
+            if j in finished:
+                continue
+            rec = train.records[i]
+            image = read_image_rgb(rec.image_path)
+            scale = min(1.0, ic.max_side_px / max(image.shape[:2]))
+            if scale < 1:
+                image = cv2.resize(image, (round(image.shape[1] * scale), round(image.shape[0] * scale)),
+                                   interpolation=cv2.INTER_AREA)
+            rng = np.random.default_rng([ic.pool_seed, j])       # same draw stream for every arm: paired copies
+            t_img = time.perf_counter()
+            try:
+                res = _insert(image, rng, ins_cfg)
+            except Exception as exc:  # logged and counted; the copy is left out, never written without its boxes
+                reason = f"{type(exc).__name__}: {exc}"[:200]
+                log.warning("%s: insertion failed on %s: %s", arm, rec.image_path, reason)
+                entry = {"copy": j, "background": Path(rec.image_path).name, "failed": reason}
+            else:
+                boxes_xywh = np.asarray(res.bboxes, np.float64).reshape(-1, 4)
+                keep = (boxes_xywh[:, 2] >= 1) & (boxes_xywh[:, 3] >= 1)
+                boxes_xyxy = np.c_[boxes_xywh[keep, :2], boxes_xywh[keep, :2] + boxes_xywh[keep, 2:]]
+                stem = f"{j:04d}_{Path(rec.image_path).stem}__{arm}"
+                write_yolo_sample(out, stem, res.image, boxes_xyxy, np.zeros(len(boxes_xyxy), np.int64))
+                entry = {"copy": j, "background": Path(rec.image_path).name, "image": f"{stem}.jpg",
+                         "boxes": int(keep.sum()), "box_heights_frac": [float(x) for x in
+                                                                        boxes_xywh[keep, 3] / image.shape[0]],
+                         "seconds": time.perf_counter() - t_img, "modules": dict(res.record.modules)}
+            plog.write(json.dumps(entry) + "\n")
+            plog.flush()
+            finished[j] = entry
+            n_new += 1
+            if n_new % 10 == 0:
+                log.info("%s: %d/%d pool images, %.1f s/image", arm, len(finished), len(backgrounds),
+                         (time.perf_counter() - t0) / n_new)
+    entries = [finished[j] for j in sorted(finished)]
+    ok = [e for e in entries if not e.get("failed")]
+    failures: dict[str, int] = {}
+    for e in entries:
+        if e.get("failed"):
+            failures[e["failed"]] = failures.get(e["failed"], 0) + 1
     write_classes(out, cfg.class_names)
-    (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
-    done.write_text(json.dumps({**wanted, **code, "num_images": len(manifest), "num_boxes": n_boxes,
-                                "failures": failures, "seconds": seconds,
-                                "seconds_per_image": seconds / max(len(background_idx), 1)}, indent=1))
-    log.info("%s seed %d: %d images, %d inserted boxes in %.0f s", arm, seed, len(manifest), n_boxes, seconds)
+    (out / "manifest.json").write_text(json.dumps(entries, indent=1))
+    seconds = [e["seconds"] for e in ok]
+    done.write_text(json.dumps({**wanted, "code_commit": _git_head(), "num_images": len(ok),
+                                "num_boxes": sum(e["boxes"] for e in ok), "failures": failures,
+                                "seconds_per_image": float(np.median(seconds)) if seconds else None}, indent=1))
+    log.info("%s: pool of %d images, %d inserted boxes", arm, len(ok), sum(e["boxes"] for e in ok))
     return out
 
 
@@ -183,21 +254,26 @@ def _insert(image, rng, ins_cfg):
     return insert_into_image(image, np.zeros((0, 4)), [], rng, ins_cfg)
 
 
-def training_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, generate: bool = True):
-    """(training DetectionSet, info dict) for one arm and seed."""
+def training_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, amount: int | None = None,
+                 generate: bool = True):
+    """(training DetectionSet, info dict) for one arm, seed and amount of inserted images."""
     base, empty = thin_cone_images(train, cfg.keep_fraction, seed)
     info = {"real_images": len(base), "real_cone_images": sum(1 for r in base.records if len(r.labels)),
             "real_boxes": base.num_boxes}
     if ARM_FLAGS[arm] is None:
         return base, info
-    backgrounds = insertion_backgrounds(empty, seed, cfg.insertion.images_per_seed)
-    folder = generate_arm_set(cfg, arm, seed, train, backgrounds) if generate else \
-        _repo_path(cfg.cache_dir) / arm / f"seed{seed}"
+    folder = generate_arm_set(cfg, arm, train, empty) if generate else _repo_path(cfg.cache_dir) / arm / "pool"
     if not (folder / "done.json").exists():
-        raise FileNotFoundError(f"{folder}: augmented set not generated (run --stage generate)")
-    extra = load_yolo_dir(folder, names=cfg.class_names)
+        raise FileNotFoundError(f"{folder}: augmented pool not generated (run --stage generate)")
     gen = json.loads((folder / "done.json").read_text())
-    info.update({"inserted_images": len(extra), "inserted_boxes": extra.num_boxes,
+    manifest = json.loads((folder / "manifest.json").read_text())
+    by_copy = {e["copy"]: e for e in manifest if not e.get("failed")}
+    amount = cfg.amounts[0] if amount is None else amount
+    share = [j for j in pool_share(cfg.insertion.pool_size, amount, seed) if j in by_copy]
+    pool = load_yolo_dir(folder, names=cfg.class_names)
+    by_name = {Path(r.image_path).name: r for r in pool.records}
+    extra = DetectionSet(tuple(by_name[by_copy[j]["image"]] for j in share), pool.category_names)
+    info.update({"amount": amount, "inserted_images": len(extra), "inserted_boxes": extra.num_boxes,
                  "generation_seconds_per_image": gen["seconds_per_image"], "generation_failures": gen["failures"]})
     return base + extra, info
 
@@ -207,35 +283,42 @@ def training_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, gen
 _IMAGE_MEMO: dict = {}   # decoded, resized training images shared by all runs of one process
 
 
-def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: DetectionSet, val_cache, force=False):
+def run_name(arm: str, seed: int, amount: int | None) -> str:
+    return f"{arm}_seed{seed}" if ARM_FLAGS[arm] is None else f"{arm}_n{amount}_seed{seed}"
+
+
+def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: DetectionSet, val_cache,
+            amount: int | None = None, force=False):
     from .inference import evaluate_dataset
     from .train import save_checkpoint, train_detector
 
-    result_path = _repo_path(cfg.results_dir) / "run_metrics" / f"{arm}_seed{seed}.json"
+    amount = None if ARM_FLAGS[arm] is None else (cfg.amounts[0] if amount is None else amount)
+    name = run_name(arm, seed, amount)
+    result_path = _repo_path(cfg.results_dir) / "run_metrics" / f"{name}.json"
     if result_path.exists() and not force:
-        log.info("%s seed %d: result exists (%s), skipping", arm, seed, result_path)
+        log.info("%s: result exists (%s), skipping", name, result_path)
         return json.loads(result_path.read_text())
     det_cfg = load_detector_config(cfg.detector)
     if cfg.max_iters:
         det_cfg = replace_nested(det_cfg, **{"train.max_iters": cfg.max_iters})
-    train_set, info = training_set(cfg, arm, seed, train)
-    log.info("%s seed %d: training on %s", arm, seed, info)
-    res = train_detector(det_cfg, train_set, seed=seed, log_fn=lambda m: log.info("%s s%d %s", arm, seed, m),
+    train_set, info = training_set(cfg, arm, seed, train, amount)
+    log.info("%s: training on %s", name, info)
+    res = train_detector(det_cfg, train_set, seed=seed, log_fn=lambda m: log.info("%s %s", name, m),
                          image_memo=_IMAGE_MEMO)
     t0 = time.perf_counter()
     metrics = evaluate_dataset(res.model, val, det_cfg.train.img_size, det_cfg.inference, cached=val_cache)
     eval_seconds = time.perf_counter() - t0
-    weights = _repo_path(cfg.runs_dir) / arm / f"seed{seed}" / "weights.pt"
-    row = {"arm": arm, "seed": seed, **info, "train_images": len(train_set), "iterations": res.iterations,
-           "batch_size": det_cfg.train.batch_size, "img_size": det_cfg.train.img_size,
-           "train_seconds": res.train_seconds, "cache_seconds": res.cache_seconds,
-           "train_images_per_second": res.images_per_second, "eval_seconds": eval_seconds,
-           "final_losses": res.final_losses, "metrics": _nan_to_none(metrics), "weights": str(weights),
-           "detector": dataclasses.asdict(det_cfg)}
+    weights = _repo_path(cfg.runs_dir) / name / "weights.pt"
+    row = {"arm": arm, "seed": seed, "amount": amount, **info, "train_images": len(train_set),
+           "iterations": res.iterations, "batch_size": det_cfg.train.batch_size, "img_size": det_cfg.train.img_size,
+           "threads": det_cfg.train.num_threads, "train_seconds": res.train_seconds,
+           "cache_seconds": res.cache_seconds, "train_images_per_second": res.images_per_second,
+           "eval_seconds": eval_seconds, "final_losses": res.final_losses, "metrics": _nan_to_none(metrics),
+           "weights": str(weights), "code_commit": _git_head(), "detector": dataclasses.asdict(det_cfg)}
     save_checkpoint(weights, res.model, train_set.category_names, {k: v for k, v in row.items() if k != "detector"})
     result_path.parent.mkdir(parents=True, exist_ok=True)
     result_path.write_text(json.dumps(row, indent=1))
-    log.info("%s seed %d: AP %.4f AP50 %.4f (%.0f s train, %.2f img/s)", arm, seed, metrics["AP"], metrics["AP50"],
+    log.info("%s: AP %.4f AP50 %.4f (%.0f s train, %.2f img/s)", name, metrics["AP"], metrics["AP50"],
              res.train_seconds, res.images_per_second)
     return row
 
@@ -265,30 +348,47 @@ METRIC_COLUMNS = (("AP", "AP50:95"), ("AP50", "AP50"), ("AP_small", "AP_S"), ("A
                   ("AP_large", "AP_L"))
 
 
+def group_of(row: dict) -> str:
+    """Table row label: the arm, with its amount of inserted images when it has one."""
+    return row["arm"] if row.get("amount") is None else f"{row['arm']} n={row['amount']}"
+
+
+def paired_deltas(rows: list[dict], group: str, other: str, key: str = "AP") -> list[float]:
+    """``group`` minus ``other`` per seed, over the seeds both have (same seed = same thinned real subset)."""
+    a = {r["seed"]: r["metrics"][key] for r in rows if group_of(r) == group}
+    b = {r["seed"]: r["metrics"][key] for r in rows if group_of(r) == other}
+    return [a[s] - b[s] for s in sorted(a) if s in b and a[s] is not None and b[s] is not None]
+
+
 def summarize(rows: list[dict], reference: str = "original") -> tuple[str, dict]:
-    arms = list(dict.fromkeys(r["arm"] for r in rows))
-    by_arm = {a: sorted((r for r in rows if r["arm"] == a), key=lambda r: r["seed"]) for a in arms}
-    ref = {r["seed"]: r for r in by_arm.get(reference, [])}
+    """Markdown table: per arm (and amount) mean ± 95 % t-interval over seeds of each metric, and the paired
+    differences of AP50:95 to ``reference`` and, for inserted arms, to ``naive_paste`` at the same amount."""
+    groups = list(dict.fromkeys(group_of(r) for r in rows))
     summary = {}
     fmt = lambda m, h: "n/a" if math.isnan(m) else (f"{m:.3f}" if math.isnan(h) else f"{m:.3f} ± {h:.3f}")
     head = "| arm | seeds | train images (real + inserted) | " + " | ".join(c[1] for c in METRIC_COLUMNS) + \
-        f" | ΔAP50:95 vs {reference} (paired) | train s/run | train img/s |"
+        f" | ΔAP50:95 vs {reference} (paired) | ΔAP50:95 vs naive_paste (paired) | train s/run | train img/s |"
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
-    for a in arms:
-        rs = by_arm[a]
-        s = {"seeds": [r["seed"] for r in rs]}
+    for g in groups:
+        rs = sorted((r for r in rows if group_of(r) == g), key=lambda r: r["seed"])
+        arm, amount = rs[0]["arm"], rs[0].get("amount")
+        s = {"arm": arm, "amount": amount, "seeds": [r["seed"] for r in rs]}
         for key, _ in METRIC_COLUMNS:
             s[key] = mean_ci95([r["metrics"][key] for r in rs])
-        deltas = [r["metrics"]["AP"] - ref[r["seed"]]["metrics"]["AP"] for r in rs if r["seed"] in ref]
-        s["delta_AP"] = mean_ci95(deltas) if a != reference else (float("nan"), float("nan"))
+        s["delta_AP"] = mean_ci95(paired_deltas(rows, g, reference)) if arm != reference else \
+            (float("nan"), float("nan"))
+        naive = f"naive_paste n={amount}"
+        s["delta_AP_vs_naive"] = mean_ci95(paired_deltas(rows, g, naive)) if arm not in (reference, "naive_paste") \
+            and naive in groups else (float("nan"), float("nan"))
         s["train_seconds"] = float(np.median([r["train_seconds"] for r in rs]))
         s["train_images_per_second"] = float(np.median([r["train_images_per_second"] for r in rs]))
         real = int(np.median([r["real_images"] for r in rs]))
         ins = int(np.median([r.get("inserted_images", 0) for r in rs]))
-        summary[a] = s
-        lines.append(f"| {a} | {len(rs)} | {real} + {ins} | " +
+        summary[g] = s
+        dn = fmt(*s["delta_AP_vs_naive"]) if not math.isnan(s["delta_AP_vs_naive"][0]) else "—"
+        lines.append(f"| {g} | {len(rs)} | {real} + {ins} | " +
                      " | ".join(fmt(*s[k]) for k, _ in METRIC_COLUMNS) +
-                     f" | {fmt(*s['delta_AP']) if a != reference else '—'} | {s['train_seconds']:.0f} | "
+                     f" | {fmt(*s['delta_AP']) if arm != reference else '—'} | {dn} | {s['train_seconds']:.0f} | "
                      f"{s['train_images_per_second']:.2f} |")
     return "\n".join(lines) + "\n", summary
 
@@ -298,16 +398,16 @@ def plot_summary(rows: list[dict], path: Path, reference: str = "original") -> N
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    arms = list(dict.fromkeys(r["arm"] for r in rows))
-    fig, axes = plt.subplots(1, 2, figsize=(4 + 1.6 * len(arms), 4))
+    groups = list(dict.fromkeys(group_of(r) for r in rows))
+    fig, axes = plt.subplots(1, 2, figsize=(4 + 1.6 * len(groups), 4))
     for ax, (key, title) in zip(axes, (("AP", "AP50:95"), ("AP50", "AP50"))):
-        for x, a in enumerate(arms):
-            vals = [r["metrics"][key] for r in rows if r["arm"] == a]
+        for x, g in enumerate(groups):
+            vals = [r["metrics"][key] for r in rows if group_of(r) == g]
             m, h = mean_ci95(vals)
             ax.scatter([x] * len(vals), vals, color="0.6", s=14, zorder=2)
-            ax.errorbar([x], [m], yerr=[[0 if math.isnan(h) else h]] * 2, fmt="o", color="C0" if a == reference
+            ax.errorbar([x], [m], yerr=[[0 if math.isnan(h) else h]] * 2, fmt="o", color="C0" if g == reference
                         else "C1", capsize=6, markersize=7, zorder=3)
-        ax.set_xticks(range(len(arms)), arms, rotation=20)
+        ax.set_xticks(range(len(groups)), groups, rotation=20)
         ax.set_title(f"TraCon val {title} (mean, 95% CI; grey = seeds)")
         ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
@@ -316,32 +416,67 @@ def plot_summary(rows: list[dict], path: Path, reference: str = "original") -> N
     plt.close(fig)
 
 
-def write_summary(cfg: StudyConfig, config_path: str, command: str) -> str:
+def plot_size_histograms(cfg: StudyConfig, train: DetectionSet, val: DetectionSet, path: Path) -> dict:
+    """Box height / image height of real train, real val and each arm's pool; returns their medians."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    series = {"real train": real_box_height_fractions(train), "real val": real_box_height_fractions(val)}
+    for arm in cfg.arms:
+        mf = _repo_path(cfg.cache_dir) / arm / "pool" / "manifest.json"
+        if ARM_FLAGS[arm] is not None and mf.exists():
+            series[f"{arm} pool"] = [h for e in json.loads(mf.read_text()) for h in e.get("box_heights_frac", [])]
+    fig, ax = plt.subplots(figsize=(7, 4))
+    bins = np.linspace(0, 1, 41)
+    for k, (name, v) in enumerate(series.items()):
+        if len(v):
+            ax.hist(v, bins=bins, density=True, histtype="step", lw=1.8, color=f"C{k}",
+                    label=f"{name} (n={len(v)}, median {np.median(v):.2f})")
+    ax.set_xlabel("box height / image height")
+    ax.set_ylabel("density")
+    ax.set_title("Object sizes: real cones vs inserted")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return {k: float(np.median(v)) for k, v in series.items() if len(v)}
+
+
+def write_summary(cfg: StudyConfig, config_path: str, command: str, train: DetectionSet | None = None,
+                  val: DetectionSet | None = None) -> str:
     results = _repo_path(cfg.results_dir)
     rows = [json.loads(p.read_text()) for p in sorted((results / "run_metrics").glob("*.json"))]
     rows = [r for r in rows if r["arm"] in ARM_FLAGS]
     if not rows:
         raise FileNotFoundError(f"no run results under {results / 'run_metrics'}")
     order = {a: i for i, a in enumerate(ARM_FLAGS)}
-    rows.sort(key=lambda r: (order[r["arm"]], r["seed"]))
+    rows.sort(key=lambda r: (order[r["arm"]], r.get("amount") or 0, r["seed"]))
     table, summary = summarize(rows, cfg.reference_arm)
     plot_summary(rows, results / "ap_by_arm.png", cfg.reference_arm)
     r0 = rows[0]
     gen = {}
     for a in dict.fromkeys(r["arm"] for r in rows):
         per_image = [r["generation_seconds_per_image"] for r in rows if r["arm"] == a and
-                     "generation_seconds_per_image" in r]
+                     r.get("generation_seconds_per_image") is not None]
         if per_image:
             gen[a] = float(np.median(per_image))
     note = (f"Detector: `{r0['detector']['model']['backbone']}` (width {r0['detector']['model']['width']}), "
-            f"{r0['img_size']} px, {r0['iterations']} iterations x batch {r0['batch_size']} per run, 1 CPU thread. "
-            f"Evaluated on TraCon val ({r0['metrics']['num_images']} images, {r0['metrics']['num_gt']} cones) with "
-            f"pycocotools. Mean ± half-width of the 95% Student-t interval over seeds.\n")
+            f"{r0['img_size']} px, {r0['iterations']} iterations x batch {r0['batch_size']} per run, "
+            f"{r0.get('threads', 1)} CPU thread(s) per run. Evaluated on TraCon val ({r0['metrics']['num_images']} "
+            f"images, {r0['metrics']['num_gt']} cones) with pycocotools. Mean ± half-width of the 95% Student-t "
+            f"interval over seeds; Δ columns are paired by seed (seed k of every arm trains on the same thinned "
+            f"real subset, redrawn per seed, so its variance is inside the interval).\n")
     if gen:
         note += "Offline generation, median seconds per inserted image: " + \
             ", ".join(f"{a} {s:.1f}" for a, s in gen.items()) + ".\n"
     md = f"# Detection study: TraCon cones\n\nCommand: `{command}` (config `{config_path}`)\n\n{note}\n{table}\n" \
          f"![AP by arm](ap_by_arm.png)\n"
+    if train is not None and val is not None:
+        medians = plot_size_histograms(cfg, train, val, results / "size_histograms.png")
+        md += "\nObject sizes (median box height / image height): " + \
+            ", ".join(f"{k} {v:.3f}" for k, v in medians.items()) + "\n\n![sizes](size_histograms.png)\n"
     (results / "table.md").write_text(md)
     (results / "summary.json").write_text(json.dumps(_nan_to_none(
         {a: {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.items()} for a, s in summary.items()}),
@@ -382,6 +517,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--stage", choices=("all", "generate", "train", "summarize"), default="all")
     p.add_argument("--arms", nargs="*", help="subset of the config's arms")
     p.add_argument("--seeds", nargs="*", type=int, help="subset of the config's seeds")
+    p.add_argument("--amounts", nargs="*", type=int, help="subset of the config's amounts")
     p.add_argument("--force", action="store_true", help="re-run runs whose results exist")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
@@ -389,26 +525,27 @@ def main(argv: list[str] | None = None) -> None:
     cfg = load_study_config(args.config)
     arms = available_arms(args.arms or cfg.arms)
     seeds = args.seeds if args.seeds is not None else list(cfg.seeds)
+    amounts = args.amounts if args.amounts is not None else list(cfg.amounts)
     command = "aias-study " + " ".join(shlex.quote(a) for a in (sys.argv[1:] if argv is None else argv))
     root = dataset_root(cfg)
-    if args.stage in ("all", "generate", "train"):
-        train = load_yolo_dir(root, cfg.train_split, cfg.class_names)
-        log.info("train: %d images, %d boxes", len(train), train.num_boxes)
+    train = load_yolo_dir(root, cfg.train_split, cfg.class_names)
+    val = load_yolo_dir(root, cfg.val_split, cfg.class_names)
+    log.info("train: %d images, %d boxes", len(train), train.num_boxes)
     if args.stage == "generate":
-        for seed in seeds:
-            for arm in arms:
-                if ARM_FLAGS[arm] is not None:
-                    training_set(cfg, arm, seed, train)
+        _, empty = thin_cone_images(train, cfg.keep_fraction, seeds[0])
+        for arm in arms:
+            if ARM_FLAGS[arm] is not None:
+                generate_arm_set(cfg, arm, train, empty)
         return
     if args.stage in ("all", "train"):
         from .loader import cache_dataset
-        val = load_yolo_dir(root, cfg.val_split, cfg.class_names)
         det_cfg = load_detector_config(cfg.detector)
         val_cache = cache_dataset(val, det_cfg.train.img_size)
         for seed in seeds:
             for arm in arms:
-                run_one(cfg, arm, seed, train, val, val_cache, force=args.force)
-    print(write_summary(cfg, str(args.config), command))
+                for amount in ([None] if ARM_FLAGS[arm] is None else amounts):
+                    run_one(cfg, arm, seed, train, val, val_cache, amount, force=args.force)
+    print(write_summary(cfg, str(args.config), command, train, val))
 
 
 if __name__ == "__main__":

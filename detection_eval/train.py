@@ -81,10 +81,11 @@ class TrainResult:
 
 def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
                    sample_transform: SampleTransform | None = None, device: str | torch.device = "cpu",
-                   log_fn=None, image_memo: dict | None = None) -> TrainResult:
+                   log_fn=None, image_memo: dict | None = None, on_iteration=None) -> TrainResult:
     """Train a detector on ``train_set`` for ``cfg.train.max_iters`` iterations. Torch initialisation is seeded by
     ``seed`` through a local generator state (``torch.manual_seed`` inside ``fork_rng``). ``image_memo`` shares
-    decoded training images between runs (see ``cache_dataset``)."""
+    decoded training images between runs (see ``cache_dataset``). ``on_iteration(it, model, losses)`` is called
+    after every step with the weights that would be returned (EMA if enabled), e.g. to record a learning curve."""
     tc = cfg.train
     if cfg.model.num_classes != len(train_set.category_names):
         cfg = replace_nested(cfg, **{"model.num_classes": len(train_set.category_names)})
@@ -92,7 +93,8 @@ def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
     t0 = time.perf_counter()
     cache = cache_dataset(train_set, tc.img_size, image_memo)
     cache_seconds = time.perf_counter() - t0
-    batches = TrainBatches(cache, tc.img_size, tc.batch_size, cfg.augment, seed, sample_transform)
+    batches = TrainBatches(cache, tc.img_size, tc.batch_size, cfg.augment, seed, sample_transform,
+                           tc.object_image_fraction)
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         model = Detector.from_config(cfg).to(device)
@@ -118,6 +120,11 @@ def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
         if log_fn is not None and (it % tc.log_every == 0 or it == tc.max_iters - 1):
             log_fn(f"iter {it}/{tc.max_iters} lr {lr_at(it, tc):.2e} " +
                    " ".join(f"{k} {v:.3f}" for k, v in losses.items()))
+        if on_iteration is not None:
+            t_cb = time.perf_counter()
+            on_iteration(it, ema.ema if ema is not None else model, losses)
+            model.train()
+            t1 += time.perf_counter() - t_cb     # callback time (evaluation) is not training time
     train_seconds = time.perf_counter() - t1
     final = ema.ema if ema is not None else model
     final.eval()

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from detection_eval.data import DetectionRecord, DetectionSet
-from detection_eval.study import (ARM_FLAGS, StudyConfig, insertion_backgrounds, load_study_config, mean_ci95,
-                                  summarize, thin_cone_images)
+from detection_eval.study import (ARM_FLAGS, InsertionStudyConfig, StudyConfig, load_study_config, mean_ci95,
+                                  pool_backgrounds, pool_share, real_box_height_fractions, summarize,
+                                  thin_cone_images)
 
 
 def _set(n_with, n_without):
@@ -28,12 +29,32 @@ def test_thinning_keeps_fraction_of_cone_images_and_all_empty_ones():
     assert [r.image_path for r in other.records] != paths                 # and different per seed
 
 
-def test_insertion_backgrounds_are_a_seeded_subset_of_empty_images():
+def test_pool_backgrounds_cycle_through_empty_images_in_a_seeded_order():
     empty = list(range(100, 150))
-    bg = insertion_backgrounds(empty, 0, 10)
-    assert len(bg) == 10 and len(set(bg)) == 10 and set(bg) <= set(empty)
-    assert bg == insertion_backgrounds(empty, 0, 10)
-    assert sorted(insertion_backgrounds(empty, 0, None)) == empty
+    bg = pool_backgrounds(empty, 0, 120)
+    assert set(bg) == set(empty) and len(bg) == 120
+    assert bg[:50] == bg[50:100] and bg[100:] == bg[:20]          # a fixed order of all 50, then again
+    assert sorted(bg[:50]) == empty
+    assert bg == pool_backgrounds(empty, 0, 120) and bg != pool_backgrounds(empty, 1, 120)
+
+
+def test_pool_share_is_seeded_nested_and_whole_at_full_size():
+    a, b = pool_share(600, 200, seed=0), pool_share(600, 200, seed=1)
+    assert len(a) == len(set(a)) == 200 and a != b and set(a) <= set(range(600))
+    assert set(pool_share(600, 60, 0)) <= set(a)                   # smaller amounts are subsets of larger ones
+    assert pool_share(600, 600, 3) == list(range(600))
+
+
+def test_real_box_height_fractions():
+    recs = (DetectionRecord("a.jpg", 100, 200, np.array([[0.0, 10, 5, 60], [1, 0, 2, 200]]), np.array([0, 0])),
+            DetectionRecord("b.jpg", 10, 10, np.zeros((0, 4)), np.zeros(0, np.int64)))
+    assert real_box_height_fractions(DetectionSet(recs, ("cone",))) == pytest.approx((0.25, 1.0))
+
+
+def test_amounts_must_fit_the_pool():
+    with pytest.raises(ValueError):
+        StudyConfig(amounts=(700,), insertion=InsertionStudyConfig(pool_size=600))
+    StudyConfig(amounts=(60, 600), insertion=InsertionStudyConfig(pool_size=600))
 
 
 def test_mean_ci95_known_values():
@@ -45,16 +66,21 @@ def test_mean_ci95_known_values():
 
 def test_summary_pairs_seeds_against_reference():
     def row(arm, seed, ap):
-        return {"arm": arm, "seed": seed, "real_images": 219, "inserted_images": 0 if arm == "original" else 60,
+        return {"arm": arm, "seed": seed, "amount": None if arm == "original" else 60,
+                "real_images": 219, "inserted_images": 0 if arm == "original" else 60,
                 "train_seconds": 100.0, "train_images_per_second": 5.0,
                 "metrics": {"AP": ap, "AP50": 2 * ap, "AP_small": None, "AP_medium": ap, "AP_large": ap}}
     rows = [row("original", s, 0.1 + 0.01 * s) for s in range(3)] + [row("inserted", s, 0.15 + 0.01 * s)
                                                                       for s in range(3)]
+    rows += [row("naive_paste", s, 0.13 + 0.02 * s) for s in range(3)]
     table, summary = summarize(rows)
-    assert summary["inserted"]["delta_AP"][0] == pytest.approx(0.05)
-    assert summary["inserted"]["delta_AP"][1] == pytest.approx(0.0, abs=1e-9)   # identical paired gains
+    assert summary["inserted n=60"]["delta_AP"][0] == pytest.approx(0.05)
+    assert summary["inserted n=60"]["delta_AP"][1] == pytest.approx(0.0, abs=1e-9)   # identical paired gains
+    # vs naive paste: differences 0.02, 0.01, 0.00 -> mean 0.01, t(0.975, 2) * 0.01 / sqrt(3)
+    assert summary["inserted n=60"]["delta_AP_vs_naive"][0] == pytest.approx(0.01)
+    assert summary["inserted n=60"]["delta_AP_vs_naive"][1] == pytest.approx(4.302653 * 0.01 / math.sqrt(3), rel=1e-5)
     assert summary["original"]["AP"][0] == pytest.approx(0.11)
-    assert "| inserted | 3 | 219 + 60 |" in table and "n/a" in table           # AP_small undefined everywhere
+    assert "| inserted n=60 | 3 | 219 + 60 |" in table and "n/a" in table     # AP_small undefined everywhere
 
 
 def test_study_configs_load_and_name_known_arms():
@@ -62,7 +88,11 @@ def test_study_configs_load_and_name_known_arms():
     abl = load_study_config("tracon_cones_ablations")
     assert {"original", "inserted", "naive_paste"} <= set(core.arms) and len(core.seeds) >= 3
     assert set(abl.arms) == {"no_placement", "no_shadow", "no_lighting", "no_harmonize"}
-    assert (core.max_iters, core.insertion, core.detector) == (abl.max_iters, abl.insertion, abl.detector)
+    amounts = load_study_config("tracon_cones_amounts")
+    for other in (abl, amounts):   # one pool per arm and the same runs: the tables can be read together
+        assert (core.max_iters, core.insertion, core.detector, core.seeds) == \
+            (other.max_iters, other.insertion, other.detector, other.seeds)
+    assert len(core.seeds) >= 5 and set(amounts.amounts) | set(core.amounts) == {20, 60, 200}
     with pytest.raises(ValueError):
         StudyConfig(arms=("original", "bogus"))
     assert set(ARM_FLAGS) >= set(core.arms) | set(abl.arms)

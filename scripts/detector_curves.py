@@ -1,0 +1,147 @@
+"""Learning curves of the detector harness: train once, record the loss terms every iteration and TraCon val AP every
+``--eval-every`` iterations (EMA weights, the ones a run returns), write ``curve.json``; ``--plot`` draws several runs.
+
+    # one run: TraCon train thinned to 10 % of its cone images (seeded as in the study), 450 iterations
+    .venv/bin/python scripts/detector_curves.py --config lite0_320 --iters 450 --keep-fraction 0.1 --seed 0 \\
+        --out results/detector/curves/lite0_320_s0
+    # a variant: any config field by its dotted name (values parsed as YAML)
+    .venv/bin/python scripts/detector_curves.py ... --set model.frozen_blocks=0 model.backbone_bn=frozen
+    # the plot of several runs
+    .venv/bin/python scripts/detector_curves.py --plot results/detector/curves/*/curve.json --out results/detector/curves.png
+
+Evaluation time is excluded from the reported training time. Use one thread per run (``--threads``) and at most two
+runs side by side on the 2-core machine.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from detection_eval.config import load_detector_config, replace_nested  # noqa: E402
+
+
+def parse_overrides(items: list[str]) -> dict:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise SystemExit(f"--set expects key=value, got {item!r}")
+        v = yaml.safe_load(value)
+        out[key] = tuple(v) if isinstance(v, list) else v
+    return out
+
+
+def run(args) -> None:
+    import torch
+
+    from aias_augment.config import data_root
+    from detection_eval.data import load_yolo_dir
+    from detection_eval.inference import evaluate_dataset
+    from detection_eval.loader import cache_dataset
+    from detection_eval.study import thin_cone_images
+    from detection_eval.train import train_detector
+
+    torch.set_num_threads(args.threads)
+    overrides = parse_overrides(args.set or [])
+    cfg = load_detector_config(args.config)
+    cfg = replace_nested(cfg, **{"train.max_iters": args.iters, "train.num_threads": args.threads, **overrides})
+    root = Path(args.data) if args.data else data_root() / "tracon"
+    train = load_yolo_dir(root, "train", ("cone",))
+    val = load_yolo_dir(root, "val", ("cone",))
+    if args.keep_fraction < 1:
+        train, _ = thin_cone_images(train, args.keep_fraction, args.seed)
+    val_cache = cache_dataset(val, cfg.train.img_size)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    losses, evals = [], []
+    t_start = time.perf_counter()
+
+    def on_iteration(it, model, step_losses):
+        losses.append({"iter": it, **step_losses})
+        if (it + 1) % args.eval_every == 0 or it + 1 == cfg.train.max_iters:
+            m = evaluate_dataset(model, val, cfg.train.img_size, cfg.inference, cached=val_cache)
+            evals.append({"iter": it + 1, "AP": m["AP"], "AP50": m["AP50"], "AP_small": m["AP_small"],
+                          "AP_medium": m["AP_medium"], "AP_large": m["AP_large"]})
+            logging.info("iter %d: val AP %.4f AP50 %.4f", it + 1, m["AP"], m["AP50"])
+
+    res = train_detector(cfg, train, seed=args.seed, log_fn=logging.info, on_iteration=on_iteration)
+    row = {"name": args.name or out.name, "config": args.config, "overrides": {k: list(v) if isinstance(v, tuple)
+                                                                              else v for k, v in overrides.items()},
+           "seed": args.seed, "keep_fraction": args.keep_fraction, "train_images": len(train),
+           "train_boxes": train.num_boxes, "iterations": res.iterations, "batch_size": cfg.train.batch_size,
+           "threads": args.threads, "train_seconds": res.train_seconds,
+           "train_images_per_second": res.images_per_second, "wall_seconds": time.perf_counter() - t_start,
+           "final": evals[-1], "evals": evals, "losses": losses,
+           "command": "python scripts/detector_curves.py " + " ".join(sys.argv[1:])}
+    (out / "curve.json").write_text(json.dumps(row, indent=1))
+    logging.info("done: AP %.4f in %.0f s train (%.2f img/s)", evals[-1]["AP"], res.train_seconds,
+                 res.images_per_second)
+
+
+def smooth(values, k: int = 15):
+    import numpy as np
+    v = np.asarray(values, float)
+    if len(v) < k:
+        return v
+    return np.convolve(np.pad(v, (k // 2, k - 1 - k // 2), mode="edge"), np.ones(k) / k, mode="valid")
+
+
+def plot(paths: list[str], out: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = [json.loads(Path(p).read_text()) for p in paths]
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4.5))
+    for i, r in enumerate(runs):
+        c = f"C{i % 10}"
+        label = f"{r['name']} ({r['final']['AP']:.3f})"
+        it = [x["iter"] for x in r["losses"]]
+        axes[0].plot([e["iter"] for e in r["evals"]], [e["AP"] for e in r["evals"]], "o-", color=c, label=label)
+        for ax, key in zip(axes[1:], ("iou", "obj", "cls")):
+            ax.plot(it, smooth([x[key] for x in r["losses"]]), color=c, label=r["name"])
+    axes[0].set_title("TraCon val AP50:95 (EMA weights)")
+    axes[0].legend(fontsize=7)
+    for ax, key in zip(axes[1:], ("IoU loss", "objectness loss", "class loss")):
+        ax.set_title(f"train {key} (smoothed, per positive)")
+        ax.set_yscale("log")
+    for ax in axes:
+        ax.set_xlabel("iteration")
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    print(f"wrote {out}")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", default="lite0_320")
+    p.add_argument("--set", nargs="*", help="config overrides, dotted.key=value")
+    p.add_argument("--data", default=None, help="YOLO dataset root with train/ and val/ splits (default: TraCon)")
+    p.add_argument("--keep-fraction", type=float, default=0.1)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--iters", type=int, default=450)
+    p.add_argument("--eval-every", type=int, default=50)
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--name", default=None)
+    p.add_argument("--plot", nargs="*", help="curve.json files to draw (then --out is the PNG)")
+    p.add_argument("--out", required=True)
+    args = p.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
+    if args.plot:
+        plot(args.plot, args.out)
+    else:
+        run(args)
+
+
+if __name__ == "__main__":
+    main()
