@@ -9,7 +9,8 @@ cd "$(dirname "$0")/.."
 VENV=${VENV:-.venv}
 PY=${PYTHON:-python3}
 
-APT_PKGS="libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgles2 sweethome3d-furniture blender-data"
+# chromium (+ a font) for the A/B study's end-to-end browser test (Playwright drives the system browser).
+APT_PKGS="libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgles2 sweethome3d-furniture blender-data chromium fonts-dejavu-core"
 missing=""
 for p in $APT_PKGS; do dpkg -s "$p" >/dev/null 2>&1 || missing="$missing $p"; done
 if [ -n "$missing" ]; then
