@@ -64,7 +64,7 @@ class Flipbook {
     container.appendChild(this.canvas);
     this.draw(0);
   }
-  draw(i) { this.ctx.drawImage(this.frames[Math.min(i, this.frames.length - 1)], 0, 0); }
+  draw(i) { this.ctx.drawImage(this.frames[Math.max(0, Math.min(i, this.frames.length - 1))], 0, 0); }
 }
 
 function playAll() {
@@ -78,7 +78,8 @@ function playAll() {
   const fps = players[0].fps;
   const step = (now) => {
     if (state.playToken !== token) return;
-    const i = Math.floor(((now - t0) / 1000) * fps);
+    // a frame's timestamp can precede t0 (it is the start of the frame in which playAll ran)
+    const i = Math.max(0, Math.floor(((now - t0) / 1000) * fps));
     players.forEach((p) => p.draw(i));
     if (i < n - 1) requestAnimationFrame(step);
   };
