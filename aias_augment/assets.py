@@ -63,6 +63,10 @@ class Asset:
     licence: str = ""
     procedural: bool = False
     meta: dict = field(default_factory=dict)
+    # Provenance for the renderer: an asset made by ``scaled`` is ``render_scale`` x its unscaled ``render_root``, so
+    # the renderer draws the root's cached GPU mesh through a scale matrix instead of uploading a copy per call.
+    render_root: "Asset | None" = field(default=None, repr=False, compare=False)
+    render_scale: float = field(default=1.0, repr=False, compare=False)
 
     @property
     def bounds_m(self) -> np.ndarray:
@@ -93,8 +97,10 @@ class Asset:
             c = m.copy()
             c.apply_scale(factor)
             meshes.append(c)
+        root = self.render_root if self.render_root is not None else self
         return Asset(self.name, self.category, tuple(meshes), self.source, self.licence, self.procedural,
-                     {**self.meta, "scale": self.meta.get("scale", 1.0) * factor})
+                     {**self.meta, "scale": self.meta.get("scale", 1.0) * factor}, root,
+                     self.render_scale * float(factor))
 
     @property
     def triangle_count(self) -> int:

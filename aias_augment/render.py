@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import atexit
 import os
+import weakref
 from dataclasses import dataclass
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -113,32 +114,44 @@ class RenderLayers:
         return self.alpha > 0.5
 
 
-def _to_pyrender_meshes(asset: Asset, normals: bool) -> list:
-    cache_key = "_pyrender_normals" if normals else "_pyrender_albedo"
-    cached = asset.meta.get(cache_key)
-    if cached is not None and cached[0] == os.getpid():
-        return cached[1]
-    out = []
-    for m in asset.meshes:
-        if normals:
-            n = np.asarray(m.vertex_normals, dtype=np.float64)
-            colors = np.clip((n + 1.0) * 0.5 * 255.0 + 0.5, 0, 255).astype(np.uint8)
-            plain = trimesh.Trimesh(m.vertices, m.faces, process=False,
-                                    vertex_colors=np.c_[colors, np.full(len(colors), 255, np.uint8)])
-            out.append(pyrender.Mesh.from_trimesh(plain, smooth=True))
-        else:
-            # Per-face colours need flat (unsmoothed) vertices in pyrender; textures and vertex colours are smooth.
-            smooth = getattr(m.visual, "kind", None) != "face"
-            out.append(pyrender.Mesh.from_trimesh(m, smooth=smooth))
-    asset.meta[cache_key] = (os.getpid(), out)
-    return out
+#: GPU-side meshes per unscaled asset (weak keys: an asset that is gone frees its entry). One pyrender Mesh per asset
+#: holding all its parts as primitives, so the parts are drawn in list order: pyrender draws the *nodes* of a scene
+#: in the iteration order of a set hashed by object address, which made coplanar geometry (the ground patch under an
+#: object) resolve differently from one process history to the next.
+_MESH_CACHE: "weakref.WeakKeyDictionary[Asset, dict]" = weakref.WeakKeyDictionary()
 
 
-def _render_flat(meshes: list, cam_from_object: np.ndarray, intr: Intrinsics, ssaa: int, znear: float,
-                 zfar: float) -> tuple[np.ndarray, np.ndarray]:
+def _to_pyrender_mesh(asset: Asset, normals: bool) -> tuple["pyrender.Mesh", np.ndarray]:
+    """(mesh of the asset's unscaled root, 4x4 node pose that scales it to ``asset``). Built once per root asset
+    and process (a forked child rebuilds: GL objects do not survive a fork)."""
+    root = asset.render_root if asset.render_root is not None else asset
+    entry = _MESH_CACHE.get(root)
+    if entry is None or entry["pid"] != os.getpid():
+        entry = {"pid": os.getpid()}
+        _MESH_CACHE[root] = entry
+    key = "normals" if normals else "albedo"
+    if key not in entry:
+        prims = []
+        for m in root.meshes:
+            if normals:
+                n = np.asarray(m.vertex_normals, dtype=np.float64)
+                colors = np.clip((n + 1.0) * 0.5 * 255.0 + 0.5, 0, 255).astype(np.uint8)
+                plain = trimesh.Trimesh(m.vertices, m.faces, process=False,
+                                        vertex_colors=np.c_[colors, np.full(len(colors), 255, np.uint8)])
+                prims += pyrender.Mesh.from_trimesh(plain, smooth=True).primitives
+            else:
+                # Per-face colours need flat (unsmoothed) vertices in pyrender; textures and vertex colours are smooth.
+                smooth = getattr(m.visual, "kind", None) != "face"
+                prims += pyrender.Mesh.from_trimesh(m, smooth=smooth).primitives
+        entry[key] = pyrender.Mesh(primitives=prims)
+    pose = np.diag([asset.render_scale] * 3 + [1.0])
+    return entry[key], pose
+
+
+def _render_flat(mesh: "pyrender.Mesh", mesh_pose: np.ndarray, cam_from_object: np.ndarray, intr: Intrinsics,
+                 ssaa: int, znear: float, zfar: float) -> tuple[np.ndarray, np.ndarray]:
     scene = pyrender.Scene(bg_color=np.zeros(4), ambient_light=np.ones(3))
-    for m in meshes:
-        scene.add(m, pose=np.eye(4))
+    scene.add(mesh, pose=mesh_pose)
     # Object frame is the scene's world frame.
     scene.add(_pyrender_camera(intr, ssaa, znear, zfar), pose=_camera_pose_gl(cam_from_object))
     r = _renderer(intr.width * ssaa, intr.height * ssaa)
@@ -163,6 +176,12 @@ def _roi(points_in_obj: np.ndarray, cam_from_object: np.ndarray, intr: Intrinsic
 def _crop_intrinsics(intr: Intrinsics, roi: tuple[int, int, int, int]) -> Intrinsics:
     x0, y0, x1, y1 = roi
     return Intrinsics(intr.fx, intr.fy, intr.cx - x0, intr.cy - y0, x1 - x0, y1 - y0)
+
+
+def _translation(t: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = t
+    return T
 
 
 def _paste(full_shape: tuple, roi: tuple[int, int, int, int], crop: np.ndarray, fill: float = 0.0) -> np.ndarray:
@@ -195,11 +214,11 @@ def render_object(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrins
 
 def _render_object_window(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, ssaa: int,
                           znear: float, zfar: float, with_normals: bool) -> RenderLayers:
-    color, depth = _render_flat(_to_pyrender_meshes(asset, False), cam_from_object, intrinsics, ssaa, znear, zfar)
+    color, depth = _render_flat(*_to_pyrender_mesh(asset, False), cam_from_object, intrinsics, ssaa, znear, zfar)
     covered = (depth > 0).astype(np.float32)
     albedo = srgb_to_linear(color[..., :3].astype(np.float32) / 255.0) * covered[..., None]
     if with_normals:
-        ncol, _ = _render_flat(_to_pyrender_meshes(asset, True), cam_from_object, intrinsics, ssaa, znear, zfar)
+        ncol, _ = _render_flat(*_to_pyrender_mesh(asset, True), cam_from_object, intrinsics, ssaa, znear, zfar)
         n_obj = ncol[..., :3].astype(np.float32) / 255.0 * 2.0 - 1.0
         n_cam = n_obj @ cam_from_object[:3, :3].T.astype(np.float32)
     else:
@@ -236,10 +255,11 @@ class ShadowLayers:
     roi: tuple[int, int, int, int] = (0, 0, 0, 0)   # window (x0, y0, x1, y1) that was rendered; 1/False/0 outside
 
 
-def _ground_patch(radius: float) -> "pyrender.Mesh":
+def _ground_patch(radius: float, node_origin: np.ndarray) -> "pyrender.Mesh":
+    """The square z = 0, |x|, |y| <= radius, with vertices relative to ``node_origin`` (the node's translation)."""
     quad = trimesh.Trimesh(
         vertices=np.array([[-radius, -radius, 0], [radius, -radius, 0], [radius, radius, 0], [-radius, radius, 0]],
-                          dtype=np.float64),
+                          dtype=np.float64) - node_origin,
         faces=np.array([[0, 1, 2], [0, 2, 3]]), process=False,
     )
     mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[1.0, 1.0, 1.0, 1.0], metallicFactor=0.0,
@@ -284,7 +304,13 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     crop = _crop_intrinsics(intrinsics, roi)
     h, w = crop.height, crop.width
     base = pyrender.Scene(bg_color=np.zeros(4), ambient_light=np.zeros(3))
-    base.add(_ground_patch(patch_radius_m))
+    # pyrender sorts opaque nodes by the distance of their origin to the camera (far first) and breaks ties by set
+    # order, i.e. by memory address. The ground node's origin is put beyond the object's origin (the object frame's
+    # origin, on the far side from the camera), so the ground is always drawn first: same bytes in every process.
+    cam_in_obj = invert_rigid(cam_from_object)[:3, 3]
+    away = -cam_in_obj / max(float(np.linalg.norm(cam_in_obj)), 1e-9)
+    ground_origin = away * max(patch_radius_m, 1.0)
+    base.add(_ground_patch(patch_radius_m, ground_origin), pose=_translation(ground_origin))
     base.add(_pyrender_camera(crop, 1, znear, zfar), pose=_camera_pose_gl(cam_from_object))
     r = _renderer(w, h)
     flags = pyrender.RenderFlags.SHADOWS_DIRECTIONAL | pyrender.RenderFlags.SKIP_CULL_FACES
@@ -299,8 +325,8 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     light_pose[:3, :3] = np.stack([x_axis, np.cross(z_axis, x_axis), z_axis], axis=1)
     base.add(pyrender.DirectionalLight(color=np.ones(3), intensity=3.0), pose=light_pose)
     lit, gdepth = r.render(base, flags=flags)
-    for m in _to_pyrender_meshes(asset, False):
-        base.add(m)
+    mesh, mesh_pose = _to_pyrender_mesh(asset, False)
+    base.add(mesh, pose=mesh_pose)
     shadowed, _ = r.render(base, flags=flags)
     # pyrender encodes output with gamma 1/2.2: decode before taking the ratio.
     lit_l = (lit[..., :3].astype(np.float32) / 255.0) ** 2.2

@@ -147,3 +147,41 @@ def test_implausible_vanishing_line_camera_falls_back_to_level_prior():
         n = np.array(p.ground_normal_in_cam)
         assert abs(np.degrees(np.arctan2(n[0], -n[1]))) <= 10.0 + 1e-6
         assert abs(np.degrees(np.arcsin(-n[2]))) <= 25.0 + 1e-6
+
+
+SUNNY_ROAD = Path(data_root()) / "tracon" / "images" / "train" / "cone (102).jpg"
+_HISTORY_SCRIPT = r"""
+import hashlib, sys
+import albumentations as A
+import cv2, numpy as np
+from aias_augment import InsertObjects
+img = np.ascontiguousarray(cv2.imread(sys.argv[1])[..., ::-1])
+hashes = []
+for i in range(int(sys.argv[2])):  # fresh transforms, same seed: each call has a longer rendering history
+    tf = A.Compose([InsertObjects(p=1.0, min_objects=3)], bbox_params=A.BboxParams(format="coco", label_fields=["l"]),
+                   seed=7)
+    out = tf(image=img, bboxes=np.zeros((0, 4)), l=[])
+    hashes.append(hashlib.sha256(out["image"]).hexdigest())
+rec = tf.transforms[0].last_record
+print(rec.modules["shadow"].split(" ")[0], len(rec.placements), *sorted(set(hashes)))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SUNNY_ROAD.exists(), reason="shared data not present")
+def test_same_seed_same_bytes_across_processes_hash_seeds_and_histories():
+    """Two fresh interpreters with different PYTHONHASHSEED and different rendering histories give the same pixels
+    (three objects with sun shadows: the case whose pixels used to depend on object addresses)."""
+    import os
+    import subprocess
+    import sys
+    outs = []
+    for hash_seed, history in (("1", "1"), ("2", "3")):
+        env = {**os.environ, "PYTHONHASHSEED": hash_seed}
+        r = subprocess.run([sys.executable, "-c", _HISTORY_SCRIPT, str(SUNNY_ROAD), history], env=env,
+                           capture_output=True, text=True, timeout=600, cwd=Path(__file__).resolve().parents[2])
+        assert r.returncode == 0, r.stderr[-2000:]
+        outs.append(r.stdout.split())
+    assert outs[0][0] == "shadow" and outs[0][1] == "3", outs  # the sun-shadow path ran for three objects
+    assert len(outs[1]) == 3, outs  # one image in the 3 runs of the second process
+    assert outs[0] == outs[1]
