@@ -176,7 +176,8 @@ async function start() {
     document.title = study.data.title;
     $("total-pairs").textContent = study.data.pairs;
     document.body.classList.toggle("clip", study.data.kind === "clip");
-    for (const el of document.querySelectorAll(".kind-word")) el.textContent = study.data.kind === "clip" ? "video" : "photo";
+    const word = study.data.kind === "clip" ? "video" : "photo";
+    for (const el of document.querySelectorAll(".kind-word")) el.textContent = word;
   }
   if (me.ok && me.data.rater) {
     $("who-name").textContent = me.data.rater;

@@ -29,7 +29,8 @@ def test_baseline_design_pairs_every_arm_with_the_baseline_balanced(tmp_path):
     summary = build_study(arms, tmp_path / "study", seed=3)
     study = load_study(tmp_path / "study")
     assert study.baseline == "naive_paste" and study.arms == ["naive_paste", "full", "no_shadow"]
-    assert summary["pairs"] == 10 and summary["comparisons"] == {"full vs naive_paste": 5, "no_shadow vs naive_paste": 5}
+    assert summary["pairs"] == 10
+    assert summary["comparisons"] == {"full vs naive_paste": 5, "no_shadow vs naive_paste": 5}
     by = _pairs_by_comparison(study)
     assert set(by) == {("full", "naive_paste"), ("no_shadow", "naive_paste")}
     for rows in by.values():
