@@ -42,4 +42,32 @@ def test_overfit_tiny_set(tiny_yolo_dir, tmp_path):
     assert names == ["cone"]
     again = evaluate_dataset(model, dataset, 128, cfg.inference)
     assert again["AP50"] == pytest.approx(metrics["AP50"])
+    _check_letterbox_round_trip(model, dataset, cfg)
     print(f"overfit: {time.perf_counter() - t0:.1f} s, {metrics}")
+
+
+def _check_letterbox_round_trip(model, dataset, cfg):
+    """A trained checkpoint's boxes come back in original-image pixels, padding included: on a 128x96 crop (16 px
+    of letterbox padding above and below at 128 px) the top box lands on the known cone, and on the same crop
+    upscaled 2x by pixel repetition (its 128 px letterbox content is bit-identical: INTER_AREA averages the 2x2
+    copies) every box is exactly twice as large."""
+    import numpy as np
+
+    from detection_eval.boxes import box_iou
+    from detection_eval.data import read_image_rgb
+    from detection_eval.inference import predict_images
+
+    rec = dataset.records[0]
+    image = read_image_rgb(rec.image_path)
+    gt = rec.boxes_xyxy[0]
+    top = int(np.clip(gt[1] - 8, 0, image.shape[0] - 96))
+    assert gt[3] <= top + 96, "the synthetic cone must fit the crop"
+    crop = np.ascontiguousarray(image[top:top + 96])
+    small = predict_images(model, [crop], 128, cfg.inference)[0]
+    big = predict_images(model, [np.repeat(np.repeat(crop, 2, axis=0), 2, axis=1)], 128, cfg.inference)[0]
+    assert len(small["boxes"]) and len(small["boxes"]) == len(big["boxes"])
+    np.testing.assert_allclose(big["boxes"], 2 * small["boxes"], atol=1e-4)
+    np.testing.assert_allclose(big["scores"], small["scores"], atol=1e-6)
+    best = small["boxes"][np.argmax(small["scores"])]
+    iou = float(box_iou(torch.tensor([best]), torch.tensor([gt - [0, top, 0, top]]))[0, 0])
+    assert iou >= 0.5, (best, gt, top)          # a true positive at the AP50 threshold
