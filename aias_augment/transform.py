@@ -16,6 +16,7 @@ import numpy as np
 from albumentations.core.bbox_utils import convert_bboxes_from_albumentations, denormalize_bboxes
 
 from .assets import PathAssets
+from .insertion.cache import SceneCache
 from .pipeline import PRESETS, InsertionConfig, insert_into_image, load_preset
 
 log = logging.getLogger(__name__)
@@ -31,6 +32,9 @@ class InsertObjects(A.DualTransform):
         category_ids: label written for each category (e.g. {"traffic_cone": 3}); default: the category name.
         assets: your own meshes, {"category": ["path.obj", ...]}.
         config_overrides: any :class:`InsertionConfig` field (e.g. {"shadow": False}).
+        scene_cache: a folder for scene analyses (camera, ground, region, lighting) shared by all workers and runs;
+            None: only the in-process cache. Either way an image seen again (same bytes, K, depth) is not analysed
+            again: the analysis is cached by content in an LRU of ``scene_cache_items`` entries in each process.
         p: probability of applying.
     """
 
@@ -40,7 +44,7 @@ class InsertObjects(A.DualTransform):
     def __init__(self, categories: tuple[str, ...] | list[str] = ("traffic_cone",), max_objects: int = 3,
                  min_objects: int = 1, preset: str = "balanced", category_ids: dict[str, Any] | None = None,
                  assets: dict[str, list[str]] | None = None, config_overrides: dict[str, Any] | None = None,
-                 p: float = 0.5):
+                 scene_cache: str | None = None, scene_cache_items: int = 128, p: float = 0.5):
         super().__init__(p=p)
         if preset not in PRESETS:
             raise ValueError(f"preset must be one of {PRESETS}, got {preset!r}")
@@ -61,6 +65,9 @@ class InsertObjects(A.DualTransform):
             if missing:
                 raise ValueError(f"category_ids lacks {sorted(missing)}")
         self._bank = PathAssets(assets) if assets else None
+        self.scene_cache = None if scene_cache is None else str(scene_cache)
+        self.scene_cache_items = int(scene_cache_items)
+        self._scene_cache = SceneCache(self.scene_cache_items, self.scene_cache)
         self.skipped = 0          # images left unchanged because insertion failed (logged with the reason)
         self.last_record = None   # InsertionRecord of the latest call in this process (for debugging/replay)
 
@@ -69,7 +76,8 @@ class InsertObjects(A.DualTransform):
         return ["image"]
 
     def get_transform_init_args_names(self) -> tuple[str, ...]:
-        return ("categories", "max_objects", "min_objects", "preset", "category_ids", "assets", "config_overrides")
+        return ("categories", "max_objects", "min_objects", "preset", "category_ids", "assets", "config_overrides",
+                "scene_cache", "scene_cache_items")
 
     # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
     def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
@@ -90,6 +98,7 @@ class InsertObjects(A.DualTransform):
             res = insert_into_image(
                 rgb, existing_xywh, list(range(n_existing)), self.random_generator, self.config,
                 intrinsics=data.get("camera_k"), depth=data.get("depth"), min_visibility=min_vis, bank=self._bank,
+                scene_cache=self._scene_cache,
             )
         except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
             self.skipped += 1

@@ -405,8 +405,11 @@ def sun_cue_from_image(
         # How much better the best sun explains the sky than a typical candidate: 0 = no azimuthal information.
         sky_contrast = float(np.clip(1.0 - best_cost.min() / max(float(np.median(best_cost)), 1e-12), 0.0, 1.0))
         sky_loglik = -0.5 * effective_samples * (best_cost - best_cost.min()) / sigma2
-        blue = _blue_chromaticity(lin.reshape(-1, 3)[idx])
-        colour_loglik = whiteness_weight * sun_whiteness_loglik(blue, cos_gamma, cos_theta, effective_samples)
+        if whiteness_weight > 0:
+            blue = _blue_chromaticity(lin.reshape(-1, 3)[idx])
+            colour_loglik = whiteness_weight * sun_whiteness_loglik(blue, cos_gamma, cos_theta, effective_samples)
+        else:  # the colour cue is off (the default): not computed at all
+            colour_loglik = np.zeros(len(grid_in_world))
         if colour_loglik.max() - colour_loglik.min() > 1.0:  # the colour says something: compare the two sky cues
             h = grid_in_world - (grid_in_world @ up_in_world)[:, None] * up_in_world
             a, b = h[int(np.argmax(sky_loglik))], h[int(np.argmax(colour_loglik))]

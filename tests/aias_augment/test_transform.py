@@ -90,3 +90,22 @@ def test_pickles_and_runs_in_dataloader_with_two_workers():
         assert imgs.shape == (2, 480, 640, 3)
         n += int(counts.sum())
     assert n >= 4
+
+
+def test_scene_analysed_once_per_image_and_cache_never_changes_pixels(tmp_path):
+    """The second call on the same image hits the transform's scene cache (in memory, then on disk for a new
+    transform) and the pixels equal those of a transform that never saw the image."""
+    img = _image()
+    cold = _compose(seed=11, scene_cache=str(tmp_path))
+    a = cold(image=img, bboxes=[], category_ids=[], camera_k=K)
+    b = cold(image=img, bboxes=[], category_ids=[], camera_k=K)
+    ins = cold.transforms[0]
+    assert (ins._scene_cache.misses, ins._scene_cache.hits) == (1, 1)
+    warm = _compose(seed=11, scene_cache=str(tmp_path))
+    c = warm(image=img, bboxes=[], category_ids=[], camera_k=K)
+    assert warm.transforms[0]._scene_cache.disk_hits == 1 and warm.transforms[0]._scene_cache.misses == 0
+    fresh = _compose(seed=11)(image=img, bboxes=[], category_ids=[], camera_k=K)
+    assert len(a["bboxes"]) > 0
+    assert np.array_equal(a["image"], c["image"]) and np.array_equal(a["image"], fresh["image"])
+    assert np.allclose(np.asarray(a["bboxes"]), np.asarray(fresh["bboxes"]))
+    assert not np.array_equal(a["image"], b["image"])  # the second call is another sample, not a replay

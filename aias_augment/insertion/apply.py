@@ -1,0 +1,163 @@
+"""Step 3: carry out an :class:`InsertionPlan` on its frame: render, shade, shadow, composite, harmonize, annotate.
+
+:func:`apply_plan` draws nothing (the harmonizer's generator is seeded from the plan): the same frame, analysis and
+plan give the same bytes.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import composite as comp
+from ..annotate import ObjectAnnotation, annotate_object
+from ..assets import Asset
+from ..geometry import Intrinsics, invert_rigid, transform_points, unproject_points
+from ..lighting.estimate import LightingEstimate
+from ..lighting.shading import shade_object
+from ..lighting.shadows import (contact_occlusion, occluder_distance_from_footprint, shadow_ratio_from_sun_sky,
+                                soften_shadow)
+from ..placement import Placement
+from ..render import render_ground_shadow, render_object
+from ..scene import Frame
+from .analyse import SceneAnalysis
+from .config import InsertionConfig
+from .plan import InsertionPlan
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class AppliedPlan:
+    """The result of :func:`apply_plan`: the new image (H, W, 3) uint8, one annotation per object that rendered to a
+    pixel (with its placement), ``cover`` (H, W) float32: the union of the objects' visible coverage (what hides
+    existing boxes), and per stage what was done ('shadow', 'harmonize') and which planned objects were dropped."""
+
+    image: np.ndarray
+    placements: tuple[Placement, ...]
+    annotations: tuple[ObjectAnnotation, ...]
+    cover: np.ndarray
+    modules: dict = field(default_factory=dict)
+    dropped: tuple[dict, ...] = ()
+
+
+def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
+               cfg: InsertionConfig = InsertionConfig()) -> AppliedPlan:
+    """Render the plan's objects into ``frame.image`` (see the module docstring). ``cfg``: ssaa, shadow and
+    harmonization switches (the plan fixed everything random)."""
+    cfg = cfg.effective()
+    img = frame.image
+    depth = frame.depth
+    h, w = img.shape[:2]
+    if analysis.image_shape != (h, w):
+        raise ValueError(f"analysis is for {analysis.image_shape}, frame is {(h, w)}")
+    intr, lighting = analysis.intrinsics, analysis.lighting
+    mods: dict = {}
+    layers, dropped = [], []
+    for obj in plan.objects:
+        rl = render_object(obj.asset, obj.cam_from_object, intr, ssaa=cfg.ssaa)
+        if rl.alpha.max() <= 0.5:
+            dropped.append({"rejected": {"renders to no pixel": 1}})
+            continue
+        shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lighting)
+        layers.append((obj, rl, shaded))
+
+    bg = comp.to_linear(img)
+    if cfg.shadow and layers:
+        ratio = np.ones((h, w), np.float32)
+        for obj, _, _ in layers:
+            ratio = np.minimum(ratio, object_shadow_ratio(obj.asset, obj.cam_from_object, intr, lighting, depth))
+        bg = comp.apply_shadow(bg, ratio)  # overlapping shadows of one sun do not darken twice: min, not product
+        mods["shadow"] = ("shadow catcher (ground patch with/without the object), soft penumbra, contact occlusion"
+                          if lighting.dominant_sun else "contact occlusion only: no dominant sun")
+    elif not cfg.shadow:
+        mods["shadow"] = "skipped: disabled (ablation or naive paste)"
+
+    # Far to near by median object depth, so nearer objects are blended last.
+    order = sorted(range(len(layers)), key=lambda i: -float(np.median(layers[i][1].depth[layers[i][1].alpha > 0])))
+    out = bg
+    for i in order:
+        _, rl, shaded = layers[i]
+        vis = rl.alpha * comp.visible_fraction_against_depth(rl.depth, depth)
+        out = comp.alpha_over(out, shaded, vis)
+    # Visible part of each object: not behind the scene, not behind nearer inserted objects.
+    vis_alphas = []
+    for i in range(len(layers)):
+        rl_i = layers[i][1]
+        vis = rl_i.alpha * comp.visible_fraction_against_depth(rl_i.depth, depth)
+        for j in range(len(layers)):
+            rl_j = layers[j][1]
+            if j == i:
+                continue
+            nearer = (rl_j.alpha > 0) & (rl_j.depth > 0) & ((rl_i.depth <= 0) | (rl_j.depth < rl_i.depth))
+            vis = vis * np.where(nearer, 1.0 - rl_j.alpha, 1.0)
+        vis_alphas.append(vis)
+    result = comp.to_uint8(out)
+
+    if cfg.harmonize and layers:
+        union = np.clip(np.maximum.reduce(vis_alphas), 0, 1).astype(np.float32)
+        result, mods["harmonize"] = _harmonize(result, union, cfg, np.random.default_rng(plan.harmonize_seed))
+    elif not cfg.harmonize:
+        mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
+
+    annotations = []
+    cover = np.zeros((h, w), np.float32)
+    for (obj, rl, _), vis in zip(layers, vis_alphas):
+        annotations.append(annotate_object(obj.placement.category, rl.alpha, vis))
+        cover = np.maximum(cover, vis)
+    return AppliedPlan(result, tuple(o.placement for o, _, _ in layers), tuple(annotations), cover, mods,
+                       tuple(dropped))
+
+
+def object_shadow_ratio(asset: Asset, cam_from_object: np.ndarray, intr: Intrinsics, lighting: LightingEstimate,
+                        scene_depth: np.ndarray | None) -> np.ndarray:
+    """Multiplicative shadow ratio (H, W) of one object on the ground: sun visibility from the shadow catcher,
+    strength from the sun/sky ratio, penumbra growing with the distance to the occluder, contact occlusion.
+    Computed inside the window the catcher rendered (1 elsewhere)."""
+    R = cam_from_object[:3, :3]
+    sun_cam = lighting.sun_direction_in_cam if lighting.dominant_sun else None
+    # Below-horizon direction: the catcher then returns the ground geometry with full visibility.
+    sun_obj = R.T @ sun_cam if sun_cam is not None else np.array([0.0, 0.0, -1.0])
+    sl = render_ground_shadow(asset, cam_from_object, intr, sun_obj)
+    out = np.ones((intr.height, intr.width), np.float32)
+    x0, y0, x1, y1 = sl.roi
+    gm = sl.ground_mask[y0:y1, x0:x1]
+    if not gm.any():
+        return out
+    gdepth = sl.ground_depth[y0:y1, x0:x1]
+    vv, uu = np.nonzero(gm)
+    pts_cam = unproject_points(np.stack([uu + x0, vv + y0], -1).astype(float), gdepth[gm], intr.K)
+    pts_obj = transform_points(invert_rigid(cam_from_object), pts_cam)
+    lo, hi = asset.bounds_m
+    # Horizontal distance from each ground point to the object's footprint rectangle.
+    dx = np.maximum(np.maximum(lo[0] - pts_obj[:, 0], pts_obj[:, 0] - hi[0]), 0.0)
+    dy = np.maximum(np.maximum(lo[1] - pts_obj[:, 1], pts_obj[:, 1] - hi[1]), 0.0)
+    rho = np.full(gm.shape, 1e6)  # off the ground patch: far from the object, no contact occlusion
+    rho[gm] = np.hypot(dx, dy)
+    ao = contact_occlusion(rho, asset.height_m)
+    ratio = shadow_ratio_from_sun_sky(sl.visibility[y0:y1, x0:x1], lighting.sun_sky_ratio if sun_cam is not None
+                                      else 0.0, ambient_occlusion=ao)
+    if sun_cam is not None:
+        elevation = float(np.arcsin(np.clip(sun_obj[2], -1.0, 1.0)))
+        dist = np.full(gm.shape, np.nan)
+        dist[gm] = occluder_distance_from_footprint(pts_obj[:, :2], asset.corners_m()[:, :2], elevation)
+        ppm = np.where(gm, intr.fy / np.maximum(gdepth, 1e-3), 0.0)  # eps: no division by zero depth
+        ratio = soften_shadow(ratio, dist, pixels_per_metre=ppm)
+    # The real scene in front of the shadowed ground hides the shadow.
+    sd = None if scene_depth is None else scene_depth[y0:y1, x0:x1]
+    unoccluded = comp.visible_fraction_against_depth(gdepth, sd)
+    out[y0:y1, x0:x1] = 1.0 - (1.0 - ratio) * unoccluded
+    return out
+
+
+def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng) -> tuple[np.ndarray, str]:
+    try:
+        from ..harmonize import harmonize
+    except ImportError as e:  # the harmonization package is optional at this stage of the pipeline
+        return image, f"skipped: harmonizer unavailable ({e})"
+    try:
+        return (harmonize(image, mask, method=cfg.harmonize_method, rng=rng,
+                          test_time_views=cfg.harmonize_test_time_views), f"harmonized ({cfg.harmonize_method})")
+    except FileNotFoundError as e:
+        return image, f"skipped: {e}"

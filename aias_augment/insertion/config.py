@@ -1,0 +1,65 @@
+"""The insertion config and its presets (``configs/presets/<name>.yaml``)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from ..config import CONFIG_DIR, load_config
+from ..placement import PlacementConfig
+
+PRESETS = ("fast", "balanced", "accurate")
+
+
+@dataclass(frozen=True)
+class InsertionConfig:
+    categories: tuple[str, ...] = ("traffic_cone",)
+    min_objects: int = 1
+    max_objects: int = 3
+    # Stages (ablation switches). naive_paste=True is 3D Copy-Paste's "random insertion": a plain render pasted at a
+    # random position and scale, no geometry, lighting, shadow or harmonization.
+    placement: bool = True
+    shadow: bool = True
+    lighting: bool = True
+    harmonize: bool = True
+    naive_paste: bool = False
+    harmonize_method: str = "camera"
+    harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~2-6x faster)
+    asset_source: str = "default"        # "default": shared-data model per category, bank for others; "bank": all bank
+    ssaa: int = 2                        # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
+    # Priors when the scene does not say.
+    camera_height_m: float = 1.6
+    estimate_camera: bool = True         # horizon/pitch/roll (and focal when unknown) from vanishing lines
+    max_camera_pitch_deg: float = 25.0  # estimates beyond these bounds fall back to the level-camera prior
+    max_camera_roll_deg: float = 10.0
+    default_hfov_deg: float = 60.0
+    naive_height_frac_range: tuple[float, float] = (0.05, 0.4)
+    placement_cfg: PlacementConfig = PlacementConfig()
+
+    def __post_init__(self):
+        if not self.categories:
+            raise ValueError("InsertionConfig.categories must not be empty")
+        if not (0 <= self.min_objects <= self.max_objects):
+            raise ValueError(f"need 0 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
+        if self.ssaa < 1:
+            raise ValueError("ssaa must be >= 1")
+        if self.asset_source not in ("default", "bank"):
+            raise ValueError(f"asset_source must be 'default' or 'bank', got {self.asset_source!r}")
+
+    def effective(self) -> "InsertionConfig":
+        """naive_paste switches the geometry, lighting, shadow and harmonization stages off."""
+        if self.naive_paste:
+            return replace(self, placement=False, shadow=False, lighting=False, harmonize=False)
+        return self
+
+    def analysis_fields(self) -> dict:
+        """The fields :func:`aias_augment.insertion.analyse_scene` reads (part of the scene cache key)."""
+        c = self.effective()
+        return {k: getattr(c, k) for k in ("placement", "lighting", "estimate_camera", "camera_height_m",
+                                           "max_camera_pitch_deg", "max_camera_roll_deg", "default_hfov_deg")}
+
+
+def load_preset(name: str, **overrides) -> InsertionConfig:
+    """``configs/presets/<name>.yaml`` (fast | balanced | accurate) with keyword overrides."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}; choose from {PRESETS}")
+    cfg = load_config(InsertionConfig, CONFIG_DIR / "presets" / f"{name}.yaml")
+    return replace(cfg, **overrides) if overrides else cfg

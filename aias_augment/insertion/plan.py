@@ -1,0 +1,128 @@
+"""Step 2: every random draw of one insertion, as a frozen record: how many objects, which category and asset,
+where each stands (a frozen :class:`~aias_augment.placement.Placement`), and the harmonizer's seed.
+
+:func:`plan_insertion` reads the :class:`SceneAnalysis` and the sample's generator only; :func:`apply_plan` then
+draws nothing.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ..assets import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
+from ..collision import OrientedBox
+from ..geometry import Intrinsics, make_rigid, project_points, transform_points
+from ..placement import Placement, box_of_points, sample_placement
+from .analyse import SceneAnalysis
+from .config import InsertionConfig
+
+
+@dataclass(frozen=True, eq=False)
+class PlannedObject:
+    """One object to insert: the placement record and the (scaled) asset it renders."""
+
+    placement: Placement
+    asset: Asset
+
+    @property
+    def cam_from_object(self) -> np.ndarray:
+        return self.placement.cam_from_object_matrix
+
+
+@dataclass(frozen=True, eq=False)
+class InsertionPlan:
+    """What :func:`apply_plan` does, drawn once. ``placement_reports``: per requested object, the placement
+    search's report (rejections by reason). ``harmonize_seed``: seeds the harmonizer's own generator."""
+
+    objects: tuple[PlannedObject, ...]
+    harmonize_seed: int
+    n_requested: int
+    placement_reports: tuple[dict, ...] = ()
+    modules: dict = field(default_factory=dict)   # e.g. 'collision': which 3D checks ran
+
+    def to_dict(self) -> dict:
+        return {"n_requested": self.n_requested, "harmonize_seed": self.harmonize_seed,
+                "placements": [asdict(o.placement) for o in self.objects],
+                "placement_reports": list(self.placement_reports), "modules": dict(self.modules)}
+
+
+def plan_insertion(analysis: SceneAnalysis, cfg: InsertionConfig, rng: np.random.Generator, *,
+                   existing_boxes_xyxy: np.ndarray | None = None, depth: np.ndarray | None = None,
+                   meta: dict | None = None, bank=None, n_objects: int | None = None) -> InsertionPlan:
+    """Draw the insertion: ``k`` objects (``n_objects`` or uniform in [min_objects, max_objects]), each a category,
+    an asset and a placement that avoids ``existing_boxes_xyxy`` (N, 4), earlier objects and, with ``meta``
+    'lidar_points_in_cam' / 'boxes_in_cam', the scene's 3D points and boxes. ``depth`` (H, W) metres or None."""
+    if rng is None:
+        raise ValueError("plan_insertion needs an explicit numpy Generator (rng) for reproducibility")
+    cfg = cfg.effective()
+    meta = meta or {}
+    intr, ground, region = analysis.intrinsics, analysis.ground, analysis.region
+    k = int(n_objects if n_objects is not None else rng.integers(cfg.min_objects, cfg.max_objects + 1))
+    taken = [] if existing_boxes_xyxy is None else [np.asarray(b, float) for b in existing_boxes_xyxy]
+    # DGP-style 3D scene info (meta "lidar_points_in_cam" (N, 3), "boxes_in_cam" [OrientedBox]): candidates must not
+    # intersect LiDAR clusters, existing 3D boxes, or the objects inserted before them.
+    scene_points = meta.get("lidar_points_in_cam")
+    boxes_3d = list(meta.get("boxes_in_cam") or [])
+    mods = {}
+    if cfg.placement and (scene_points is not None or boxes_3d):
+        mods["collision"] = (f"3D checks: {0 if scene_points is None else len(scene_points)} scene points, "
+                             f"{len(boxes_3d)} existing 3D boxes, earlier insertions")
+    objects, reports = [], []
+    for _ in range(k):
+        category = cfg.categories[int(rng.integers(len(cfg.categories)))]
+        base = choose_asset(category, rng, cfg, bank)
+        if cfg.placement:
+            placement, report = sample_placement(base, ground, intr, rng, existing_boxes_xyxy=np.array(taken),
+                                                 depth=depth, cfg=cfg.placement_cfg, region_mask=region.mask,
+                                                 height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
+                                                 points_in_cam=scene_points,
+                                                 existing_objects=boxes_3d if "collision" in mods else None)
+            reports.append(report.to_dict())
+            if placement is None:
+                continue
+            asset = base.scaled(placement.scale)
+        else:
+            hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.height_m, base.height_m))
+            asset = base.scaled(rng.uniform(*hr) / base.height_m)
+            cam_from_object, yaw = naive_pose(asset, intr, rng, cfg)
+            uvc, _ = project_points(transform_points(cam_from_object, asset.corners_m()), intr.K)
+            placement = Placement(category, asset.name, asset.source, float(asset.meta.get("scale", 1.0)),
+                                  asset.height_m, float(yaw), tuple(map(float, cam_from_object[:3, 3])),
+                                  (float("nan"), float("nan")),
+                                  tuple(tuple(map(float, r)) for r in cam_from_object),
+                                  tuple(map(float, box_of_points(uvc))), (0.0, -1.0, 0.0), 0.0, "none")
+        objects.append(PlannedObject(placement, asset))
+        taken.append(np.array(placement.amodal_box_xyxy))
+        if "collision" in mods:
+            boxes_3d.append(OrientedBox.standing_on_ground(placement.cam_from_object_matrix,
+                                                           tuple(asset.extents_m), category))
+    harmonize_seed = int(rng.integers(0, 2**63 - 1))
+    return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods)
+
+
+def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tuple[np.ndarray, float]:
+    """Random 2D position and size with no scene geometry: the object stands upright facing the camera at the
+    depth that gives the sampled pixel height, centred on a random pixel."""
+    h_px = rng.uniform(*cfg.naive_height_frac_range) * intr.height
+    z = intr.fy * asset.height_m / h_px
+    u = rng.uniform(0.1, 0.9) * intr.width
+    v = rng.uniform(0.1, 0.9) * intr.height
+    yaw = rng.uniform(-np.pi, np.pi)
+    c, s = np.cos(yaw), np.sin(yaw)
+    R_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)  # object z (up) -> camera -y
+    R_yaw = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    centre_cam = np.array([(u - intr.cx) * z / intr.fx, (v - intr.cy) * z / intr.fy, z])
+    t = centre_cam - R_up @ R_yaw @ np.array([0, 0, asset.height_m / 2])
+    return make_rigid(R_up @ R_yaw, t), yaw
+
+
+def choose_asset(category: str, rng, cfg: InsertionConfig, bank=None) -> Asset:
+    """The caller's asset source, else the shared-data default of the category (asset_source "default"), else the
+    asset bank (``aias_augment.bank``: sweethome3d catalogs, gazebo models, procedural debris), real-size jittered."""
+    if bank is not None:
+        return bank.sample(category, rng)
+    if cfg.asset_source == "default" and category in DEFAULT_ASSETS:
+        return default_asset(category)
+    from ..bank import get_bank  # lazy: the bank catalog is only read when a category needs it
+    return get_bank().sample(category, rng)
