@@ -32,6 +32,7 @@ class InsertionConfig:
     max_camera_roll_deg: float = 10.0
     default_hfov_deg: float = 60.0
     naive_height_frac_range: tuple[float, float] = (0.05, 0.4)
+    naive_height_frac_samples: tuple[float, ...] = ()   # when set, naive paste draws its heights from these instead
     placement_cfg: PlacementConfig = PlacementConfig()
 
     def __post_init__(self):

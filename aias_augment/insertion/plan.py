@@ -104,7 +104,12 @@ def plan_insertion(analysis: SceneAnalysis, cfg: InsertionConfig, rng: np.random
 def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tuple[np.ndarray, float]:
     """Random 2D position and size with no scene geometry: the object stands upright facing the camera at the
     depth that gives the sampled pixel height, centred on a random pixel."""
-    h_px = rng.uniform(*cfg.naive_height_frac_range) * intr.height
+    if cfg.naive_height_frac_samples:   # the same empirical size distribution the placement targets use
+        base = cfg.naive_height_frac_samples[int(rng.integers(len(cfg.naive_height_frac_samples)))]
+        h_px = float(np.clip(base * np.exp(rng.normal(0.0, cfg.placement_cfg.box_height_jitter)), 1e-3, 1.0)) * \
+            intr.height
+    else:
+        h_px = rng.uniform(*cfg.naive_height_frac_range) * intr.height
     z = intr.fy * asset.height_m / h_px
     u = rng.uniform(0.1, 0.9) * intr.width
     v = rng.uniform(0.1, 0.9) * intr.height
