@@ -28,6 +28,8 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--limit", type=int, default=None, help="process only the first N images")
+    ap.add_argument("--scene-cache", default=None,
+                    help="folder of scene analyses (camera, ground, region, lighting) reused across runs and workers")
     clip = ap.add_argument_group("clip (--input is a video file or a frame folder)")
     clip.add_argument("--camera", help="KITTI calib.txt, pyslam KITTI*.yaml, or a yaml with fx, fy, cx, cy")
     clip.add_argument("--poses", help="one pose per frame: KITTI (12 numbers) or TUM (tx ty tz qx qy qz qw) lines")
@@ -60,7 +62,7 @@ def main(argv=None) -> int:
     items = items[: a.limit] if a.limit else items
     cfg = replace(load_preset(a.preset), categories=tuple(a.categories), max_objects=a.per_image,
                   min_objects=min(1, a.per_image))
-    summary = run(items, cfg, a.seed, a.out, workers=a.workers, class_names=a.class_names)
+    summary = run(items, cfg, a.seed, a.out, workers=a.workers, class_names=a.class_names, scene_cache=a.scene_cache)
     print(summary)
     return 0
 

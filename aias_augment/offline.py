@@ -94,9 +94,20 @@ def _resolve_yolo(item: Item, image: np.ndarray, class_names) -> None:
         item.labels.append(class_names[c] if class_names and c < len(class_names) else str(c))
 
 
+_SCENE_CACHES: dict = {}   # per process: scene-cache folder (or None) -> SceneCache
+
+
+def _scene_cache(directory: str | None):
+    from .insertion.cache import SceneCache
+    if directory not in _SCENE_CACHES:
+        _SCENE_CACHES[directory] = SceneCache(max_items=32, directory=directory)
+    return _SCENE_CACHES[directory]
+
+
 def process_item(index: int, item: Item, cfg: InsertionConfig, seed: int, out_dir: str,
-                 class_names=None) -> dict:
-    """Augment one image; returns its record (also written to ``records/<index>.json``)."""
+                 class_names=None, scene_cache: str | None = None) -> dict:
+    """Augment one image; returns its record (also written to ``records/<index>.json``). ``scene_cache``: a folder
+    of scene analyses shared by workers and runs (an image augmented again is not analysed again)."""
     out = Path(out_dir)
     rec_path = out / "records" / f"{index:06d}.json"
     if rec_path.exists():
@@ -116,7 +127,7 @@ def process_item(index: int, item: Item, cfg: InsertionConfig, seed: int, out_di
             from .stereo import stereo_depth
             depth = stereo_depth(image, read_rgb(item.stereo_right), intr, item.baseline_m)
         res = insert_into_image(image, item.bboxes_xywh, item.labels, rng, cfg, intrinsics=intr, depth=depth,
-                                meta=item.meta)
+                                meta=item.meta, scene_cache=_scene_cache(scene_cache))
     except Exception as e:  # counted, logged skip: one bad image never stops the run
         log.warning("skipping %s: %s: %s", item.path, type(e).__name__, e)
         rec = {"index": index, "source": item.path, "skipped": f"{type(e).__name__}: {e}"}
@@ -141,11 +152,12 @@ def _worker(args):
 
 
 def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, workers: int = 1,
-        class_names=None, sheet_size: int = 12) -> dict:
+        class_names=None, sheet_size: int = 12, scene_cache: str | None = None) -> dict:
     """Augment all items, then write ``annotations.json`` (COCO, validated) and ``contact_sheet.png``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    jobs = [(i, it, cfg, seed, str(out), class_names) for i, it in enumerate(items)]
+    jobs = [(i, it, cfg, seed, str(out), class_names, None if scene_cache is None else str(scene_cache))
+            for i, it in enumerate(items)]
     records = []
     if workers <= 1:
         for j in tqdm(jobs, desc="aias-augment", unit="img"):

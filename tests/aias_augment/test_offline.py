@@ -29,7 +29,10 @@ def _items(tmp_path, n=3):
 
 def test_same_output_for_one_or_two_workers_and_resume(tmp_path):
     s1 = run(_items(tmp_path), CFG, seed=4, out_dir=str(tmp_path / "w1"), workers=1)
-    s2 = run(_items(tmp_path), CFG, seed=4, out_dir=str(tmp_path / "w2"), workers=2)
+    # Two workers sharing a scene-cache folder: the cache changes when the analysis runs, never the pixels.
+    s2 = run(_items(tmp_path), CFG, seed=4, out_dir=str(tmp_path / "w2"), workers=2,
+             scene_cache=str(tmp_path / "scenes"))
+    assert list((tmp_path / "scenes").rglob("*.npz"))
     assert s1["skipped"] == s2["skipped"] == 1 and s1["inserted"] == s2["inserted"] >= 3
     for name in sorted(p.name for p in (tmp_path / "w1" / "images").iterdir()):
         a = cv2.imread(str(tmp_path / "w1" / "images" / name))
