@@ -25,8 +25,8 @@ from .assets import Asset  # noqa: E402
 from .geometry import (Intrinsics, check_finite, check_rigid, invert_rigid, opengl_from_opencv, project_points,
                        transform_points)  # noqa: E402
 
-__all__ = ["RenderLayers", "ShadowLayers", "render_object", "render_ground_shadow", "srgb_to_linear",
-           "linear_to_srgb"]
+__all__ = ["RenderLayers", "ShadowLayers", "render_object", "render_object_window", "render_ground_shadow",
+           "srgb_to_linear", "linear_to_srgb"]
 
 _STATE: dict = {"renderer": None, "pid": None, "size": None}
 
@@ -196,20 +196,32 @@ def render_object(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrins
     """Render ``asset`` (canonical object frame) seen by an OpenCV camera at ``cam_from_object``.
 
     ``ssaa``: supersampling factor (1 = aliased binary coverage, 2-4 = anti-aliased edges; cost grows as ssaa^2).
+    Full-frame layers; :func:`render_object_window` returns only the window around the object.
     """
+    full = (intrinsics.height, intrinsics.width)
+    roi, layers = render_object_window(asset, cam_from_object, intrinsics, ssaa=ssaa, znear=znear, zfar=zfar,
+                                       with_normals=with_normals)
+    return RenderLayers(_paste(full, roi, layers.albedo_linear), _paste(full, roi, layers.alpha),
+                        _paste(full, roi, layers.depth), _paste(full, roi, layers.normals_in_cam))
+
+
+def render_object_window(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, *, ssaa: int = 1,
+                         znear: float = 0.05, zfar: float = 2000.0, with_normals: bool = True
+                         ) -> tuple[tuple[int, int, int, int], RenderLayers]:
+    """(roi, layers): :func:`render_object` inside the window roi = (x0, y0, x1, y1) (x1/y1 exclusive) that holds
+    the projected bounding box of the object; layers are (y1 - y0, x1 - x0[, 3]) (empty when the object is off
+    screen)."""
     cam_from_object = check_rigid(cam_from_object, "cam_from_object")
     if ssaa < 1 or int(ssaa) != ssaa:
         raise ValueError(f"ssaa must be a positive integer, got {ssaa}")
-    full = (intrinsics.height, intrinsics.width)
     # Only the window around the object is rendered (the projected bounding-box corners bound the silhouette).
     roi = _roi(asset.corners_m(), cam_from_object, intrinsics, 2.0, znear)
     if roi[2] <= roi[0] or roi[3] <= roi[1]:
-        z = np.zeros(full, np.float32)
-        return RenderLayers(np.zeros(full + (3,), np.float32), z, z.copy(), np.zeros(full + (3,), np.float32))
-    layers = _render_object_window(asset, cam_from_object, _crop_intrinsics(intrinsics, roi), ssaa, znear, zfar,
-                                   with_normals)
-    return RenderLayers(_paste(full, roi, layers.albedo_linear), _paste(full, roi, layers.alpha),
-                        _paste(full, roi, layers.depth), _paste(full, roi, layers.normals_in_cam))
+        roi = (0, 0, 0, 0)
+        z = np.zeros((0, 0), np.float32)
+        return roi, RenderLayers(np.zeros((0, 0, 3), np.float32), z, z.copy(), np.zeros((0, 0, 3), np.float32))
+    return roi, _render_object_window(asset, cam_from_object, _crop_intrinsics(intrinsics, roi), ssaa, znear, zfar,
+                                      with_normals)
 
 
 def _render_object_window(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, ssaa: int,
@@ -269,10 +281,11 @@ def _ground_patch(radius: float, node_origin: np.ndarray) -> "pyrender.Mesh":
 
 def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics,
                          sun_direction_in_object: np.ndarray, *, patch_radius_m: float | None = None,
-                         znear: float = 0.05, zfar: float = 2000.0) -> ShadowLayers:
+                         znear: float = 0.05, zfar: float = 2000.0, window: bool = False) -> ShadowLayers:
     """Differential shadow catcher: a Lambertian ground patch lit by the sun alone, rendered with and without the
     object; the ratio of the two (in linear radiance) is the sun visibility. ``sun_direction_in_object`` points from
     the scene toward the sun; a sun at or below the horizon (z <= 0.02) casts no shadow (visibility 1).
+    ``window``: the layers cover only the rendered window ``roi`` (not the full frame).
     """
     cam_from_object = check_rigid(cam_from_object, "cam_from_object")
     sun = check_finite(np.asarray(sun_direction_in_object, dtype=np.float64).reshape(3), "sun direction")
@@ -300,7 +313,11 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
         patch_radius_m = radius_default
     roi = _roi(np.concatenate(pts), cam_from_object, intrinsics, 2.0, znear)
     if roi[2] <= roi[0] or roi[3] <= roi[1]:
+        if window:
+            roi, full = (0, 0, 0, 0), (0, 0)
         return ShadowLayers(np.ones(full, np.float32), np.zeros(full, bool), np.zeros(full, np.float32), roi)
+    if window:
+        full = None
     crop = _crop_intrinsics(intrinsics, roi)
     h, w = crop.height, crop.width
     base = pyrender.Scene(bg_color=np.zeros(4), ambient_light=np.zeros(3))
@@ -316,7 +333,7 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     flags = pyrender.RenderFlags.SHADOWS_DIRECTIONAL | pyrender.RenderFlags.SKIP_CULL_FACES
     if sun[2] <= 0.02:
         gdepth = r.render(base, flags=pyrender.RenderFlags.DEPTH_ONLY)
-        return ShadowLayers(np.ones(full, np.float32), _paste(full, roi, gdepth) > 0, _paste(full, roi, gdepth), roi)
+        return _shadow_layers(full, roi, np.ones((h, w), np.float32), gdepth)
     # pyrender's directional light shines along its node's -z axis: align -z with -sun.
     z_axis = sun
     x_axis = np.cross([0.0, 0.0, 1.0] if abs(sun[2]) < 0.99 else [1.0, 0.0, 0.0], z_axis)
@@ -335,4 +352,12 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     ok = gm & (lit_l.mean(-1) > 1e-4)  # eps: ground facing away from the sun has no lit reference
     vis = np.ones((h, w), np.float32)
     vis[ok] = np.clip(sh_l.mean(-1)[ok] / lit_l.mean(-1)[ok], 0.0, 1.0)
+    return _shadow_layers(full, roi, vis, gdepth)
+
+
+def _shadow_layers(full: tuple | None, roi, vis: np.ndarray, gdepth: np.ndarray) -> ShadowLayers:
+    """Window layers pasted into the full frame (``full`` = (H, W)), or kept as the window (``full`` None)."""
+    gdepth = np.asarray(gdepth, np.float32)
+    if full is None:
+        return ShadowLayers(vis, gdepth > 0, gdepth, roi)
     return ShadowLayers(_paste(full, roi, vis, 1.0), _paste(full, roi, gdepth) > 0, _paste(full, roi, gdepth), roi)

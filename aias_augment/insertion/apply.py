@@ -19,7 +19,7 @@ from ..lighting.shading import shade_object
 from ..lighting.shadows import (contact_occlusion, occluder_distance_from_footprint, shadow_ratio_from_sun_sky,
                                 soften_shadow)
 from ..placement import Placement
-from ..render import render_ground_shadow, render_object
+from ..render import render_ground_shadow, render_object_window
 from ..scene import Frame
 from .analyse import SceneAnalysis
 from .config import InsertionConfig
@@ -45,7 +45,10 @@ class AppliedPlan:
 def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
                cfg: InsertionConfig = InsertionConfig()) -> AppliedPlan:
     """Render the plan's objects into ``frame.image`` (see the module docstring). ``cfg``: ssaa, shadow and
-    harmonization switches (the plan fixed everything random)."""
+    harmonization switches (the plan fixed everything random).
+
+    All float work happens inside one window: the union of the objects' and their shadows' render windows (the
+    sRGB -> linear -> sRGB round trip is exact on uint8, so the pixels outside it are the input's)."""
     cfg = cfg.effective()
     img = frame.image
     depth = frame.depth
@@ -54,60 +57,95 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
         raise ValueError(f"analysis is for {analysis.image_shape}, frame is {(h, w)}")
     intr, lighting = analysis.intrinsics, analysis.lighting
     mods: dict = {}
-    layers, dropped = [], []
+    rendered, dropped = [], []
     for obj in plan.objects:
-        rl = render_object(obj.asset, obj.cam_from_object, intr, ssaa=cfg.ssaa)
-        if rl.alpha.max() <= 0.5:
+        roi, rl = render_object_window(obj.asset, obj.cam_from_object, intr, ssaa=cfg.ssaa)
+        if rl.alpha.size == 0 or rl.alpha.max() <= 0.5:
             dropped.append({"rejected": {"renders to no pixel": 1}})
             continue
-        shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lighting)
-        layers.append((obj, rl, shaded))
-
-    bg = comp.to_linear(img)
-    if cfg.shadow and layers:
-        ratio = np.ones((h, w), np.float32)
-        for obj, _, _ in layers:
-            ratio = np.minimum(ratio, object_shadow_ratio(obj.asset, obj.cam_from_object, intr, lighting, depth))
-        bg = comp.apply_shadow(bg, ratio)  # overlapping shadows of one sun do not darken twice: min, not product
+        rendered.append((obj, roi, rl))
+    shadows = []
+    if cfg.shadow and rendered:
+        shadows = [_object_shadow_window(o.asset, o.cam_from_object, intr, lighting, depth) for o, _, _ in rendered]
         mods["shadow"] = ("shadow catcher (ground patch with/without the object), soft penumbra, contact occlusion"
                           if lighting.dominant_sun else "contact occlusion only: no dominant sun")
     elif not cfg.shadow:
         mods["shadow"] = "skipped: disabled (ablation or naive paste)"
+    rois = [r for _, r, _ in rendered] + [r for r, _ in shadows if r[2] > r[0] and r[3] > r[1]]
+    if not rois:
+        if not cfg.harmonize:
+            mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
+        return AppliedPlan(img.copy(), (), (), np.zeros((h, w), np.float32), mods, tuple(dropped))
+    win = (min(r[0] for r in rois), min(r[1] for r in rois), max(r[2] for r in rois), max(r[3] for r in rois))
+    X0, Y0, X1, Y1 = win
+    wshape = (Y1 - Y0, X1 - X0)
+    sdepth = None if depth is None else depth[Y0:Y1, X0:X1]
+
+    # Each object's layers in the common window; shading only where it covers a pixel.
+    layers = []
+    for obj, roi, rl in rendered:
+        alpha = _in_window(wshape, win, roi, rl.alpha)
+        odepth = _in_window(wshape, win, roi, rl.depth)
+        albedo = _in_window(wshape, win, roi, rl.albedo_linear)
+        normals = _in_window(wshape, win, roi, rl.normals_in_cam)
+        shaded = shade_object(albedo, normals, alpha > 0, lighting)
+        layers.append((obj, alpha, odepth, shaded))
+
+    bg = comp.to_linear(img[Y0:Y1, X0:X1])
+    if shadows:
+        ratio = np.ones(wshape, np.float32)
+        for roi, r in shadows:
+            ratio = np.minimum(ratio, _in_window(wshape, win, roi, r, fill=1.0))
+        bg = comp.apply_shadow(bg, ratio)  # overlapping shadows of one sun do not darken twice: min, not product
 
     # Far to near by median object depth, so nearer objects are blended last.
-    order = sorted(range(len(layers)), key=lambda i: -float(np.median(layers[i][1].depth[layers[i][1].alpha > 0])))
+    order = sorted(range(len(layers)), key=lambda i: -float(np.median(layers[i][2][layers[i][1] > 0])))
     out = bg
     for i in order:
-        _, rl, shaded = layers[i]
-        vis = rl.alpha * comp.visible_fraction_against_depth(rl.depth, depth)
-        out = comp.alpha_over(out, shaded, vis)
+        _, alpha, odepth, shaded = layers[i]
+        out = comp.alpha_over(out, shaded, alpha * comp.visible_fraction_against_depth(odepth, sdepth))
     # Visible part of each object: not behind the scene, not behind nearer inserted objects.
     vis_alphas = []
-    for i in range(len(layers)):
-        rl_i = layers[i][1]
-        vis = rl_i.alpha * comp.visible_fraction_against_depth(rl_i.depth, depth)
-        for j in range(len(layers)):
-            rl_j = layers[j][1]
+    for i, (_, a_i, d_i, _) in enumerate(layers):
+        vis = a_i * comp.visible_fraction_against_depth(d_i, sdepth)
+        for j, (_, a_j, d_j, _) in enumerate(layers):
             if j == i:
                 continue
-            nearer = (rl_j.alpha > 0) & (rl_j.depth > 0) & ((rl_i.depth <= 0) | (rl_j.depth < rl_i.depth))
-            vis = vis * np.where(nearer, 1.0 - rl_j.alpha, 1.0)
+            nearer = (a_j > 0) & (d_j > 0) & ((d_i <= 0) | (d_j < d_i))
+            vis = vis * np.where(nearer, 1.0 - a_j, 1.0)
         vis_alphas.append(vis)
-    result = comp.to_uint8(out)
+    result = img.copy()
+    result[Y0:Y1, X0:X1] = comp.to_uint8(out)
+    full = (h, w)
+    vis_full = [_paste_window(full, win, v) for v in vis_alphas]
 
-    if cfg.harmonize and layers:
-        union = np.clip(np.maximum.reduce(vis_alphas), 0, 1).astype(np.float32)
+    if cfg.harmonize:
+        union = np.clip(np.maximum.reduce(vis_full), 0, 1).astype(np.float32)
         result, mods["harmonize"] = _harmonize(result, union, cfg, np.random.default_rng(plan.harmonize_seed))
-    elif not cfg.harmonize:
+    else:
         mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
 
     annotations = []
-    cover = np.zeros((h, w), np.float32)
-    for (obj, rl, _), vis in zip(layers, vis_alphas):
-        annotations.append(annotate_object(obj.placement.category, rl.alpha, vis))
+    cover = np.zeros(full, np.float32)
+    for (obj, alpha, _, _), vis in zip(layers, vis_full):
+        annotations.append(annotate_object(obj.placement.category, _paste_window(full, win, alpha), vis))
         cover = np.maximum(cover, vis)
-    return AppliedPlan(result, tuple(o.placement for o, _, _ in layers), tuple(annotations), cover, mods,
+    return AppliedPlan(result, tuple(o.placement for o, _, _, _ in layers), tuple(annotations), cover, mods,
                        tuple(dropped))
+
+
+def _in_window(wshape: tuple, win: tuple, roi: tuple, arr: np.ndarray, fill: float = 0.0) -> np.ndarray:
+    """``arr`` (rendered in ``roi``) placed in the common window ``win`` (which contains roi)."""
+    out = np.full(wshape + arr.shape[2:], fill, np.float32)
+    x0, y0 = roi[0] - win[0], roi[1] - win[1]
+    out[y0:y0 + arr.shape[0], x0:x0 + arr.shape[1]] = arr
+    return out
+
+
+def _paste_window(full: tuple, win: tuple, arr: np.ndarray) -> np.ndarray:
+    out = np.zeros(full + arr.shape[2:], np.float32)
+    out[win[1]:win[3], win[0]:win[2]] = arr
+    return out
 
 
 def object_shadow_ratio(asset: Asset, cam_from_object: np.ndarray, intr: Intrinsics, lighting: LightingEstimate,
@@ -115,17 +153,25 @@ def object_shadow_ratio(asset: Asset, cam_from_object: np.ndarray, intr: Intrins
     """Multiplicative shadow ratio (H, W) of one object on the ground: sun visibility from the shadow catcher,
     strength from the sun/sky ratio, penumbra growing with the distance to the occluder, contact occlusion.
     Computed inside the window the catcher rendered (1 elsewhere)."""
+    (x0, y0, x1, y1), ratio = _object_shadow_window(asset, cam_from_object, intr, lighting, scene_depth)
+    out = np.ones((intr.height, intr.width), np.float32)
+    out[y0:y1, x0:x1] = ratio
+    return out
+
+
+def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intrinsics, lighting: LightingEstimate,
+                          scene_depth: np.ndarray | None) -> tuple[tuple[int, int, int, int], np.ndarray]:
+    """(roi, ratio inside roi) of :func:`object_shadow_ratio`."""
     R = cam_from_object[:3, :3]
     sun_cam = lighting.sun_direction_in_cam if lighting.dominant_sun else None
     # Below-horizon direction: the catcher then returns the ground geometry with full visibility.
     sun_obj = R.T @ sun_cam if sun_cam is not None else np.array([0.0, 0.0, -1.0])
-    sl = render_ground_shadow(asset, cam_from_object, intr, sun_obj)
-    out = np.ones((intr.height, intr.width), np.float32)
+    sl = render_ground_shadow(asset, cam_from_object, intr, sun_obj, window=True)
     x0, y0, x1, y1 = sl.roi
-    gm = sl.ground_mask[y0:y1, x0:x1]
+    gm = sl.ground_mask
     if not gm.any():
-        return out
-    gdepth = sl.ground_depth[y0:y1, x0:x1]
+        return sl.roi, np.ones(gm.shape, np.float32)
+    gdepth = sl.ground_depth
     vv, uu = np.nonzero(gm)
     pts_cam = unproject_points(np.stack([uu + x0, vv + y0], -1).astype(float), gdepth[gm], intr.K)
     pts_obj = transform_points(invert_rigid(cam_from_object), pts_cam)
@@ -136,8 +182,8 @@ def object_shadow_ratio(asset: Asset, cam_from_object: np.ndarray, intr: Intrins
     rho = np.full(gm.shape, 1e6)  # off the ground patch: far from the object, no contact occlusion
     rho[gm] = np.hypot(dx, dy)
     ao = contact_occlusion(rho, asset.height_m)
-    ratio = shadow_ratio_from_sun_sky(sl.visibility[y0:y1, x0:x1], lighting.sun_sky_ratio if sun_cam is not None
-                                      else 0.0, ambient_occlusion=ao)
+    ratio = shadow_ratio_from_sun_sky(sl.visibility, lighting.sun_sky_ratio if sun_cam is not None else 0.0,
+                                      ambient_occlusion=ao)
     if sun_cam is not None:
         elevation = float(np.arcsin(np.clip(sun_obj[2], -1.0, 1.0)))
         dist = np.full(gm.shape, np.nan)
@@ -147,8 +193,7 @@ def object_shadow_ratio(asset: Asset, cam_from_object: np.ndarray, intr: Intrins
     # The real scene in front of the shadowed ground hides the shadow.
     sd = None if scene_depth is None else scene_depth[y0:y1, x0:x1]
     unoccluded = comp.visible_fraction_against_depth(gdepth, sd)
-    out[y0:y1, x0:x1] = 1.0 - (1.0 - ratio) * unoccluded
-    return out
+    return sl.roi, (1.0 - (1.0 - ratio) * unoccluded).astype(np.float32)
 
 
 def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng) -> tuple[np.ndarray, str]:
