@@ -25,7 +25,7 @@ from .cache import MeshCache, default_cache_dir, source_stamp
 from .catalog import CatalogRecord, load_catalog
 from .meshio import part_texture_image
 from .gazebo import IMPORTER_VERSION as GAZEBO_VERSION, default_gazebo_dir, load_gazebo_parts, read_gazebo_records
-from .procedural import ProceduralSpec, generate
+from .procedural import CATEGORY_SPECS, ProceduralSpec, generate
 from .sh3f import DEFAULT_SH3F_DIR, IMPORTER_VERSION as SH3F_VERSION, find_sh3f_files, load_sh3f_parts, read_sh3f_catalog
 from .sidecar import load_sidecar_parts, read_sidecar_records
 from .taxonomy import Taxonomy, load_taxonomy
@@ -40,13 +40,14 @@ __all__ = ["AssetBank", "get_bank", "discover_records", "import_records", "impor
 _LOADERS = {"sh3f": load_sh3f_parts, "gazebo": load_gazebo_parts, "sidecar": load_sidecar_parts}
 IMPORT_VERSION = 1
 
-#: Procedural debris: (generator, category, height range in metres, catalog records whose texture it borrows).
+#: Procedural debris and cones: (generator, category, height range in metres, catalog records whose texture it borrows).
 PROCEDURAL_SPECS: dict[str, tuple[ProceduralSpec, tuple[str, ...]]] = {
     "procedural:stone": (ProceduralSpec("stone", "rock", (0.05, 0.4)),
                          ("sh3f:Blend Swap CC-0#rock1", "sh3f:Blend Swap CC-0#rock2", "sh3f:Blend Swap CC-0#rock3")),
     "procedural:concrete_block": (ProceduralSpec("concrete_block", "concrete_block", (0.12, 0.3)),
                                   ("gazebo:cinder_block",)),
     "procedural:crumpled_sheet": (ProceduralSpec("crumpled_sheet", "debris", (0.02, 0.15)), ()),
+    "procedural:traffic_cone": (CATEGORY_SPECS["traffic_cone"], ()),   # a seeded family, texture drawn
 }
 
 
