@@ -24,6 +24,8 @@ class InsertionConfig:
     harmonize_method: str = "camera"
     harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~2-6x faster)
     asset_source: str = "default"        # "default": shared-data model per category, bank for others; "bank": all bank
+    #                                       "procedural": a new seeded procedural asset per object where the category has
+    #                                       a generator (traffic_cone), else as "default"
     ssaa: int = 2                        # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Priors when the scene does not say.
     camera_height_m: float = 1.6
@@ -42,8 +44,8 @@ class InsertionConfig:
             raise ValueError(f"need 0 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
         if self.ssaa < 1:
             raise ValueError("ssaa must be >= 1")
-        if self.asset_source not in ("default", "bank"):
-            raise ValueError(f"asset_source must be 'default' or 'bank', got {self.asset_source!r}")
+        if self.asset_source not in ("default", "bank", "procedural"):
+            raise ValueError(f"asset_source must be 'default', 'bank' or 'procedural', got {self.asset_source!r}")
 
     def effective(self) -> "InsertionConfig":
         """naive_paste switches the geometry, lighting, shadow and harmonization stages off."""
