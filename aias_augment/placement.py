@@ -93,6 +93,9 @@ class Placement:
     ground_used: str = "global"
     ground_num_inliers: int = 0
     ground_rms_m: float = 0.0
+    # A procedural asset's draws (``Asset.meta``: generator, seed, shape, colours, bands...), so the record says
+    # which object was made; empty for mesh assets.
+    asset_meta: dict = field(default_factory=dict, hash=False)
 
     @property
     def cam_from_object_matrix(self) -> np.ndarray:

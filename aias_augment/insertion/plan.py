@@ -6,7 +6,7 @@ draws nothing.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -92,6 +92,8 @@ def plan_insertion(analysis: SceneAnalysis, cfg: InsertionConfig, rng: np.random
                                   (float("nan"), float("nan")),
                                   tuple(tuple(map(float, r)) for r in cam_from_object),
                                   tuple(map(float, box_of_points(uvc))), (0.0, -1.0, 0.0), 0.0, "none")
+        if asset.procedural:
+            placement = replace(placement, asset_meta=_json_safe(asset.meta))
         objects.append(PlannedObject(placement, asset))
         taken.append(np.array(placement.amodal_box_xyxy))
         if "collision" in mods:
@@ -99,6 +101,15 @@ def plan_insertion(analysis: SceneAnalysis, cfg: InsertionConfig, rng: np.random
                                                            tuple(asset.extents_m), category))
     harmonize_seed = int(rng.integers(0, 2**63 - 1))
     return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods)
+
+
+def _json_safe(x):
+    """``x`` with numpy scalars/arrays and tuples turned into plain JSON types (an asset's meta for the record)."""
+    if isinstance(x, dict):
+        return {str(k): _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_json_safe(v) for v in x]
+    return x.item() if isinstance(x, np.generic) else x
 
 
 def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tuple[np.ndarray, float]:
@@ -123,11 +134,17 @@ def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tup
 
 
 def choose_asset(category: str, rng, cfg: InsertionConfig, bank=None) -> Asset:
-    """The caller's asset source, else the shared-data default of the category (asset_source "default"), else the
-    asset bank (``aias_augment.bank``: sweethome3d catalogs, gazebo models, procedural debris), real-size jittered."""
+    """The caller's asset source, else a new seeded procedural asset (asset_source "procedural", categories with a
+    generator: :data:`aias_augment.bank.procedural.CATEGORY_SPECS`), else the shared-data default of the category
+    (asset_source "default"; "procedural" for other categories), else the asset bank (``aias_augment.bank``:
+    sweethome3d catalogs, gazebo models, procedural debris), real-size jittered."""
     if bank is not None:
         return bank.sample(category, rng)
-    if cfg.asset_source == "default" and category in DEFAULT_ASSETS:
+    if cfg.asset_source == "procedural":
+        from ..bank.procedural import CATEGORY_SPECS, procedural_asset
+        if category in CATEGORY_SPECS:  # a new seeded one per object (one draw of rng: its seed)
+            return procedural_asset(category, rng)
+    if cfg.asset_source in ("default", "procedural") and category in DEFAULT_ASSETS:
         return default_asset(category)
     from ..bank import get_bank  # lazy: the bank catalog is only read when a category needs it
     return get_bank().sample(category, rng)
