@@ -100,19 +100,24 @@ def plot(paths: list[str], out: str) -> None:
     import matplotlib.pyplot as plt
 
     runs = [json.loads(Path(p).read_text()) for p in paths]
-    fig, axes = plt.subplots(1, 4, figsize=(20, 4.5))
+    fig, axes = plt.subplots(1, 5, figsize=(25, 4.5))
     for i, r in enumerate(runs):
         c = f"C{i % 10}"
         label = f"{r['name']} ({r['final']['AP']:.3f})"
         it = [x["iter"] for x in r["losses"]]
         axes[0].plot([e["iter"] for e in r["evals"]], [e["AP"] for e in r["evals"]], "o-", color=c, label=label)
-        for ax, key in zip(axes[1:], ("iou", "obj", "cls")):
-            ax.plot(it, smooth([x[key] for x in r["losses"]]), color=c, label=r["name"])
+        axes[1].plot(it, smooth([x["obj"] for x in r["losses"]]), color=c)
+        pos = [x for x in r["losses"] if x["num_fg"] > 0]          # IoU and class terms exist only with positives
+        for ax, key in zip(axes[2:4], ("iou", "cls")):
+            ax.plot([x["iter"] for x in pos], smooth([x[key] for x in pos]), color=c)
+        axes[4].plot(it, smooth([float(x["num_fg"] == 0) for x in r["losses"]], 25), color=c)
     axes[0].set_title("TraCon val AP50:95 (EMA weights)")
     axes[0].legend(fontsize=7)
-    for ax, key in zip(axes[1:], ("IoU loss", "objectness loss", "class loss")):
-        ax.set_title(f"train {key} (smoothed, per positive)")
+    for ax, key in zip(axes[1:4], ("objectness loss", "IoU loss (batches with positives)",
+                                   "class loss (batches with positives)")):
+        ax.set_title(f"train {key}, smoothed", fontsize=10)
         ax.set_yscale("log")
+    axes[4].set_title("share of batches without any positive (smoothed)", fontsize=10)
     for ax in axes:
         ax.set_xlabel("iteration")
         ax.grid(alpha=0.3)
