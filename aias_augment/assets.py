@@ -94,7 +94,7 @@ class Asset:
             raise AssetError(f"scale factor must be positive and finite, got {factor}")
         meshes = []
         for m in self.meshes:
-            c = m.copy()
+            c = m.copy(include_cache=True)  # keeps explicitly given vertex normals
             c.apply_scale(factor)
             meshes.append(c)
         root = self.render_root if self.render_root is not None else self
@@ -198,7 +198,7 @@ def normalise_meshes(meshes: list[trimesh.Trimesh]) -> tuple[trimesh.Trimesh, ..
     shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
     out = []
     for m in meshes:
-        c = m.copy()
+        c = m.copy(include_cache=True)  # keeps explicitly given vertex normals (a plain copy recomputes them)
         c.apply_translation(shift)
         out.append(c)
     return tuple(out)

@@ -117,9 +117,9 @@ def make_crumpled_sheet(rng: np.random.Generator, height_m: float, texture: Imag
 
 #: Body colours (sRGB) and their probabilities: fluorescent orange dominates real cones.
 CONE_COLOURS: dict[str, tuple[tuple[int, int, int], float]] = {
-    "orange": ((255, 88, 16), 0.62),
-    "red_orange": ((238, 52, 30), 0.2),
-    "red": ((205, 28, 34), 0.06),
+    "orange": ((255, 72, 18), 0.55),          # TraCon's real cone bodies: median hue ~8 deg
+    "red_orange": ((246, 44, 24), 0.27),
+    "red": ((210, 28, 34), 0.06),
     "yellow": ((252, 196, 8), 0.07),
     "lime": ((190, 226, 24), 0.05),
 }
@@ -240,7 +240,7 @@ def _cone_params(rng: np.random.Generator, h: float) -> dict:
         "base_shape": base_shape, "base_colour": base_colour, "base_half_width_m": float(base_half),
         "base_height_m": float(base_h), "body_bottom_radius_m": float(r_bottom), "top_radius_m": float(r_top),
         "band_colour": band_colour, "bands_z_m": [[float(a), float(b)] for a, b in bands],
-        "dirt": float(rng.uniform(0.0, 0.6) if rng.random() < 0.6 else 0.0),
+        "dirt": float(rng.uniform(0.05, 0.45) if rng.random() < 0.35 else 0.0),   # most real cones are clean
         "wear_seed": int(rng.integers(2**31 - 1)),
     }
 
