@@ -279,21 +279,18 @@ def _ground_patch(radius: float, node_origin: np.ndarray) -> "pyrender.Mesh":
     return pyrender.Mesh.from_trimesh(quad, material=mat, smooth=False)
 
 
-def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics,
-                         sun_direction_in_object: np.ndarray, *, patch_radius_m: float | None = None,
-                         znear: float = 0.05, zfar: float = 2000.0, window: bool = False) -> ShadowLayers:
-    """Differential shadow catcher: a Lambertian ground patch lit by the sun alone, rendered with and without the
-    object; the ratio of the two (in linear radiance) is the sun visibility. ``sun_direction_in_object`` points from
-    the scene toward the sun; a sun at or below the horizon (z <= 0.02) casts no shadow (visibility 1).
-    ``window``: the layers cover only the rendered window ``roi`` (not the full frame).
-    """
-    cam_from_object = check_rigid(cam_from_object, "cam_from_object")
-    sun = check_finite(np.asarray(sun_direction_in_object, dtype=np.float64).reshape(3), "sun direction")
+def unit_sun(sun_direction: np.ndarray) -> np.ndarray:
+    sun = check_finite(np.asarray(sun_direction, dtype=np.float64).reshape(3), "sun direction")
     norm = np.linalg.norm(sun)
     if norm < 1e-9:
         raise ValueError("sun direction has zero length")
-    sun = sun / norm
-    full = (intrinsics.height, intrinsics.width)
+    return sun / norm
+
+
+def shadow_window(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, sun: np.ndarray,
+                  znear: float = 0.05) -> tuple[tuple[int, int, int, int], float]:
+    """(roi, ground patch radius in m) of the shadow catcher: the window holding the object, its whole shadow (each
+    bounding-box corner projected along the unit ``sun`` onto z = 0) and a ring of ground around its footprint."""
     corners = asset.corners_m()
     ext = asset.extents_m
     ring = max(float(ext[2]), float(ext[:2].max()))  # ground around the footprint kept for contact shadows
@@ -306,12 +303,26 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
         t = np.minimum(corners[:, 2:3] / sun[2], 60.0)
         reach = float(t.max())
         pts.append(corners - t * sun)
-        radius_default = float(max(np.abs(corners[:, :2]).max() + reach, ring) * 1.2)
+        radius = float(max(np.abs(corners[:, :2]).max() + reach, ring) * 1.2)
     else:
-        radius_default = float(np.abs(corners[:, :2]).max() + ring)
+        radius = float(np.abs(corners[:, :2]).max() + ring)
+    return _roi(np.concatenate(pts), cam_from_object, intrinsics, 2.0, znear), radius
+
+
+def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics,
+                         sun_direction_in_object: np.ndarray, *, patch_radius_m: float | None = None,
+                         znear: float = 0.05, zfar: float = 2000.0, window: bool = False) -> ShadowLayers:
+    """Differential shadow catcher: a Lambertian ground patch lit by the sun alone, rendered with and without the
+    object; the ratio of the two (in linear radiance) is the sun visibility. ``sun_direction_in_object`` points from
+    the scene toward the sun; a sun at or below the horizon (z <= 0.02) casts no shadow (visibility 1).
+    ``window``: the layers cover only the rendered window ``roi`` (not the full frame).
+    """
+    cam_from_object = check_rigid(cam_from_object, "cam_from_object")
+    sun = unit_sun(sun_direction_in_object)
+    full = (intrinsics.height, intrinsics.width)
+    roi, radius_default = shadow_window(asset, cam_from_object, intrinsics, sun, znear)
     if patch_radius_m is None:
         patch_radius_m = radius_default
-    roi = _roi(np.concatenate(pts), cam_from_object, intrinsics, 2.0, znear)
     if roi[2] <= roi[0] or roi[3] <= roi[1]:
         if window:
             roi, full = (0, 0, 0, 0), (0, 0)

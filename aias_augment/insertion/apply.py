@@ -24,6 +24,7 @@ from ..scene import Frame
 from .analyse import SceneAnalysis
 from .config import InsertionConfig
 from .plan import InsertionPlan
+from .projected_shadow import projected_ground_shadow
 
 log = logging.getLogger(__name__)
 
@@ -66,9 +67,12 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
         rendered.append((obj, roi, rl))
     shadows = []
     if cfg.shadow and rendered:
-        shadows = [_object_shadow_window(o.asset, o.cam_from_object, intr, lighting, depth) for o, _, _ in rendered]
-        mods["shadow"] = ("shadow catcher (ground patch with/without the object), soft penumbra, contact occlusion"
-                          if lighting.dominant_sun else "contact occlusion only: no dominant sun")
+        shadows = [_object_shadow_window(o.asset, o.cam_from_object, intr, lighting, depth, cfg.shadow_method)
+                   for o, _, _ in rendered]
+        how = ("shadow catcher (ground patch with/without the object)" if cfg.shadow_method == "catcher" else
+               "projected silhouette (triangles along the sun onto the ground)")
+        mods["shadow"] = (f"{how}, soft penumbra, contact occlusion" if lighting.dominant_sun
+                          else "contact occlusion only: no dominant sun")
     elif not cfg.shadow:
         mods["shadow"] = "skipped: disabled (ablation or naive paste)"
     rois = [r for _, r, _ in rendered] + [r for r, _ in shadows if r[2] > r[0] and r[3] > r[1]]
@@ -160,13 +164,17 @@ def object_shadow_ratio(asset: Asset, cam_from_object: np.ndarray, intr: Intrins
 
 
 def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intrinsics, lighting: LightingEstimate,
-                          scene_depth: np.ndarray | None) -> tuple[tuple[int, int, int, int], np.ndarray]:
-    """(roi, ratio inside roi) of :func:`object_shadow_ratio`."""
+                          scene_depth: np.ndarray | None, method: str = "catcher"
+                          ) -> tuple[tuple[int, int, int, int], np.ndarray]:
+    """(roi, ratio inside roi) of :func:`object_shadow_ratio`; ``method``: "catcher" (GL) or "projected"."""
     R = cam_from_object[:3, :3]
     sun_cam = lighting.sun_direction_in_cam if lighting.dominant_sun else None
     # Below-horizon direction: the catcher then returns the ground geometry with full visibility.
     sun_obj = R.T @ sun_cam if sun_cam is not None else np.array([0.0, 0.0, -1.0])
-    sl = render_ground_shadow(asset, cam_from_object, intr, sun_obj, window=True)
+    if method == "projected":
+        sl = projected_ground_shadow(asset, cam_from_object, intr, sun_obj)
+    else:
+        sl = render_ground_shadow(asset, cam_from_object, intr, sun_obj, window=True)
     x0, y0, x1, y1 = sl.roi
     gm = sl.ground_mask
     if not gm.any():

@@ -27,6 +27,10 @@ class InsertionConfig:
     #                                       "procedural": a new seeded procedural asset per object where the category has
     #                                       a generator (traffic_cone), else as "default"
     ssaa: int = 2                        # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
+    # Sun visibility on the ground: "catcher" (GL shadow map: ground patch rendered with/without the object) or
+    # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL
+    # call; tests/aias_augment/insertion/test_projected_shadow.py: IoU >= 0.95 vs exact ray casting).
+    shadow_method: str = "catcher"
     # Priors when the scene does not say.
     camera_height_m: float = 1.6
     estimate_camera: bool = True         # horizon/pitch/roll (and focal when unknown) from vanishing lines

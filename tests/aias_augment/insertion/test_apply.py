@@ -27,3 +27,30 @@ def test_apply_is_pure_and_only_touches_the_objects_and_their_shadows():
         allowed[max(0, int(y0 - h)):int(y1 + h) + 1, max(0, int(x0 - 2 * w)):int(x1 + 2 * w) + 1] = True
     assert not (changed & ~allowed).any()
     assert a.cover.max() > 0.99 and a.cover.min() == 0.0
+
+
+def test_projected_and_catcher_shadow_ratios_agree_in_the_pipeline_stage():
+    """The shadow stage (strength from the sun/sky ratio, penumbra, contact occlusion) with either visibility: the
+    darkened ground agrees (IoU >= 0.8 of ratio < 0.8 where the object does not cover the ground: the catcher's
+    shadowed pass sees the object there, not the ground) and the darkest values are within 0.1."""
+    from aias_augment.geometry import make_rigid
+    from aias_augment.insertion.apply import _object_shadow_window
+    from aias_augment.lighting.estimate import LightingEstimate
+    from aias_augment.render import render_object_window
+    sh = np.zeros((9, 3))
+    sh[0] = 0.3
+    sun_cam = np.array([0.5, -0.6, 0.3]) / np.linalg.norm([0.5, -0.6, 0.3])
+    light = LightingEstimate(sun_cam, np.full(3, 3.0), sh, 3.0, True, 0.9, "metadata", np.array([0.0, -1.0, 0.0]))
+    T = make_rigid(np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]), [-0.5, 1.6, 6.0])
+    a = box_asset(extents=(0.5, 0.4, 0.9))
+    roi_c, rc = _object_shadow_window(a, T, K, light, None, "catcher")
+    roi_p, rp = _object_shadow_window(a, T, K, light, None, "projected")
+    assert roi_c == roi_p
+    oroi, ol = render_object_window(a, T, K, ssaa=1, with_normals=False)
+    ground = np.ones(rc.shape, bool)
+    x0, y0 = oroi[0] - roi_c[0], oroi[1] - roi_c[1]
+    ground[y0:y0 + ol.alpha.shape[0], x0:x0 + ol.alpha.shape[1]] &= ol.alpha == 0
+    dc, dp = (rc < 0.8) & ground, (rp < 0.8) & ground
+    assert dc.sum() > 200
+    assert (dc & dp).sum() / (dc | dp).sum() >= 0.8
+    assert abs(float(rc.min()) - float(rp.min())) < 0.1

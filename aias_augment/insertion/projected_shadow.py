@@ -1,0 +1,78 @@
+"""The fast shadow: the object's silhouette projected along the sun onto its ground plane, without a GL call.
+
+The sun visibility of a ground point is 0 inside the union of the object's triangles projected along the sun onto
+z = 0 (object frame), 1 outside: each triangle that faces the sun is projected, mapped into the image and filled
+(OpenCV, at 4x4 sub-pixels: the visibility at the edge is the pixel's uncovered fraction). The ground patch, its window and its z-depth are the shadow catcher's
+(:func:`aias_augment.render.render_ground_shadow`), computed analytically (ray-plane intersection per pixel). The
+penumbra is added downstream (``soften_shadow``), as for the catcher.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from ..assets import Asset
+from ..geometry import Intrinsics, check_rigid
+from ..render import ShadowLayers, shadow_window, unit_sun
+
+#: A sun ray grazing the horizon is followed at most this far (m), as in the catcher's window.
+MAX_SHADOW_REACH_M = 60.0
+#: Sub-pixels per pixel side used to fill the projected triangles (coverage -> visibility at the shadow's edge).
+SUPERSAMPLE = 4
+
+
+def shadow_triangles(asset: Asset, sun_in_object: np.ndarray) -> np.ndarray:
+    """(F, 3, 3) the asset's sun-facing triangles (all of them for an open mesh's two sides: a triangle facing away
+    is skipped only when the mesh is watertight) projected along the unit sun onto z = 0, in the object frame."""
+    out = []
+    for m in asset.meshes:
+        tri = np.asarray(m.triangles, np.float64)
+        if len(tri) == 0:
+            continue
+        if m.is_watertight:  # a closed surface's shadow is the shadow of its sun-facing half
+            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            tri = tri[n @ sun_in_object > 0]
+        t = np.minimum(np.clip(tri[..., 2:3], 0.0, None) / sun_in_object[2], MAX_SHADOW_REACH_M)
+        out.append(tri - t * sun_in_object)
+    return np.concatenate(out) if out else np.zeros((0, 3, 3))
+
+
+def projected_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics,
+                            sun_direction_in_object: np.ndarray, *, znear: float = 0.05) -> ShadowLayers:
+    """:class:`ShadowLayers` of the window (as ``render_ground_shadow(..., window=True)``) with the projected
+    silhouette as the sun visibility (0 in the shadow, 1 elsewhere)."""
+    T = check_rigid(cam_from_object, "cam_from_object")
+    sun = unit_sun(sun_direction_in_object)
+    roi, radius = shadow_window(asset, T, intrinsics, sun, znear)
+    x0, y0, x1, y1 = roi
+    if x1 <= x0 or y1 <= y0:
+        z = np.zeros((0, 0), np.float32)
+        return ShadowLayers(np.ones((0, 0), np.float32), np.zeros((0, 0), bool), z, (0, 0, 0, 0))
+    K = intrinsics
+    uu, vv = np.meshgrid(np.arange(x0, x1, dtype=np.float64), np.arange(y0, y1, dtype=np.float64))
+    rays = np.stack([(uu - K.cx) / K.fx, (vv - K.cy) / K.fy, np.ones_like(uu)], -1)  # z = 1: lambda is z-depth
+    R, t = T[:3, :3], T[:3, 3]
+    n = R[:, 2]  # the ground's normal (object z) in the camera
+    denom = rays @ n
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.where(np.abs(denom) > 1e-12, (n @ t) / denom, -1.0)
+    hit = lam > znear
+    p_obj = (rays * lam[..., None] - t) @ R  # R^T (p - t) row-wise
+    on_patch = hit & (np.abs(p_obj[..., 0]) <= radius) & (np.abs(p_obj[..., 1]) <= radius)
+    depth = np.where(on_patch, lam, 0.0).astype(np.float32)
+    vis = np.ones(on_patch.shape, np.float32)
+    if sun[2] > 0.02 and on_patch.any():
+        tri = shadow_triangles(asset, sun).reshape(-1, 3) @ R.T + t  # on the ground, in the camera
+        z = tri[:, 2].reshape(-1, 3)
+        front = np.all(z > znear, axis=1)  # a triangle reaching behind the camera is skipped (the window is ahead)
+        uv = (tri[:, :2] / np.maximum(tri[:, 2:3], znear) * [K.fx, K.fy] + [K.cx - x0, K.cy - y0]).reshape(-1, 3, 2)
+        # Filled at SUPERSAMPLE x the resolution, then averaged: the coverage of each pixel (a soft, unbiased edge).
+        ss = SUPERSAMPLE
+        pts = np.round((ss * (uv[front] + 0.5) - 0.5) * 16).astype(np.int32)
+        h, w = on_patch.shape
+        mask = np.zeros((h * ss, w * ss), np.uint8)
+        for p in pts:
+            cv2.fillConvexPoly(mask, p, 1, lineType=cv2.LINE_8, shift=4)
+        cover = mask.reshape(h, ss, w, ss).mean(axis=(1, 3), dtype=np.float32)
+        vis = np.where(on_patch, 1.0 - cover, 1.0).astype(np.float32)
+    return ShadowLayers(vis, on_patch, depth, roi)
