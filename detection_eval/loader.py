@@ -43,7 +43,9 @@ def cache_image(record, size: int) -> CachedImage:
                              f"record says {record.width}x{record.height}")
     interp = cv2.INTER_AREA if new_w < image.shape[1] else cv2.INTER_LINEAR
     image = cv2.resize(image, (new_w, new_h), interpolation=interp)
-    return CachedImage(image, record.boxes_xyxy * lb.scale, record.labels, lb)
+    # Labels rounded in normalised units can overhang the border by a fraction of a pixel: clip to the content.
+    boxes = np.clip(record.boxes_xyxy * lb.scale, 0, [new_w, new_h, new_w, new_h])
+    return CachedImage(image, boxes, record.labels, lb)
 
 
 def cache_dataset(dataset: DetectionSet, size: int, memo: dict | None = None) -> list[CachedImage]:

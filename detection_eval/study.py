@@ -46,7 +46,11 @@ ARM_FLAGS: dict[str, dict | None] = {
     "no_shadow": {"shadow": False},
     "no_lighting": {"lighting": False},
     "no_harmonize": {"harmonize": False},
+    "inserted_online": {},
 }
+# Arms whose insertions happen inside the training loop (``InsertObjects`` on each sample, new draws every epoch)
+# instead of coming from the offline pool.
+ONLINE_ARMS = ("inserted_online",)
 
 
 @dataclass(frozen=True)
@@ -85,6 +89,7 @@ class StudyConfig:
     runs_dir: str = "runs/study"              # weights (not committed)
     results_dir: str = "results/study"        # metrics, table, plot (committed)
     reference_arm: str = "original"
+    online_p: float = 0.5                     # inserted_online: probability that a training sample gets insertions
 
     def __post_init__(self):
         unknown = [a for a in self.arms if a not in ARM_FLAGS]
@@ -260,7 +265,7 @@ def training_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, amo
     base, empty = thin_cone_images(train, cfg.keep_fraction, seed)
     info = {"real_images": len(base), "real_cone_images": sum(1 for r in base.records if len(r.labels)),
             "real_boxes": base.num_boxes}
-    if ARM_FLAGS[arm] is None:
+    if ARM_FLAGS[arm] is None or arm in ONLINE_ARMS:
         return base, info
     folder = generate_arm_set(cfg, arm, train, empty) if generate else _repo_path(cfg.cache_dir) / arm / "pool"
     if not (folder / "done.json").exists():
@@ -284,7 +289,33 @@ _IMAGE_MEMO: dict = {}   # decoded, resized training images shared by all runs o
 
 
 def run_name(arm: str, seed: int, amount: int | None) -> str:
-    return f"{arm}_seed{seed}" if ARM_FLAGS[arm] is None else f"{arm}_n{amount}_seed{seed}"
+    return f"{arm}_seed{seed}" if amount is None else f"{arm}_n{amount}_seed{seed}"
+
+
+def uses_pool(arm: str) -> bool:
+    return ARM_FLAGS[arm] is not None and arm not in ONLINE_ARMS
+
+
+def online_transform(cfg: StudyConfig, train: DetectionSet, scene_cache_dir: Path | None = None):
+    """The ``InsertObjects`` albumentations transform (the study's insertion settings, class label 0) as the
+    trainer's per-sample transform: each sample gets new insertions with probability ``cfg.online_p``; scene
+    analyses are cached by content, so from the second epoch on an image pays no analysis."""
+    import albumentations as A
+
+    from aias_augment import InsertObjects
+
+    from .online import albumentations_transform
+
+    ins = insertion_config_for_arm(cfg, "inserted", train)
+    overrides = {k: getattr(ins, k) for k in ("harmonize_method", "placement_cfg")}
+    ic = cfg.insertion
+    tf = InsertObjects(categories=tuple(ic.categories), min_objects=ic.min_objects, max_objects=ic.max_objects,
+                       preset=ic.preset, category_ids={c: 0 for c in ic.categories}, config_overrides=overrides,
+                       scene_cache=None if scene_cache_dir is None else str(scene_cache_dir), scene_cache_items=512,
+                       p=cfg.online_p)
+    compose = A.Compose([tf], bbox_params=A.BboxParams(format="pascal_voc", label_fields=["labels"],
+                                                       min_visibility=0.2), seed=0)
+    return albumentations_transform(compose)
 
 
 def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: DetectionSet, val_cache,
@@ -292,7 +323,7 @@ def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: Det
     from .inference import evaluate_dataset
     from .train import save_checkpoint, train_detector
 
-    amount = None if ARM_FLAGS[arm] is None else (cfg.amounts[0] if amount is None else amount)
+    amount = None if not uses_pool(arm) else (cfg.amounts[0] if amount is None else amount)
     name = run_name(arm, seed, amount)
     result_path = _repo_path(cfg.results_dir) / "run_metrics" / f"{name}.json"
     if result_path.exists() and not force:
@@ -303,8 +334,10 @@ def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: Det
         det_cfg = replace_nested(det_cfg, **{"train.max_iters": cfg.max_iters})
     train_set, info = training_set(cfg, arm, seed, train, amount)
     log.info("%s: training on %s", name, info)
+    sample_transform = online_transform(cfg, train, _repo_path(cfg.cache_dir) / "scenes") \
+        if arm in ONLINE_ARMS else None
     res = train_detector(det_cfg, train_set, seed=seed, log_fn=lambda m: log.info("%s %s", name, m),
-                         image_memo=_IMAGE_MEMO)
+                         image_memo=_IMAGE_MEMO, sample_transform=sample_transform)
     t0 = time.perf_counter()
     metrics = evaluate_dataset(res.model, val, det_cfg.train.img_size, det_cfg.inference, cached=val_cache)
     eval_seconds = time.perf_counter() - t0
@@ -425,7 +458,7 @@ def plot_size_histograms(cfg: StudyConfig, train: DetectionSet, val: DetectionSe
     series = {"real train": real_box_height_fractions(train), "real val": real_box_height_fractions(val)}
     for arm in cfg.arms:
         mf = _repo_path(cfg.cache_dir) / arm / "pool" / "manifest.json"
-        if ARM_FLAGS[arm] is not None and mf.exists():
+        if uses_pool(arm) and mf.exists():
             series[f"{arm} pool"] = [h for e in json.loads(mf.read_text()) for h in e.get("box_heights_frac", [])]
     fig, ax = plt.subplots(figsize=(7, 4))
     bins = np.linspace(0, 1, 41)
@@ -534,7 +567,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.stage == "generate":
         _, empty = thin_cone_images(train, cfg.keep_fraction, seeds[0])
         for arm in arms:
-            if ARM_FLAGS[arm] is not None:
+            if uses_pool(arm):
                 generate_arm_set(cfg, arm, train, empty)
         return
     if args.stage in ("all", "train"):
@@ -543,7 +576,7 @@ def main(argv: list[str] | None = None) -> None:
         val_cache = cache_dataset(val, det_cfg.train.img_size)
         for seed in seeds:
             for arm in arms:
-                for amount in ([None] if ARM_FLAGS[arm] is None else amounts):
+                for amount in (amounts if uses_pool(arm) else [None]):
                     run_one(cfg, arm, seed, train, val, val_cache, amount, force=args.force)
     print(write_summary(cfg, str(args.config), command, train, val))
 
