@@ -94,14 +94,18 @@ def per_call(rounds: int, images: list[np.ndarray]) -> dict:
         else:
             arms[name] = (lambda tf: lambda i: tf(image=warm_img, bboxes=np.zeros((0, 4)), labels=[]))(tf)
     times = {k: [] for k in arms}
+    cpu = {k: [] for k in arms}
     for r in range(rounds):
         for name, fn in arms.items():
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             fn(r)
             times[name].append(1000.0 * (time.perf_counter() - t0))
+            cpu[name].append(1000.0 * (time.process_time() - c0))
         print(f"round {r + 1}/{rounds}: " + ", ".join(f"{k} {v[-1]:.0f}" for k, v in times.items()), flush=True)
-    stats = {k: {"median_ms": float(np.median(v)), "p90_ms": float(np.percentile(v, 90)), "n": len(v)}
-             for k, v in times.items()}
+    # Wall time is what a training loop waits; process CPU time (all threads of this process, the EGL rasteriser's
+    # included) is what the call costs, and is far less disturbed by other jobs on a shared machine.
+    stats = {k: {"median_ms": float(np.median(v)), "p90_ms": float(np.percentile(v, 90)),
+                 "median_cpu_ms": float(np.median(cpu[k])), "n": len(v)} for k, v in times.items()}
     for k, tf in transforms.items():
         c = tf.transforms[0]._scene_cache
         stats[k]["scene_cache"] = {"hits": c.hits, "misses": c.misses}
@@ -150,9 +154,13 @@ def main(argv=None) -> int:
     ap.add_argument("--loader-images", type=int, default=32)
     ap.add_argument("--epochs", type=int, default=3)
     ap.add_argument("--skip-loader", action="store_true")
+    ap.add_argument("--torch-threads", type=int, default=1,
+                    help="torch intra-op threads for the per-call timings (1, as in a DataLoader worker)")
     ap.add_argument("--out", default="results/bench")
     a = ap.parse_args(argv)
     cmd = "python benchmarks/bench_transform.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    import torch
+    torch.set_num_threads(a.torch_threads)
     load_before = os.getloadavg()
     images = tracon_images(a.rounds + 1, (640, 480))
     calls = per_call(a.rounds, images)
@@ -184,12 +192,16 @@ def main(argv=None) -> int:
              f"Machine: {res['machine']}; load average {load_before[0]:.1f} before, {res['loadavg_after'][0]:.1f} "
              "after (the CPUs are shared with detector trainings: absolute times are inflated and noisy; the ratios "
              "are measured within one run, calls interleaved round by round).", "",
-             f"One traffic cone per call, 640x480 TraCon road images, {a.rounds} interleaved rounds per arm. Cold: an "
+             f"One traffic cone per call, 640x480 TraCon road images, {a.rounds} interleaved rounds per arm, torch "
+             f"threads {a.torch_threads}. Cold: an "
              "image the transform has not seen (the scene analysis runs); warm: the same image again (scene-cache "
              "hit).", "",
-             "| transform | median ms | p90 ms | vs OverlayElements |", "|---|---:|---:|---:|"]
+             "| transform | median wall ms | p90 wall ms | vs OverlayElements (wall) | median CPU ms | vs "
+             "OverlayElements (CPU) |", "|---|---:|---:|---:|---:|---:|"]
+    ov_cpu = max(calls["overlay"]["median_cpu_ms"], 1e-3)
     for k, v in calls.items():
-        lines.append(f"| {k} | {v['median_ms']:.1f} | {v['p90_ms']:.1f} | {v['median_ms'] / ov:.0f}x |")
+        lines.append(f"| {k} | {v['median_ms']:.1f} | {v['p90_ms']:.1f} | {v['median_ms'] / ov:.0f}x | "
+                     f"{v['median_cpu_ms']:.1f} | {v['median_cpu_ms'] / ov_cpu:.0f}x |")
     if loader:
         lines += ["", f"DataLoader: {a.loader_images} TraCon images at 320x320, batch 8, 2 spawn workers "
                   "(persistent), shuffled; insertion: `InsertObjects(p=0.5, preset='fast')` with an on-disk scene "
@@ -197,7 +209,8 @@ def main(argv=None) -> int:
         for e, (wo, wi, r) in enumerate(zip(loader["without_img_s"], loader["with_img_s"],
                                             loader["ratio_per_epoch"])):
             lines.append(f"| {e + 1} | {wo:.1f} | {wi:.1f} | {r:.2f} |")
-    lines += ["", "Targets (issue 14):", ""] + [f"- {k}: {'met' if v else 'NOT met'}" for k, v in checks.items()]
+    lines += ["", "Targets (issue 14; judged on the wall-time medians above):", ""] + [
+        f"- {k}: {'met' if v else 'NOT met'}" for k, v in checks.items()]
     (out / "transform.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

@@ -208,7 +208,8 @@ def _scene_lighting(image, intr: Intrinsics, ground: GroundPlane, rng, cfg: Inse
         sh[0] = E / (np.pi * 0.886227)  # irradiance of a constant SH radiance L00*Y00 is pi * 0.886227 * L00
         modules["lighting"] = "skipped: disabled (ablation); uniform gray-world ambient, no sun"
         return LightingEstimate(None, np.zeros(3), sh, 0.0, False, 0.0, "none", ground.normal)
-    est = estimate_lighting(image, intr, None, {**meta, "up_in_world": ground.normal}, rng=rng)
+    est = estimate_lighting(image, intr, None, {**meta, "up_in_world": ground.normal}, rng=rng,
+                            config=cfg.lighting_cfg)
     if est.dominant_sun:
         modules["lighting"] = (f"sun from {est.source} (confidence {est.confidence:.2f}), sun/sky ratio "
                                f"{est.sun_sky_ratio:.2f}, SH ambient")

@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from ..config import CONFIG_DIR, load_config
+from ..lighting.estimate import LightingConfig
 from ..placement import PlacementConfig
 
 PRESETS = ("fast", "balanced", "accurate")
@@ -40,6 +41,7 @@ class InsertionConfig:
     naive_height_frac_range: tuple[float, float] = (0.05, 0.4)
     naive_height_frac_samples: tuple[float, ...] = ()   # when set, naive paste draws its heights from these instead
     placement_cfg: PlacementConfig = PlacementConfig()
+    lighting_cfg: LightingConfig = LightingConfig()   # thresholds and analysis resolutions of estimate_lighting
 
     def __post_init__(self):
         if not self.categories:
@@ -61,7 +63,8 @@ class InsertionConfig:
         """The fields :func:`aias_augment.insertion.analyse_scene` reads (part of the scene cache key)."""
         c = self.effective()
         return {k: getattr(c, k) for k in ("placement", "lighting", "estimate_camera", "camera_height_m",
-                                           "max_camera_pitch_deg", "max_camera_roll_deg", "default_hfov_deg")}
+                                           "max_camera_pitch_deg", "max_camera_roll_deg", "default_hfov_deg",
+                                           "lighting_cfg")}
 
 
 def load_preset(name: str, **overrides) -> InsertionConfig:

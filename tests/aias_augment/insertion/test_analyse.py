@@ -38,6 +38,8 @@ def test_scene_key_follows_what_the_analysis_reads():
     assert scene_key(Frame(img, None), CFG) != k0
     assert scene_key(Frame(img, K, depth=np.full((480, 640), 5.0, np.float32)), CFG) != k0
     assert scene_key(Frame(img, K), replace(CFG, camera_height_m=1.2)) != k0
+    from aias_augment.lighting.estimate import LightingConfig
+    assert scene_key(Frame(img, K), replace(CFG, lighting_cfg=LightingConfig(analysis_width=200))) != k0
     # Fields the analysis does not read do not split the cache.
     assert scene_key(Frame(img, K), replace(CFG, ssaa=3, max_objects=5, harmonize=True)) == k0
     # Collision inputs belong to the plan, not to the scene analysis.
