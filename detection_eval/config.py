@@ -89,6 +89,9 @@ class TrainConfig:
     log_every: int = 20
     object_image_fraction: float = 0.0  # each epoch's order repeats images with objects so that they make up at least
                                         # this share of the samples (0: every image once, plain shuffling)
+    synthetic_fraction: float = 0.25    # with synthetic (inserted) images in the set: the share of all samples they
+                                        # fill, taken from the slots of real images without objects, so the real
+                                        # images with objects are seen exactly as often as without synthetic data
 
     def __post_init__(self):
         if self.img_size % 32 != 0 or self.img_size < 32:
@@ -97,6 +100,8 @@ class TrainConfig:
             raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {self.optimizer!r}")
         if self.batch_size < 1 or self.max_iters < 1 or self.warmup_iters < 0:
             raise ValueError("batch_size and max_iters must be >= 1, warmup_iters >= 0")
+        if not 0 <= self.synthetic_fraction < 1:
+            raise ValueError(f"synthetic_fraction must lie in [0, 1), got {self.synthetic_fraction}")
         if not 0 <= self.object_image_fraction < 1:
             raise ValueError(f"object_image_fraction must lie in [0, 1), got {self.object_image_fraction}")
 

@@ -101,18 +101,43 @@ class TrainBatches:
     """Infinite deterministic stream of augmented batches over a cached dataset (epoch-wise shuffles)."""
 
     def __init__(self, cache: list[CachedImage], size: int, batch_size: int, augment: AugmentConfig, seed: int,
-                 sample_transform: SampleTransform | None = None, object_image_fraction: float = 0.0):
+                 sample_transform: SampleTransform | None = None, object_image_fraction: float = 0.0,
+                 synthetic_mask: np.ndarray | None = None, synthetic_fraction: float = 0.25):
         if not cache:
             raise ValueError("empty training set")
         self.cache, self.size, self.batch_size = cache, size, batch_size
         self.augment, self.seed, self.sample_transform = augment, seed, sample_transform
-        self.epoch_items = epoch_items(cache, object_image_fraction)
+        synthetic = np.zeros(len(cache), bool) if synthetic_mask is None else np.asarray(synthetic_mask, bool)
+        if synthetic.shape != (len(cache),):
+            raise ValueError(f"synthetic_mask must have one entry per image ({len(cache)}), got {synthetic.shape}")
+        real = np.flatnonzero(~synthetic)
+        if not len(real):
+            raise ValueError("no real images: synthetic images replace real empty ones, they cannot stand alone")
+        self.synthetic = np.flatnonzero(synthetic)
+        # One epoch of real images, as without synthetic data (indices into the cache)
+        self.epoch_items = real[epoch_items([cache[i] for i in real], object_image_fraction)]
+        empty_slots = np.array([len(cache[i].labels) == 0 for i in self.epoch_items])
+        self.replace_prob = 0.0
+        if len(self.synthetic) and synthetic_fraction > 0:
+            if not empty_slots.any():
+                raise ValueError("synthetic images take the slots of real images without objects; there are none")
+            self.replace_prob = min(1.0, synthetic_fraction / empty_slots.mean())
         self._orders: dict[int, np.ndarray] = {}
 
     def _order(self, epoch: int) -> np.ndarray:
+        """Epoch order: a seeded permutation of the real items (the same with or without synthetic images), then
+        each slot of a real image without objects shows a synthetic image with probability ``replace_prob``."""
         if epoch not in self._orders:
             perm = np.random.default_rng([self.seed, 1_000_003, epoch]).permutation(len(self.epoch_items))
-            self._orders = {epoch: self.epoch_items[perm]}
+            order = self.epoch_items[perm]
+            if self.replace_prob > 0:
+                rng = np.random.default_rng([self.seed, 1_000_033, epoch])
+                slots = np.flatnonzero([len(self.cache[i].labels) == 0 for i in order])
+                slots = slots[rng.random(len(slots)) < self.replace_prob]
+                picks = np.resize(rng.permutation(self.synthetic), len(slots))
+                order = order.copy()
+                order[slots] = picks
+            self._orders = {epoch: order}
         return self._orders[epoch]
 
     def index_at(self, position: int) -> int:

@@ -320,15 +320,52 @@ def online_transform(cfg: StudyConfig, train: DetectionSet, scene_cache_dir: Pat
 
 def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: DetectionSet, val_cache,
             amount: int | None = None, force=False):
-    from .inference import evaluate_dataset
-    from .train import save_checkpoint, train_detector
-
     amount = None if not uses_pool(arm) else (cfg.amounts[0] if amount is None else amount)
     name = run_name(arm, seed, amount)
     result_path = _repo_path(cfg.results_dir) / "run_metrics" / f"{name}.json"
     if result_path.exists() and not force:
         log.info("%s: result exists (%s), skipping", name, result_path)
         return json.loads(result_path.read_text())
+    claim = claim_run(result_path)
+    if claim is None:
+        log.info("%s: being trained by another process, skipping", name)
+        return None
+    try:
+        return _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_cache)
+    finally:
+        claim.unlink(missing_ok=True)
+
+
+def claim_run(result_path: Path) -> Path | None:
+    """An exclusive claim file beside the result, so several study processes (one per core) share one queue of
+    runs. A claim whose process is gone is taken over. Returns the claim path, or None when another live process
+    holds it."""
+    import os
+    claim = result_path.with_suffix(".running")
+    claim.parent.mkdir(parents=True, exist_ok=True)
+    for _ in range(2):
+        try:
+            fd = os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            try:
+                pid = int(claim.read_text().strip() or 0)
+                os.kill(pid, 0)
+                return None                      # alive: someone else trains it
+            except (ValueError, ProcessLookupError, FileNotFoundError):
+                claim.unlink(missing_ok=True)    # stale claim of a killed process
+                continue
+            except PermissionError:
+                return None
+        with os.fdopen(fd, "w") as f:
+            f.write(str(os.getpid()))
+        return claim
+    return None
+
+
+def _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_cache):
+    from .inference import evaluate_dataset
+    from .train import save_checkpoint, train_detector
+
     det_cfg = load_detector_config(cfg.detector)
     if cfg.max_iters:
         det_cfg = replace_nested(det_cfg, **{"train.max_iters": cfg.max_iters})
@@ -336,8 +373,9 @@ def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: Det
     log.info("%s: training on %s", name, info)
     sample_transform = online_transform(cfg, train, _repo_path(cfg.cache_dir) / "scenes") \
         if arm in ONLINE_ARMS else None
+    synthetic = np.r_[np.zeros(info["real_images"], bool), np.ones(len(train_set) - info["real_images"], bool)]
     res = train_detector(det_cfg, train_set, seed=seed, log_fn=lambda m: log.info("%s %s", name, m),
-                         image_memo=_IMAGE_MEMO, sample_transform=sample_transform)
+                         image_memo=_IMAGE_MEMO, sample_transform=sample_transform, synthetic_mask=synthetic)
     t0 = time.perf_counter()
     metrics = evaluate_dataset(res.model, val, det_cfg.train.img_size, det_cfg.inference, cached=val_cache)
     eval_seconds = time.perf_counter() - t0

@@ -81,11 +81,14 @@ class TrainResult:
 
 def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
                    sample_transform: SampleTransform | None = None, device: str | torch.device = "cpu",
-                   log_fn=None, image_memo: dict | None = None, on_iteration=None) -> TrainResult:
+                   log_fn=None, image_memo: dict | None = None, on_iteration=None,
+                   synthetic_mask=None) -> TrainResult:
     """Train a detector on ``train_set`` for ``cfg.train.max_iters`` iterations. Torch initialisation is seeded by
     ``seed`` through a local generator state (``torch.manual_seed`` inside ``fork_rng``). ``image_memo`` shares
     decoded training images between runs (see ``cache_dataset``). ``on_iteration(it, model, losses)`` is called
-    after every step with the weights that would be returned (EMA if enabled), e.g. to record a learning curve."""
+    after every step with the weights that would be returned (EMA if enabled), e.g. to record a learning curve.
+    ``synthetic_mask`` (one bool per record) marks inserted images: they fill ``train.synthetic_fraction`` of the
+    samples in place of real images without objects (see ``TrainBatches``)."""
     tc = cfg.train
     if cfg.model.num_classes != len(train_set.category_names):
         cfg = replace_nested(cfg, **{"model.num_classes": len(train_set.category_names)})
@@ -94,7 +97,7 @@ def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
     cache = cache_dataset(train_set, tc.img_size, image_memo)
     cache_seconds = time.perf_counter() - t0
     batches = TrainBatches(cache, tc.img_size, tc.batch_size, cfg.augment, seed, sample_transform,
-                           tc.object_image_fraction)
+                           tc.object_image_fraction, synthetic_mask, tc.synthetic_fraction)
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         model = Detector.from_config(cfg).to(device)

@@ -71,3 +71,26 @@ def _check_letterbox_round_trip(model, dataset, cfg):
     best = small["boxes"][np.argmax(small["scores"])]
     iou = float(box_iou(torch.tensor([best]), torch.tensor([gt - [0, top, 0, top]]))[0, 0])
     assert iou >= 0.5, (best, gt, top)          # a true positive at the AP50 threshold
+
+
+def test_frozen_backbone_batchnorm_keeps_imagenet_statistics_and_frozen_blocks_get_no_gradient():
+    from torch import nn
+
+    from detection_eval.backbones import EfficientNetLite0Backbone
+    net = EfficientNetLite0Backbone(pretrained=True, frozen_blocks=3, bn_mode="frozen").train()
+    norms = [m for m in net.modules() if isinstance(m, nn.BatchNorm2d)]
+    before = [(m.running_mean.clone(), m.running_var.clone()) for m in norms]
+    out = net(torch.rand(2, 3, 64, 64) * 3)                # far from ImageNet statistics: training BN would move
+    sum(v.float().mean() for v in out.values()).backward()
+    assert all(not m.training for m in norms)
+    for m, (mean, var) in zip(norms, before):
+        assert torch.equal(m.running_mean, mean) and torch.equal(m.running_var, var)
+        assert m.weight.grad is None and m.bias.grad is None
+    frozen = [p for b in net.blocks[:3] for p in b.parameters()] + list(net.conv_stem.parameters())
+    trained = [p for b in net.blocks[3:] for p in b.parameters() if p.requires_grad]
+    assert all(p.grad is None for p in frozen)
+    assert trained and all(p.grad is not None for p in trained)
+    train_bn = EfficientNetLite0Backbone(pretrained=True, frozen_blocks=0, bn_mode="train").train()
+    train_bn(torch.rand(2, 3, 64, 64) * 3)
+    moved = [m for m in train_bn.modules() if isinstance(m, nn.BatchNorm2d)][0]
+    assert not torch.equal(moved.running_mean, before[0][0])    # the control: trained BN does move
