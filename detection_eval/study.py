@@ -47,6 +47,7 @@ ARM_FLAGS: dict[str, dict | None] = {
     "no_lighting": {"lighting": False},
     "no_harmonize": {"harmonize": False},
     "inserted_online": {},
+    "inserted_procedural": {"asset_source": "procedural"},   # a new seeded procedural cone per object
 }
 # Arms whose insertions happen inside the training loop (``InsertObjects`` on each sample, new draws every epoch)
 # instead of coming from the offline pool.
