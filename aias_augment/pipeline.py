@@ -38,9 +38,11 @@ class InsertionRecord:
     modules: dict[str, str] = field(default_factory=dict)   # stage -> what was used, or "skipped: why"
     placement_reports: list[dict] = field(default_factory=list)
     existing_visibility: list[float] = field(default_factory=list)
+    harmonize_seed: int | None = None   # the plan's harmonizer seed (with the placements: enough to replay)
 
     def to_dict(self) -> dict:
         return {
+            "harmonize_seed": self.harmonize_seed,
             "placements": [asdict(p) for p in self.placements],
             "annotations": [a.to_dict() for a in self.annotations],
             "lighting": self.lighting.to_dict() if self.lighting else None,
@@ -103,7 +105,8 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
 
     record = InsertionRecord(list(applied.placements), list(applied.annotations), analysis.lighting,
                              {**analysis.modules, **plan.modules, **applied.modules},
-                             list(plan.placement_reports) + list(applied.dropped))
+                             list(plan.placement_reports) + list(applied.dropped),
+                             harmonize_seed=plan.harmonize_seed)
     inserted_boxes, inserted_labels = [], []
     for placement, ann in zip(applied.placements, applied.annotations):
         if ann.visible_box_xywh is not None:

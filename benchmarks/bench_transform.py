@@ -4,8 +4,9 @@
    image never seen before ("cold": the scene analysis runs) and on an image seen before ("warm": scene-cache hit),
    interleaved round by round with albumentations' ``OverlayElements`` (a naive 2D paste of a cone crop) in the same
    process, so that the ratios are measured under the same machine load.
-2. A torch DataLoader (2 spawn workers, batch 8, TraCon at 320x320) with and without ``InsertObjects(p=0.5,
-   preset="fast")``: images/s per epoch (workers persist across epochs and share an on-disk scene cache).
+2. A torch DataLoader (2 spawn workers, batch 8, TraCon JPEGs decoded and resized to 320x320 per item) with and
+   without ``InsertObjects(p=0.5, preset="fast")``: images/s per epoch (workers persist across epochs and share an
+   on-disk scene cache).
 
     python benchmarks/bench_transform.py --rounds 8 --loader-images 32 --epochs 3 --out results/bench
 
@@ -113,28 +114,30 @@ def per_call(rounds: int, images: list[np.ndarray]) -> dict:
 
 
 class _Images:
-    """Map-style dataset: TraCon images at 320x320 with no boxes, through ``transform`` (or none)."""
+    """Map-style dataset as a training set reads it: each item decoded from its JPEG and resized to 320x320 (no
+    boxes), then ``transform`` (or none)."""
 
-    def __init__(self, images, transform):
-        self.images, self.transform = images, transform
+    def __init__(self, paths, transform):
+        self.paths, self.transform = [str(p) for p in paths], transform
 
     def __len__(self):
-        return len(self.images)
+        return len(self.paths)
 
     def __getitem__(self, i):
         import torch
-        img = self.images[i]
+        img = cv2.resize(cv2.cvtColor(cv2.imread(self.paths[i]), cv2.COLOR_BGR2RGB), (320, 320),
+                         interpolation=cv2.INTER_AREA)
         if self.transform is not None:
             img = self.transform(image=img, bboxes=np.zeros((0, 4)), labels=[])["image"]
         return torch.from_numpy(np.ascontiguousarray(img)).permute(2, 0, 1)
 
 
-def loader_rates(images, epochs: int, with_insertion: bool, cache_dir: str) -> list[float]:
+def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str) -> list[float]:
     import torch
     tf = None
     if with_insertion:
         tf = _compose(InsertObjects(categories=["traffic_cone"], preset="fast", p=0.5, scene_cache=cache_dir))
-    dl = torch.utils.data.DataLoader(_Images(images, tf), batch_size=8, shuffle=True, num_workers=2,
+    dl = torch.utils.data.DataLoader(_Images(paths, tf), batch_size=8, shuffle=True, num_workers=2,
                                      multiprocessing_context="spawn", persistent_workers=True,
                                      generator=torch.Generator().manual_seed(0))
     rates = []
@@ -167,7 +170,7 @@ def main(argv=None) -> int:
     ov = calls["overlay"]["median_ms"]
     loader = None
     if not a.skip_loader:
-        small = tracon_images(a.loader_images, (320, 320))
+        small = sorted((data_root() / "tracon" / "images" / "train").glob("*.jpg"))[:a.loader_images]
         with tempfile.TemporaryDirectory() as d:
             without = loader_rates(small, a.epochs, False, d)
             with_ins = loader_rates(small, a.epochs, True, d)
@@ -203,7 +206,8 @@ def main(argv=None) -> int:
         lines.append(f"| {k} | {v['median_ms']:.1f} | {v['p90_ms']:.1f} | {v['median_ms'] / ov:.0f}x | "
                      f"{v['median_cpu_ms']:.1f} | {v['median_cpu_ms'] / ov_cpu:.0f}x |")
     if loader:
-        lines += ["", f"DataLoader: {a.loader_images} TraCon images at 320x320, batch 8, 2 spawn workers "
+        lines += ["", f"DataLoader: {a.loader_images} TraCon JPEGs decoded and resized to 320x320 per item, batch 8, "
+                  "2 spawn workers "
                   "(persistent), shuffled; insertion: `InsertObjects(p=0.5, preset='fast')` with an on-disk scene "
                   "cache.", "", "| epoch | without img/s | with img/s | ratio |", "|---:|---:|---:|---:|"]
         for e, (wo, wi, r) in enumerate(zip(loader["without_img_s"], loader["with_img_s"],

@@ -6,7 +6,7 @@ plan = plan_insertion(analysis, cfg, rng)   # plan.py:    assets, placements, ha
 out = apply_plan(frame, analysis, plan)     # apply.py:   render, shadow, composite, harmonize, annotate: pure
 ```
 
-``cache.py`` holds :class:`SceneCache` (in-process LRU + optional on-disk folder keyed by the frame's content).
+``replay.py`` re-applies a recorded insertion (same bytes). ``cache.py`` holds :class:`SceneCache` (in-process LRU + optional on-disk folder keyed by the frame's content).
 :func:`aias_augment.pipeline.insert_into_image` is the one-call wrapper over the three.
 """
 from .analyse import SceneAnalysis, analyse_scene, scene_key
@@ -14,7 +14,8 @@ from .apply import AppliedPlan, apply_plan, object_shadow_ratio
 from .cache import SceneCache
 from .config import PRESETS, InsertionConfig, load_preset
 from .plan import InsertionPlan, PlannedObject, plan_insertion
+from .replay import replay
 
 __all__ = ["InsertionConfig", "PRESETS", "load_preset", "SceneAnalysis", "analyse_scene", "scene_key",
            "InsertionPlan", "PlannedObject", "plan_insertion", "AppliedPlan", "apply_plan", "object_shadow_ratio",
-           "SceneCache"]
+           "SceneCache", "replay"]

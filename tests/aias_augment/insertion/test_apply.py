@@ -54,3 +54,20 @@ def test_projected_and_catcher_shadow_ratios_agree_in_the_pipeline_stage():
     assert dc.sum() > 200
     assert (dc & dp).sum() / (dc | dp).sum() >= 0.8
     assert abs(float(rc.min()) - float(rp.min())) < 0.1
+
+
+def test_replay_from_the_json_record_gives_the_same_bytes():
+    import json
+
+    from aias_augment.insertion.replay import replay
+    from aias_augment.pipeline import insert_into_image
+    img = road_image()
+    asset = box_asset()
+    cfg = type(CFG)(categories=("box",), harmonize=True, harmonize_method="camera", ssaa=2)  # camera: draws from the seed
+    res = insert_into_image(img, rng=np.random.default_rng(8), cfg=cfg, intrinsics=K, bank=OneAsset(asset),
+                            n_objects=2)
+    assert len(res.record.placements) == 2
+    record = json.loads(json.dumps(res.record.to_dict()))
+    out = replay(record, Frame(img, K), cfg, assets=lambda p: asset)
+    assert np.array_equal(out.image, res.image)
+    assert not np.array_equal(out.image, img)

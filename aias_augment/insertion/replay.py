@@ -1,0 +1,52 @@
+"""Replay an insertion from its record: the same image bytes, without drawing anything.
+
+The record's placements are frozen (pose, scale, asset name and source) and its harmonizer seed is kept; the scene
+analysis is recomputed (it is a pure function of the frame) or taken from a cache; :func:`apply_plan` does the rest.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ..assets import DEFAULT_ASSETS, Asset, default_asset
+from ..config import data_root
+from ..placement import Placement
+from ..scene import Frame
+from .apply import AppliedPlan, apply_plan
+from .cache import SceneCache
+from .config import InsertionConfig
+from .plan import InsertionPlan, PlannedObject
+
+
+def _tuples(x):
+    return tuple(_tuples(v) for v in x) if isinstance(x, (list, tuple)) else x
+
+
+def placement_from_dict(d: dict) -> Placement:
+    return Placement(**{k: _tuples(v) for k, v in d.items()})
+
+
+def default_asset_for(p: Placement) -> Asset:
+    """The shared-data default asset a placement names (the asset of ``asset_source="default"`` runs)."""
+    for rel in DEFAULT_ASSETS.get(p.category, []):
+        a = default_asset(p.category, DEFAULT_ASSETS[p.category].index(rel))
+        if a.source == p.asset_source or a.source == str(data_root() / rel):
+            return a
+    raise KeyError(f"no default asset for {p.category!r} from {p.asset_source!r}: pass assets= to replay")
+
+
+def replay(record: dict, frame: Frame, cfg: InsertionConfig, *,
+           assets: Callable[[Placement], Asset] = default_asset_for,
+           scene_cache: SceneCache | None = None) -> AppliedPlan:
+    """Re-apply ``record`` (:meth:`InsertionRecord.to_dict`, e.g. an offline ``records/NNNNNN.json``) to ``frame``
+    with ``cfg`` (the run's config). ``assets(placement)`` returns the unscaled asset a placement was made from."""
+    if record.get("harmonize_seed") is None:
+        raise ValueError("record has no harmonize_seed (written before plans were recorded): cannot replay")
+    analysis = (scene_cache or SceneCache(max_items=0)).get(frame, cfg)
+    objects = []
+    for d in record["placements"]:
+        p = placement_from_dict(d)
+        objects.append(PlannedObject(p, assets(p).scaled(p.scale)))
+    plan = InsertionPlan(tuple(objects), int(record["harmonize_seed"]), len(objects))
+    return apply_plan(frame, analysis, plan, cfg)
