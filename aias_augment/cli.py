@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import argparse
 import logging
+import sys
 from dataclasses import replace
 
-from .offline import items_from_coco, items_from_yolo, run
+from .offline import IMAGE_SUFFIXES, items_from_coco, items_from_yolo, run
 from .pipeline import PRESETS, load_preset
 
 
@@ -28,6 +29,12 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--limit", type=int, default=None, help="process only the first N images")
+    ap.add_argument("--overwrite", action="store_true",
+                    help="replace the run in --out when its manifest differs (default: refuse; the same run resumes)")
+    ap.add_argument("--boxes", choices=("clip", "drop"), default="clip",
+                    help="input boxes crossing the image border: clipped to it or dropped (counted in report.json)")
+    ap.add_argument("--max-megapixels", type=float, default=4.0,
+                    help="larger images are augmented at this size (INTER_AREA; recorded per image); 0: no bound")
     ap.add_argument("--scene-cache", default=None,
                     help="folder of scene analyses (camera, ground, region, lighting) reused across runs and workers")
     clip = ap.add_argument_group("clip (--input is a video file or a frame folder)")
@@ -58,12 +65,29 @@ def main(argv=None) -> int:
         return 0
     if a.input and not a.images:
         ap.error("--input needs --images")
-    items = items_from_coco(a.input, a.images) if a.input else items_from_yolo(a.yolo)
-    items = items[: a.limit] if a.limit else items
-    cfg = replace(load_preset(a.preset), categories=tuple(a.categories), max_objects=a.per_image,
-                  min_objects=min(1, a.per_image))
-    summary = run(items, cfg, a.seed, a.out, workers=a.workers, class_names=a.class_names, scene_cache=a.scene_cache)
+    from .manifest import ManifestMismatch
+    from .validate import InputError, check_categories
+    if a.per_image < 0 or a.workers < 1 or (a.limit is not None and a.limit < 1) or a.max_megapixels < 0:
+        ap.error("--per-image >= 0, --workers >= 1, --limit >= 1 and --max-megapixels >= 0 please")
+    try:
+        check_categories(a.categories)
+        items = (items_from_coco(a.input, a.images, box_policy=a.boxes) if a.input else
+                 items_from_yolo(a.yolo, class_names=a.class_names, box_policy=a.boxes))
+        items = items[: a.limit] if a.limit else items
+        if not items:
+            raise InputError(f"no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in {a.images or a.yolo}")
+        cfg = replace(load_preset(a.preset), categories=tuple(a.categories), max_objects=a.per_image,
+                      min_objects=min(1, a.per_image))
+        summary = run(items, cfg, a.seed, a.out, workers=a.workers, class_names=a.class_names,
+                      scene_cache=a.scene_cache, preset=a.preset, overwrite=a.overwrite,
+                      max_pixels=int(a.max_megapixels * 1e6) or None, options={"boxes": a.boxes})
+    except (InputError, ManifestMismatch) as e:
+        print(f"aias-augment: error: {e}", file=sys.stderr)
+        return 2
     print(summary)
+    if summary["skipped"]:
+        print(f"aias-augment: {summary['skipped']} of {summary['images']} images skipped; see "
+              f"{a.out}/report.json", file=sys.stderr)
     return 0
 
 

@@ -1,0 +1,283 @@
+"""Boundary checks of the offline augmentation: inputs (images, YOLO and COCO labels, arguments) and outputs.
+
+Every problem is either a clear error (raised :class:`InputError`, the CLI exits non-zero) or a *named, counted*
+problem: a dict ``{"kind", "file", "line", "reason"}`` that ends up in ``report.json``. Kinds that skip the whole
+image are in :data:`IMAGE_SKIP_KINDS`; the others (clipped / dropped boxes, conversions) only change one box or say
+what was done to the pixels.
+
+Image conversions (explicit, recorded as a ``converted`` note):
+- 16-bit PNG/TIFF: ``round(v / 257)`` to 8 bit (the full 16-bit range maps onto 0..255);
+- grey / palette / RGBA: OpenCV's colour conversion (alpha dropped);
+- float images and anything else that is not 8- or 16-bit integer: refused (a named skip).
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+IMAGE_SKIP_KINDS = ("unreadable image", "corrupt image", "unsupported image", "garbage label line",
+                    "class id out of range", "non-finite box", "unknown category id", "image size mismatch")
+BOX_POLICIES = ("clip", "drop")
+
+
+class InputError(ValueError):
+    """A problem with the whole input (or the arguments): nothing sensible can be produced."""
+
+
+def problem(kind: str, file, reason: str, line: int | None = None) -> dict:
+    return {"kind": kind, "file": str(file), "line": line, "reason": reason}
+
+
+def format_problem(p: dict) -> str:
+    where = p["file"] + (f":{p['line']}" if p.get("line") else "")
+    return f"{where}: {p['kind']}: {p['reason']}"
+
+
+# ----------------------------------------------------------------------------------------------------- images
+def read_image_checked(path) -> tuple[np.ndarray, list[dict]]:
+    """Decode ``path`` to (H, W, 3) uint8 RGB or raise ``ValueError("<kind>: <reason>")``.
+
+    Truncated or corrupt files are detected by a full PIL decode with truncation errors on (libjpeg's warnings are
+    not enough: OpenCV decodes a third of a JPEG and fills the rest with grey). The pixels are OpenCV's (EXIF
+    orientation applied, as ``cv2.imread``). Returns the image and the conversion notes.
+    """
+    from PIL import Image, ImageFile
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise ValueError(f"unreadable image: {e.strerror or e}") from None
+    if not data:
+        raise ValueError("unreadable image: empty file")
+    ImageFile.LOAD_TRUNCATED_IMAGES = False
+    import io
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")        # PIL's decoder warnings (e.g. corrupt EXIF) become errors
+            with Image.open(io.BytesIO(data)) as im:
+                im.verify()
+            with Image.open(io.BytesIO(data)) as im:
+                im.load()
+                mode, size = im.mode, im.size
+    except Exception as e:  # PIL raises OSError, SyntaxError, ValueError, UserWarning... for broken files
+        raise ValueError(f"corrupt image: {type(e).__name__}: {e}") from None
+    if data[:2] == b"\xff\xd8" and b"\xff\xd9" not in data[-4096:]:
+        raise ValueError("corrupt image: JPEG without end-of-image marker (truncated)")
+    if mode in ("F", "I") or mode.startswith("BGR"):
+        raise ValueError(f"unsupported image: PIL mode {mode!r} (float or 32-bit integer pixels are refused; "
+                         "convert to 8- or 16-bit first)")
+    buf = np.frombuffer(data, np.uint8)
+    img = cv2.imdecode(buf, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+    if img is None or img.size == 0:
+        raise ValueError("unreadable image: OpenCV cannot decode it")
+    notes = []
+    if img.dtype == np.uint16:
+        img = np.round(img.astype(np.float32) / 257.0).astype(np.uint8)
+        notes.append(problem("converted", path, "16-bit image converted to 8-bit (round(v / 257))"))
+    elif img.dtype != np.uint8:
+        raise ValueError(f"unsupported image: {img.dtype} pixels (only 8- and 16-bit integer images)")
+    if mode not in ("RGB", "I;16", "I;16B", "I;16L"):
+        notes.append(problem("converted", path, f"PIL mode {mode} converted to RGB"))
+    if min(img.shape[:2]) < 1:
+        raise ValueError(f"unreadable image: size {img.shape[1]}x{img.shape[0]}")
+    return np.ascontiguousarray(img[..., ::-1]), notes
+
+
+def check_float_image(image: np.ndarray) -> np.ndarray:
+    """A float array as an image: NaN/Inf refused; values in [0, 1] scaled by 255, values in [0, 255] rounded;
+    anything else refused. Returns uint8."""
+    a = np.asarray(image)
+    if a.dtype == np.uint8:
+        return a
+    if not np.issubdtype(a.dtype, np.floating):
+        raise ValueError(f"image dtype {a.dtype} is not supported (uint8, or float in [0, 1] or [0, 255])")
+    if not np.isfinite(a).all():
+        raise ValueError(f"float image has {int((~np.isfinite(a)).sum())} NaN/Inf pixels")
+    lo, hi = float(a.min()), float(a.max())
+    if lo >= 0 and hi <= 1:
+        return np.round(a * 255).astype(np.uint8)
+    if lo >= 0 and hi <= 255:
+        return np.round(a).astype(np.uint8)
+    raise ValueError(f"float image values in [{lo}, {hi}]: neither [0, 1] nor [0, 255]")
+
+
+# ------------------------------------------------------------------------------------------------------ boxes
+def check_box(x: float, y: float, w: float, h: float, width: float, height: float, policy: str, file, line,
+              notes: list) -> list[float] | None:
+    """One box (xywh, same units as ``width``/``height``) against the image: non-finite raises
+    ``ValueError("non-finite box: ...")``; zero/negative size is dropped; outside the image clipped or dropped
+    (``policy``). Appends a note for every change; returns the box or None (dropped)."""
+    if not all(math.isfinite(v) for v in (x, y, w, h)):
+        raise ValueError(f"non-finite box: {[x, y, w, h]}")
+    if w <= 0 or h <= 0:
+        notes.append(problem("box dropped: zero or negative size", file, f"w={w:g} h={h:g}", line))
+        return None
+    x0, y0, x1, y1 = max(x, 0.0), max(y, 0.0), min(x + w, width), min(y + h, height)
+    if (x0, y0, x1, y1) == (x, y, x + w, y + h):
+        return [x, y, w, h]
+    if policy == "drop" or x1 <= x0 or y1 <= y0:
+        why = "outside the image" if x1 <= x0 or y1 <= y0 else "crosses the image border (--boxes drop)"
+        notes.append(problem("box dropped: outside the image", file, f"{[x, y, w, h]} {why}", line))
+        return None
+    notes.append(problem("box clipped to the image", file, f"{[x, y, w, h]} -> {[x0, y0, x1 - x0, y1 - y0]}", line))
+    return [x0, y0, x1 - x0, y1 - y0]
+
+
+def parse_yolo_labels(path: Path, class_names: list[str] | None, policy: str = "clip") -> tuple[list, list]:
+    """``class cx cy w h`` normalised rows -> (rows as string tokens, notes). Raises ``ValueError("<kind>: ...")``
+    for a garbage line, a class id out of range (negative, or >= len(class_names)) or a non-finite number; the
+    message names the file and line."""
+    rows, notes = [], []
+    for n, raw in enumerate(path.read_text(errors="replace").splitlines(), 1):
+        if not raw.strip():
+            continue
+        tok = raw.split()
+        try:
+            if len(tok) != 5:
+                raise ValueError
+            c = float(tok[0])
+            cx, cy, bw, bh = map(float, tok[1:])
+        except ValueError:
+            raise ValueError(f"garbage label line: {path}:{n}: expected 'class cx cy w h', got {raw.strip()[:80]!r}") \
+                from None
+        if not math.isfinite(c) or c != int(c) or c < 0 or (class_names and c >= len(class_names)):
+            names = f"{len(class_names)} class names" if class_names else "no class names"
+            raise ValueError(f"class id out of range: {path}:{n}: class {tok[0]} ({names})")
+        try:
+            box = check_box(cx - bw / 2, cy - bh / 2, bw, bh, 1.0, 1.0, policy, path, n, notes)
+        except ValueError as e:
+            raise ValueError(f"{e} at {path}:{n}") from None
+        if box is None:
+            continue
+        if box == [cx - bw / 2, cy - bh / 2, bw, bh]:
+            rows.append(tok)
+        else:
+            x, y, w, h = box
+            rows.append([tok[0], repr(x + w / 2), repr(y + h / 2), repr(w), repr(h)])
+    return rows, notes
+
+
+def check_coco(data: dict, json_path) -> None:
+    """Whole-file problems of a COCO json: raise :class:`InputError` (missing keys, duplicate image or annotation
+    ids, duplicate category ids)."""
+    if not isinstance(data, dict) or not isinstance(data.get("images"), list):
+        raise InputError(f"{json_path}: not a COCO dataset (no 'images' list)")
+    for key, what in (("images", "image"), ("annotations", "annotation"), ("categories", "category")):
+        ids = [x.get("id") for x in data.get(key, [])]
+        if None in ids:
+            raise InputError(f"{json_path}: a {what} without an 'id'")
+        seen, dup = set(), []
+        for i in ids:
+            if i in seen:
+                dup.append(i)
+            seen.add(i)
+        if dup:
+            raise InputError(f"{json_path}: duplicate {what} ids {sorted(set(dup))[:10]} (refused: annotations "
+                             f"would be attached to the wrong {what})")
+
+
+# --------------------------------------------------------------------------------------------------- arguments
+def known_categories() -> set[str]:
+    from .assets import DEFAULT_ASSETS
+    from .bank.procedural import CATEGORY_SPECS
+    known = set(DEFAULT_ASSETS) | set(CATEGORY_SPECS)
+    try:
+        from .bank import get_bank
+        known |= set(get_bank().categories())
+    except Exception:  # no bank installed: defaults and procedural only
+        pass
+    return known
+
+
+def check_categories(categories) -> None:
+    if not categories:
+        raise InputError("no categories to insert")
+    known = known_categories()
+    unknown = [c for c in categories if c not in known]
+    if unknown:
+        raise InputError(f"unknown categories {unknown}; known: {sorted(known)}")
+
+
+def plausible_scale(height_m: float, category: str) -> tuple[float, str | None]:
+    """A mesh ``height_m`` tall for ``category`` (units unknown): (scale to apply, warning or None). Tries metres,
+    centimetres, millimetres, inches and decimetres; the unit whose height falls in the category's plausible range
+    (3x margin) wins; none: InputError."""
+    from .assets import CATEGORY_HEIGHT_RANGE_M
+    if not math.isfinite(height_m) or height_m <= 0:
+        raise InputError(f"mesh for {category!r} has height {height_m}")
+    lo, hi = CATEGORY_HEIGHT_RANGE_M.get(category, (0.05, 30.0))
+    lo, hi = lo / 3, hi * 3
+    if lo <= height_m <= hi:
+        return 1.0, None
+    for unit, s in (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254), ("decimetres", 0.1),
+                    ("kilometres", 1000.0)):
+        if lo <= height_m * s <= hi:
+            return s, (f"mesh for {category!r} is {height_m:g} units tall: implausible in metres; guessed "
+                       f"{unit}, rescaled by {s:g} to {height_m * s:.3g} m")
+    raise InputError(f"mesh for {category!r} is {height_m:g} units tall; no unit (m, cm, mm, in, dm, km) gives a "
+                     f"height in [{lo:.3g}, {hi:.3g}] m")
+
+
+# ----------------------------------------------------------------------------------------------------- outputs
+def check_output_record(rec: dict, out_dir: Path) -> list[str]:
+    """What is wrong with one written record before it goes into annotations.json (empty: fine): the image file
+    exists with the recorded size, every box finite, inside the image with w, h > 0, mask areas consistent."""
+    errs = []
+    p = out_dir / "images" / rec["file_name"]
+    if not p.is_file():
+        return [f"image file {p.name} missing"]
+    from PIL import Image
+    with Image.open(p) as im:
+        if im.size != (rec["width"], rec["height"]):
+            errs.append(f"image is {im.size[0]}x{im.size[1]}, record says {rec['width']}x{rec['height']}")
+    W, H = rec["width"], rec["height"]
+    eps = 1e-6
+    for b in rec["boxes"]:
+        x, y, w, h = b
+        if not all(math.isfinite(v) for v in b) or w <= 0 or h <= 0 or x < -eps or y < -eps \
+                or x + w > W + eps or y + h > H + eps:
+            errs.append(f"box {b} not inside the {W}x{H} image with w, h > 0")
+    if len(rec["boxes"]) != len(rec["labels"]) or len(rec["boxes"]) != len(rec["inserted"]):
+        errs.append("boxes, labels and inserted flags differ in length")
+    from pycocotools import mask as mask_utils
+    for a in rec.get("annotations", []):
+        if a.get("visible_box_xywh") is None:
+            continue
+        rle = dict(a["rle"])
+        if isinstance(rle.get("counts"), str):
+            rle["counts"] = rle["counts"].encode()
+        area = float(mask_utils.area(rle))
+        if area <= 0 or abs(area - float(a["area"])) > 0.5:
+            errs.append(f"annotation area {a['area']} != mask area {area}")
+        bx, by, bw, bh = mask_utils.toBbox(rle)
+        vx, vy, vw, vh = a["visible_box_xywh"]
+        if bx < vx - 1 or by < vy - 1 or bx + bw > vx + vw + 1 or by + bh > vy + vh + 1:
+            errs.append(f"mask {[float(bx), float(by), float(bw), float(bh)]} outside its box {a['visible_box_xywh']}")
+    return errs
+
+
+def check_coco_file(path: Path, images_dir: Path) -> None:
+    """The written COCO file, re-read by pycocotools: unique ids, every referenced file exists, boxes inside."""
+    import contextlib
+    import io
+    from pycocotools.coco import COCO
+    with contextlib.redirect_stdout(io.StringIO()):
+        coco = COCO(str(path))
+    ds = coco.dataset
+    for key in ("images", "annotations", "categories"):
+        ids = [x["id"] for x in ds[key]]
+        if len(ids) != len(set(ids)):
+            raise AssertionError(f"{path}: duplicate {key} ids")
+    for im in ds["images"]:
+        if not (images_dir / im["file_name"]).is_file():
+            raise AssertionError(f"{path}: image {im['file_name']} does not exist")
+    for a in ds["annotations"]:
+        im = coco.imgs[a["image_id"]]
+        x, y, w, h = a["bbox"]
+        if not (w > 0 and h > 0 and x >= -1e-6 and y >= -1e-6 and x + w <= im["width"] + 1e-6
+                and y + h <= im["height"] + 1e-6) or a["area"] <= 0:
+            raise AssertionError(f"{path}: annotation {a['id']} box {a['bbox']} area {a['area']} invalid")
