@@ -267,6 +267,9 @@ class PathAssets:
         for c, ps in self.paths.items():
             if not ps:
                 raise ValueError(f"PathAssets: category {c!r} has no paths")
+        missing = [p for ps in self.paths.values() for p in ps if not Path(p).exists()]
+        if missing:
+            raise AssetError(f"PathAssets: mesh paths do not exist: {missing}")
         self.scales = scales or {}
         self.up_axes = up_axes or {}
         self._loaded: dict[str, Asset] = {}
@@ -279,7 +282,15 @@ class PathAssets:
             return default_asset(category)
         p = self.paths[category][int(rng.integers(len(self.paths[category])))]
         if p not in self._loaded:
-            self._loaded[p] = load_asset(p, category=category, scale=self.scales.get(p), up_axis=self.up_axes.get(p))
+            asset = load_asset(p, category=category, scale=self.scales.get(p), up_axis=self.up_axes.get(p))
+            if p not in self.scales:   # units unknown: an implausible height is rescaled with a warning, or refused
+                from .validate import plausible_scale
+                s, warning = plausible_scale(asset.height_m, category)
+                if warning:
+                    log.warning("%s: %s", p, warning)
+                    asset = load_asset(p, category=category, scale=s, up_axis=self.up_axes.get(p))
+                    asset.meta["unit_guess"] = warning
+            self._loaded[p] = asset
         return self._loaded[p]
 
     def __getstate__(self):  # pickles without loaded meshes (reloaded lazily in each worker)

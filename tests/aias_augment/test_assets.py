@@ -55,5 +55,17 @@ def test_scaled_keeps_contact_plane():
 
 def test_path_assets_pickles_without_meshes(tmp_path):
     import pickle
+    (tmp_path / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 1\nf 1 2 3\n")
     pa = PathAssets({"box": [str(tmp_path / "a.obj")]})
     assert pickle.loads(pickle.dumps(pa)).paths == pa.paths
+
+
+def test_path_assets_missing_path_and_unit_guess(tmp_path):
+    """Issue 16: a missing mesh is refused at construction; a pedestrian modelled in centimetres (187 units tall)
+    is rescaled to 1.87 m with a warning naming the guess."""
+    with pytest.raises(AssetError, match="do not exist"):
+        PathAssets({"person": [str(tmp_path / "nope.glb")]})
+    import trimesh
+    trimesh.creation.box(extents=(50, 187, 30)).export(tmp_path / "ped.obj")   # OBJ: y up
+    a = PathAssets({"person": [str(tmp_path / "ped.obj")]}).sample("person", np.random.default_rng(0))
+    assert np.isclose(a.height_m, 1.87) and "centimetres" in a.meta["unit_guess"]
