@@ -29,6 +29,10 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--limit", type=int, default=None, help="process only the first N images")
+    ap.add_argument("--backend", choices=("local", "ray"), default="local",
+                    help="local: this process or a pool of --workers; ray: Ray tasks (pip install 'aias-augment[ray]')"
+                         ", same outputs")
+    ap.add_argument("--address", default=None, help="--backend ray: an existing cluster (default: a local instance)")
     ap.add_argument("--overwrite", action="store_true",
                     help="replace the run in --out when its manifest differs (default: refuse; the same run resumes)")
     ap.add_argument("--boxes", choices=("clip", "drop"), default="clip",
@@ -80,7 +84,8 @@ def main(argv=None) -> int:
                       min_objects=min(1, a.per_image))
         summary = run(items, cfg, a.seed, a.out, workers=a.workers, class_names=a.class_names,
                       scene_cache=a.scene_cache, preset=a.preset, overwrite=a.overwrite,
-                      max_pixels=int(a.max_megapixels * 1e6) or None, options={"boxes": a.boxes})
+                      max_pixels=int(a.max_megapixels * 1e6) or None, options={"boxes": a.boxes},
+                      backend=a.backend, ray_address=a.address)
     except (InputError, ManifestMismatch) as e:
         print(f"aias-augment: error: {e}", file=sys.stderr)
         return 2

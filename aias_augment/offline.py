@@ -284,13 +284,16 @@ def _worker(args):
 
 def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, workers: int = 1,
         class_names=None, sheet_size: int = 12, scene_cache: str | None = None, *, preset: str | None = None,
-        overwrite: bool = False, max_pixels: int | None = None, options: dict | None = None) -> dict:
+        overwrite: bool = False, max_pixels: int | None = None, options: dict | None = None,
+        backend: str = "local", ray_address: str | None = None) -> dict:
     """Augment all items, then write ``annotations.json`` (COCO, validated), ``report.json`` and
     ``contact_sheet.png``.
 
     ``out_dir/manifest.json`` records what the folder is made from (:mod:`aias_augment.manifest`): the same run
     resumes (failed and changed inputs are redone), another run is refused (ManifestMismatch) unless ``overwrite``.
-    No items: InputError. ``max_pixels``: larger images are augmented at a bounded size (recorded)."""
+    No items: InputError. ``max_pixels``: larger images are augmented at a bounded size (recorded).
+    ``backend``: "local" (this process or a spawn pool of ``workers``) or "ray" (Ray tasks on ``ray_address`` or a
+    local Ray instance of ``workers`` CPUs); outputs are the same bytes either way."""
     if not items:
         raise InputError("no input images")
     out = Path(out_dir)
@@ -302,7 +305,13 @@ def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, worker
     jobs = [(i, it, cfg, seed, str(out), class_names, None if scene_cache is None else str(scene_cache), h,
              max_pixels) for i, (it, h) in enumerate(zip(items, hashes))]
     records = []
-    if workers <= 1:
+    if backend == "ray":   # Ray tasks (aias_augment.offline_ray): the same process_item, the same bytes
+        from .offline_ray import run_jobs
+        with tqdm(total=len(jobs), desc="aias-augment[ray]", unit="img") as bar:
+            records = run_jobs(jobs, workers, ray_address, progress=bar)
+    elif backend != "local":
+        raise InputError(f"unknown backend {backend!r} (local or ray)")
+    elif workers <= 1:
         for j in tqdm(jobs, desc="aias-augment", unit="img"):
             records.append(_worker(j))
     else:
