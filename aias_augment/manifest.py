@@ -21,6 +21,8 @@ from .coco_io import atomic_write_json
 RUN_OUTPUTS = ("records", "images", "annotations.json", "report.json", "summary.json", "contact_sheet.png",
                "manifest.json")
 
+FINAL_OUTPUTS = ("annotations.json", "report.json", "summary.json", "contact_sheet.png")
+
 
 class ManifestMismatch(RuntimeError):
     """The output folder holds another run."""
@@ -106,5 +108,7 @@ def prepare_output(out: Path, manifest: dict, overwrite: bool = False) -> dict[i
                     shutil.rmtree(p)
                 elif p.exists():
                     p.unlink()
+    for name in FINAL_OUTPUTS:   # rewritten at the end: a run killed before then leaves none (never a stale one)
+        (out / name).unlink(missing_ok=True)
     atomic_write_json(mpath, manifest)
     return previous
