@@ -30,7 +30,11 @@ def run_jobs(jobs: list[tuple], workers: int, address: str | None = None, progre
         kw = dict(address=address, runtime_env={"env_vars": env}, log_to_driver=False)
         if address is None:   # a local instance sized like the pool
             kw.update(num_cpus=max(1, workers), include_dashboard=False)
-        ray.init(**kw)
+        try:
+            ray.init(**kw)
+        except Exception as e:   # e.g. the raylet not registering within Ray's fixed 30 s on a starved machine
+            ray.shutdown()       # stops what was started
+            raise RuntimeError(f"Ray did not start ({address or 'local instance'}): {e}") from e
         started = True
     try:
         task = ray.remote(num_cpus=1, max_retries=2)(_task)

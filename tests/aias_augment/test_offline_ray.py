@@ -21,8 +21,13 @@ def test_ray_matches_local_pool_byte_for_byte(tmp_path):
         cv2.imwrite(str(tmp_path / "images" / f"r{i}.png"), _road(seed=i))
     (tmp_path / "images" / "bad.png").write_bytes(b"\x89PNG\r\n\x1a\n broken")
     args = ["--yolo", str(tmp_path / "images"), "--preset", "fast", "--per-image", "1", "--seed", "5"]
+    try:
+        assert main(args + ["--out", str(tmp_path / "ray"), "--backend", "ray", "--workers", "2"]) == 0
+    except RuntimeError as e:   # Ray's raylet must register within a fixed 30 s: not on a starved shared machine
+        if "Ray did not start" in str(e):
+            pytest.skip(str(e)[:200])
+        raise
     assert main(args + ["--out", str(tmp_path / "local")]) == 0
-    assert main(args + ["--out", str(tmp_path / "ray"), "--backend", "ray", "--workers", "2"]) == 0
     for name in ("annotations.json", "report.json", "manifest.json"):
         assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "ray" / name).read_bytes(), name
     imgs = sorted(p.name for p in (tmp_path / "local" / "images").iterdir())
