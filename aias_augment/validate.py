@@ -13,6 +13,7 @@ Image conversions (explicit, recorded as a ``converted`` note):
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from pathlib import Path
 
@@ -64,7 +65,10 @@ def read_image_checked(path) -> tuple[np.ndarray, list[dict]]:
                 im.load()
                 mode, size = im.mode, im.size
     except Exception as e:  # PIL raises OSError, SyntaxError, ValueError, UserWarning... for broken files
-        raise ValueError(f"corrupt image: {type(e).__name__}: {e}") from None
+        # PIL names an in-memory file by its address ("<_io.BytesIO object at 0x7f...>"): not part of a reproducible
+        # report, so the address is dropped
+        detail = re.sub(r"<[^<>]* at 0x[0-9a-fA-F]+>", "the file", str(e))
+        raise ValueError(f"corrupt image: {type(e).__name__}: {detail}") from None
     if data[:2] == b"\xff\xd8" and b"\xff\xd9" not in data[-4096:]:
         raise ValueError("corrupt image: JPEG without end-of-image marker (truncated)")
     if mode in ("F", "I") or mode.startswith("BGR"):
