@@ -9,14 +9,14 @@ from pathlib import Path
 from pycocotools.coco import COCO
 
 
-def atomic_write_json(path: str | Path, obj) -> None:
+def atomic_write_json(path: str | Path, obj, indent: int | None = None) -> None:
     """Write JSON through a temporary file and rename, so a killed run never leaves a truncated file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
     try:
         with os.fdopen(fd, "w") as f:
-            json.dump(obj, f)
+            json.dump(obj, f, indent=indent)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
