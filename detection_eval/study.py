@@ -543,7 +543,11 @@ def write_summary(cfg: StudyConfig, config_path: str, command: str, train: Detec
     if gen:
         note += "Offline generation, median seconds per inserted image: " + \
             ", ".join(f"{a} {s:.1f}" for a, s in gen.items()) + ".\n"
-    md = f"# Detection study: TraCon cones\n\nCommand: `{command}` (config `{config_path}`)\n\n{note}\n{table}\n" \
+    total = sum(r["train_seconds"] + r.get("eval_seconds", 0.0) for r in rows)
+    note += (f"Training and evaluation time summed over the {len(rows)} runs: {total / 60:.0f} min of one CPU "
+             f"thread each (wall time about half of that with one process per core, see the README).\n")
+    md = f"# Detection study: TraCon cones\n\nReproduce: `aias-study --config {config_path}` (generate, train, " \
+         f"summarize); this table was written by `{command}`.\n\n{note}\n{table}\n" \
          f"![AP by arm](ap_by_arm.png)\n"
     if train is not None and val is not None:
         medians = plot_size_histograms(cfg, train, val, results / "size_histograms.png")
