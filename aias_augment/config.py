@@ -12,7 +12,12 @@ import yaml
 T = TypeVar("T")
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
-CONFIG_DIR = REPO_ROOT / "configs"
+# The shipped configs (presets, taxonomy, detector and study configs) and checkpoints. In a checkout
+# ``aias_augment/_data/{configs,checkpoints}`` are symlinks to the repository's top-level folders; a built wheel holds
+# copies (``[tool.setuptools.package-data]``), so an installed package loads ``preset="balanced"`` from anywhere.
+PACKAGE_DATA = Path(__file__).resolve().parent / "_data"
+CONFIG_DIR = PACKAGE_DATA / "configs"
+CHECKPOINT_DIR = PACKAGE_DATA / "checkpoints"
 
 
 def data_root() -> Path:

@@ -30,7 +30,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from aias_augment.config import REPO_ROOT, data_root, load_config
+from aias_augment.config import CONFIG_DIR, REPO_ROOT, data_root, load_config
 
 from .config import load_detector_config, replace_nested
 from .data import DetectionSet, load_yolo_dir, read_image_rgb, write_classes, write_yolo_sample
@@ -565,7 +565,7 @@ def write_summary(cfg: StudyConfig, config_path: str, command: str, train: Detec
 def load_study_config(path: str | Path) -> StudyConfig:
     p = Path(path)
     if not p.exists() and not p.suffix:
-        p = REPO_ROOT / "configs" / "study" / f"{path}.yaml"
+        p = CONFIG_DIR / "study" / f"{path}.yaml"
     return load_config(StudyConfig, p)
 
 

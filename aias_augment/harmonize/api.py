@@ -26,15 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import REPO_ROOT
+from ..config import CHECKPOINT_DIR
 from .camera_pipeline import CameraMatchParams, camera_match
 from .color import to_float, to_uint8
 from .reinhard import reinhard_transfer
 
 METHODS = ("none", "reinhard", "camera", "fast", "network")
 DEFAULT_CHECKPOINTS = {
-    "network": REPO_ROOT / "checkpoints" / "harmonizer_small.pt",
-    "fast": REPO_ROOT / "checkpoints" / "harmonizer_fast.pt",
+    "network": CHECKPOINT_DIR / "harmonizer_small.pt",
+    "fast": CHECKPOINT_DIR / "harmonizer_fast.pt",
 }
 TRAIN_COMMAND = ("nice -n 10 .venv/bin/python scripts/train_harmonizer.py --config configs/harmonize_small.yaml "
                  "--which {which} --out-{which} {path}")
