@@ -5,6 +5,13 @@ per-sample targets: ``camera_k`` (3x3 intrinsics of the image as passed in) and 
 unknown). Inserted boxes are appended with their label (``category_ids[name]`` or the category name); existing
 boxes whose visible fraction under the inserted objects falls below the Compose's ``min_visibility`` are dropped.
 Put it first in the pipeline: later geometric transforms do not update ``camera_k``/``depth``.
+
+Inputs (:func:`aias_augment.validate.image_for_insertion`): grey, RGB or RGBA; uint8; uint16 (converted to 8 bit by
+``round(v / 257)`` for the insertion, inserted pixels written back as ``v * 257``); float in [0, 1] (``round(v * 255)``,
+written back as ``v / 255``). Pixels the insertion does not touch are returned bit for bit. A float image with NaN/Inf
+or values outside [0, 1], ``depth`` without ``camera_k`` or another odd sample is left unchanged and counted by reason
+in ``transform.counts`` (as is a call that placed nothing, with why); it never stops an epoch. Images above 2 MP are
+analysed and planned at 2 MP and rendered at full size (:mod:`aias_augment.working_resolution`).
 """
 from __future__ import annotations
 
@@ -17,7 +24,9 @@ from albumentations.core.bbox_utils import convert_bboxes_from_albumentations, d
 
 from .assets import PathAssets
 from .insertion.cache import SceneCache
-from .pipeline import PRESETS, InsertionConfig, insert_into_image, load_preset
+from .pipeline import PRESETS, InsertionConfig, load_preset
+from .validate import SampleSkip, TransformCounts, check_categories, check_sample_targets, image_for_insertion
+from .working_resolution import insert_bounded
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +45,11 @@ class InsertObjects(A.DualTransform):
             None: only the in-process cache. Either way an image seen again (same bytes, K, depth) is not analysed
             again: the analysis is cached by content in an LRU of ``scene_cache_items`` entries in each process.
         p: probability of applying.
+
+    Attributes:
+        counts: :class:`aias_augment.validate.TransformCounts` of this process (``counts.to_dict()``: calls,
+            inserted, objects, skipped by reason, nothing_inserted by reason, converted by conversion).
+        skipped: the number of images left unchanged (all reasons).
     """
 
     _targets = (A.core.type_definitions.Targets.IMAGE, A.core.type_definitions.Targets.MASK,
@@ -51,6 +65,10 @@ class InsertObjects(A.DualTransform):
         if not 0.0 <= p <= 1.0:
             raise ValueError(f"p must be in [0, 1], got {p}")
         self.categories = tuple(categories)
+        if not self.categories:
+            raise ValueError("categories must not be empty")
+        if any(c not in (assets or {}) for c in self.categories):   # unknown categories: InputError now
+            check_categories([c for c in self.categories if c not in (assets or {})])
         self.max_objects = int(max_objects)
         self.min_objects = int(min_objects)
         self.preset = preset
@@ -68,8 +86,13 @@ class InsertObjects(A.DualTransform):
         self.scene_cache = None if scene_cache is None else str(scene_cache)
         self.scene_cache_items = int(scene_cache_items)
         self._scene_cache = SceneCache(self.scene_cache_items, self.scene_cache)
-        self.skipped = 0          # images left unchanged because insertion failed (logged with the reason)
+        self.counts = TransformCounts()   # calls, insertions, skips and empty calls by reason (this process)
         self.last_record = None   # InsertionRecord of the latest call in this process (for debugging/replay)
+
+    @property
+    def skipped(self) -> int:
+        """Images left unchanged because the sample was refused or insertion failed (``counts.skipped``: why)."""
+        return self.counts.total_skipped
 
     @property
     def targets_as_params(self) -> list[str]:
@@ -81,9 +104,15 @@ class InsertObjects(A.DualTransform):
 
     # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
     def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
-        image = data["image"]
-        h, w = image.shape[:2]
-        rgb, restore = _to_rgb_uint8(image)
+        try:   # the sample's boundary: dtype/range/shape of the image, camera_k and depth (SampleSkip: counted)
+            rgb, restore, conversion = image_for_insertion(data["image"])
+            h, w = rgb.shape[:2]
+            check_sample_targets(data, h, w)
+        except SampleSkip as e:
+            self.counts.skip(e, log)
+            return {"insert_result": None, "restore": None}
+        if conversion:
+            self.counts.convert(conversion)
         boxes_internal = data.get("bboxes")
         n_existing = 0 if boxes_internal is None else len(boxes_internal)
         existing_xywh = np.zeros((0, 4))
@@ -95,17 +124,16 @@ class InsertObjects(A.DualTransform):
         if proc is not None:
             min_vis = float(proc.params.min_visibility)
         try:
-            res = insert_into_image(
+            res = insert_bounded(
                 rgb, existing_xywh, list(range(n_existing)), self.random_generator, self.config,
                 intrinsics=data.get("camera_k"), depth=data.get("depth"), min_visibility=min_vis, bank=self._bank,
                 scene_cache=self._scene_cache,
             )
         except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
-            self.skipped += 1
-            log.warning("InsertObjects: image left unchanged (%s: %s); %d skipped so far", type(e).__name__, e,
-                        self.skipped)
+            self.counts.skip(e, log)
             return {"insert_result": None, "restore": restore}
         self.last_record = res.record
+        self.counts.result(len(res.inserted_labels), None if res.inserted_labels else res.record.to_dict(), log)
         return {"insert_result": res, "restore": restore}
 
     def __getstate__(self):
@@ -182,34 +210,3 @@ class InsertObjects(A.DualTransform):
             )
         return category
 
-
-def _to_rgb_uint8(image: np.ndarray):
-    """Accept grey (H, W) / (H, W, 1), RGB and RGBA, uint8 or float in [0, 1]; return RGB uint8 and the inverse."""
-    img = np.asarray(image)
-    if img.ndim == 2:
-        img = img[..., None]
-    if img.ndim != 3 or img.shape[2] not in (1, 3, 4):
-        raise ValueError(f"InsertObjects: unsupported image shape {np.asarray(image).shape}")
-    is_float = img.dtype in (np.float32, np.float64)
-    if not is_float and img.dtype != np.uint8:
-        raise ValueError(f"InsertObjects: unsupported dtype {img.dtype} (uint8 or float32 in [0, 1])")
-    u8 = np.clip(np.round(img * 255.0), 0, 255).astype(np.uint8) if is_float else img
-    c = u8.shape[2]
-    rgb = np.repeat(u8, 3, axis=2) if c == 1 else u8[..., :3]
-    orig_dtype, orig_ndim = np.asarray(image).dtype, np.asarray(image).ndim
-
-    def restore(out_rgb: np.ndarray) -> np.ndarray:
-        if c == 1:
-            out = np.round(out_rgb.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32))
-            out = np.clip(out, 0, 255).astype(np.uint8)[..., None]
-        elif c == 4:
-            out = np.concatenate([out_rgb, u8[..., 3:]], axis=2)
-        else:
-            out = out_rgb
-        if orig_ndim == 2:
-            out = out[..., 0]
-        if is_float:
-            out = (out.astype(np.float32) / 255.0).astype(orig_dtype)
-        return np.ascontiguousarray(out)
-
-    return np.ascontiguousarray(rgb), restore

@@ -293,3 +293,173 @@ def check_coco_file(path: Path, images_dir: Path) -> None:
         if not (w > 0 and h > 0 and x >= -1e-6 and y >= -1e-6 and x + w <= im["width"] + 1e-6
                 and y + h <= im["height"] + 1e-6) or a["area"] <= 0:
             raise AssertionError(f"{path}: annotation {a['id']} box {a['bbox']} area {a['area']} invalid")
+
+
+# ------------------------------------------------------------------------------- per-sample inputs of the transform
+class SampleSkip(ValueError):
+    """A sample :class:`~aias_augment.transform.InsertObjects` leaves unchanged. ``kind``: a stable reason (the key
+    under ``counts["skipped"]``); the message adds what was found."""
+
+    def __init__(self, kind: str, detail: str = ""):
+        super().__init__(f"{kind}: {detail}" if detail else kind)
+        self.kind = kind
+
+
+#: Tolerance of the [0, 1] range of float images (one float32 rounding step above 1 is still "1").
+FLOAT_RANGE_EPS = 1e-6
+
+
+def image_for_insertion(image) -> tuple[np.ndarray, "callable", str | None]:
+    """The transform's image boundary: ``(rgb, restore, conversion)``.
+
+    Accepted (anything else raises :class:`SampleSkip`, never a silent clip):
+    - (H, W), (H, W, 1), (H, W, 3), (H, W, 4); alpha is kept, grey gets the luminance of the inserted pixels;
+    - uint8 as is;
+    - uint16: ``round(v / 257)`` to 8 bit for the insertion; inserted pixels are written back as ``v8 * 257``;
+    - float16/32/64 in [0, 1] (albumentations' float convention): ``round(v * 255)``; written back as ``v8 / 255``.
+      A float image with NaN/Inf, or with values outside [0, 1] (e.g. a [0, 255] float image: divide it by 255),
+      is refused.
+
+    ``rgb``: (H, W, 3) uint8. ``restore(out_rgb)``: the output in the input's shape and dtype; every pixel the
+    insertion did not change is the input's own value, bit for bit (so no image is quantised by passing through).
+    ``conversion``: None for uint8 RGB(A)/grey, else what was converted (a key of ``counts["converted"]``).
+    """
+    img = np.asarray(image)
+    orig = img
+    if img.ndim == 2:
+        img = img[..., None]
+    if img.ndim != 3 or img.shape[2] not in (1, 3, 4):
+        raise SampleSkip("unsupported image shape", f"{orig.shape} (need (H, W), (H, W, 1), (H, W, 3) or (H, W, 4))")
+    if img.shape[0] < 1 or img.shape[1] < 1:
+        raise SampleSkip("empty image", f"shape {orig.shape}")
+    conversion = None
+    if img.dtype == np.uint8:
+        u8 = img
+    elif img.dtype == np.uint16:
+        u8 = np.round(img.astype(np.float32) / 257.0).astype(np.uint8)
+        conversion = "uint16 -> 8 bit (round(v / 257))"
+    elif np.issubdtype(img.dtype, np.floating) and img.dtype.itemsize <= 8:
+        finite = np.isfinite(img)
+        if not finite.all():
+            raise SampleSkip("float image with NaN/Inf", f"{int((~finite).sum())} of {finite.size} values")
+        lo, hi = float(img.min()), float(img.max())
+        if lo < -FLOAT_RANGE_EPS or hi > 1.0 + FLOAT_RANGE_EPS:
+            raise SampleSkip("float image outside [0, 1]",
+                             f"values in [{lo:g}, {hi:g}]; float images must be in [0, 1] (albumentations' "
+                             f"convention): divide a [0, 255] float image by 255, or pass uint8")
+        u8 = np.round(np.clip(img.astype(np.float32), 0.0, 1.0) * 255.0).astype(np.uint8)
+        conversion = f"{img.dtype} in [0, 1] -> 8 bit (round(v * 255))"
+    else:
+        raise SampleSkip("unsupported dtype", f"{img.dtype} (uint8, uint16, or float in [0, 1])")
+    c = u8.shape[2]
+    rgb = np.ascontiguousarray(np.repeat(u8, 3, axis=2) if c == 1 else u8[..., :3])
+
+    def restore(out_rgb: np.ndarray) -> np.ndarray:
+        out_rgb = np.asarray(out_rgb)
+        changed = np.any(out_rgb != rgb, axis=2)
+        result = img.copy()
+        if changed.any():
+            px = out_rgb[changed]                                   # (N, 3) uint8
+            if c == 1:
+                lum = px.astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+                px = np.clip(np.round(lum), 0, 255).astype(np.uint8)[:, None]
+            if img.dtype == np.uint16:
+                vals = px.astype(np.uint16) * np.uint16(257)
+            elif img.dtype != np.uint8:
+                vals = (px.astype(np.float32) / 255.0).astype(img.dtype)
+            else:
+                vals = px
+            if c == 4:
+                result[..., :3][changed] = vals
+            else:
+                result[changed] = vals
+        if orig.ndim == 2:
+            result = result[..., 0]
+        return np.ascontiguousarray(result)
+
+    return rgb, restore, conversion
+
+
+def check_sample_targets(data: dict, height: int, width: int) -> None:
+    """The per-sample targets ``camera_k`` and ``depth`` of one call: :class:`SampleSkip` when depth comes without
+    the intrinsics that unproject it (the depth would be ignored and the placeable region found empty), or a
+    target has the wrong shape."""
+    K, depth = data.get("camera_k"), data.get("depth")
+    if K is not None and np.asarray(K).shape != (3, 3):
+        raise SampleSkip("camera_k not 3x3", f"shape {np.asarray(K).shape}")
+    if depth is not None:
+        if K is None:
+            raise SampleSkip("depth without camera_k",
+                             "depth cannot be unprojected without the intrinsics; pass camera_k with it")
+        if np.asarray(depth).shape != (height, width):
+            raise SampleSkip("depth shape mismatch", f"{np.asarray(depth).shape} for a {height}x{width} image")
+
+
+def nothing_inserted_reason(record: dict) -> str:
+    """Why a call inserted nothing (``InsertionRecord.to_dict()``): the stages that were skipped and the placement
+    search's commonest rejection."""
+    from collections import Counter
+    skipped = [f"{k} {v}" for k, v in record.get("modules", {}).items() if str(v).startswith("skipped")]
+    rejected = Counter()
+    for r in record.get("placement_reports", []):
+        rejected.update((r or {}).get("rejected", {}))
+    if rejected:
+        why, _ = rejected.most_common(1)[0]
+        skipped.append(f"placements rejected, most often: {why}")
+    return "; ".join(skipped) or "no object placed"
+
+
+class TransformCounts:
+    """What :class:`~aias_augment.transform.InsertObjects` did with its calls, in this process: ``calls`` (the
+    applied ones), ``inserted`` (images with >= 1 new box), ``objects`` (new boxes), ``skipped`` (image left
+    unchanged, by reason), ``nothing_inserted`` (ran, placed nothing, by reason), ``converted`` (inputs converted,
+    by conversion). Each reason is logged at WARNING the 1st, 10th, 100th, ... time (an epoch of odd images does
+    not flood the log)."""
+
+    def __init__(self):
+        self.calls = self.inserted = self.objects = 0
+        self.skipped: dict[str, int] = {}
+        self.nothing_inserted: dict[str, int] = {}
+        self.converted: dict[str, int] = {}
+
+    def _bump(self, table: dict, key: str) -> int:
+        table[key] = table.get(key, 0) + 1
+        return table[key]
+
+    def skip(self, error: Exception, log) -> None:
+        self.calls += 1
+        kind = error.kind if isinstance(error, SampleSkip) else f"{type(error).__name__}: {str(error)[:160]}"
+        n = self._bump(self.skipped, kind)
+        if _log_now(n):
+            log.warning("InsertObjects: image left unchanged (%s); %d time(s) for this reason, %d skipped in all",
+                        error if isinstance(error, SampleSkip) else kind, n, self.total_skipped)
+
+    def convert(self, conversion: str) -> None:
+        self._bump(self.converted, conversion)
+
+    def result(self, n_objects: int, record: dict | None, log) -> None:
+        self.calls += 1
+        if n_objects:
+            self.inserted += 1
+            self.objects += n_objects
+            return
+        why = nothing_inserted_reason(record or {})
+        n = self._bump(self.nothing_inserted, why)
+        if _log_now(n):
+            log.warning("InsertObjects: nothing inserted (%s); %d time(s) for this reason", why, n)
+
+    @property
+    def total_skipped(self) -> int:
+        return sum(self.skipped.values())
+
+    def to_dict(self) -> dict:
+        return {"calls": self.calls, "inserted": self.inserted, "objects": self.objects,
+                "skipped": dict(self.skipped), "nothing_inserted": dict(self.nothing_inserted),
+                "converted": dict(self.converted)}
+
+    def __repr__(self) -> str:
+        return f"TransformCounts({self.to_dict()})"
+
+
+def _log_now(n: int) -> bool:
+    return n >= 1 and 10 ** int(math.log10(n)) == n
