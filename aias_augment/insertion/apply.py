@@ -25,6 +25,7 @@ from .analyse import SceneAnalysis
 from .config import InsertionConfig
 from .plan import InsertionPlan
 from .projected_shadow import projected_ground_shadow
+from .view_cache import ViewCache, render_from_view_cache
 
 log = logging.getLogger(__name__)
 
@@ -44,9 +45,10 @@ class AppliedPlan:
 
 
 def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
-               cfg: InsertionConfig = InsertionConfig()) -> AppliedPlan:
-    """Render the plan's objects into ``frame.image`` (see the module docstring). ``cfg``: ssaa, shadow and
-    harmonization switches (the plan fixed everything random).
+               cfg: InsertionConfig = InsertionConfig(), *, view_cache: ViewCache | None = None) -> AppliedPlan:
+    """Render the plan's objects into ``frame.image`` (see the module docstring). ``cfg``: ssaa, render method,
+    shadow and harmonization switches (the plan fixed everything random). ``view_cache``: where
+    ``render_method="view_cache"`` keeps its views (None: the process-wide :func:`default_view_cache`).
 
     All float work happens inside one window: the union of the objects' and their shadows' render windows (the
     sRGB -> linear -> sRGB round trip is exact on uint8, so the pixels outside it are the input's)."""
@@ -59,12 +61,21 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     intr, lighting = analysis.intrinsics, analysis.lighting
     mods: dict = {}
     rendered, dropped = [], []
+    n_cached = 0
     for obj in plan.objects:
-        roi, rl = render_object_window(obj.asset, obj.cam_from_object, intr, ssaa=cfg.ssaa)
+        got = None
+        if cfg.render_method == "view_cache":
+            got = render_from_view_cache(obj.asset, obj.cam_from_object, intr, view_cache)
+            n_cached += got is not None
+        roi, rl = got if got is not None else render_object_window(obj.asset, obj.cam_from_object, intr,
+                                                                   ssaa=cfg.ssaa)
         if rl.alpha.size == 0 or rl.alpha.max() <= 0.5:
             dropped.append({"rejected": {"renders to no pixel": 1}})
             continue
         rendered.append((obj, roi, rl))
+    if cfg.render_method == "view_cache":
+        mods["render"] = (f"view cache: {n_cached} of {len(plan.objects)} objects warped from their view bin's "
+                          "render and relit (the others rendered in full: too near or too large for the cache)")
     shadows = []
     if cfg.shadow and rendered:
         shadows = [_object_shadow_window(o.asset, o.cam_from_object, intr, lighting, depth, cfg.shadow_method)
@@ -210,7 +221,40 @@ def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng) -
     except ImportError as e:  # the harmonization package is optional at this stage of the pipeline
         return image, f"skipped: harmonizer unavailable ({e})"
     try:
-        return (harmonize(image, mask, method=cfg.harmonize_method, rng=rng,
-                          test_time_views=cfg.harmonize_test_time_views), f"harmonized ({cfg.harmonize_method})")
+        win = _harmonize_window(mask, cfg)
+        if win is None:
+            return (harmonize(image, mask, method=cfg.harmonize_method, rng=rng,
+                              test_time_views=cfg.harmonize_test_time_views), f"harmonized ({cfg.harmonize_method})")
+        x0, y0, x1, y1 = win
+        out = image.copy()
+        out[y0:y1, x0:x1] = harmonize(image[y0:y1, x0:x1], np.ascontiguousarray(mask[y0:y1, x0:x1]),
+                                      method=cfg.harmonize_method, rng=rng,
+                                      test_time_views=cfg.harmonize_test_time_views)
+        return out, f"harmonized ({cfg.harmonize_method}, in the objects' context window)"
     except FileNotFoundError as e:
         return image, f"skipped: {e}"
+
+
+def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig) -> tuple[int, int, int, int] | None:
+    """The window (x0, y0, x1, y1) in which the "fast" harmonizer gives the same bytes as on the whole image, or
+    None (other methods use whole-image statistics or draw per pixel: they get the whole image).
+
+    The fast harmonizer changes only masked pixels, and reads, per connected component, a square context crop of
+    side ``context x`` the component's longer side, centred on it and clipped to the image. Every component lies in
+    the mask's box B, so every crop lies in B grown by ``max context / 2 x`` B's longer side: a window holding that
+    (clipped to the image where the crops are clipped too) gives the same crops, the same predictions, the same
+    pixels (``tests/aias_augment/insertion/test_apply.py``)."""
+    if cfg.harmonize_method != "fast":
+        return None
+    from ..harmonize.api import DEFAULT_CHECKPOINTS
+    from ..harmonize.fast import TTA_CONTEXTS, load_fast
+    if not DEFAULT_CHECKPOINTS["fast"].is_file():
+        return None  # harmonize() raises the missing-checkpoint error with its training command
+    ctx = max(TTA_CONTEXTS + (load_fast(DEFAULT_CHECKPOINTS["fast"]).cfg.context,))
+    ys, xs = np.nonzero(mask > 0)
+    if len(xs) == 0:
+        return None
+    bx0, by0, bx1, by1 = int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1
+    grow = int(np.ceil(ctx / 2 * max(bx1 - bx0, by1 - by0))) + 2
+    h, w = mask.shape
+    return max(0, bx0 - grow), max(0, by0 - grow), min(w, bx1 + grow), min(h, by1 + grow)

@@ -32,6 +32,10 @@ class InsertionConfig:
     # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL
     # call; tests/aias_augment/insertion/test_projected_shadow.py: IoU >= 0.95 vs exact ray casting).
     shadow_method: str = "catcher"
+    # Object layers: "full" (a GL render of the asset at the sample's pose) or "view_cache" (the asset's view for the
+    # sample's view bin, rendered once per process and warped into the image, no GL call on a hit; poses the cache
+    # does not cover fall back to "full": insertion/view_cache.py, tests/aias_augment/insertion/test_view_cache.py).
+    render_method: str = "full"
     # Priors when the scene does not say.
     camera_height_m: float = 1.6
     estimate_camera: bool = True         # horizon/pitch/roll (and focal when unknown) from vanishing lines
@@ -50,6 +54,8 @@ class InsertionConfig:
             raise ValueError(f"need 0 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
         if self.ssaa < 1:
             raise ValueError("ssaa must be >= 1")
+        if self.render_method not in ("full", "view_cache"):
+            raise ValueError(f"render_method must be 'full' or 'view_cache', got {self.render_method!r}")
         if self.asset_source not in ("default", "bank", "procedural"):
             raise ValueError(f"asset_source must be 'default', 'bank' or 'procedural', got {self.asset_source!r}")
 
