@@ -110,5 +110,10 @@ def prepare_output(out: Path, manifest: dict, overwrite: bool = False) -> dict[i
                     p.unlink()
     for name in FINAL_OUTPUTS:   # rewritten at the end: a run killed before then leaves none (never a stale one)
         (out / name).unlink(missing_ok=True)
+    # Temporary files of writes cut short by a kill (atomic_write_json's "<name>XXXX.tmp", write_rgb's "x.tmp.png").
+    for sub, pattern in (("records", "*.tmp"), ("images", "*.tmp.*"), (".", "*.tmp"), (".", "*.check")):
+        for p in (out / sub).glob(pattern):
+            if p.is_file():
+                p.unlink()
     atomic_write_json(mpath, manifest)
     return previous

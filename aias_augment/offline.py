@@ -23,8 +23,9 @@ from .coco_io import CocoBuilder, atomic_write_json
 from .geometry import Intrinsics
 from .manifest import build_manifest, item_hash, prepare_output
 from .validate import (BOX_POLICIES, IMAGE_SKIP_KINDS, InputError, check_box, check_coco, check_coco_file, check_output_record,
-                       format_problem, parse_yolo_labels, problem, read_image_checked)
-from .pipeline import InsertionConfig, insert_into_image
+                       format_problem, nothing_inserted_reason, parse_yolo_labels, problem, read_image_checked)
+from .pipeline import InsertionConfig
+from .working_resolution import insert_bounded
 from .viz import contact_sheet, draw_boxes
 
 log = logging.getLogger(__name__)
@@ -237,8 +238,9 @@ def process_item(index: int, item: Item, cfg: InsertionConfig, seed: int, out_di
         if item.stereo_right is not None:
             from .stereo import stereo_depth
             depth = stereo_depth(image, read_rgb(item.stereo_right), intr, item.baseline_m)
-        res = insert_into_image(image, item.bboxes_xywh, item.labels, rng, cfg, intrinsics=intr, depth=depth,
-                                meta=item.meta, scene_cache=_scene_cache(scene_cache))
+        # above 2 MP: analysed and planned at 2 MP, rendered at the (bounded) output size
+        res = insert_bounded(image, item.bboxes_xywh, item.labels, rng, cfg, intrinsics=intr, depth=depth,
+                             meta=item.meta, scene_cache=_scene_cache(scene_cache))
     except Exception as e:  # counted, logged skip: one bad image never stops the run
         msg = str(e)
         kind = msg.split(":", 1)[0] if isinstance(e, ValueError) and ":" in msg else None
@@ -260,22 +262,9 @@ def process_item(index: int, item: Item, cfg: InsertionConfig, seed: int, out_di
         "input_hash": input_hash, "input_notes": notes, "scale": scale, "source_size": source_size,
     }
     if not res.inserted_labels:   # counted with its reason in report.json
-        rec["nothing_inserted"] = _nothing_reason(res.record.to_dict())
+        rec["nothing_inserted"] = nothing_inserted_reason(res.record.to_dict())
     atomic_write_json(rec_path, rec)
     return rec
-
-
-def _nothing_reason(rec: dict) -> str:
-    """Why a call inserted nothing: the stages that were skipped and the placement search's commonest rejection."""
-    from collections import Counter
-    skipped = [f"{k} {v}" for k, v in rec.get("modules", {}).items() if str(v).startswith("skipped")]
-    rejected = Counter()
-    for r in rec.get("placement_reports", []):
-        rejected.update((r or {}).get("rejected", {}))
-    if rejected:
-        why, n = rejected.most_common(1)[0]
-        skipped.append(f"placements rejected, most often: {why} ({n} of {sum(rejected.values())})")
-    return "; ".join(skipped) or "no object placed"
 
 
 def _worker(args):
