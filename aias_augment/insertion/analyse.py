@@ -12,6 +12,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from .. import composite as comp
@@ -134,7 +135,17 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
     mods: dict = {}
     if cfg.naive_paste:
         mods["mode"] = "naive paste: random position/scale, no geometry/lighting/shadow/harmonization"
-    intr, ground = _scene_geometry(img, frame.intrinsics, frame.depth, rng, cfg, mods, need_ground=cfg.placement)
+    given_K = frame.intrinsics
+    if given_K is not None and not isinstance(given_K, Intrinsics):
+        given_K = Intrinsics.from_matrix(np.asarray(given_K), w, h)
+    small = _analysis_copy(img, cfg.analysis_max_width)
+    if small is None or frame.depth is not None:  # depth: the ground comes from it, at its own resolution
+        intr, ground = _scene_geometry(img, given_K, frame.depth, rng, cfg, mods, need_ground=cfg.placement)
+    else:
+        sh_, sw_ = small.shape[:2]
+        intr_s, ground = _scene_geometry(small, None if given_K is None else _scaled_intrinsics(given_K, sw_, sh_),
+                                         None, rng, cfg, mods, need_ground=cfg.placement)
+        intr = given_K if given_K is not None else _scaled_intrinsics(intr_s, w, h)
     if not cfg.placement:
         mods["placement"] = "skipped: disabled (ablation or naive paste); random 2D position and size"
     region = None
@@ -149,8 +160,38 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
         mods["region"] = f"{region.evidence} ({100 * region.fraction:.0f}% of the image placeable)"
         if region.evidence != "prior:below_horizon" and "ground_mask" not in meta:
             meta["ground_mask"] = region.mask  # lit/shadowed ground for the sun/sky ratio
-    lighting = _scene_lighting(img, intr, ground or prior_ground_plane(cfg.camera_height_m), rng, cfg, meta, mods)
+    up_ground = ground or prior_ground_plane(cfg.camera_height_m)
+    if small is None:
+        lighting = _scene_lighting(img, intr, up_ground, rng, cfg, meta, mods)
+    else:
+        sh_, sw_ = small.shape[:2]
+        meta_s = dict(meta)
+        for k in ("ground_mask", "semantic"):  # per-pixel inputs follow the copy (nearest: labels stay labels)
+            if meta_s.get(k) is not None:
+                rows = ((np.arange(sh_) + 0.5) * h / sh_).astype(int)
+                cols = ((np.arange(sw_) + 0.5) * w / sw_).astype(int)
+                meta_s[k] = np.asarray(meta_s[k])[rows][:, cols]
+        lighting = _scene_lighting(small, _scaled_intrinsics(intr, sw_, sh_), up_ground, rng, cfg, meta_s, mods)
+        mods["analysis"] = (f"cheap: camera{'' if frame.depth is None else ' (not: depth given)'} and lighting "
+                            f"estimated on a {sw_}x{sh_} copy of the {w}x{h} image (analysis_max_width "
+                            f"{cfg.analysis_max_width}); region at full resolution")
     return SceneAnalysis(key or scene_key(frame, cfg), (h, w), intr, ground, region, lighting, mods)
+
+
+def _analysis_copy(image: np.ndarray, max_width: int) -> np.ndarray | None:
+    """The image shrunk (area average) to ``max_width`` pixels wide, or None when it is not wider (or 0)."""
+    h, w = image.shape[:2]
+    if not max_width or w <= max_width:
+        return None
+    sw = int(max_width)
+    sh = max(1, int(round(h * sw / w)))
+    return cv2.resize(image, (sw, sh), interpolation=cv2.INTER_AREA)
+
+
+def _scaled_intrinsics(K: Intrinsics, width: int, height: int) -> Intrinsics:
+    """``K`` for the same camera at ``width`` x ``height`` (pixel centres at integers: c' = (c + 0.5) s - 0.5)."""
+    sx, sy = width / K.width, height / K.height
+    return Intrinsics(K.fx * sx, K.fy * sy, (K.cx + 0.5) * sx - 0.5, (K.cy + 0.5) * sy - 0.5, int(width), int(height))
 
 
 def _scene_geometry(image: np.ndarray, intrinsics, depth, rng, cfg: InsertionConfig, modules: dict,

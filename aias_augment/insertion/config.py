@@ -36,6 +36,9 @@ class InsertionConfig:
     # sample's view bin, rendered once per process and warped into the image, no GL call on a hit; poses the cache
     # does not cover fall back to "full": insertion/view_cache.py, tests/aias_augment/insertion/test_view_cache.py).
     render_method: str = "full"
+    # Cheap analysis (the fast preset's lighting estimate for a new image): the camera (vanishing lines) and the
+    # lighting are estimated on a copy at most this many pixels wide (0: the image as given); the record says so.
+    analysis_max_width: int = 0
     # Priors when the scene does not say.
     camera_height_m: float = 1.6
     estimate_camera: bool = True         # horizon/pitch/roll (and focal when unknown) from vanishing lines
@@ -54,6 +57,8 @@ class InsertionConfig:
             raise ValueError(f"need 0 <= min_objects <= max_objects, got {self.min_objects}, {self.max_objects}")
         if self.ssaa < 1:
             raise ValueError("ssaa must be >= 1")
+        if self.analysis_max_width < 0 or 0 < self.analysis_max_width < 64:
+            raise ValueError(f"analysis_max_width must be 0 or >= 64, got {self.analysis_max_width}")
         if self.render_method not in ("full", "view_cache"):
             raise ValueError(f"render_method must be 'full' or 'view_cache', got {self.render_method!r}")
         if self.asset_source not in ("default", "bank", "procedural"):
@@ -68,9 +73,12 @@ class InsertionConfig:
     def analysis_fields(self) -> dict:
         """The fields :func:`aias_augment.insertion.analyse_scene` reads (part of the scene cache key)."""
         c = self.effective()
-        return {k: getattr(c, k) for k in ("placement", "lighting", "estimate_camera", "camera_height_m",
-                                           "max_camera_pitch_deg", "max_camera_roll_deg", "default_hfov_deg",
-                                           "lighting_cfg")}
+        out = {k: getattr(c, k) for k in ("placement", "lighting", "estimate_camera", "camera_height_m",
+                                          "max_camera_pitch_deg", "max_camera_roll_deg", "default_hfov_deg",
+                                          "lighting_cfg")}
+        if c.analysis_max_width:  # only when set: the keys of full-resolution analyses stay what they were
+            out["analysis_max_width"] = c.analysis_max_width
+        return out
 
 
 def load_preset(name: str, **overrides) -> InsertionConfig:

@@ -61,3 +61,22 @@ def test_ablation_without_placement_has_no_ground_and_says_why():
     assert a.ground is None and a.region is None
     assert a.modules["placement"].startswith("skipped") and a.modules["lighting"].startswith("skipped")
     assert "naive paste" in a.modules["mode"]
+
+
+def test_cheap_analysis_runs_on_a_small_copy_and_says_so():
+    """analysis_max_width: camera and lighting from a shrunk copy, intrinsics and region at the frame's size, the
+    record names what was done; a frame not wider than the limit is analysed as given."""
+    cfg = replace(CFG, analysis_max_width=160)
+    a = analyse_scene(Frame(road_image(), None), cfg)
+    assert "160x120 copy" in a.modules["analysis"]
+    assert (a.intrinsics.width, a.intrinsics.height) == (K.width, K.height)
+    assert a.region.mask.shape == (K.height, K.width)
+    full = analyse_scene(Frame(road_image(), None), CFG)
+    assert abs(a.intrinsics.fx - full.intrinsics.fx) / full.intrinsics.fx < 0.05
+    assert np.degrees(np.arccos(np.clip(a.ground.normal @ full.ground.normal, -1, 1))) < 10.0
+    # Given intrinsics are kept as given; the key differs from the full-resolution analysis' key.
+    b = analyse_scene(Frame(road_image(), K), cfg)
+    assert b.intrinsics == K or np.allclose(b.intrinsics.K, K.K)
+    assert scene_key(Frame(road_image(), K), cfg) != scene_key(Frame(road_image(), K), CFG)
+    small = analyse_scene(Frame(road_image()[:120, :160], None), cfg)
+    assert "analysis" not in small.modules

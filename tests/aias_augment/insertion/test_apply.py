@@ -71,3 +71,30 @@ def test_replay_from_the_json_record_gives_the_same_bytes():
     out = replay(record, Frame(img, K), cfg, assets=lambda p: asset)
     assert np.array_equal(out.image, res.image)
     assert not np.array_equal(out.image, img)
+
+
+def test_fast_harmonizer_in_the_context_window_gives_the_whole_image_bytes():
+    """apply's fast harmonizer runs on the objects' context window only: same bytes as on the whole image (objects
+    in the middle, at a border and two apart, so components and clipped context crops are exercised)."""
+    import pytest
+
+    from aias_augment.harmonize import harmonize
+    from aias_augment.harmonize.api import DEFAULT_CHECKPOINTS
+    from aias_augment.insertion.apply import _harmonize, _harmonize_window
+    if not DEFAULT_CHECKPOINTS["fast"].is_file():
+        pytest.skip("fast harmonizer checkpoint not present")
+    img = road_image(3)
+    cfg = type(CFG)(categories=("box",), harmonize=True, harmonize_method="fast", harmonize_test_time_views=False)
+    for boxes in ([(300, 250, 330, 310)], [(0, 400, 25, 480)], [(100, 300, 120, 340), (160, 310, 190, 360)]):
+        mask = np.zeros(img.shape[:2], np.float32)
+        for x0, y0, x1, y1 in boxes:
+            mask[y0:y1, x0:x1] = 1.0
+            mask[y0, x0:x1] = 0.5  # a soft edge
+        comp = img.copy()
+        comp[mask > 0] = (200, 90, 30)
+        whole = harmonize(comp, mask, method="fast", test_time_views=False)
+        win = _harmonize_window(mask, cfg)
+        assert win is not None and (win[2] - win[0]) * (win[3] - win[1]) < mask.size
+        out, how = _harmonize(comp, mask, cfg, np.random.default_rng(0))
+        assert "window" in how
+        assert np.array_equal(out, whole)
