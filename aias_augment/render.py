@@ -148,14 +148,35 @@ def _to_pyrender_mesh(asset: Asset, normals: bool) -> tuple["pyrender.Mesh", np.
     return entry[key], pose
 
 
+def _resident_meshes(asset: Asset, with_normals: bool) -> tuple:
+    """The asset's albedo (and normals) meshes, built if needed: kept on the GPU across its two flat passes."""
+    meshes = [_to_pyrender_mesh(asset, False)[0]]
+    if with_normals:
+        meshes.append(_to_pyrender_mesh(asset, True)[0])
+    return tuple(meshes)
+
+
 def _render_flat(mesh: "pyrender.Mesh", mesh_pose: np.ndarray, cam_from_object: np.ndarray, intr: Intrinsics,
-                 ssaa: int, znear: float, zfar: float) -> tuple[np.ndarray, np.ndarray]:
+                 ssaa: int, znear: float, zfar: float, resident: tuple = ()) -> tuple[np.ndarray, np.ndarray]:
+    """Unlit render of ``mesh``. ``resident``: other meshes put in the scene but not drawn, so that pyrender keeps
+    their buffers and textures on the GPU (it deletes whatever the scene being rendered lacks, and uploads it again
+    next time: the texture upload was the largest part of a small render). A flat render with explicit near/far
+    planes does not depend on undrawn nodes: same bytes."""
     scene = pyrender.Scene(bg_color=np.zeros(4), ambient_light=np.ones(3))
     scene.add(mesh, pose=mesh_pose)
+    hidden = [m for m in resident if m is not mesh]
+    for m in hidden:
+        scene.add(m, pose=mesh_pose)
     # Object frame is the scene's world frame.
     scene.add(_pyrender_camera(intr, ssaa, znear, zfar), pose=_camera_pose_gl(cam_from_object))
     r = _renderer(intr.width * ssaa, intr.height * ssaa)
-    color, depth = r.render(scene, flags=pyrender.RenderFlags.FLAT | pyrender.RenderFlags.RGBA)
+    for m in hidden:
+        m.is_visible = False
+    try:
+        color, depth = r.render(scene, flags=pyrender.RenderFlags.FLAT | pyrender.RenderFlags.RGBA)
+    finally:  # outside this call every cached mesh is visible (the shadow catcher draws the albedo mesh)
+        for m in hidden:
+            m.is_visible = True
     return color, depth
 
 
@@ -226,11 +247,14 @@ def render_object_window(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
 
 def _render_object_window(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, ssaa: int,
                           znear: float, zfar: float, with_normals: bool) -> RenderLayers:
-    color, depth = _render_flat(*_to_pyrender_mesh(asset, False), cam_from_object, intrinsics, ssaa, znear, zfar)
+    resident = _resident_meshes(asset, with_normals)
+    color, depth = _render_flat(*_to_pyrender_mesh(asset, False), cam_from_object, intrinsics, ssaa, znear, zfar,
+                                resident)
     covered = (depth > 0).astype(np.float32)
     albedo = srgb_to_linear(color[..., :3].astype(np.float32) / 255.0) * covered[..., None]
     if with_normals:
-        ncol, _ = _render_flat(*_to_pyrender_mesh(asset, True), cam_from_object, intrinsics, ssaa, znear, zfar)
+        ncol, _ = _render_flat(*_to_pyrender_mesh(asset, True), cam_from_object, intrinsics, ssaa, znear, zfar,
+                               resident)
         n_obj = ncol[..., :3].astype(np.float32) / 255.0 * 2.0 - 1.0
         n_cam = n_obj @ cam_from_object[:3, :3].T.astype(np.float32)
     else:

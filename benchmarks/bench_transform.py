@@ -66,7 +66,7 @@ def _compose(t) -> A.Compose:
     return A.Compose([t], bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=7)
 
 
-def per_call(rounds: int, images: list[np.ndarray]) -> dict:
+def per_call(rounds: int, images: list[np.ndarray], view_warmup: int = 0) -> dict:
     sprite, smask = cone_sprite()
     h, w = images[0].shape[:2]
     overlay = A.Compose([A.OverlayElements(p=1.0)], seed=7)
@@ -89,6 +89,11 @@ def per_call(rounds: int, images: list[np.ndarray]) -> dict:
     for name, tf in transforms.items():  # warm-up: renderer, meshes, harmonizer weights; the warm arm's scene
         tf(image=warm_img, bboxes=np.zeros((0, 4)), labels=[])
     overlay_call(warm_img)
+    from aias_augment.insertion.view_cache import default_view_cache
+    vc = default_view_cache()
+    for _ in range(view_warmup):  # a training loop's steady state: the views of earlier samples are cached
+        transforms["fast_warm"](image=warm_img, bboxes=np.zeros((0, 4)), labels=[])
+    vc_before = (vc.hits, vc.misses, len(vc))
     for name, tf in transforms.items():
         if name.endswith("_cold"):  # image i (i >= 1) is new to this transform at round i
             arms[name] = (lambda tf: lambda i: tf(image=images[1 + i], bboxes=np.zeros((0, 4)), labels=[]))(tf)
@@ -110,6 +115,9 @@ def per_call(rounds: int, images: list[np.ndarray]) -> dict:
     for k, tf in transforms.items():
         c = tf.transforms[0]._scene_cache
         stats[k]["scene_cache"] = {"hits": c.hits, "misses": c.misses}
+    stats["view_cache"] = {"warmup_calls": view_warmup, "entries_before": vc_before[2], "entries_after": len(vc),
+                           "MB": vc.nbytes / 2**20, "timed_hits": vc.hits - vc_before[0],
+                           "timed_misses": vc.misses - vc_before[1]}
     return stats
 
 
@@ -151,12 +159,26 @@ def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str) -> li
     return rates
 
 
+def _view_cache_summary(out: Path) -> str:
+    """The view cache's error against the full render, from ``benchmarks/bench_view_cache.py``'s results."""
+    p = out / "view_cache.json"
+    if not p.exists():
+        return "see benchmarks/bench_view_cache.py"
+    r = json.loads(p.read_text())["binnings"]
+    name = next((k for k in r if k.startswith("fine")), next(iter(r)))
+    b = r[name]
+    return (f"view cache vs full render ({name.split(' (')[0]} bins, view_cache.md): box IoU median "
+            f"{b['box_iou_median']:.3f}, MAD median {b['mad_median']:.1f} sRGB levels")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rounds", type=int, default=8, help="timed calls per arm (interleaved)")
     ap.add_argument("--loader-images", type=int, default=32)
     ap.add_argument("--epochs", type=int, default=3)
     ap.add_argument("--skip-loader", action="store_true")
+    ap.add_argument("--view-warmup", type=int, default=0,
+                    help="fast-preset calls before the timed rounds (fills the view cache as a training loop does)")
     ap.add_argument("--torch-threads", type=int, default=1,
                     help="torch intra-op threads for the per-call timings (1, as in a DataLoader worker)")
     ap.add_argument("--out", default="results/bench")
@@ -166,7 +188,8 @@ def main(argv=None) -> int:
     torch.set_num_threads(a.torch_threads)
     load_before = os.getloadavg()
     images = tracon_images(a.rounds + 1, (640, 480))
-    calls = per_call(a.rounds, images)
+    calls = per_call(a.rounds, images, a.view_warmup)
+    view = calls.pop("view_cache")
     ov = calls["overlay"]["median_ms"]
     loader = None
     if not a.skip_loader:
@@ -177,7 +200,8 @@ def main(argv=None) -> int:
         loader = {"without_img_s": without, "with_img_s": with_ins,
                   "ratio_per_epoch": [w / wo for w, wo in zip(with_ins, without)]}
     res = {"command": cmd, "machine": f"{os.cpu_count()} CPU cores, {platform.processor() or platform.machine()}",
-           "loadavg_before": load_before, "loadavg_after": os.getloadavg(), "per_call": calls, "loader": loader}
+           "loadavg_before": load_before, "loadavg_after": os.getloadavg(), "per_call": calls, "view_cache": view,
+           "loader": loader}
     checks = {
         "fast warm <= 15x OverlayElements": calls["fast_warm"]["median_ms"] / ov <= TARGETS["fast_warm_vs_overlay"],
         "fast cold <= 250 ms": calls["fast_cold"]["median_ms"] <= TARGETS["fast_cold_ms"],
@@ -199,6 +223,9 @@ def main(argv=None) -> int:
              f"threads {a.torch_threads}. Cold: an "
              "image the transform has not seen (the scene analysis runs); warm: the same image again (scene-cache "
              "hit).", "",
+             f"View cache (fast preset): {view['warmup_calls']} calls before the timed rounds left "
+             f"{view['entries_before']} views cached; in the timed rounds {view['timed_hits']} hits, "
+             f"{view['timed_misses']} misses (a miss renders the view: one GL call); {view['MB']:.0f} MB.", "",
              "| transform | median wall ms | p90 wall ms | vs OverlayElements (wall) | median CPU ms | vs "
              "OverlayElements (CPU) |", "|---|---:|---:|---:|---:|---:|"]
     ov_cpu = max(calls["overlay"]["median_cpu_ms"], 1e-3)
@@ -213,6 +240,20 @@ def main(argv=None) -> int:
         for e, (wo, wi, r) in enumerate(zip(loader["without_img_s"], loader["with_img_s"],
                                             loader["ratio_per_epoch"])):
             lines.append(f"| {e + 1} | {wo:.1f} | {wi:.1f} | {r:.2f} |")
+    lines += ["", "Speed and accuracy per preset (ms from the table above; accuracy from the benchmarks named):", "",
+              "| preset | cold ms (wall / CPU) | warm ms (wall / CPU) | object layers | edges | analysis | accuracy |",
+              "|---|---|---|---|---|---|---|"]
+    vc = _view_cache_summary(out)
+    for preset in ("fast", "balanced", "accurate"):
+        from aias_augment.insertion import load_preset
+        c = load_preset(preset)
+        cold, warm = calls[f"{preset}_cold"], calls[f"{preset}_warm"]
+        layers = "view cache (warped + relit)" if c.render_method == "view_cache" else "full GL render"
+        acc = vc if c.render_method == "view_cache" else "reference (full render)"
+        analysis = f"cheap: {c.analysis_max_width} px copy" if c.analysis_max_width else "full resolution"
+        lines.append(f"| {preset} | {cold['median_ms']:.0f} / {cold['median_cpu_ms']:.0f} | {warm['median_ms']:.0f} / "
+                     f"{warm['median_cpu_ms']:.0f} | {layers} | ssaa {c.ssaa}, shadow {c.shadow_method} | {analysis} | "
+                     f"{acc} |")
     lines += ["", "Targets (issue 14; judged on the wall-time medians above):", ""] + [
         f"- {k}: {'met' if v else 'NOT met'}" for k, v in checks.items()]
     (out / "transform.md").write_text("\n".join(lines) + "\n")

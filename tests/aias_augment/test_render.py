@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from aias_augment.geometry import Intrinsics, make_rigid, project_points, transform_points
-from aias_augment.render import render_ground_shadow, render_object
+from aias_augment.render import render_ground_shadow, render_object, render_object_window
 from tests.aias_augment.fixtures import box_asset
 
 K = Intrinsics(600.0, 600.0, 319.5, 239.5, 640, 480)
@@ -147,3 +147,34 @@ def test_scaled_asset_renders_as_if_its_mesh_were_scaled():
     assert np.abs(via_pose.depth - direct.depth).max() < 1e-4
     assert np.abs(via_pose.albedo_linear - direct.albedo_linear).max() < 1e-6
     assert np.abs(via_pose.normals_in_cam - direct.normals_in_cam).max() < 1e-3
+
+
+def test_a_textured_asset_is_uploaded_once_across_its_two_passes(monkeypatch):
+    """The albedo and normals passes keep each other's meshes resident: repeated renders of one asset upload its
+    texture at most once (a counter on pyrender's real upload), and give the same bytes as the first."""
+    import pyrender.texture
+
+    try:
+        from aias_augment.assets import default_asset
+        cone = default_asset("traffic_cone")
+    except Exception:
+        pytest.skip("shared data not present")
+    if not any(getattr(m.visual, "kind", None) == "texture" for m in cone.meshes):
+        pytest.skip("default cone has no texture")
+    uploads = []
+    real = pyrender.texture.Texture._add_to_context
+
+    def counting(self, *a, **k):
+        uploads.append(1)
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(pyrender.texture.Texture, "_add_to_context", counting)
+    K = Intrinsics.from_fov(320, 240, 60.0)
+    T = make_rigid(np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]), [0.0, 0.5, 4.0])
+    first = render_object_window(cone, T, K, ssaa=2)
+    n_first = len(uploads)
+    for _ in range(3):
+        again = render_object_window(cone, T, K, ssaa=2)
+    assert n_first <= 1 and len(uploads) == n_first
+    assert np.array_equal(first[1].albedo_linear, again[1].albedo_linear)
+    assert np.array_equal(first[1].normals_in_cam, again[1].normals_in_cam)
