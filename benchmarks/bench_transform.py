@@ -165,7 +165,7 @@ def _view_cache_summary(out: Path) -> str:
     if not p.exists():
         return "see benchmarks/bench_view_cache.py"
     r = json.loads(p.read_text())["binnings"]
-    name = next((k for k in r if k.startswith("fine")), next(iter(r)))
+    name = next((k for k in r if k.endswith("(default)")), next(iter(r)))
     b = r[name]
     return (f"view cache vs full render ({name.split(' (')[0]} bins, view_cache.md): box IoU median "
             f"{b['box_iou_median']:.3f}, MAD median {b['mad_median']:.1f} sRGB levels")

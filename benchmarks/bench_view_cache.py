@@ -32,9 +32,9 @@ from aias_augment.lighting.shading import shade_object  # noqa: E402
 from aias_augment.render import linear_to_srgb, render_object_window  # noqa: E402
 from aias_augment.scene import Frame  # noqa: E402
 
-BINNINGS = {"fine (7.5 deg, 4 deg, 0.04)": ViewBinning(7.5, 4.0, 0.04),
-            "default (15 deg, 5 deg, 0.05)": ViewBinning(15.0, 5.0, 0.05),
-            "coarse (30 deg, 8 deg, 0.08)": ViewBinning(30.0, 8.0, 0.08)}
+BINNINGS = {"7.5 deg, 4 deg, 0.04 (default)": ViewBinning(7.5, 4.0, 0.04),
+            "15 deg, 5 deg, 0.05": ViewBinning(15.0, 5.0, 0.05),
+            "30 deg, 8 deg, 0.08": ViewBinning(30.0, 8.0, 0.08)}
 
 
 def _light():
