@@ -153,12 +153,41 @@ class LightingConfig:
     shadow_end_kappa: float = 20.0
     #: The side cues run on a copy at most this wide (their pixel tolerances are set for ~800 px).
     side_analysis_width: int = 800
+    #: Exposure anchor (issue 15): the estimated irradiance on the ground is rescaled so that the ground's albedo it
+    #: implies, pi x ground luminance / irradiance (linear sRGB of the image), lies in this range (the ground box ahead
+    #: of the camera is mostly road: asphalt 0.05 new to ~0.15 worn). The sky model is fitted to pixels that are often
+    #: clipped or tone-mapped, so without it the implied ground albedo of TraCon road photos spans 0.01-5 (objects 8x
+    #: too bright to 25x too dark). Measured on TraCon (results/realism): (0.08, 0.30) and (0.06, 0.15) give the same
+    #: box brightness within 3 grey levels, the saturation guard binding first. None: off.
+    ground_albedo_range: tuple[float, float] | None = (0.06, 0.15)
+    #: Sun tempering: an image-cue sun of confidence c keeps the share min(1, c / this) of its irradiance as a
+    #: directional light; the rest becomes uniform ambient of the same irradiance on the ground (an uncertain direction
+    #: gives an average, smoother shading). The shadow strength (sun_sky_ratio) is kept. 0: off.
+    sun_full_confidence: float = 0.6
+    #: Saturation guard: when the frame itself does not clip (this percentile of its brightest channel is below 0.98
+    #: linear), the lighting is scaled so that a white Lambertian surface facing any direction stays at or below
+    #: ``white_cap_linear`` (sRGB 250): no inserted pixel saturates where the scene does not. None: off.
+    cap_white_to_scene_percentile: float | None = 99.5
+    white_cap_linear: float = 0.95
+    #: White balance on the road (issue 15): the colour of the estimated irradiance on the ground is set to the colour
+    #: of the ground pixels (roads are close to neutral grey, so their colour in the photo is the camera's view of
+    #: the light). Without it the Preetham fill of the unseen sky makes the camera-facing side of an object 1.5-2.3x
+    #: bluer in B than in R (white bands came out lavender, orange brown). The value is the strength (0: off; 0.75:
+    #: three quarters of the way in log, since some roads are not grey); gains clamped to [1/2, 2], luminance kept.
+    ground_white_balance: float = 0.75
 
     def __post_init__(self):
         if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
                 or self.default_sun_sky_ratio < 0 or not 0.5 <= self.sky_out_of_view_side_prob < 1.0
                 or self.sky_colour_weight < 0 or self.facade_albedo_sigma <= 0 or self.max_direct_to_diffuse_ratio <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
             raise ValueError("LightingConfig: invalid values")
+        if self.ground_albedo_range is not None and not 0 < self.ground_albedo_range[0] <= self.ground_albedo_range[1]:
+            raise ValueError(f"LightingConfig: ground_albedo_range must be 0 < lo <= hi, got {self.ground_albedo_range}")
+        if self.sun_full_confidence < 0 or not 0 < self.white_cap_linear <= 1 or not 0 <= self.ground_white_balance <= 1 or (
+                self.cap_white_to_scene_percentile is not None
+                                            and not 50 <= self.cap_white_to_scene_percentile <= 100):
+            raise ValueError("LightingConfig: sun_full_confidence must be >= 0 and cap_white_to_scene_percentile in "
+                             "[50, 100]")
 
 
 def _downsample_map(radiance: np.ndarray, max_height: int = 128) -> np.ndarray:
@@ -444,6 +473,7 @@ def _finish(ctx: _FrameContext, sun_dir: np.ndarray | None, confidence: float, s
         dominant = False  # the sun is at or below the horizon: no direct light
     sh = _ambient_from_image(ctx.linear_small, ctx.K_small, up_in_cam, sun_dir if dominant else None, config)
     if not dominant or sun_dir is None:
+        sh, _ = _anchor_and_cap(ctx, sh, None, None, 1.0, None, config)
         return LightingEstimate(None, np.zeros(3), sh, 0.0, False, confidence, source, up_in_cam)
     e_sky = sh_irradiance(sh, up_in_cam)
     min_cos = config.min_sun_cos_image_cues if source.startswith("image_cues") else config.min_sun_cos
@@ -456,7 +486,100 @@ def _finish(ctx: _FrameContext, sun_dir: np.ndarray | None, confidence: float, s
         r_rgb = np.full(3, config.default_sun_sky_ratio)
         ratio = config.default_sun_sky_ratio
     sun_irr = np.nan_to_num(r_rgb * e_sky / cos_z, nan=0.0, posinf=0.0)
+    if source.startswith("image_cues") and config.sun_full_confidence > 0:
+        sh, sun_irr = temper_sun(sh, sun_irr, cos_z, min(1.0, confidence / config.sun_full_confidence))
+    ground_lum = measurement.lit_luminance if measurement is not None and measurement.dominant_sun else None
+    sh, sun_irr = _anchor_and_cap(ctx, sh, sun_irr, sun_dir, cos_z, ground_lum, config)
     return LightingEstimate(sun_dir, sun_irr, sh, float(ratio), True, confidence, source, up_in_cam)
+
+
+def ground_exposure_scale(ground_luminance: float, ground_irradiance: float, albedo_range: tuple[float, float]
+                          ) -> float:
+    """Factor k for the irradiance so that the implied ground albedo pi L / (k E) is ``albedo_range`` clamped: k =
+    implied / clamp(implied). 1 when the inputs are not positive and finite (nothing to anchor on)."""
+    if not (np.isfinite(ground_luminance) and np.isfinite(ground_irradiance)) or ground_luminance <= 0 \
+            or ground_irradiance <= 0:
+        return 1.0
+    implied = np.pi * ground_luminance / ground_irradiance
+    return float(implied / np.clip(implied, *albedo_range))
+
+
+def ground_white_balance_gains(ground_rgb: np.ndarray, irradiance_rgb: np.ndarray, strength: float = 1.0,
+                               max_gain: float = 2.0) -> np.ndarray:
+    """Per-channel gains (3,) that give ``irradiance_rgb`` the chromaticity of ``ground_rgb`` (a neutral surface
+    shows the light's colour), raised to ``strength`` (1: all the way, 0.5: half way in log), each clamped to
+    [1 / max_gain, max_gain], then scaled to keep the luminance. Ones when either input is not positive."""
+    g, e = np.asarray(ground_rgb, np.float64), np.asarray(irradiance_rgb, np.float64)
+    if not (np.all(np.isfinite(g)) and np.all(np.isfinite(e))) or g.min() <= 0 or e.min() <= 0:
+        return np.ones(3)
+    gains = ((g / float(luminance(g))) / (e / float(luminance(e)))) ** strength
+    gains = np.clip(gains, 1.0 / max_gain, max_gain)
+    return gains * float(luminance(e)) / float(luminance(gains * e))
+
+
+def temper_sun(sh: np.ndarray, sun_irr: np.ndarray, cos_z: float, keep: float) -> tuple[np.ndarray, np.ndarray]:
+    """Keep the share ``keep`` of the sun as a directional light and turn the rest into uniform ambient radiance with
+    the same irradiance on the ground: (1 - keep) E_sun cos z added to E(n) for every n (a uniform radiance L gives
+    E = pi L; its DC coefficient is L 4 pi C0, so E = pi C0 c00 and c00 += dE / (pi C0))."""
+    keep = float(np.clip(keep, 0.0, 1.0))
+    if keep >= 1.0:
+        return sh, sun_irr
+    from .sh import _C0
+    sh = np.array(sh, dtype=np.float64, copy=True)
+    sh[0] += (1.0 - keep) * np.asarray(sun_irr, np.float64) * cos_z / (np.pi * _C0)
+    return sh, np.asarray(sun_irr, np.float64) * keep
+
+
+def _fibonacci_sphere(n: int = 256) -> np.ndarray:
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = np.pi * (1.0 + 5.0 ** 0.5) * i
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
+
+
+def peak_white_radiance(sh: np.ndarray, sun_irr: np.ndarray | None, sun_dir: np.ndarray | None) -> float:
+    """Largest radiance (any channel) of a white Lambertian surface over all normal directions: max_n (E_sh(n) +
+    E_sun max(0, n.l)) / pi, on 256 Fibonacci normals plus the sun direction itself."""
+    n = _fibonacci_sphere()
+    if sun_dir is not None:
+        n = np.vstack([n, np.asarray(sun_dir, np.float64)[None] / np.linalg.norm(sun_dir)])
+    E = sh_irradiance(sh, n)
+    if sun_dir is not None and sun_irr is not None:
+        E = E + np.maximum(n @ (np.asarray(sun_dir, np.float64) / np.linalg.norm(sun_dir)), 0.0)[:, None] * sun_irr
+    return float(np.max(E) / np.pi)
+
+
+def _anchor_and_cap(ctx: _FrameContext, sh: np.ndarray, sun_irr: np.ndarray | None, sun_dir: np.ndarray | None,
+                    cos_z: float, ground_lum: float | None, config: LightingConfig):
+    """The exposure anchor on the ground's implied albedo, then the saturation guard (see LightingConfig); both
+    scale the ambient SH and the sun by one factor (colour and sun/sky ratio unchanged)."""
+    lin = srgb_to_linear(ctx.img)
+    k = 1.0
+    has_ground = ctx.region is not None and bool(ctx.region.any())
+    if config.ground_white_balance > 0 and has_ground:
+        e_rgb = sh_irradiance(sh, ctx.up_in_cam)
+        if sun_irr is not None and sun_dir is not None:
+            e_rgb = e_rgb + np.asarray(sun_irr) * cos_z
+        gains = ground_white_balance_gains(np.median(lin[ctx.region], axis=0), e_rgb, config.ground_white_balance)
+        sh = np.asarray(sh) * gains[None, :]
+        sun_irr = None if sun_irr is None else np.asarray(sun_irr) * gains
+    if config.ground_albedo_range is not None and has_ground:
+        if ground_lum is None:
+            ground_lum = float(np.median(luminance(lin[ctx.region])))
+        e_ground = float(luminance(sh_irradiance(sh, ctx.up_in_cam)))
+        if sun_irr is not None and sun_dir is not None:
+            e_ground += float(luminance(sun_irr)) * cos_z
+        k = ground_exposure_scale(ground_lum, e_ground, config.ground_albedo_range)
+    if config.cap_white_to_scene_percentile is not None:
+        ref = float(np.percentile(lin.max(-1), config.cap_white_to_scene_percentile))
+        if ref < 0.98:
+            peak = k * peak_white_radiance(sh, sun_irr, sun_dir)
+            if peak > config.white_cap_linear:
+                k *= config.white_cap_linear / peak
+    if k == 1.0:
+        return sh, sun_irr
+    return np.asarray(sh) * k, (None if sun_irr is None else np.asarray(sun_irr) * k)
 
 
 def _metadata_sun(ctx: _FrameContext, cam_from_world_given: bool) -> np.ndarray | None:
