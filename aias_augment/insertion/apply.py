@@ -6,12 +6,12 @@ plan give the same bytes.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .. import composite as comp
-from ..annotate import ObjectAnnotation, annotate_object
+from ..annotate import ObjectAnnotation, annotate_object, encode_rle
 from ..assets import Asset
 from ..geometry import Intrinsics, invert_rigid, transform_points, unproject_points
 from ..lighting.estimate import LightingEstimate
@@ -96,14 +96,13 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     wshape = (Y1 - Y0, X1 - X0)
     sdepth = None if depth is None else depth[Y0:Y1, X0:X1]
 
-    # Each object's layers in the common window; shading only where it covers a pixel.
+    # Each object shaded in its own window (only where it covers a pixel), then placed in the common window.
     layers = []
     for obj, roi, rl in rendered:
         alpha = _in_window(wshape, win, roi, rl.alpha)
         odepth = _in_window(wshape, win, roi, rl.depth)
-        albedo = _in_window(wshape, win, roi, rl.albedo_linear)
-        normals = _in_window(wshape, win, roi, rl.normals_in_cam)
-        shaded = shade_object(albedo, normals, alpha > 0, lighting)
+        shaded = _in_window(wshape, win, roi, shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0,
+                                                           lighting))
         layers.append((obj, alpha, odepth, shaded))
 
     bg = comp.to_linear(img[Y0:Y1, X0:X1])
@@ -142,11 +141,24 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
 
     annotations = []
     cover = np.zeros(full, np.float32)
-    for (obj, alpha, _, _), vis in zip(layers, vis_full):
-        annotations.append(annotate_object(obj.placement.category, _paste_window(full, win, alpha), vis))
+    for (obj, alpha, _, _), vis, vis_w in zip(layers, vis_full, vis_alphas):
+        annotations.append(_annotate_in_window(obj.placement.category, win, alpha, vis_w, vis))
         cover = np.maximum(cover, vis)
     return AppliedPlan(result, tuple(o.placement for o, _, _, _ in layers), tuple(annotations), cover, mods,
                        tuple(dropped))
+
+
+def _annotate_in_window(category: str, win: tuple, amodal_w: np.ndarray, visible_w: np.ndarray,
+                        visible_full: np.ndarray) -> ObjectAnnotation:
+    """:func:`annotate_object` of the full frame, computed on the window: boxes shifted by its origin, the RLE of
+    the full-frame visible mask (the same annotation, without scanning the whole frame for the boxes)."""
+    a = annotate_object(category, amodal_w, visible_w)
+
+    def shift(b):
+        return None if b is None else (b[0] + win[0], b[1] + win[1], b[2], b[3])
+
+    return replace(a, visible_box_xywh=shift(a.visible_box_xywh), amodal_box_xywh=shift(a.amodal_box_xywh),
+                   rle=encode_rle(visible_full > 0.5))
 
 
 def _in_window(wshape: tuple, win: tuple, roi: tuple, arr: np.ndarray, fill: float = 0.0) -> np.ndarray:
