@@ -23,7 +23,8 @@ from .sh import sh_irradiance
 __all__ = ["shade_object", "irradiance_at_normals", "fluorescent_gain", "FLUORESCENT_GAIN"]
 
 #: Luminance gain of a fully fluorescent-orange albedo: (255, 72, 18) reflects 0.26; x 1.6 = 0.41, mid-range of the
-#: daylight-fluorescent orange luminance factors (0.3-0.45).
+#: daylight-fluorescent orange luminance factors (0.3-0.45). Read at call time (1.0: off, as the realism report's
+#: "fixes off" arm sets it).
 FLUORESCENT_GAIN = 1.6
 
 
@@ -75,6 +76,6 @@ def shade_object(albedo_linear: np.ndarray, normals_in_cam: np.ndarray, mask: np
     E = irradiance_at_normals(n[m], lighting, vis)
     a = np.clip(albedo[m], 0.0, None)
     # the gain never lifts a channel above white's response (albedo 1): the saturation guard on white holds for it
-    a = np.minimum(a * fluorescent_gain(a)[:, None], np.maximum(a, 1.0))
+    a = np.minimum(a * fluorescent_gain(a, FLUORESCENT_GAIN)[:, None], np.maximum(a, 1.0))
     out[m] = a * E / np.pi
     return np.nan_to_num(out, nan=0.0, posinf=0.0).astype(np.float32)
