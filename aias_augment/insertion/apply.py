@@ -135,7 +135,8 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
 
     if cfg.harmonize:
         union = np.clip(np.maximum.reduce(vis_full), 0, 1).astype(np.float32)
-        result, mods["harmonize"] = _harmonize(result, union, cfg, np.random.default_rng(plan.harmonize_seed))
+        result, mods["harmonize"] = _harmonize(result, union, cfg, np.random.default_rng(plan.harmonize_seed),
+                                               within=win)
     else:
         mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
 
@@ -227,13 +228,15 @@ def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intri
     return sl.roi, (1.0 - (1.0 - ratio) * unoccluded).astype(np.float32)
 
 
-def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng) -> tuple[np.ndarray, str]:
+def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,
+               within: tuple[int, int, int, int] | None = None) -> tuple[np.ndarray, str]:
+    """``within``: a window (x0, y0, x1, y1) known to hold every masked pixel (None: the whole image)."""
     try:
         from ..harmonize import harmonize
     except ImportError as e:  # the harmonization package is optional at this stage of the pipeline
         return image, f"skipped: harmonizer unavailable ({e})"
     try:
-        win = _harmonize_window(mask, cfg)
+        win = _harmonize_window(mask, cfg, within)
         if win is None:
             return (harmonize(image, mask, method=cfg.harmonize_method, rng=rng,
                               test_time_views=cfg.harmonize_test_time_views), f"harmonized ({cfg.harmonize_method})")
@@ -247,7 +250,8 @@ def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng) -
         return image, f"skipped: {e}"
 
 
-def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig) -> tuple[int, int, int, int] | None:
+def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int, int, int, int] | None = None
+                      ) -> tuple[int, int, int, int] | None:
     """The window (x0, y0, x1, y1) in which the "fast" harmonizer gives the same bytes as on the whole image, or
     None (other methods use whole-image statistics or draw per pixel: they get the whole image).
 
@@ -263,10 +267,11 @@ def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig) -> tuple[int, int,
     if not DEFAULT_CHECKPOINTS["fast"].is_file():
         return None  # harmonize() raises the missing-checkpoint error with its training command
     ctx = max(TTA_CONTEXTS + (load_fast(DEFAULT_CHECKPOINTS["fast"]).cfg.context,))
-    ys, xs = np.nonzero(mask > 0)
+    ox, oy, ox1, oy1 = within if within is not None else (0, 0, mask.shape[1], mask.shape[0])
+    ys, xs = np.nonzero(mask[oy:oy1, ox:ox1] > 0)
     if len(xs) == 0:
         return None
-    bx0, by0, bx1, by1 = int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1
+    bx0, by0, bx1, by1 = int(xs.min()) + ox, int(ys.min()) + oy, int(xs.max()) + 1 + ox, int(ys.max()) + 1 + oy
     grow = int(np.ceil(ctx / 2 * max(bx1 - bx0, by1 - by0))) + 2
     h, w = mask.shape
     return max(0, bx0 - grow), max(0, by0 - grow), min(w, bx1 + grow), min(h, by1 + grow)

@@ -98,3 +98,7 @@ def test_fast_harmonizer_in_the_context_window_gives_the_whole_image_bytes():
         out, how = _harmonize(comp, mask, cfg, np.random.default_rng(0))
         assert "window" in how
         assert np.array_equal(out, whole)
+        ys, xs = np.nonzero(mask)  # the caller's window holding the mask (apply passes the objects' window)
+        within = (max(0, xs.min() - 3), max(0, ys.min() - 3), xs.max() + 4, ys.max() + 4)
+        assert _harmonize_window(mask, cfg, within) == win
+        assert np.array_equal(_harmonize(comp, mask, cfg, np.random.default_rng(0), within=within)[0], whole)
