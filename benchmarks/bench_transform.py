@@ -171,6 +171,55 @@ def _view_cache_summary(out: Path) -> str:
             f"{b['box_iou_median']:.3f}, MAD median {b['mad_median']:.1f} sRGB levels")
 
 
+#: Stages of one loader item, by the function that does them (cProfile cumulative time).
+WORKER_STAGES = {
+    "scene analysis (cache miss)": ("analyse.py", "analyse_scene"),
+    "plan (assets, placement)": ("plan.py", "plan_insertion"),
+    "view cache: render on a miss (GL)": ("view_cache.py", "render_view"),
+    "view cache in all (warp, and renders on misses)": ("view_cache.py", "render_from_view_cache"),
+    "shadow (projected)": ("apply.py", "_object_shadow_window"),
+    "shading": ("shading.py", "shade_object"),
+    "harmonize (fast)": ("apply.py", "_harmonize"),
+    "restore to the input dtype (validate)": ("validate.py", "restore"),
+    "whole item": ("bench_transform.py", "__getitem__"),
+}
+
+
+def worker_profile(paths, epochs: int) -> dict:
+    """What a loader worker spends per item, in this process (as a persistent worker: ``epochs`` epochs first,
+    then one profiled epoch): CPU ms per item by stage, and the view cache's hits and misses in the profiled epoch."""
+    import cProfile
+    import pstats
+
+    from aias_augment.insertion.view_cache import default_view_cache
+    tf = _compose(InsertObjects(categories=["traffic_cone"], preset="fast", p=0.5))
+    ds, plain = _Images(paths, tf), _Images(paths, None)
+    for _ in range(epochs):
+        for i in range(len(ds)):
+            ds[i]
+    vc = default_view_cache()
+    h0, m0 = vc.hits, vc.misses
+    c0 = time.process_time()
+    for i in range(len(plain)):
+        plain[i]
+    without_ms = 1000 * (time.process_time() - c0) / len(plain)
+    pr = cProfile.Profile(time.process_time)  # CPU time, as the per-item totals
+    c0 = time.process_time()
+    pr.enable()
+    for i in range(len(ds)):
+        ds[i]
+    pr.disable()
+    with_ms = 1000 * (time.process_time() - c0) / len(ds)
+    st = pstats.Stats(pr).stats
+    stages = {}
+    for name, (where, fn) in WORKER_STAGES.items():
+        tot = sum(v[3] for (f, _, func), v in st.items() if func == fn and where in f)
+        stages[name] = 1000 * tot / len(ds)
+    return {"items": len(ds), "warmup_epochs": epochs, "cpu_ms_per_item_without": without_ms,
+            "cpu_ms_per_item_with_profiled": with_ms, "stages_ms_per_item": stages,
+            "view_cache_hits": vc.hits - h0, "view_cache_misses": vc.misses - m0, "view_cache_entries": len(vc)}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rounds", type=int, default=8, help="timed calls per arm (interleaved)")
@@ -198,7 +247,8 @@ def main(argv=None) -> int:
             without = loader_rates(small, a.epochs, False, d)
             with_ins = loader_rates(small, a.epochs, True, d)
         loader = {"without_img_s": without, "with_img_s": with_ins,
-                  "ratio_per_epoch": [w / wo for w, wo in zip(with_ins, without)]}
+                  "ratio_per_epoch": [w / wo for w, wo in zip(with_ins, without)],
+                  "worker_profile": worker_profile(small, a.epochs - 1)}
     res = {"command": cmd, "machine": f"{os.cpu_count()} CPU cores, {platform.processor() or platform.machine()}",
            "loadavg_before": load_before, "loadavg_after": os.getloadavg(), "per_call": calls, "view_cache": view,
            "loader": loader}
@@ -240,6 +290,14 @@ def main(argv=None) -> int:
         for e, (wo, wi, r) in enumerate(zip(loader["without_img_s"], loader["with_img_s"],
                                             loader["ratio_per_epoch"])):
             lines.append(f"| {e + 1} | {wo:.1f} | {wi:.1f} | {r:.2f} |")
+        wp = loader["worker_profile"]
+        lines += ["", f"Where a worker's time goes (cProfile, in this process as a persistent worker: "
+                  f"{wp['warmup_epochs']} epochs, then one profiled epoch of {wp['items']} items; view cache in it: "
+                  f"{wp['view_cache_hits']} hits, {wp['view_cache_misses']} misses, {wp['view_cache_entries']} "
+                  f"views held). CPU per item: {wp['cpu_ms_per_item_without']:.1f} ms without insertion, "
+                  f"{wp['cpu_ms_per_item_with_profiled']:.1f} ms with it (profiled).", "",
+                  "| stage | CPU ms per item (cumulative, p=0.5 included) |", "|---|---:|"]
+        lines += [f"| {k} | {v:.1f} |" for k, v in wp["stages_ms_per_item"].items()]
     lines += ["", "Speed and accuracy per preset (ms from the table above; accuracy from the benchmarks named):", "",
               "| preset | cold ms (wall / CPU) | warm ms (wall / CPU) | object layers | edges | analysis | accuracy |",
               "|---|---|---|---|---|---|---|"]
