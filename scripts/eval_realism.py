@@ -52,10 +52,10 @@ STUDY_POOLS = {"study_inserted (n=200)": "out/study/cache/inserted/pool",
 
 # ------------------------------------------------------------------ generation
 
-def _study_cfg(cache_dir: str, n: int, overrides: dict | None = None):
+def _study_cfg(cache_dir: str, n: int, preset: str | None = None):
     from detection_eval.study import load_study_config
     cfg = load_study_config(REPO / ABLATION_CONFIG)
-    ic = dataclasses.replace(cfg.insertion, pool_size=n)
+    ic = dataclasses.replace(cfg.insertion, pool_size=n, **({"preset": preset} if preset else {}))
     return dataclasses.replace(cfg, cache_dir=cache_dir, insertion=ic, amounts=(n,))
 
 
@@ -63,7 +63,7 @@ def cmd_generate(args) -> None:
     from detection_eval import study
     from detection_eval.data import load_yolo_dir
 
-    cfg = _study_cfg(args.cache_dir, args.n)
+    cfg = _study_cfg(args.cache_dir, args.n, args.preset)
     train = load_yolo_dir(study.dataset_root(cfg), cfg.train_split, cfg.class_names)
     _, empty = study.thin_cone_images(train, cfg.keep_fraction, cfg.seeds[0])
     fixes = set(FIXES) if args.fixes is None else set(args.fixes)
@@ -367,6 +367,7 @@ def main(argv=None) -> None:
     g.add_argument("--cache-dir", default="out/realism/cache")
     g.add_argument("--fixes-off", action="store_true", help="issue-15 lighting/material fixes off (the 'before' arm)")
     g.add_argument("--fixes", nargs="*", choices=FIXES, help="only these issue-15 fixes on (default: all)")
+    g.add_argument("--preset", help="insertion preset instead of the study's (fast); harmonizer stays the study's")
     r = sub.add_parser("report")
     r.add_argument("--arms", nargs="+", default=["inserted", "naive_paste", "no_placement", "no_shadow",
                                                  "no_lighting", "no_harmonize"])
