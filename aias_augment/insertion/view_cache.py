@@ -93,7 +93,7 @@ class ViewCache:
     """Bounded LRU of :class:`CachedView` by :func:`view_key`, ``max_bytes`` of layers in memory. Counts ``hits``
     and ``misses`` (renders). Pickles empty (each DataLoader worker fills its own)."""
 
-    def __init__(self, max_bytes: int = 256 * 2**20, binning: ViewBinning = DEFAULT_BINNING):
+    def __init__(self, max_bytes: int = 128 * 2**20, binning: ViewBinning = DEFAULT_BINNING):
         if max_bytes < 0:
             raise ValueError(f"max_bytes must be >= 0, got {max_bytes}")
         self.max_bytes = int(max_bytes)
