@@ -59,3 +59,16 @@ def test_cnn_separates_a_colour_shift_through_its_augmentations():
     colour = np.stack([noise_img(40.0 if yy else 0.0) for yy in y])
     res = cnn_two_sample(colour, y, groups, rng, epochs=4)
     assert res.auc > 0.9
+
+
+def test_stratified_grouped_folds_keep_class_proportions_and_null_auc_unbiased():
+    # 100 groups of class 1 and 400 of class 0 (one class per group, as real vs inserted photos are): every fold
+    # gets 20 +- 1 and 80 +- 1 of them; and over many null draws the mean out-of-fold AUC stays at 0.5.
+    rng = np.random.default_rng(5)
+    groups = np.arange(500)
+    y = groups < 100
+    folds = grouped_folds(groups, 5, rng, y)
+    for k in range(5):
+        assert abs(int(y[folds == k].sum()) - 20) <= 1 and abs(int((~y)[folds == k].sum()) - 80) <= 1
+    aucs = [logistic_two_sample(rng.normal(size=(500, 4)), y, groups, rng).auc for _ in range(20)]
+    assert abs(np.mean(aucs) - 0.5) < 0.03
