@@ -87,15 +87,31 @@ def test_unknown_category_and_missing_mesh_fail_at_construction(tmp_path):
         InsertObjects(min_objects=3, max_objects=1)
 
 
-def test_mesh_in_centimetres_is_rescaled_with_a_warning(tmp_path, caplog):
-    mesh = trimesh.creation.box(extents=(45.0, 187.0, 30.0))   # a pedestrian-sized box in centimetres (OBJ: y up)
-    path = tmp_path / "pedestrian.obj"
+def _pedestrian_in_cm(tmp_path, suffix):
+    mesh = trimesh.creation.box(extents=(45.0, 187.0, 30.0))   # a pedestrian-sized box in centimetres (y up)
+    path = tmp_path / f"pedestrian{suffix}"
     mesh.export(path)
-    InsertObjects(categories=["person"], assets={"person": [str(path)]})   # a user's own category: accepted
+    return str(path)
+
+
+@pytest.mark.parametrize("suffix", [".obj", ".glb"])
+def test_mesh_in_centimetres_is_rescaled_with_a_warning(tmp_path, caplog, suffix):
+    path = _pedestrian_in_cm(tmp_path, suffix)
+    InsertObjects(categories=["person"], assets={"person": [path]})   # a user's own category: accepted
     with caplog.at_level(logging.WARNING):
-        asset = PathAssets({"person": [str(path)]}).sample("person", np.random.default_rng(0))
+        asset = PathAssets({"person": [path]}).sample("person", np.random.default_rng(0))
     assert abs(asset.height_m - 1.87) < 0.02
     assert "centimetres" in caplog.text and "1.87 m" in caplog.text
+
+
+@needs_data
+def test_users_pedestrian_in_centimetres_is_inserted_at_its_real_size(tmp_path):
+    """The issue's row: loaded as 187 m tall, every placement rejected, nothing counted. Now rescaled and placed."""
+    compose, tf = _compose(seed=2, categories=["person"], assets={"person": [_pedestrian_in_cm(tmp_path, ".glb")]})
+    out = compose(image=_image(), bboxes=[], category_ids=[], camera_k=K)
+    assert tf.counts.to_dict()["inserted"] == 1 and out["category_ids"] == ["person"]
+    placement = tf.last_record.placements[0]
+    assert 1.0 < placement.height_m < 2.5
 
 
 # ------------------------------------------------------------------------------------- calls (real renderer)
