@@ -356,6 +356,9 @@ def image_for_insertion(image) -> tuple[np.ndarray, "callable", str | None]:
 
     def restore(out_rgb: np.ndarray) -> np.ndarray:
         out_rgb = np.asarray(out_rgb)
+        if c == 3 and img.dtype == np.uint8:
+            # uint8 RGB: the output is already in the input's form (an unchanged pixel is the input's own bytes)
+            return np.ascontiguousarray(out_rgb)
         changed = np.any(out_rgb != rgb, axis=2)
         result = img.copy()
         if changed.any():
