@@ -42,7 +42,8 @@ from aias_augment.realism.two_sample import cnn_two_sample, logistic_two_sample 
 
 log = logging.getLogger("eval_realism")
 ABLATION_CONFIG = "configs/study/tracon_cones_ablations.yaml"
-SHEET_ORDER = ("inserted, fixes off", "inserted", "naive_paste", "no_harmonize", "study_inserted (n=200)",
+CONTROL = "control: same windows, backgrounds before insertion (no cone)"
+SHEET_ORDER = ("inserted, fixes off", "inserted", "naive_paste", CONTROL, "study_inserted (n=200)",
                "study_inserted_procedural (n=200)")
 FIXES = ("A", "F", "W")   # exposure anchor + sun tempering + saturation guard; fluorescent orange; road white balance
 STUDY_POOLS = {"study_inserted (n=200)": "out/study/cache/inserted/pool",
@@ -119,7 +120,22 @@ def _small_frame(img: np.ndarray, long_side: int = 320) -> np.ndarray:
                       interpolation=cv2.INTER_AREA) if s < 1 else img
 
 
-def crop_set(name: str, records, rng: np.random.Generator, cfg: CropConfig, copies: set | None = None) -> CropSet:
+def _background_of(pool_image: Path, background_dir: Path, max_side: int) -> np.ndarray:
+    """The empty road a pool image was made from (``NNNN_<background stem>__<arm>.jpg``), resized as the study's
+    generation resizes it before inserting."""
+    from detection_eval.data import read_image_rgb
+    stem = pool_image.stem.split("_", 1)[1].rsplit("__", 1)[0]
+    path = next(p for p in background_dir.iterdir() if p.stem == stem)
+    img = read_image_rgb(path)
+    s = min(1.0, max_side / max(img.shape[:2]))
+    return cv2.resize(img, (round(img.shape[1] * s), round(img.shape[0] * s)), interpolation=cv2.INTER_AREA) \
+        if s < 1 else img
+
+
+def crop_set(name: str, records, rng: np.random.Generator, cfg: CropConfig, copies: set | None = None,
+             backgrounds_from: tuple[Path, int] | None = None) -> CropSet:
+    """Normalised crops of every box of ``records``; with ``backgrounds_from`` = (folder of the empty roads, max
+    side), the same windows cut from the pool images' backgrounds before insertion (a control: no object at all)."""
     from detection_eval.data import read_image_rgb
     cs = CropSet(name)
     for rec in records:
@@ -128,7 +144,8 @@ def crop_set(name: str, records, rng: np.random.Generator, cfg: CropConfig, copi
             continue
         if not len(rec.labels):
             continue
-        img = read_image_rgb(rec.image_path)
+        img = read_image_rgb(rec.image_path) if backgrounds_from is None else \
+            _background_of(Path(rec.image_path), *backgrounds_from)
         crops, kept = object_crops(img, rec.boxes_xyxy, rng, cfg)
         road = not is_stock_photo(img)
         stats = box_colour_stats(img, rec.boxes_xyxy[kept])
@@ -234,6 +251,13 @@ def cmd_report(args) -> None:
     for name, folder in arms.items():
         pool = load_yolo_dir(folder, names=cfg.class_names)
         sets.append(crop_set(name, pool.records, np.random.default_rng([seed, 3]), ccfg, copies=common))
+    if "inserted" in arms:
+        # control: the inserted arm's crop windows on its backgrounds before insertion (same scenes, no cone); what
+        # separates these from real cone crops is the scene and the framing, not the object
+        pool = load_yolo_dir(arms["inserted"], names=cfg.class_names)
+        bg_dir = root / "images" / cfg.train_split
+        sets.append(crop_set(CONTROL, pool.records, np.random.default_rng([seed, 3]), ccfg, copies=common,
+                             backgrounds_from=(bg_dir, cfg.insertion.max_side_px)))
     if args.study_pools:
         for name, folder in STUDY_POOLS.items():
             if (REPO / folder / "done.json").exists():
