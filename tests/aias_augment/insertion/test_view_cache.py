@@ -101,11 +101,53 @@ def test_scaled_asset_shares_the_views_of_its_root():
     """A scaled asset at a scaled distance is the same view: one render serves both."""
     cache = ViewCache()
     a = box_asset(extents=(0.5, 0.4, 0.9))
+    cache.symmetry_order(a)  # once per asset: its probe views are renders too
+    m0, h0 = cache.misses, cache.hits
     render_from_view_cache(a, _pose(0.5, 8.0, 0.3), K, cache)
     T2 = _pose(0.5, 8.0, 0.3)
     T2[:3, 3] *= 1.5
     render_from_view_cache(a.scaled(1.5), T2, K, cache)
-    assert (cache.misses, cache.hits) == (1, 1)
+    assert (cache.misses - m0, cache.hits - h0) == (1, 1)
+
+
+def test_rotational_symmetry_order_from_the_rendered_views():
+    """A 0.5 x 0.4 box looks the same turned by 180 deg, a square one by 90 deg; the default cone (12-sided body on
+    a square base) by 90 deg; a procedural asset is never shared (each is new)."""
+    from aias_augment.insertion.view_cache import rotational_symmetry_order
+    assert rotational_symmetry_order(box_asset(extents=(0.5, 0.4, 0.9))) == 2
+    assert rotational_symmetry_order(box_asset(extents=(0.5, 0.5, 0.9))) == 4
+    try:
+        from aias_augment.assets import default_asset
+        cone = default_asset("traffic_cone")
+    except Exception:
+        cone = None
+    if cone is not None:
+        assert rotational_symmetry_order(cone) == 4
+    from aias_augment.bank.procedural import procedural_asset
+    assert rotational_symmetry_order(procedural_asset("traffic_cone", np.random.default_rng(0))) == 1
+
+
+@pytest.mark.parametrize("turns", [1, 2, 3])
+def test_a_symmetric_asset_turned_by_its_symmetry_uses_one_view_and_matches_the_full_render(turns):
+    """The square box (order 4) turned by 90 deg x ``turns``: the same cached view (one miss, then hits), and each
+    relit result matches its own full render as closely as the unturned pose does (<= 3 levels, box IoU >= 0.9)."""
+    a = box_asset(extents=(0.5, 0.5, 0.9))
+    cache = ViewCache()
+    assert cache.symmetry_order(a) == 4
+    yaw = 0.3
+    render_from_view_cache(a, _pose(0.5, 7.0, yaw), K, cache)
+    m0 = cache.misses
+    T = _pose(0.5, 7.0, yaw + turns * np.pi / 2)
+    roi, rl = render_from_view_cache(a, T, K, cache)
+    assert cache.misses == m0
+    roi_f, rl_f = render_object_window(a, T, K, ssaa=4)
+    win = (min(roi[0], roi_f[0]), min(roi[1], roi_f[1]), max(roi[2], roi_f[2]), max(roi[3], roi_f[3]))
+    light = _lighting()
+    c, al = _shaded_srgb(rl, win, roi, light)
+    f, al_f = _shaded_srgb(rl_f, win, roi_f, light)
+    both = (al > 0.5) & (al_f > 0.5)
+    assert _iou(_box(al > 0.5), _box(al_f > 0.5)) >= 0.9
+    assert np.abs(c - f)[both].mean() <= 3.0
 
 
 def test_poses_the_cache_does_not_cover_fall_back():
