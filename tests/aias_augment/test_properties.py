@@ -267,3 +267,56 @@ def test_pipeline_at_the_extremes_no_nan_no_box_outside(size, K, depth_kind, n_b
     _strict_json({k: rec[k] for k in ("annotations", "existing_visibility", "harmonize_seed", "lighting")})
     for p in rec["placements"]:
         _strict_json({k: v for k, v in p.items() if k != "contact_pixel"})
+
+
+# ------------------------------------------------------------------------------------ through the transform
+_NEEDS_DATA = pytest.mark.skipif(
+    not (__import__("aias_augment.config", fromlist=["data_root"]).data_root() / "meshes").exists(),
+    reason="shared data not present")
+
+
+@_NEEDS_DATA
+@_settings(10)
+@given(h=st.one_of(st.integers(1, 8), st.integers(96, 140)), w=st.one_of(st.integers(1, 8), st.integers(128, 180)),
+       dtype=st.sampled_from(["uint8", "uint16", "float16", "float32", "float32_255", "float32_nan", "int32"]),
+       channels=st.sampled_from([None, 1, 3, 4]),
+       K=st.one_of(st.none(), st.just("nan"), st.tuples(log_uniform(1.0, 1e5), st.floats(-100, 200),
+                                                         st.floats(-100, 200))),
+       depth=st.sampled_from([None, "ok", "zeros", "wrong shape"]), n_boxes=st.integers(0, 2),
+       seed=st.integers(0, 2**32 - 1))
+def test_the_transform_never_raises_and_keeps_shape_dtype_and_boxes_inside(h, w, dtype, channels, K, depth, n_boxes,
+                                                                           seed):
+    import albumentations as A
+
+    from aias_augment import InsertObjects
+    rng = np.random.default_rng(seed)
+    shape = (h, w) if channels is None else (h, w, channels)
+    road = _road(rng, h, w).astype(np.float64) / 255.0          # sky over a grey road, with noise
+    base = road.mean(axis=2) if channels is None else (road[..., :1] if channels == 1 else
+                                                      road if channels == 3 else np.dstack([road, road[..., :1]]))
+    img = {"uint8": (base * 255).astype(np.uint8), "uint16": (base * 65535).astype(np.uint16),
+           "float16": base.astype(np.float16), "float32": base.astype(np.float32),
+           "float32_255": (base * 255).astype(np.float32),
+           "float32_nan": np.where(rng.random(shape) < 0.05, np.nan, base).astype(np.float32),
+           "int32": (base * 255).astype(np.int32)}[dtype]
+    tf = InsertObjects(categories=["traffic_cone"], min_objects=1, max_objects=1, preset="fast", p=1.0)
+    compose = A.Compose([tf], bbox_params=A.BboxParams(format="coco", label_fields=["l"]), seed=seed % 1000)
+    data = {"image": img, "bboxes": [[0, 0, w, h]][:n_boxes] + [[0, 0, 1, 1]][: max(0, n_boxes - 1)]}
+    data["l"] = ["x"] * len(data["bboxes"])
+    if K == "nan":
+        data["camera_k"] = np.full((3, 3), np.nan)
+    elif K is not None:
+        data["camera_k"] = np.array([[K[0], 0, K[1]], [0, K[0], K[2]], [0, 0, 1]])
+    if depth is not None:
+        data["depth"] = {"ok": np.full((h, w), 8.0, np.float32), "zeros": np.zeros((h, w), np.float32),
+                         "wrong shape": np.ones((h + 1, w), np.float32)}[depth]
+    out = compose(**data)
+    assert out["image"].shape == img.shape and out["image"].dtype == img.dtype
+    assert len(out["bboxes"]) == len(out["l"])
+    for b in out["bboxes"]:
+        assert _box_inside(b, w, h)
+    c = tf.counts.to_dict()
+    assert c["calls"] == 1 and c["inserted"] + sum(c["skipped"].values()) + sum(c["nothing_inserted"].values()) == 1
+    json.dumps(c)
+    event("inserted" if c["inserted"] else f"skipped: {next(iter(c['skipped']), '')[:40]}" if c["skipped"]
+          else "nothing inserted")
