@@ -89,6 +89,41 @@ class InsertObjects(A.DualTransform):
         self.counts = TransformCounts()   # calls, insertions, skips and empty calls by reason (this process)
         self.last_record = None   # InsertionRecord of the latest call in this process (for debugging/replay)
 
+    def warm(self, images, camera_ks=None, depths=None) -> dict:
+        """Analyse ``images`` (an iterable of what the transform will be called with: arrays in any input format it
+        accepts) into the scene cache before training, so that no call pays a first analysis: with ``scene_cache``
+        (a folder) every DataLoader worker and later run reads them; without, only this process's LRU holds them.
+        ``camera_ks`` / ``depths``: per image, as the ``camera_k`` / ``depth`` targets (None: none).
+
+        Each image goes through the call's own path (:func:`aias_augment.working_resolution.insert_bounded` with
+        the scene cache, on a generator of its own), so the cached analysis is the one the call looks up (same
+        frame, same key); the insertion it makes is discarded and the transform's generator, counts and records
+        are untouched: warming changes when the analysis is computed, never what a call returns. Returns
+        ``{"images", "analysed", "already_cached", "skipped"}``."""
+        out = {"images": 0, "analysed": 0, "already_cached": 0, "skipped": 0}
+        cache = self._scene_cache
+        for i, image in enumerate(images):
+            out["images"] += 1
+            k = None if camera_ks is None else camera_ks[i]
+            d = None if depths is None else depths[i]
+            try:
+                rgb, _, _ = image_for_insertion(image)
+                h, w = rgb.shape[:2]
+                check_sample_targets({"camera_k": k, "depth": d}, h, w)
+            except SampleSkip:
+                out["skipped"] += 1
+                continue
+            before = cache.misses
+            try:
+                insert_bounded(rgb, None, None, np.random.default_rng(i), self.config, intrinsics=k, depth=d,
+                               bank=self._bank, scene_cache=cache, n_objects=0)
+            except Exception as e:  # as in a call: an odd image is skipped, not fatal
+                log.warning("warm: image %d skipped (%s)", i, e)
+                out["skipped"] += 1
+                continue
+            out["analysed" if cache.misses > before else "already_cached"] += 1
+        return out
+
     @property
     def skipped(self) -> int:
         """Images left unchanged because the sample was refused or insertion failed (``counts.skipped``: why)."""

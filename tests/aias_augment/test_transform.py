@@ -109,3 +109,23 @@ def test_scene_analysed_once_per_image_and_cache_never_changes_pixels(tmp_path):
     assert np.array_equal(a["image"], c["image"]) and np.array_equal(a["image"], fresh["image"])
     assert np.allclose(np.asarray(a["bboxes"]), np.asarray(fresh["bboxes"]))
     assert not np.array_equal(a["image"], b["image"])  # the second call is another sample, not a replay
+
+
+def test_warm_analyses_beforehand_and_changes_no_output(tmp_path):
+    """``warm`` puts each image's analysis in the scene cache (on disk: a new transform, as a DataLoader worker,
+    reads it), draws nothing from the transform's generator, and the calls after it return the bytes of a transform
+    that was never warmed."""
+    img = _image()
+    warmed = _compose(seed=11, scene_cache=str(tmp_path))
+    ins = warmed.transforms[0]
+    assert ins.warm([img, img], camera_ks=[K, K]) == {"images": 2, "analysed": 1, "already_cached": 1, "skipped": 0}
+    assert ins.counts.to_dict() == InsertObjects().counts.to_dict()  # no call counted
+    a = warmed(image=img, bboxes=[], category_ids=[], camera_k=K)
+    assert ins._scene_cache.misses == 1 and ins._scene_cache.hits >= 2  # the call found warm's analysis
+    worker = _compose(seed=11, scene_cache=str(tmp_path))
+    worker(image=img, bboxes=[], category_ids=[], camera_k=K)
+    assert worker.transforms[0]._scene_cache.disk_hits == 1 and worker.transforms[0]._scene_cache.misses == 0
+    fresh = _compose(seed=11)(image=img, bboxes=[], category_ids=[], camera_k=K)
+    assert np.array_equal(a["image"], fresh["image"])
+    assert np.allclose(np.asarray(a["bboxes"]), np.asarray(fresh["bboxes"]))
+    assert ins.warm([np.full((4, 4, 3), np.nan, np.float32)])["skipped"] == 1
