@@ -91,13 +91,15 @@ def soften_shadow(
     ppm = np.where(np.isfinite(ppm) & (ppm > 0), ppm, 0.0)
     sigma = np.clip(d * np.tan(alpha) * ppm, min_sigma_px, max_sigma_px)
     levels = np.geomspace(min_sigma_px, max_sigma_px, n_levels)
-    stack = np.stack([ndimage.gaussian_filter(s, sg, mode="nearest") for sg in levels], axis=0)
     # Per-pixel linear interpolation in log-sigma between the two enclosing levels.
     t = np.log(sigma / min_sigma_px) / np.log(max_sigma_px / min_sigma_px) * (n_levels - 1)
     lo = np.clip(np.floor(t).astype(int), 0, n_levels - 2)
     frac = np.clip(t - lo, 0.0, 1.0)
+    # Only the levels some pixel interpolates between are blurred (the same values: the others have weight 0).
+    first, last = int(lo.min()), int(lo.max()) + 1
+    stack = np.stack([ndimage.gaussian_filter(s, sg, mode="nearest") for sg in levels[first:last + 1]], axis=0)
     rows, cols = np.indices(s.shape)
-    out = stack[lo, rows, cols] * (1 - frac) + stack[lo + 1, rows, cols] * frac
+    out = stack[lo - first, rows, cols] * (1 - frac) + stack[lo + 1 - first, rows, cols] * frac
     return np.clip(out, s.min(), s.max()).astype(np.float32)
 
 
