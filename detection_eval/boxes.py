@@ -54,6 +54,19 @@ def aligned_iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return inter / (area_a + area_b - inter + IOU_EPS)
 
 
+def aligned_giou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Generalised IoU (Rezatofighi et al. 2019) of matching rows: ``IoU - (hull - union) / hull`` with ``hull`` the
+    smallest box enclosing both; in [-1, 1], and < 0 (with a gradient) when the boxes do not overlap. (*, 4) -> (*)."""
+    lt = torch.maximum(a[..., :2], b[..., :2])
+    rb = torch.minimum(a[..., 2:], b[..., 2:])
+    inter = (rb - lt).clamp(min=0).prod(-1)
+    area_a = (a[..., 2:] - a[..., :2]).clamp(min=0).prod(-1)
+    area_b = (b[..., 2:] - b[..., :2]).clamp(min=0).prod(-1)
+    union = area_a + area_b - inter + IOU_EPS
+    hull = (torch.maximum(a[..., 2:], b[..., 2:]) - torch.minimum(a[..., :2], b[..., :2])).clamp(min=0).prod(-1)
+    return inter / union - (hull - union) / (hull + IOU_EPS)
+
+
 @dataclass(frozen=True)
 class Letterbox:
     """Maps original image pixels to the letterboxed square: ``x_lb = x * scale + pad_x``."""

@@ -28,6 +28,7 @@ class ModelConfig:
                                      # and BatchNorm statistics (5 = everything up to stride 8; halves CPU step time)
     backbone_bn: str = "train"       # "frozen": every backbone BatchNorm keeps its ImageNet statistics and affine
                                      # (detectron2's FrozenBN; batch 8 is too small to re-estimate them)
+    shared_head: bool = False        # the head's 3x3 and prediction convs shared by all levels (BatchNorm per level)
 
     def __post_init__(self):
         if self.backbone not in BACKBONES:
@@ -49,9 +50,20 @@ class AssignerConfig:
     """SimOTA parameters (YOLOX defaults)."""
     center_radius: float = 2.5       # in strides: anchors within this radius of a gt centre are candidates
     candidate_topk: int = 10         # IoUs summed to give each gt its dynamic k
+    min_k: int = 1                   # each gt gets at least this many positives (among its anchors inside both the
+                                     # box and the centre region): early in a short run every predicted IoU is ~0
+                                     # and YOLOX's k of 1 leaves a gt a single positive
     iou_cost_weight: float = 3.0
     cls_cost_weight: float = 1.0
     outside_cost: float = 1.0e5      # added to anchors not both inside the box and inside the centre region
+
+
+    def __post_init__(self):
+        if self.min_k < 1 or self.candidate_topk < 1:
+            raise ValueError(f"min_k and candidate_topk must be >= 1, got {self.min_k}, {self.candidate_topk}")
+
+
+IOU_LOSSES = ("iou_squared", "iou", "giou")
 
 
 @dataclass(frozen=True)
@@ -59,6 +71,16 @@ class LossConfig:
     iou_weight: float = 5.0
     obj_weight: float = 1.0
     cls_weight: float = 1.0
+    l1_weight: float = 0.0           # YOLOX's L1 on (centre / stride, log size) of positives (YOLOX adds it for its
+                                     # last epochs; 0: off)
+    iou_type: str = "iou_squared"    # box loss on positives: YOLOX's 1 - IoU^2; 1 - IoU; or 1 - GIoU. 1 - IoU^2 has
+                                     # the gradient 2 IoU dIoU, which vanishes for the poor boxes of the first steps
+
+    def __post_init__(self):
+        if self.l1_weight < 0:
+            raise ValueError(f"l1_weight must be >= 0, got {self.l1_weight}")
+        if self.iou_type not in IOU_LOSSES:
+            raise ValueError(f"iou_type must be one of {IOU_LOSSES}, got {self.iou_type!r}")
 
 
 @dataclass(frozen=True)
@@ -80,8 +102,12 @@ class TrainConfig:
     lr: float = 2.0e-3
     min_lr_ratio: float = 0.05
     weight_decay: float = 5.0e-4
-    momentum: float = 0.9
+    momentum: float = 0.9            # SGD momentum; AdamW's beta1
+    adam_beta2: float = 0.999        # AdamW's second-moment decay: its memory (1 / (1 - beta2) steps) should be
+                                     # shorter than the run, or the large gradients of the first steps damp later ones
     warmup_iters: int = 30
+    head_lr_mult: float = 1.0       # the randomly initialised neck and head learn at lr * this, a pretrained
+                                    # backbone at lr (param groups; 1: one lr for all)
     ema: bool = True
     ema_decay: float = 0.99
     ema_tau: float = 50.0           # ema decay ramps as decay * (1 - exp(-updates / tau))
@@ -100,6 +126,10 @@ class TrainConfig:
             raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {self.optimizer!r}")
         if self.batch_size < 1 or self.max_iters < 1 or self.warmup_iters < 0:
             raise ValueError("batch_size and max_iters must be >= 1, warmup_iters >= 0")
+        if not 0 < self.adam_beta2 < 1:
+            raise ValueError(f"adam_beta2 must lie in (0, 1), got {self.adam_beta2}")
+        if self.head_lr_mult <= 0:
+            raise ValueError(f"head_lr_mult must be > 0, got {self.head_lr_mult}")
         if not 0 <= self.synthetic_fraction < 1:
             raise ValueError(f"synthetic_fraction must lie in [0, 1), got {self.synthetic_fraction}")
         if not 0 <= self.object_image_fraction < 1:

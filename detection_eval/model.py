@@ -56,22 +56,49 @@ class PAFPN(nn.Module):
         return [pan_out2, pan_out1, pan_out0]
 
 
+class LevelSharedConv(nn.Module):
+    """A 3x3 conv whose weights all levels share, with a BatchNorm per level (EfficientDet's shared head: the levels'
+    statistics differ, so one BatchNorm cannot serve them all), then SiLU."""
+
+    def __init__(self, channels: int, num_levels: int):
+        super().__init__()
+        self.conv = nn.Conv2d(channels, channels, 3, 1, 1, bias=False)
+        self.bns = nn.ModuleList([nn.BatchNorm2d(channels, eps=1e-3, momentum=0.1) for _ in range(num_levels)])
+        self.act = nn.SiLU(inplace=True)
+
+    def forward(self, x: torch.Tensor, level: int) -> torch.Tensor:
+        return self.act(self.bns[level](self.conv(x)))
+
+
 class DecoupledHead(nn.Module):
-    """Per level: 1x1 stem, then a classification branch and a regression branch (box + objectness)."""
+    """Per level: 1x1 stem, then a classification branch and a regression branch (box + objectness).
+
+    ``shared``: the branches' 3x3 convs and the prediction convs are shared by all levels (BatchNorm per level), as in
+    RetinaNet/FCOS; every level's positives then train the same weights, 3x the samples per weight in a short run.
+    Sizes are predicted in strides (``exp(raw) * stride``), so one regressor serves every level."""
 
     def __init__(self, in_channels: tuple[int, ...], num_classes: int, width: float, depthwise: bool,
-                 prior_prob: float):
+                 prior_prob: float, shared: bool = False):
         super().__init__()
         hidden = int(256 * width)
         Conv = conv_cls(depthwise)
+        levels = len(in_channels)
+        self.shared = shared
+        if shared and depthwise:
+            raise ValueError("a shared head is built from full 3x3 convs: depthwise must be false")
         self.stems = nn.ModuleList([BaseConv(c, hidden, 1, 1) for c in in_channels])
-        self.cls_convs = nn.ModuleList([nn.Sequential(Conv(hidden, hidden, 3), Conv(hidden, hidden, 3))
-                                        for _ in in_channels])
-        self.reg_convs = nn.ModuleList([nn.Sequential(Conv(hidden, hidden, 3), Conv(hidden, hidden, 3))
-                                        for _ in in_channels])
-        self.cls_preds = nn.ModuleList([nn.Conv2d(hidden, num_classes, 1) for _ in in_channels])
-        self.reg_preds = nn.ModuleList([nn.Conv2d(hidden, 4, 1) for _ in in_channels])
-        self.obj_preds = nn.ModuleList([nn.Conv2d(hidden, 1, 1) for _ in in_channels])
+        if shared:
+            self.cls_convs = nn.ModuleList([LevelSharedConv(hidden, levels) for _ in range(2)])
+            self.reg_convs = nn.ModuleList([LevelSharedConv(hidden, levels) for _ in range(2)])
+        else:
+            self.cls_convs = nn.ModuleList([nn.Sequential(Conv(hidden, hidden, 3), Conv(hidden, hidden, 3))
+                                            for _ in in_channels])
+            self.reg_convs = nn.ModuleList([nn.Sequential(Conv(hidden, hidden, 3), Conv(hidden, hidden, 3))
+                                            for _ in in_channels])
+        n_pred = 1 if shared else levels
+        self.cls_preds = nn.ModuleList([nn.Conv2d(hidden, num_classes, 1) for _ in range(n_pred)])
+        self.reg_preds = nn.ModuleList([nn.Conv2d(hidden, 4, 1) for _ in range(n_pred)])
+        self.obj_preds = nn.ModuleList([nn.Conv2d(hidden, 1, 1) for _ in range(n_pred)])
         bias = -math.log((1 - prior_prob) / prior_prob)
         for conv in list(self.cls_preds) + list(self.obj_preds):
             nn.init.constant_(conv.bias, bias)
@@ -81,8 +108,16 @@ class DecoupledHead(nn.Module):
         outs = []
         for i, x in enumerate(feats):
             x = self.stems[i](x)
-            c, r = self.cls_convs[i](x), self.reg_convs[i](x)
-            outs.append(torch.cat([self.reg_preds[i](r), self.obj_preds[i](r), self.cls_preds[i](c)], 1))
+            if self.shared:
+                c = r = x
+                for conv in self.cls_convs:
+                    c = conv(c, i)
+                for conv in self.reg_convs:
+                    r = conv(r, i)
+                j = 0
+            else:
+                c, r, j = self.cls_convs[i](x), self.reg_convs[i](x), i
+            outs.append(torch.cat([self.reg_preds[j](r), self.obj_preds[j](r), self.cls_preds[j](c)], 1))
         return outs
 
 
@@ -118,7 +153,8 @@ class Detector(nn.Module):
         self.backbone = build_backbone(m.backbone, m.depth, m.width, m.depthwise, m.pretrained, m.frozen_blocks,
                                        m.backbone_bn)
         self.neck = PAFPN(self.backbone.out_channels, m.depth, m.width, m.depthwise)
-        self.head = DecoupledHead(self.neck.out_channels, m.num_classes, m.width, m.depthwise, m.prior_prob)
+        self.head = DecoupledHead(self.neck.out_channels, m.num_classes, m.width, m.depthwise, m.prior_prob,
+                                  m.shared_head)
         self.register_buffer("mean", torch.tensor(IMAGENET_MEAN).view(1, 3, 1, 1), persistent=False)
         self.register_buffer("std", torch.tensor(IMAGENET_STD).view(1, 3, 1, 1), persistent=False)
 

@@ -2,7 +2,8 @@
 
 Steps: (1) candidate anchors lie inside a gt box or within ``center_radius`` strides of its centre; (2) the cost of
 pairing gt i with anchor j is ``cls_w * BCE(cls_prob, onehot) + iou_w * -log(IoU) + outside_cost * [not in box and
-centre region]``; (3) each gt gets ``k = max(1, floor(sum of its top-``candidate_topk`` IoUs))`` anchors of lowest cost;
+centre region]``; (3) each gt gets ``k = max(1, floor(sum of its top-``candidate_topk`` IoUs))`` anchors of lowest cost
+(raised to ``min_k``, at most the gt's anchors inside both box and centre region, when ``min_k > 1``);
 (4) an anchor claimed by several gts keeps the one of lowest cost. No gradients flow through the assignment.
 """
 from __future__ import annotations
@@ -87,6 +88,8 @@ def simota_assign(gt_boxes_xyxy: torch.Tensor, gt_classes: torch.Tensor, pred_bo
     cost = cfg.cls_cost_weight * cls_cost + cfg.iou_cost_weight * iou_cost + cfg.outside_cost * (~in_both).float()
 
     ks = dynamic_k(ious, cfg.candidate_topk)
+    if cfg.min_k > 1:
+        ks = torch.maximum(ks, in_both.sum(1).clamp(max=cfg.min_k))
     matching = torch.zeros_like(cost, dtype=torch.bool)
     for g in range(num_gt):
         k = min(int(ks[g]), cost.shape[1])

@@ -54,18 +54,23 @@ class ModelEMA:
 
 
 def build_optimizer(model: nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
-    """Weight decay on conv/linear weights only (not on BatchNorm or biases)."""
-    decay, no_decay = [], []
+    """Weight decay on conv/linear weights only (not on BatchNorm or biases). Parameters outside ``model.backbone``
+    (neck and head) get ``lr_scale = head_lr_mult``; the loop sets each group's lr to ``lr_at(it) * lr_scale``."""
+    backbone = getattr(model, "backbone", None)
+    in_backbone = {id(p) for p in backbone.parameters()} if backbone is not None else set()
+    buckets: dict[tuple[bool, bool], list] = {}
     for module in model.modules():
         for name, p in module.named_parameters(recurse=False):
             if not p.requires_grad:
                 continue
             is_weight = name == "weight" and not isinstance(module, nn.modules.batchnorm._BatchNorm)
-            (decay if is_weight else no_decay).append(p)
-    groups = [{"params": decay, "weight_decay": cfg.weight_decay}, {"params": no_decay, "weight_decay": 0.0}]
+            buckets.setdefault((id(p) in in_backbone, is_weight), []).append(p)
+    groups = [{"params": params, "weight_decay": cfg.weight_decay if is_weight else 0.0,
+               "lr_scale": 1.0 if is_backbone else cfg.head_lr_mult}
+              for (is_backbone, is_weight), params in sorted(buckets.items())]
     if cfg.optimizer == "sgd":
         return torch.optim.SGD(groups, lr=cfg.lr, momentum=cfg.momentum, nesterov=True)
-    return torch.optim.AdamW(groups, lr=cfg.lr, betas=(cfg.momentum, 0.999))
+    return torch.optim.AdamW(groups, lr=cfg.lr, betas=(cfg.momentum, cfg.adam_beta2))
 
 
 @dataclass(frozen=True)
@@ -77,6 +82,7 @@ class TrainResult:
     cache_seconds: float          # decoding and resizing the training images once
     images_per_second: float
     final_losses: dict
+    raw_model: Detector | None = None   # the optimised (non-EMA) weights when EMA is on, in eval mode
 
 
 def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
@@ -108,18 +114,19 @@ def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
     losses = {}
     for it in range(tc.max_iters):
         for g in optimizer.param_groups:
-            g["lr"] = lr_at(it, tc)
+            g["lr"] = lr_at(it, tc) * g["lr_scale"]
         images, targets = batches.batch(it)
         out = model(images.to(device), targets.to(device))
         if not torch.isfinite(out["loss"]):
             raise FloatingPointError(f"non-finite loss at iteration {it}: { {k: float(v) for k, v in out.items()} }")
         optimizer.zero_grad(set_to_none=True)
         out["loss"].backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+        grad_norm = torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
         optimizer.step()
         if ema is not None:
             ema.update(model)
         losses = {k: float(v.detach()) for k, v in out.items()}
+        losses["grad_norm"] = float(grad_norm)     # before clipping
         if log_fn is not None and (it % tc.log_every == 0 or it == tc.max_iters - 1):
             log_fn(f"iter {it}/{tc.max_iters} lr {lr_at(it, tc):.2e} " +
                    " ".join(f"{k} {v:.3f}" for k, v in losses.items()))
@@ -131,9 +138,10 @@ def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
     train_seconds = time.perf_counter() - t1
     final = ema.ema if ema is not None else model
     final.eval()
+    model.eval()
     seen = tc.max_iters * tc.batch_size
     return TrainResult(final, tc.max_iters, seen, train_seconds, cache_seconds, seen / max(train_seconds, 1e-9),
-                       losses)
+                       losses, model if ema is not None else None)
 
 
 def save_checkpoint(path: str | Path, model: Detector, category_names, meta: dict | None = None) -> None:

@@ -17,6 +17,14 @@ def test_conversions_round_trip():
     assert np.allclose(xyxy_to_xywh(b), [[10, 20, 20, 40]])
 
 
+def test_giou_known_values():
+    from detection_eval.boxes import aligned_giou
+    a = torch.tensor([[0.0, 0.0, 10.0, 10.0], [0.0, 0.0, 10.0, 10.0], [0.0, 0.0, 10.0, 10.0]])
+    b = torch.tensor([[0.0, 0.0, 10.0, 10.0], [5.0, 0.0, 15.0, 10.0], [20.0, 0.0, 30.0, 10.0]])
+    # identical: 1; half overlap: IoU 50/150, hull 150 = union -> 1/3; disjoint: 0 - (300 - 200) / 300 = -1/3
+    assert torch.allclose(aligned_giou(a, b), torch.tensor([1.0, 1 / 3, -1 / 3]), atol=1e-5)
+
+
 def test_iou_known_values():
     a = torch.tensor([[0.0, 0.0, 2.0, 2.0]])
     b = torch.tensor([[1.0, 1.0, 3.0, 3.0], [5.0, 5.0, 6.0, 6.0], [0.0, 0.0, 2.0, 2.0], [1.0, 1.0, 1.0, 1.0]])

@@ -47,6 +47,16 @@ def test_best_prediction_wins_single_gt():
     assert torch.allclose(a.matched_iou[0], torch.tensor(1.0), atol=1e-5)
 
 
+def test_min_k_raises_k_within_box_and_centre_only():
+    gt = torch.tensor([[0.0, 0.0, 32.0, 32.0]])                 # centre (16, 16), centre region +-20 at stride 8
+    centers, strides = _anchors([[12, 12], [20, 20], [28, 4], [34, 16]])   # 3 inside both; (34, 16) only in the centre
+    preds = torch.tensor([[0.0, 0.0, 4.0, 4.0]] * 4)            # poor boxes: IoU 1/64 each -> YOLOX's k = 1
+    probs = torch.full((4, 1), 0.5)
+    assert simota_assign(gt, torch.tensor([0]), preds, probs, centers, strides).num_fg == 1
+    a = simota_assign(gt, torch.tensor([0]), preds, probs, centers, strides, AssignerConfig(min_k=5))
+    assert a.fg_mask.tolist() == [True, True, True, False]      # capped at the 3 anchors inside box and centre
+
+
 def test_dynamic_k_two_positives_when_ious_high():
     gt = torch.tensor([[0.0, 0.0, 32.0, 32.0]])
     centers, strides = _anchors([[12, 12], [20, 20], [14, 18]])

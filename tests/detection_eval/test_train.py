@@ -22,6 +22,53 @@ def test_lr_schedule_warmup_then_cosine():
     assert all(lr_at(i, cfg) >= lr_at(i + 1, cfg) for i in range(10, 110))
 
 
+def test_head_lr_mult_scales_neck_and_head_groups_only():
+    from detection_eval.train import build_optimizer
+    cfg = DetectorConfig(model=ModelConfig(backbone="efficientnet_lite0", pretrained=False, frozen_blocks=3,
+                                           backbone_bn="frozen"),
+                         train=TrainConfig(lr=1e-3, head_lr_mult=4.0, weight_decay=5e-4))
+    from detection_eval.model import Detector
+    model = Detector.from_config(cfg)
+    opt = build_optimizer(model, cfg.train)
+    backbone = {id(p) for p in model.backbone.parameters()}
+    grouped = [p for g in opt.param_groups for p in g["params"]]
+    assert len(grouped) == len({id(p) for p in grouped}) == sum(p.requires_grad for p in model.parameters())
+    for g in opt.param_groups:
+        in_bb = {id(p) in backbone for p in g["params"]}
+        assert len(in_bb) == 1                                   # a group is all backbone or all neck/head
+        assert g["lr_scale"] == (1.0 if in_bb.pop() else 4.0)
+    with pytest.raises(ValueError):
+        TrainConfig(head_lr_mult=0.0)
+
+
+def test_shared_head_shares_weights_keeps_per_level_batchnorm_and_trains():
+    from detection_eval.losses import Targets
+    from detection_eval.model import Detector
+    cfg = DetectorConfig(model=ModelConfig(backbone="efficientnet_lite0", pretrained=False, shared_head=True))
+    model = Detector.from_config(cfg).train()
+    head = model.head
+    assert len(head.cls_preds) == len(head.reg_preds) == len(head.obj_preds) == 1
+    assert all(len(conv.bns) == 3 for conv in list(head.cls_convs) + list(head.reg_convs))
+    raw = model.raw_outputs(torch.rand(2, 3, 64, 64))
+    assert [tuple(r.shape) for r in raw] == [(2, 6, 8, 8), (2, 6, 4, 4), (2, 6, 2, 2)]
+    targets = Targets(torch.tensor([[[8.0, 8.0, 40.0, 48.0]], [[0.0, 0.0, 0.0, 0.0]]]),
+                      torch.zeros(2, 1, dtype=torch.long), torch.tensor([1, 0]))
+    model(torch.rand(2, 3, 64, 64), targets)["loss"].backward()
+    assert head.reg_convs[0].conv.weight.grad is not None and head.reg_preds[0].weight.grad is not None
+    with pytest.raises(ValueError):
+        Detector.from_config(DetectorConfig(model=ModelConfig(pretrained=False, shared_head=True, depthwise=True)))
+
+
+def test_detector_configs_load_and_unknown_keys_raise(tmp_path):
+    from detection_eval.config import load_detector_config
+    b = load_detector_config("lite0_320_b")
+    assert b.train.max_iters == 450 and b.train.batch_size == 8 and b.train.img_size == 320
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("train: {max_iters: 10, head_lr_multiplier: 2}\n")
+    with pytest.raises(KeyError, match="head_lr_multiplier"):
+        load_detector_config(bad)
+
+
 @pytest.mark.slow  # ~30-50 s on 2 busy CPU cores: a real training run is the only proof that the detector learns
 def test_overfit_tiny_set(tiny_yolo_dir, tmp_path):
     dataset = load_yolo_dir(tiny_yolo_dir)
