@@ -66,7 +66,8 @@ class InsertionResult:
 def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.random.Generator | None = None,
                       cfg: InsertionConfig = InsertionConfig(), *, intrinsics=None, depth=None,
                       meta: dict | None = None, min_visibility: float = 0.0, bank=None,
-                      n_objects: int | None = None, scene_cache: SceneCache | None = None) -> InsertionResult:
+                      n_objects: int | None = None, scene_cache: SceneCache | None = None,
+                      view_cache=None) -> InsertionResult:
     """Insert 1..k objects into ``image`` and return the new image, boxes and a replayable record.
 
     image: (H, W, 3) uint8 RGB. bboxes_xywh: (N, 4) COCO boxes already in the image, labels their labels.
@@ -77,6 +78,8 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
         :func:`aias_augment.lighting.estimate_lighting` ('lat', 'lon', 'utc', 'indoor', ...).
     scene_cache: where the scene analysis is looked up / kept (None: computed for this call only). The analysis
         draws from its own fixed-seed generator, so ``rng`` only drives the plan (objects, placements, harmonizer).
+    view_cache: the :class:`~aias_augment.insertion.view_cache.ViewCache` of ``render_method="view_cache"`` (None:
+        the process-wide one); like the scene cache it changes when views are rendered, never the pixels.
     """
     if rng is None:
         raise ValueError("insert_into_image needs an explicit numpy Generator (rng) for reproducibility")
@@ -101,7 +104,7 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
     existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
     plan = plan_insertion(analysis, cfg, rng, existing_boxes_xyxy=existing_xyxy, depth=depth, meta=meta,
                           bank=bank, n_objects=n_objects)
-    applied = apply_plan(frame, analysis, plan, cfg)
+    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
 
     record = InsertionRecord(list(applied.placements), list(applied.annotations), analysis.lighting,
                              {**analysis.modules, **plan.modules, **applied.modules},

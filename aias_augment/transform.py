@@ -16,6 +16,7 @@ analysed and planned at 2 MP and rendered at full size (:mod:`aias_augment.worki
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 from typing import Any
 
 import albumentations as A
@@ -24,9 +25,10 @@ from albumentations.core.bbox_utils import convert_bboxes_from_albumentations, d
 
 from .assets import PathAssets
 from .insertion.cache import SceneCache
+from .insertion.view_cache import ViewCache
 from .pipeline import PRESETS, InsertionConfig, load_preset
 from .validate import SampleSkip, TransformCounts, check_categories, check_sample_targets, image_for_insertion
-from .working_resolution import insert_bounded
+from .working_resolution import ANALYSIS_MAX_PIXELS, insert_bounded
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +46,8 @@ class InsertObjects(A.DualTransform):
         scene_cache: a folder for scene analyses (camera, ground, region, lighting) shared by all workers and runs;
             None: only the in-process cache. Either way an image seen again (same bytes, K, depth) is not analysed
             again: the analysis is cached by content in an LRU of ``scene_cache_items`` entries in each process.
+            With a folder, the fast preset's asset views are kept in ``scene_cache/views`` too (by asset content
+            and view bin): a view one worker rendered is read by the others. See :meth:`warm`.
         p: probability of applying.
 
     Attributes:
@@ -86,21 +90,29 @@ class InsertObjects(A.DualTransform):
         self.scene_cache = None if scene_cache is None else str(scene_cache)
         self.scene_cache_items = int(scene_cache_items)
         self._scene_cache = SceneCache(self.scene_cache_items, self.scene_cache)
+        # The view cache of the fast preset: on disk beside the scene analyses when there is a folder; else the
+        # process-wide one (shared by every transform of the process).
+        self._view_cache = None if scene_cache is None else ViewCache(directory=Path(scene_cache) / "views")
         self.counts = TransformCounts()   # calls, insertions, skips and empty calls by reason (this process)
         self.last_record = None   # InsertionRecord of the latest call in this process (for debugging/replay)
 
-    def warm(self, images, camera_ks=None, depths=None) -> dict:
+    def warm(self, images, camera_ks=None, depths=None, view_plans: int = 0) -> dict:
         """Analyse ``images`` (an iterable of what the transform will be called with: arrays in any input format it
         accepts) into the scene cache before training, so that no call pays a first analysis: with ``scene_cache``
         (a folder) every DataLoader worker and later run reads them; without, only this process's LRU holds them.
         ``camera_ks`` / ``depths``: per image, as the ``camera_k`` / ``depth`` targets (None: none).
+        ``view_plans``: with the fast preset, also draw that many plans per image (on generators of their own, so
+        from the planner's own distribution of assets and poses) and render the views their objects use into the
+        view cache (``scene_cache/views`` with a folder: every worker reads them; else this process's), so that
+        the calls find most views cached. Only images of at most 2 MP (larger ones are analysed, their views not).
 
         Each image goes through the call's own path (:func:`aias_augment.working_resolution.insert_bounded` with
         the scene cache, on a generator of its own), so the cached analysis is the one the call looks up (same
         frame, same key); the insertion it makes is discarded and the transform's generator, counts and records
-        are untouched: warming changes when the analysis is computed, never what a call returns. Returns
-        ``{"images", "analysed", "already_cached", "skipped"}``."""
-        out = {"images": 0, "analysed": 0, "already_cached": 0, "skipped": 0}
+        are untouched: warming changes when the analysis (and a view) is computed, never what a call returns.
+        Returns ``{"images", "analysed", "already_cached", "skipped", "views_rendered", "views_cached"}``."""
+        out = {"images": 0, "analysed": 0, "already_cached": 0, "skipped": 0, "views_rendered": 0,
+               "views_cached": 0}
         cache = self._scene_cache
         for i, image in enumerate(images):
             out["images"] += 1
@@ -122,7 +134,27 @@ class InsertObjects(A.DualTransform):
                 out["skipped"] += 1
                 continue
             out["analysed" if cache.misses > before else "already_cached"] += 1
+            if view_plans and self.config.render_method == "view_cache" and h * w <= ANALYSIS_MAX_PIXELS:
+                self._warm_views(rgb, k, d, view_plans, i, out)
         return out
+
+    def _warm_views(self, rgb, k, d, view_plans: int, i: int, out: dict) -> None:
+        from .geometry import Intrinsics
+        from .insertion.plan import plan_insertion
+        from .insertion.view_cache import default_view_cache, render_from_view_cache
+        from .scene import Frame
+        h, w = rgb.shape[:2]
+        intr = None if k is None else Intrinsics.from_matrix(np.asarray(k, float), w, h)
+        depth = None if d is None else np.asarray(d, np.float32)
+        analysis = self._scene_cache.get(Frame(rgb, intr, depth=depth, meta={}), self.config)
+        vc = self._view_cache if self._view_cache is not None else default_view_cache()
+        for j in range(view_plans):
+            plan = plan_insertion(analysis, self.config, np.random.default_rng([i, j, 1]), depth=depth,
+                                  bank=self._bank)
+            for o in plan.objects:
+                m0 = vc.misses
+                if render_from_view_cache(o.asset, o.cam_from_object, analysis.intrinsics, vc) is not None:
+                    out["views_rendered" if vc.misses > m0 else "views_cached"] += 1
 
     @property
     def skipped(self) -> int:
@@ -162,7 +194,7 @@ class InsertObjects(A.DualTransform):
             res = insert_bounded(
                 rgb, existing_xywh, list(range(n_existing)), self.random_generator, self.config,
                 intrinsics=data.get("camera_k"), depth=data.get("depth"), min_visibility=min_vis, bank=self._bank,
-                scene_cache=self._scene_cache,
+                scene_cache=self._scene_cache, view_cache=self._view_cache,
             )
         except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
             self.counts.skip(e, log)

@@ -67,8 +67,8 @@ def _nearest(a: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 def insert_bounded(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.random.Generator | None = None,
                    cfg: InsertionConfig = InsertionConfig(), *, intrinsics=None, depth=None, meta: dict | None = None,
                    min_visibility: float = 0.0, bank=None, n_objects: int | None = None,
-                   scene_cache: SceneCache | None = None, max_pixels: int | None = ANALYSIS_MAX_PIXELS
-                   ) -> InsertionResult:
+                   scene_cache: SceneCache | None = None, max_pixels: int | None = ANALYSIS_MAX_PIXELS,
+                   view_cache=None) -> InsertionResult:
     """:func:`insert_into_image` with the analysis and the plan at <= ``max_pixels`` (see the module docstring);
     same arguments, same result type, the result at the input's full size. ``max_pixels`` None: no bound."""
     img = np.asarray(image)
@@ -78,7 +78,7 @@ def insert_bounded(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.ran
     if not max_pixels or H * W <= max_pixels:
         return insert_into_image(img, bboxes_xywh, labels, rng, cfg, intrinsics=intrinsics, depth=depth, meta=meta,
                                  min_visibility=min_visibility, bank=bank, n_objects=n_objects,
-                                 scene_cache=scene_cache)
+                                 scene_cache=scene_cache, view_cache=view_cache)
     if rng is None:
         raise ValueError("insert_bounded needs an explicit numpy Generator (rng) for reproducibility")
     boxes = np.zeros((0, 4)) if bboxes_xywh is None else np.asarray(bboxes_xywh, float).reshape(-1, 4)
@@ -124,7 +124,7 @@ def insert_bounded(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.ran
 
     plan = replace(plan, objects=tuple(PlannedObject(full_px(o.placement), o.asset) for o in plan.objects))
     frame = Frame(img, full_intr, depth=depth, meta=meta)
-    applied = apply_plan(frame, analysis, plan, cfg)
+    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
 
     # As insert_into_image assembles its result.
     record = InsertionRecord(list(applied.placements), list(applied.annotations), analysis.lighting,

@@ -250,6 +250,10 @@ def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,
         return image, f"skipped: {e}"
 
 
+#: The fast harmonizer's largest context factor per checkpoint version (read once, not at every call).
+_FAST_CONTEXT: dict = {}
+
+
 def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int, int, int, int] | None = None
                       ) -> tuple[int, int, int, int] | None:
     """The window (x0, y0, x1, y1) in which the "fast" harmonizer gives the same bytes as on the whole image, or
@@ -266,7 +270,12 @@ def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int,
     from ..harmonize.fast import TTA_CONTEXTS, load_fast
     if not DEFAULT_CHECKPOINTS["fast"].is_file():
         return None  # harmonize() raises the missing-checkpoint error with its training command
-    ctx = max(TTA_CONTEXTS + (load_fast(DEFAULT_CHECKPOINTS["fast"]).cfg.context,))
+    path = DEFAULT_CHECKPOINTS["fast"]
+    st = path.stat()
+    key = (str(path), st.st_mtime_ns, st.st_size)  # the checkpoint's version, as load_fast keys it
+    if key not in _FAST_CONTEXT:
+        _FAST_CONTEXT[key] = max(TTA_CONTEXTS + (load_fast(path).cfg.context,))
+    ctx = _FAST_CONTEXT[key]
     ox, oy, ox1, oy1 = within if within is not None else (0, 0, mask.shape[1], mask.shape[0])
     ys, xs = np.nonzero(mask[oy:oy1, ox:ox1] > 0)
     if len(xs) == 0:

@@ -28,7 +28,10 @@ default: the error is what the issue bounds, the warm-up is paid once per proces
 
 The cache (:class:`ViewCache`) is a bounded LRU in memory (bytes, not entries), per process; like the scene cache it
 never changes what is computed, only when: a view is a deterministic render of (asset, bin), so a hit and a miss
-give the same bytes.
+give the same bytes. With a ``directory`` (``InsertObjects(scene_cache=DIR)`` puts it in ``DIR/views``) the views
+are also kept on disk, by the asset's content digest (:func:`asset_digest`: meshes, normals, UVs, textures,
+materials, binning, package version) and bin, so that every DataLoader worker and later run reads a view one of them
+rendered (and ``InsertObjects.warm`` can render them beforehand); a view read from disk is the same array.
 
 Rotationally symmetric assets (:func:`rotational_symmetry_order`: the mesh, its normals and its texture colours map
 onto themselves under a turn of 360/n deg about the up axis, n dividing the azimuth bins) share one sector of views:
@@ -38,9 +41,15 @@ n = 4: 12 azimuth bins instead of 48, so a training loop's cache warms 4x sooner
 """
 from __future__ import annotations
 
+import hashlib
+import io
+import json
+import logging
 import math
+import os
 from collections import OrderedDict
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -49,8 +58,10 @@ from ..assets import Asset
 from ..geometry import Intrinsics, make_rigid
 from ..render import RenderLayers, render_object_window
 
+log = logging.getLogger(__name__)
+
 __all__ = ["ViewBinning", "DEFAULT_BINNING", "CachedView", "ViewCache", "default_view_cache", "view_key",
-           "render_from_view_cache", "rotational_symmetry_order"]
+           "render_from_view_cache", "rotational_symmetry_order", "asset_digest"]
 
 
 @dataclass(frozen=True)
@@ -99,11 +110,15 @@ class ViewCache:
     """Bounded LRU of :class:`CachedView` by :func:`view_key`, ``max_bytes`` of layers in memory. Counts ``hits``
     and ``misses`` (renders). Pickles empty (each DataLoader worker fills its own)."""
 
-    def __init__(self, max_bytes: int = 128 * 2**20, binning: ViewBinning = DEFAULT_BINNING):
+    def __init__(self, max_bytes: int = 128 * 2**20, binning: ViewBinning = DEFAULT_BINNING,
+                 directory: str | Path | None = None):
         if max_bytes < 0:
             raise ValueError(f"max_bytes must be >= 0, got {max_bytes}")
         self.max_bytes = int(max_bytes)
         self.binning = binning
+        self.directory = None if directory is None else Path(directory)
+        self.disk_hits = 0
+        self._digests: dict[int, tuple[str, Asset]] = {}
         self._lru: OrderedDict[tuple, tuple[CachedView, Asset]] = OrderedDict()
         self.nbytes = 0
         self.hits = self.misses = 0
@@ -113,7 +128,8 @@ class ViewCache:
         state = self.__dict__.copy()
         state["_lru"] = OrderedDict()
         state["_symmetry"] = {}
-        state["nbytes"] = state["hits"] = state["misses"] = 0
+        state["_digests"] = {}
+        state["nbytes"] = state["hits"] = state["misses"] = state["disk_hits"] = 0
         return state
 
     def __len__(self) -> int:
@@ -125,8 +141,52 @@ class ViewCache:
         if got is None or got[1] is not root:
             if len(self._symmetry) > 256:  # procedural assets are new objects each time: keep the memo bounded
                 self._symmetry.clear()
-            got = self._symmetry[id(root)] = (rotational_symmetry_order(root, self.binning, self), root)
+            folder = self._asset_folder(root)
+            order = None
+            if folder is not None and (folder / "symmetry.json").exists():
+                try:
+                    order = int(json.loads((folder / "symmetry.json").read_text())["order"])
+                except (OSError, ValueError, KeyError):
+                    order = None
+            if order is None:
+                order = rotational_symmetry_order(root, self.binning, self)
+                if folder is not None:
+                    _write_atomic(folder / "symmetry.json", json.dumps({"order": order}).encode())
+            got = self._symmetry[id(root)] = (order, root)
         return got[0]
+
+    def _asset_folder(self, root: Asset) -> Path | None:
+        """``directory / asset_digest(root)``, or None (no directory, or a procedural asset: each is new)."""
+        if self.directory is None or root.procedural:
+            return None
+        got = self._digests.get(id(root))
+        if got is None or got[1] is not root:
+            if len(self._digests) > 256:
+                self._digests.clear()
+            got = self._digests[id(root)] = (asset_digest(root, self.binning), root)
+        return self.directory / got[0]
+
+    def _read(self, root: Asset, key: tuple) -> CachedView | None:
+        folder = self._asset_folder(root)
+        p = None if folder is None else folder / ("_".join(map(str, key)) + ".npz")
+        if p is None or not p.exists():
+            return None
+        try:
+            with np.load(p) as z:
+                return CachedView(np.ascontiguousarray(z["premultiplied"]), tuple(int(v) for v in z["roi"]),
+                                  z["K_view"], float(z["distance"]))
+        except Exception as e:  # a damaged or partly written file: render again (and overwrite)
+            log.info("view cache: %s not used (%s)", p, e)
+            return None
+
+    def _write(self, root: Asset, key: tuple, view: CachedView) -> None:
+        folder = self._asset_folder(root)
+        if folder is None:
+            return
+        buf = io.BytesIO()
+        np.savez(buf, premultiplied=view.premultiplied, roi=np.array(view.roi), K_view=view.K_view,
+                 distance=np.float64(view.distance))
+        _write_atomic(folder / ("_".join(map(str, key)) + ".npz"), buf.getvalue())
 
     def get(self, root: Asset, key: tuple) -> CachedView:
         """The view of ``root`` (an unscaled asset) for ``key`` (from :func:`view_key`), rendered on a miss."""
@@ -140,8 +200,13 @@ class ViewCache:
             self._lru.move_to_end(full_key)
             self.hits += 1
             return hit[0]
-        self.misses += 1
-        view = render_view(root, key, self.binning)
+        view = self._read(root, key)
+        if view is not None:
+            self.disk_hits += 1
+        else:
+            self.misses += 1
+            view = render_view(root, key, self.binning)
+            self._write(root, key, view)
         if view.nbytes <= self.max_bytes:
             self._lru[full_key] = (view, root)
             self.nbytes += view.nbytes
@@ -149,6 +214,55 @@ class ViewCache:
                 _, (old, _) = self._lru.popitem(last=False)
                 self.nbytes -= old.nbytes
         return view
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file (readers never see half a file); an unwritable disk is
+    logged, not raised (the in-memory cache still works)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+        tmp.write_bytes(data)
+        tmp.replace(path)
+    except OSError as e:
+        log.warning("view cache: cannot write %s (%s)", path, e)
+
+
+#: Bump when what a view holds or how it is rendered changes (old folders are then not read).
+VIEW_FORMAT = 1
+
+
+def asset_digest(asset: Asset, binning: ViewBinning = DEFAULT_BINNING) -> str:
+    """A content digest of what a view of ``asset`` depends on: every mesh's vertices, triangles, vertex normals,
+    UVs and visual (texture pixels, material colours, vertex/face colours), the binning, :data:`VIEW_FORMAT` and the
+    package version. Two assets with the same digest render the same views."""
+    from .. import __version__
+    h = hashlib.sha256(f"{VIEW_FORMAT}|{__version__}|{binning}".encode())
+    for m in asset.meshes:
+        for arr in (m.vertices, m.faces, m.vertex_normals):
+            a = np.ascontiguousarray(arr)
+            h.update(str((a.dtype, a.shape)).encode())
+            h.update(a.tobytes())
+        vis = m.visual
+        h.update(type(vis).__name__.encode())
+        uv = getattr(vis, "uv", None)
+        if uv is not None:
+            h.update(np.ascontiguousarray(uv, np.float64).tobytes())
+        for name in ("vertex_colors", "face_colors"):
+            if getattr(vis, "kind", None) in ("vertex", "face") and name[:4] == vis.kind[:4]:
+                h.update(np.ascontiguousarray(getattr(vis, name)).tobytes())
+        mat = getattr(vis, "material", None)
+        if mat is not None:
+            for name in ("baseColorFactor", "diffuse", "ambient", "specular", "glossiness", "metallicFactor",
+                         "roughnessFactor", "emissiveFactor", "alphaMode", "doubleSided"):
+                v = getattr(mat, name, None)
+                h.update(f"{name}={None if v is None else np.asarray(v).tolist()}".encode())
+            for name in ("baseColorTexture", "image"):
+                img = getattr(mat, name, None)
+                if img is not None:
+                    h.update(f"{name}:{img.mode}:{img.size}".encode())
+                    h.update(img.tobytes())
+    return h.hexdigest()[:32]
 
 
 _DEFAULT: dict = {}

@@ -118,7 +118,8 @@ def test_warm_analyses_beforehand_and_changes_no_output(tmp_path):
     img = _image()
     warmed = _compose(seed=11, scene_cache=str(tmp_path))
     ins = warmed.transforms[0]
-    assert ins.warm([img, img], camera_ks=[K, K]) == {"images": 2, "analysed": 1, "already_cached": 1, "skipped": 0}
+    assert ins.warm([img, img], camera_ks=[K, K]) == {"images": 2, "analysed": 1, "already_cached": 1, "skipped": 0,
+                                                      "views_rendered": 0, "views_cached": 0}
     assert ins.counts.to_dict() == InsertObjects().counts.to_dict()  # no call counted
     a = warmed(image=img, bboxes=[], category_ids=[], camera_k=K)
     assert ins._scene_cache.misses == 1 and ins._scene_cache.hits >= 2  # the call found warm's analysis
@@ -129,3 +130,19 @@ def test_warm_analyses_beforehand_and_changes_no_output(tmp_path):
     assert np.array_equal(a["image"], fresh["image"])
     assert np.allclose(np.asarray(a["bboxes"]), np.asarray(fresh["bboxes"]))
     assert ins.warm([np.full((4, 4, 3), np.nan, np.float32)])["skipped"] == 1
+
+
+def test_warm_with_view_plans_renders_views_the_calls_then_read(tmp_path):
+    """``warm(..., view_plans=n)`` renders views into ``scene_cache/views``; a worker-like transform on the same
+    folder reads views from there, and its output equals a transform's that has neither cache."""
+    img = _image()
+    warmed = _compose(seed=11, scene_cache=str(tmp_path))
+    got = warmed.transforms[0].warm([img], camera_ks=[K], view_plans=4)
+    assert got["views_rendered"] >= 1 and got["analysed"] == 1
+    assert warmed.transforms[0]._scene_cache.misses == 1  # the views' plans used the cached analysis
+    assert any((tmp_path / "views").rglob("*.npz"))
+    worker = _compose(seed=11, scene_cache=str(tmp_path))
+    a = worker(image=img, bboxes=[], category_ids=[], camera_k=K)
+    fresh = _compose(seed=11)(image=img, bboxes=[], category_ids=[], camera_k=K)
+    assert np.array_equal(a["image"], fresh["image"])
+    assert np.allclose(np.asarray(a["bboxes"]), np.asarray(fresh["bboxes"]))

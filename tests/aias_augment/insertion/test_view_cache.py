@@ -232,3 +232,26 @@ def test_fast_preset_same_bytes_across_processes_hash_seeds_and_cache_states():
     assert outs[0][:2] == ["view", "cache"]
     assert len(outs[1]) == len(outs[0])  # one hash each: the three calls of the second process agree
     assert outs[0] == outs[1]
+
+
+def test_views_on_disk_are_read_by_another_cache_without_gl(tmp_path, monkeypatch):
+    """A cache with a directory writes each view it renders (and the asset's symmetry order); a new cache on the
+    same folder (another worker) reads them, makes no GL call, and returns the same layers."""
+    import aias_augment.render as render
+    a = box_asset(extents=(0.5, 0.4, 0.9))
+    first = ViewCache(directory=tmp_path)
+    poses = [_pose(0.5, 8.0, 0.3), _pose(-1.0, 6.0, 2.0)]
+    ref = [render_from_view_cache(a, T, K, first) for T in poses]
+    assert first.misses >= 2 and any(tmp_path.rglob("*.npz")) and any(tmp_path.rglob("symmetry.json"))
+
+    def no_gl(*args, **kw):
+        raise AssertionError("GL call although the views are on disk")
+
+    monkeypatch.setattr(render, "_renderer", no_gl)
+    other = ViewCache(directory=tmp_path)
+    got = [render_from_view_cache(box_asset(extents=(0.5, 0.4, 0.9)), T, K, other) for T in poses]  # a new object
+    assert other.misses == 0 and other.disk_hits == 2
+    for (r0, l0), (r1, l1) in zip(ref, got):
+        assert r0 == r1
+        for f in ("albedo_linear", "alpha", "depth", "normals_in_cam"):
+            assert np.array_equal(getattr(l0, f), getattr(l1, f))
