@@ -6,6 +6,7 @@ Units are read from the file, never guessed: COLLADA ``<unit meter=...>`` and ``
 """
 from __future__ import annotations
 
+import copy
 import logging
 import re
 import xml.etree.ElementTree as ET
@@ -92,11 +93,11 @@ class Asset:
         """Uniformly scaled copy about the contact point (origin); stays on z = 0."""
         if not np.isfinite(factor) or factor <= 0:
             raise AssetError(f"scale factor must be positive and finite, got {factor}")
-        meshes = []
-        for m in self.meshes:
-            c = m.copy(include_cache=True)  # keeps explicitly given vertex normals
-            c.apply_scale(factor)
-            meshes.append(c)
+        # New vertices, shared faces, normals (a uniform scale keeps unit normals: the given ones, no recompute at a
+        # seam) and a shallow copy of the visual (the texture is not copied: ~0.5 ms instead of ~3-9 ms per call).
+        meshes = [trimesh.Trimesh(vertices=np.asarray(m.vertices) * float(factor), faces=m.faces,
+                                  vertex_normals=m.vertex_normals, visual=copy.copy(m.visual), process=False)
+                  for m in self.meshes]
         root = self.render_root if self.render_root is not None else self
         return Asset(self.name, self.category, tuple(meshes), self.source, self.licence, self.procedural,
                      {**self.meta, "scale": self.meta.get("scale", 1.0) * factor}, root,
