@@ -19,6 +19,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..config import from_dict
+from .color import to_float, to_uint8
 from .network import CHECKPOINT_FORMAT, POOL_EPS, load_model, masked_stats, network_inputs, to_tensor
 from .regions import components, context_box, mask_box, resize
 
@@ -186,4 +187,29 @@ def run_fast(model: FastColorNet, image_float: np.ndarray, mask_bool: np.ndarray
     for comp in components(mask_bool):
         a = predict_affine_tta(model, image_float, comp) if tta else predict_affine(model, image_float, comp)
         out[comp] = apply_affine_np(out[comp], a)
+    return out
+
+
+@torch.no_grad()
+def harmonize_fast_masked(model: FastColorNet, composite_uint8: np.ndarray, soft_mask: np.ndarray,
+                          tta: bool = True) -> np.ndarray:
+    """``harmonize(composite, soft_mask, method="fast")`` (:func:`aias_augment.harmonize.api.harmonize`: the same
+    bytes) with the blend computed on the masked pixels only: the composite's other pixels are returned as they are,
+    so nothing is converted, blended or compared there. ``soft_mask`` (H, W) float32 in [0, 1] (checked by the
+    caller). Every step is elementwise or reads the same pixels in the same order as there (the affine of each
+    component on its own pixels), so the values are identical."""
+    hard = soft_mask > 0
+    out = composite_uint8.copy()
+    if not hard.any():
+        return out
+    image = to_float(composite_uint8)   # the context crops read it
+    result = image[hard]                # (N, 3), row-major order of the mask
+    pos = np.full(hard.shape, -1, np.intp)
+    pos[hard] = np.arange(len(result))
+    for comp in components(hard):
+        a = predict_affine_tta(model, image, comp) if tta else predict_affine(model, image, comp)
+        idx = pos[comp]
+        result[idx] = apply_affine_np(result[idx], a)
+    m = soft_mask[hard].astype(np.float32)[:, None]
+    out[hard] = to_uint8(image[hard] * (1.0 - m) + result * m)
     return out

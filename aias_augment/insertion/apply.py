@@ -242,9 +242,12 @@ def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,
                               test_time_views=cfg.harmonize_test_time_views), f"harmonized ({cfg.harmonize_method})")
         x0, y0, x1, y1 = win
         out = image.copy()
-        out[y0:y1, x0:x1] = harmonize(image[y0:y1, x0:x1], np.ascontiguousarray(mask[y0:y1, x0:x1]),
-                                      method=cfg.harmonize_method, rng=rng,
-                                      test_time_views=cfg.harmonize_test_time_views)
+        # _harmonize_window returns a window for "fast" only: harmonize()'s fast path, blended on the mask only.
+        from ..harmonize.api import DEFAULT_CHECKPOINTS
+        from ..harmonize.fast import harmonize_fast_masked, load_fast
+        out[y0:y1, x0:x1] = harmonize_fast_masked(load_fast(DEFAULT_CHECKPOINTS["fast"]), image[y0:y1, x0:x1],
+                                                  np.ascontiguousarray(mask[y0:y1, x0:x1], dtype=np.float32),
+                                                  tta=cfg.harmonize_test_time_views)
         return out, f"harmonized ({cfg.harmonize_method}, in the objects' context window)"
     except FileNotFoundError as e:
         return image, f"skipped: {e}"

@@ -102,3 +102,25 @@ def test_fast_harmonizer_in_the_context_window_gives_the_whole_image_bytes():
         within = (max(0, xs.min() - 3), max(0, ys.min() - 3), xs.max() + 4, ys.max() + 4)
         assert _harmonize_window(mask, cfg, within) == win
         assert np.array_equal(_harmonize(comp, mask, cfg, np.random.default_rng(0), within=within)[0], whole)
+
+
+def test_fast_harmonizer_blended_on_the_mask_only_gives_harmonize_bytes():
+    """harmonize_fast_masked (apply's fast path) against harmonize(method="fast"), one view and test-time views,
+    two components with soft edges: the same bytes."""
+    import pytest
+
+    from aias_augment.harmonize import harmonize
+    from aias_augment.harmonize.api import DEFAULT_CHECKPOINTS
+    from aias_augment.harmonize.fast import harmonize_fast_masked, load_fast
+    if not DEFAULT_CHECKPOINTS["fast"].is_file():
+        pytest.skip("fast harmonizer checkpoint not present")
+    img = road_image(3)
+    mask = np.zeros(img.shape[:2], np.float32)
+    mask[250:330, 300:340] = 1.0
+    mask[250, 300:340] = 0.3
+    mask[100:120, 10:30] = 0.7
+    comp = img.copy()
+    comp[mask > 0] = (200, 90, 30)
+    for tta in (False, True):
+        assert np.array_equal(harmonize_fast_masked(load_fast(DEFAULT_CHECKPOINTS["fast"]), comp, mask, tta),
+                              harmonize(comp, mask, method="fast", test_time_views=tta))
