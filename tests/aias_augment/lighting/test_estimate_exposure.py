@@ -51,7 +51,8 @@ def test_implied_ground_albedo_stays_in_range_at_any_exposure(exposure):
     # ground radiance = albedo_true x exposure x (sky + sun sin el) / pi; their ratio is the implied albedo.
     s = sun_direction(60.0, 40.0)
     img, R = render([], s, K, exposure=exposure, noise=0.0)
-    est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0))
+    anchored = LightingConfig(ground_albedo_range=(0.06, 0.15))   # the anchor is an option (off by default)
+    est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=anchored)
     e_up = float(luminance(sh_irradiance(est.ambient_sh, est.up_in_cam)))
     if est.dominant_sun:
         e_up += float(luminance(est.sun_irradiance_rgb)) * max(float(est.sun_direction_in_cam @ est.up_in_cam), 0)
@@ -59,7 +60,7 @@ def test_implied_ground_albedo_stays_in_range_at_any_exposure(exposure):
     truth = albedo_true * exposure * (1.0 + 6.0 * np.sin(np.deg2rad(40.0))) / np.pi
     ground_linear = np.clip(truth, 0, 1)        # what the 8-bit image can hold
     implied = np.pi * ground_linear / e_up
-    lo, hi = LightingConfig().ground_albedo_range
+    lo, hi = anchored.ground_albedo_range
     assert implied >= lo * 0.9                   # never brighter than the darkest plausible road allows
     # ... and no darker than the brightest plausible road, unless the saturation guard holds white at sRGB 250 (a
     # white surface in this unclipped frame would otherwise exceed 1.0: with albedo 0.30 the ground at exposure 1
