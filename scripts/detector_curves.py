@@ -112,12 +112,14 @@ def plot(paths: list[str], out: str) -> None:
         label = f"{r['name']} ({r['final']['AP']:.3f})"
         it = [x["iter"] for x in r["losses"]]
         axes[0].plot([e["iter"] for e in r["evals"]], [e["AP"] for e in r["evals"]], "o-", color=c, label=label)
+        if r.get("final_raw"):      # the optimised weights beside the EMA ones
+            axes[0].plot([r["final_raw"]["iter"]], [r["final_raw"]["AP"]], "x", color=c, ms=9, mew=2)
         axes[1].plot(it, smooth([x["obj"] for x in r["losses"]]), color=c)
         pos = [x for x in r["losses"] if x["num_fg"] > 0]          # IoU and class terms exist only with positives
         for ax, key in zip(axes[2:4], ("iou", "cls")):
             ax.plot([x["iter"] for x in pos], smooth([x[key] for x in pos]), color=c)
         axes[4].plot(it, smooth([float(x["num_fg"] == 0) for x in r["losses"]], 25), color=c)
-    axes[0].set_title("TraCon val AP50:95 (EMA weights)")
+    axes[0].set_title("TraCon val AP50:95 (returned weights: EMA if on; x = raw)", fontsize=10)
     axes[0].legend(fontsize=7)
     for ax, key in zip(axes[1:4], ("objectness loss", "IoU loss (batches with positives)",
                                    "class loss (batches with positives)")):
