@@ -10,6 +10,7 @@ import logging
 import sys
 from dataclasses import replace
 
+from .geometry import CAMERA_HEIGHT_PRIOR_M
 from .offline import IMAGE_SUFFIXES, items_from_coco, items_from_yolo, run
 from .pipeline import PRESETS, load_preset
 
@@ -48,7 +49,7 @@ def main(argv=None) -> int:
     clip.add_argument("--start", type=int, default=0, help="first frame")
     clip.add_argument("--stride", type=int, default=1)
     clip.add_argument("--max-frames", type=int, default=None)
-    clip.add_argument("--camera-height", type=float, default=1.65, help="metres above the ground")
+    clip.add_argument("--camera-height", type=float, default=CAMERA_HEIGHT_PRIOR_M, help="metres above the ground")
     clip.add_argument("--lighting", choices=("clip", "ambient"), default="clip")
     clip.add_argument("--harmonize", default="fast", choices=("none", "reinhard", "camera", "fast", "network"),
                       help="clip harmonization ('fast': one colour transform for the whole clip)")

@@ -33,6 +33,10 @@ __all__ = [
 #: Smallest positive depth (metres) treated as "in front of the camera" in projections.
 MIN_DEPTH = 1e-6
 
+#: The one prior for the camera's height above the ground when nothing measures it (no depth, no poses): a
+#: car-mounted camera (KITTI's is 1.65 m above the road). Every stage that needs the prior uses this value.
+CAMERA_HEIGHT_PRIOR_M = 1.65
+
 
 def check_shape(x: np.ndarray, shape: tuple, name: str = "array") -> np.ndarray:
     """Raise ``ValueError`` unless ``x`` matches ``shape`` ("*" = any leading dims, None = any size)."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .geometry import MIN_DEPTH, Intrinsics, check_rigid, check_shape, rotation_about_axis, transform_points, \
+from .geometry import CAMERA_HEIGHT_PRIOR_M, MIN_DEPTH, Intrinsics, check_rigid, check_shape, rotation_about_axis, transform_points, \
     unproject_points
 
 __all__ = [
@@ -151,7 +151,7 @@ class GroundPlane:
                 "inlier_ratio": self.inlier_ratio, "rms_m": self.rms_m, "num_inliers": self.num_inliers}
 
 
-def prior_ground_plane(camera_height_m: float = 1.65, pitch_rad: float = 0.0, roll_rad: float = 0.0) -> GroundPlane:
+def prior_ground_plane(camera_height_m: float = CAMERA_HEIGHT_PRIOR_M, pitch_rad: float = 0.0, roll_rad: float = 0.0) -> GroundPlane:
     """Ground for a camera ``camera_height_m`` above flat ground.
 
     Level camera: normal (0, -1, 0), d = height. ``pitch_rad`` > 0 tilts the optical axis down (the horizon moves

@@ -32,7 +32,7 @@ import numpy as np
 import yaml
 
 from .coco_io import CocoBuilder, atomic_write_json
-from .geometry import Intrinsics, invert_rigid
+from .geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics, invert_rigid
 from .ground import prior_ground_plane
 from .offline import read_rgb, write_rgb
 from .viz import contact_sheet, draw_boxes
@@ -57,7 +57,7 @@ class ClipJob:
     max_frames: int | None = None
     stride: int = 1
     colour: bool = False           # KITTI calib.txt: use P2 (colour camera) instead of P0
-    camera_height_m: float = 1.65
+    camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
     lookahead_frames: int | None = None  # the object stands beside where the camera is at this frame; None: the last
     lateral_offset_m: float = 2.5
     lighting: str = "clip"         # "clip": one sun fused over the clip; "ambient": grey-world ambient only

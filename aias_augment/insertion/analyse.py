@@ -7,6 +7,7 @@ generator with a fixed seed, never from the sample's. So the result is cached by
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 from dataclasses import dataclass, field
@@ -249,8 +250,11 @@ def _scene_lighting(image, intr: Intrinsics, ground: GroundPlane, rng, cfg: Inse
         sh[0] = E / (np.pi * 0.886227)  # irradiance of a constant SH radiance L00*Y00 is pi * 0.886227 * L00
         modules["lighting"] = "skipped: disabled (ablation); uniform gray-world ambient, no sun"
         return LightingEstimate(None, np.zeros(3), sh, 0.0, False, 0.0, "none", ground.normal)
-    est = estimate_lighting(image, intr, None, {**meta, "up_in_world": ground.normal}, rng=rng,
-                            config=cfg.lighting_cfg)
+    # one camera height: the ground plane's (measured from depth or poses, else the prior) for the lighting too
+    lcfg = cfg.lighting_cfg
+    if np.isfinite(ground.camera_height_m) and ground.camera_height_m > 0:
+        lcfg = dataclasses.replace(lcfg, camera_height_m=float(ground.camera_height_m))
+    est = estimate_lighting(image, intr, None, {**meta, "up_in_world": ground.normal}, rng=rng, config=lcfg)
     if est.dominant_sun:
         modules["lighting"] = (f"sun from {est.source} (confidence {est.confidence:.2f}), sun/sky ratio "
                                f"{est.sun_sky_ratio:.2f}, SH ambient")

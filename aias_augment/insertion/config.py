@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from ..config import CONFIG_DIR, load_config
+from ..geometry import CAMERA_HEIGHT_PRIOR_M
 from ..lighting.estimate import LightingConfig
 from ..placement import PlacementConfig
 
@@ -40,7 +41,7 @@ class InsertionConfig:
     # lighting are estimated on a copy at most this many pixels wide (0: the image as given); the record says so.
     analysis_max_width: int = 0
     # Priors when the scene does not say.
-    camera_height_m: float = 1.6
+    camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
     estimate_camera: bool = True         # horizon/pitch/roll (and focal when unknown) from vanishing lines
     max_camera_pitch_deg: float = 25.0  # estimates beyond these bounds fall back to the level-camera prior
     max_camera_roll_deg: float = 10.0

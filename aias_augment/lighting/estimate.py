@@ -23,7 +23,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..geometry import Intrinsics
+from ..geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from .envmap import EnvironmentMap, assemble_envmap, camera_ray_directions
 from .hdr import InverseToneMapParams, inverse_tone_map, luminance, srgb_to_linear
 from .ratio import (LitShadowMeasurement, ground_coordinates, ground_region_mask, measure_lit_shadow,
@@ -119,7 +119,7 @@ class LightingConfig:
     #: ... and to at least this when the elevation comes from image cues (sin 15 deg): their elevation is uncertain and
     #: a too-low sun would make surfaces facing it 1 / sin(el) times brighter than the ground (blown-out objects).
     min_sun_cos_image_cues: float = 0.26
-    camera_height_m: float = 1.65
+    camera_height_m: float = CAMERA_HEIGHT_PRIOR_M  # replaced by the ground plane's height where one is known
     #: Ground box used for lit/shadow when no ground mask is given (m, gravity-aligned camera frame).
     ground_lateral_range_m: tuple[float, float] = (-1.5, 1.5)
     ground_forward_range_m: tuple[float, float] = (5.0, 20.0)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from ..geometry import Intrinsics
+from ..geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from .envmap import camera_ray_directions
 from .hdr import luminance
 
@@ -43,7 +43,7 @@ class LitShadowMeasurement:
     shadow_mask: np.ndarray
 
 
-def ground_coordinates(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = 1.65
+def ground_coordinates(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Where each pixel's ray meets a flat ground ``camera_height_m`` below the camera: (H, W, 2) (lateral, forward)
     metres in the gravity-aligned camera frame (lateral positive to the right, forward along the camera's heading) and
@@ -61,7 +61,7 @@ def ground_coordinates(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_hei
     return np.stack([pts @ right, pts @ fwd], axis=-1), ok
 
 
-def ground_region_mask(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = 1.65,
+def ground_region_mask(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = CAMERA_HEIGHT_PRIOR_M,
                        lateral_range_m: tuple[float, float] = (-3.0, 3.0),
                        forward_range_m: tuple[float, float] = (5.0, 25.0)) -> np.ndarray:
     """Pixels whose ray meets a flat ground ``camera_height_m`` below the camera inside a box in front of it.

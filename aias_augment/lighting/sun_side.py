@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import Intrinsics
+from ..geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from .envmap import camera_ray_directions
 from .hdr import luminance, srgb_to_linear
 
@@ -264,7 +264,7 @@ def vertical_surface_loglik(walls: FacadeSamples, grid_in_cam: np.ndarray, up_in
 
 def occluder_bases(segments: LineSegments, intrinsics: Intrinsics, up_in_cam: np.ndarray,
                    min_depression_deg: float = 1.0, line_tol_px: float = 3.0, occluder_halfwidth_m: float = 0.3,
-                   camera_height_m: float = 1.65) -> tuple[np.ndarray, np.ndarray]:
+                   camera_height_m: float = CAMERA_HEIGHT_PRIOR_M) -> tuple[np.ndarray, np.ndarray]:
     """Lower end points of 3D-vertical segments that lie below the horizon by more than ``min_depression_deg``:
     candidate bases where an upright occluder meets the ground. An occluder whose edges are broken into pieces
     (stripes, windows, leaves) or seen as two edges (a pole's left and right sides) yields one base only, the lowest:
@@ -358,7 +358,7 @@ def _circular_nanmax(x: np.ndarray, half_width: int) -> np.ndarray:
 
 
 def shadow_end_scores(darkness: np.ndarray, bases_px: np.ndarray, base_up_dirs_px: np.ndarray,
-                      intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = 1.65,
+                      intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = CAMERA_HEIGHT_PRIOR_M,
                       reach_m: tuple[float, float] = (0.4, 5.0), n_steps: int = 16, n_azimuths: int = 180,
                       tolerance_deg: float = 6.0, occluder_halfwidth_m: float = 0.3, min_halfwidth_px: float = 3.0,
                       min_valid: int = 3, contiguous: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -478,7 +478,7 @@ def _orientation_spread(samples: FacadeSamples) -> float:
 
 
 def sun_side_cue(image_rgb_uint8: np.ndarray, intrinsics: Intrinsics, up_in_cam: np.ndarray,
-                 grid_in_cam: np.ndarray, sky_mask: np.ndarray | None = None, camera_height_m: float = 1.65,
+                 grid_in_cam: np.ndarray, sky_mask: np.ndarray | None = None, camera_height_m: float = CAMERA_HEIGHT_PRIOR_M,
                  analysis_width: int = 800, facade_albedo_sigma: float = 0.7,
                  shadow_end_kappa: float = 20.0) -> SunSideCue:
     """Both side cues on one frame (resampled to at most ``analysis_width`` pixels wide so that pixel tolerances mean

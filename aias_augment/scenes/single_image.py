@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..geometry import Intrinsics
+from ..geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from ..ground import GroundPlane
 
 __all__ = ["SingleImageCamera", "SingleImageConfig", "detect_line_segments", "fit_vanishing_point",
@@ -39,7 +39,7 @@ class SingleImageConfig:
     horizontal_vp_radius_frac: float = 1.0  # the street VP lies within this fraction of the diagonal of the centre
     hfov_prior_deg: float = 70.0
     plausible_hfov_deg: tuple[float, float] = (30.0, 120.0)
-    camera_height_m: float = 1.65
+    camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
 
 
 @dataclass(frozen=True)
