@@ -105,7 +105,13 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
     plan = plan_insertion(analysis, cfg, rng, existing_boxes_xyxy=existing_xyxy, depth=depth, meta=meta,
                           bank=bank, n_objects=n_objects)
     applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
+    return assemble_result(analysis, plan, applied, boxes, labels, min_visibility)
 
+
+def assemble_result(analysis, plan, applied, boxes: np.ndarray, labels: list, min_visibility: float
+                    ) -> InsertionResult:
+    """The result of one insertion from its three steps' records: the inserted objects' visible boxes appended to the
+    input boxes that stay visible enough under what was drawn over them (``boxes`` xywh, in the output's pixels)."""
     record = InsertionRecord(list(applied.placements), list(applied.annotations), analysis.lighting,
                              {**analysis.modules, **plan.modules, **applied.modules},
                              list(plan.placement_reports) + list(applied.dropped),
@@ -115,10 +121,11 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
         if ann.visible_box_xywh is not None:
             inserted_boxes.append(ann.visible_box_xywh)
             inserted_labels.append(placement.category)
+    existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
     existing_vis = box_visibility_under_cover(existing_xyxy, applied.cover)
     keep = existing_vis >= min_visibility
     record.existing_visibility = existing_vis.tolist()
     ins = np.array(inserted_boxes, float).reshape(-1, 4)
     all_boxes = np.concatenate([boxes[keep], ins], axis=0)
-    all_labels = [l for l, k_ in zip(labels, keep) if k_] + inserted_labels
+    all_labels = [lab for lab, k in zip(labels, keep) if k] + inserted_labels
     return InsertionResult(applied.image, all_boxes, all_labels, ins, inserted_labels, keep, record)

@@ -21,12 +21,11 @@ from dataclasses import replace
 import cv2
 import numpy as np
 
-from .annotate import box_visibility_under_cover
 from .geometry import Intrinsics
 from .insertion.apply import apply_plan
 from .insertion.cache import SceneCache
 from .insertion.plan import PlannedObject, plan_insertion
-from .pipeline import InsertionConfig, InsertionRecord, InsertionResult, insert_into_image
+from .pipeline import InsertionConfig, InsertionResult, assemble_result, insert_into_image
 from .region import PlaceableRegion
 from .scene import Frame
 
@@ -126,19 +125,4 @@ def insert_bounded(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.ran
     frame = Frame(img, full_intr, depth=depth, meta=meta)
     applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
 
-    # As insert_into_image assembles its result.
-    record = InsertionRecord(list(applied.placements), list(applied.annotations), analysis.lighting,
-                             {**analysis.modules, **plan.modules, **applied.modules},
-                             list(plan.placement_reports) + list(applied.dropped), harmonize_seed=plan.harmonize_seed)
-    inserted_boxes, inserted_labels = [], []
-    for placement, ann in zip(applied.placements, applied.annotations):
-        if ann.visible_box_xywh is not None:
-            inserted_boxes.append(ann.visible_box_xywh)
-            inserted_labels.append(placement.category)
-    existing_vis = box_visibility_under_cover(existing_xyxy, applied.cover)
-    keep = existing_vis >= min_visibility
-    record.existing_visibility = existing_vis.tolist()
-    ins = np.array(inserted_boxes, float).reshape(-1, 4)
-    all_boxes = np.concatenate([boxes[keep], ins], axis=0)
-    all_labels = [lab for lab, k in zip(labels, keep) if k] + inserted_labels
-    return InsertionResult(applied.image, all_boxes, all_labels, ins, inserted_labels, keep, record)
+    return assemble_result(analysis, plan, applied, boxes, labels, min_visibility)
