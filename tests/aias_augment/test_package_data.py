@@ -36,7 +36,9 @@ def test_wheel_ships_configs_and_checkpoints(tmp_path):
     shutil.copytree(REPO, src, symlinks=True, ignore=shutil.ignore_patterns(
         ".git", ".venv", "out", "runs", "logs", "cache", "build", "results", "*.egg-info", "__pycache__", ".hypothesis"))
     wheel_dir = tmp_path / "wheel"
-    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
+    # with build isolation, as `make setup`'s `pip install -e .` builds: the venv's own setuptools may predate the
+    # build requirements in pyproject.toml
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
                         "-w", str(wheel_dir), str(src)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     (wheel,) = wheel_dir.glob("aias_augment-*.whl")
