@@ -5,7 +5,8 @@ another stage. Every rejected candidate keeps its reason in the returned :class:
 """
 from __future__ import annotations
 
-from collections import Counter
+import hashlib
+from collections import Counter, OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -261,11 +262,14 @@ def predicted_box_heights_px(uv: np.ndarray, object_height_m: float, ground: Gro
 
 
 def candidates_for_box_height(cand: np.ndarray, target_frac: float, object_height_m: float, ground: GroundPlane,
-                              intrinsics: Intrinsics, tolerance: float) -> tuple[np.ndarray, str]:
+                              intrinsics: Intrinsics, tolerance: float,
+                              pred: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """Flat pixel indices of ``cand`` whose predicted box height is within ``tolerance`` (relative) of
-    ``target_frac * height``; when none is, the 2 % nearest to it (and a note saying so)."""
-    v, u = np.divmod(cand, intrinsics.width)
-    pred = predicted_box_heights_px(np.c_[u, v].astype(np.float64), object_height_m, ground, intrinsics)
+    ``target_frac * height``; when none is, the 2 % nearest to it (and a note saying so). ``pred``: the
+    candidates' :func:`predicted_box_heights_px` when already known."""
+    if pred is None:
+        v, u = np.divmod(cand, intrinsics.width)
+        pred = predicted_box_heights_px(np.c_[u, v].astype(np.float64), object_height_m, ground, intrinsics)
     target = target_frac * intrinsics.height
     rel = np.abs(pred / target - 1.0)
     rel[~np.isfinite(rel)] = np.inf
@@ -278,6 +282,66 @@ def candidates_for_box_height(cand: np.ndarray, target_frac: float, object_heigh
     n = max(1, int(0.02 * finite.sum()))
     nearest = np.argsort(rel)[:n]
     return cand[nearest], f" (target {target:.0f} px not reachable in this scene: nearest sizes used)"
+
+
+class _GroundCandidates:
+    """The candidate contact pixels of a scene (below the horizon margin, inside the region) and their predicted
+    box heights per object height, for the last few scenes. Planning on the same analysis again (a training loop's
+    next epoch) then skips the full-frame pixel grid. Keyed by the plane, the intrinsics, the margin and the
+    region's bytes (a digest, so a mask changed in place is a new key): the arrays are those a fresh computation
+    gives, so the draws and results are the same with or without a hit."""
+
+    def __init__(self, max_entries: int = 32):
+        self.max_entries = max_entries
+        self._entries: OrderedDict = OrderedDict()
+
+    @staticmethod
+    def _key(ground: GroundPlane, intrinsics: Intrinsics, region_mask, margin: float) -> tuple:
+        region = None
+        if region_mask is not None:
+            m = np.ascontiguousarray(np.asarray(region_mask, bool))
+            region = (m.shape, hashlib.blake2b(np.packbits(m).tobytes(), digest_size=16).digest())
+        return (tuple(np.asarray(ground.normal, float).tolist()), float(ground.d), intrinsics.width,
+                intrinsics.height, float(intrinsics.fx), float(intrinsics.fy), float(intrinsics.cx),
+                float(intrinsics.cy), float(margin), region)
+
+    def get(self, ground: GroundPlane, intrinsics: Intrinsics, region_mask, margin: float) -> dict:
+        key = self._key(ground, intrinsics, region_mask, margin)
+        entry = self._entries.get(key)
+        if entry is None:
+            w, h = intrinsics.width, intrinsics.height
+            try:
+                horizon = ground.horizon_line(intrinsics)
+            except ValueError:
+                horizon = None
+            allowed = np.ones((h, w), bool)
+            if horizon is not None:
+                uu, vv = np.meshgrid(np.arange(w), np.arange(h))
+                allowed &= horizon[0] * uu + horizon[1] * vv + horizon[2] > margin
+            if region_mask is not None:
+                allowed &= np.asarray(region_mask, bool)
+            cand = np.flatnonzero(allowed)
+            cand.setflags(write=False)
+            entry = {"cand": cand, "pred": {}}
+            self._entries[key] = entry
+            while len(self._entries) > self.max_entries:
+                self._entries.popitem(last=False)
+        else:
+            self._entries.move_to_end(key)
+        return entry
+
+    def predicted(self, entry: dict, object_height_m: float, ground: GroundPlane,
+                  intrinsics: Intrinsics) -> np.ndarray:
+        pred = entry["pred"].get(object_height_m)
+        if pred is None:
+            v, u = np.divmod(entry["cand"], intrinsics.width)
+            pred = predicted_box_heights_px(np.c_[u, v].astype(np.float64), object_height_m, ground, intrinsics)
+            pred.setflags(write=False)
+            entry["pred"][object_height_m] = pred
+        return pred
+
+
+_GROUND_CANDIDATES = _GroundCandidates()
 
 
 def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, rng: np.random.Generator, *,
@@ -301,25 +365,19 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
     existing = np.zeros((0, 4)) if existing_boxes_xyxy is None else np.asarray(existing_boxes_xyxy, float).reshape(-1, 4)
     hr = height_range_m or CATEGORY_HEIGHT_RANGE_M.get(asset.category, (asset.height_m, asset.height_m))
     report = PlacementReport()
-    try:
-        horizon = ground.horizon_line(intrinsics)
-    except ValueError:
-        horizon = None
-    uu, vv = np.meshgrid(np.arange(w), np.arange(h))
-    allowed = np.ones((h, w), bool)
-    if horizon is not None:
-        allowed &= horizon[0] * uu + horizon[1] * vv + horizon[2] > cfg.horizon_margin_px
-    if region_mask is not None:
-        allowed &= np.asarray(region_mask, bool)
-    cand = np.flatnonzero(allowed)
+    entry = _GROUND_CANDIDATES.get(ground, intrinsics, region_mask, cfg.horizon_margin_px)
+    cand = entry["cand"]
     if len(cand) == 0:
         report.rejected["no ground pixels in view"] += 1
         return None, report
     size_note = ""
     target_frac = draw_box_height_target(cfg, rng)
     if target_frac is not None:
-        cand, size_note = candidates_for_box_height(cand, target_frac, float(np.mean(hr)), ground, intrinsics,
-                                                    cfg.box_height_tolerance)
+        obj_h = float(np.mean(hr))
+        cand, size_note = candidates_for_box_height(cand, target_frac, obj_h, ground, intrinsics,
+                                                    cfg.box_height_tolerance,
+                                                    pred=_GROUND_CANDIDATES.predicted(entry, obj_h, ground,
+                                                                                      intrinsics))
         report.target_box_height_px = target_frac * h
     # A child generator for the refits, so that how many points the scene has does not change the draws of
     # pixels, heights and yaws from ``rng`` (same seed -> same candidates with or without measured points).

@@ -242,3 +242,30 @@ def test_box_height_samples_follow_the_given_distribution():
     heights = np.array(heights)
     assert ((heights < 0.1).sum() >= 8) and ((heights > 0.14).sum() >= 8)   # both modes drawn
     assert not ((heights > 0.1) & (heights < 0.14)).any()                    # and nothing between them
+
+
+def test_candidate_cache_changes_nothing_and_sees_a_mask_changed_in_place():
+    """Planning again on the same scene reuses the candidate pixels (placement._GROUND_CANDIDATES); the result must
+    be the one a cold computation gives, every contact must respect the analytic horizon and the region, and a
+    region edited in place (same array object) must not be served from the cache."""
+    from aias_augment import placement as pm
+    region = np.zeros((K.height, K.width), bool)
+    region[300:, :320] = True                          # left half of the lower image
+    cfg = PlacementConfig(max_tries=40, min_box_height_px=4, box_height_frac_range=(0.05, 0.2))
+
+    def draw(seed):
+        pl, _ = sample_placement(_asset(), ROAD, K, np.random.default_rng(seed), region_mask=region, cfg=cfg,
+                                 height_range_m=(1.0, 1.0))
+        return pl
+
+    pm._GROUND_CANDIDATES._entries.clear()
+    cold = [draw(s) for s in range(6)]
+    warm = [draw(s) for s in range(6)]                 # cache hits now
+    assert cold == warm and all(p is not None for p in cold)
+    for p in cold:
+        u, v = p.contact_pixel
+        assert v > K.cy + 8 - 0.5 and region[int(round(v)), int(round(u))]   # level camera: horizon row = cy
+    region[:] = False
+    region[300:, 320:] = True                          # in place: now only the right half
+    moved = [draw(s) for s in range(6)]
+    assert all(p.contact_pixel[0] >= 319.5 for p in moved)
