@@ -194,8 +194,88 @@ def load_mesh_file(path: str | Path, *, scale: float | None = None, up_axis: str
     return meshes
 
 
-def normalise_meshes(meshes: list[trimesh.Trimesh]) -> tuple[trimesh.Trimesh, ...]:
-    """Centre x/y on the bounding box and put the lowest point on z = 0."""
+#: Crease angle (deg) of the vertex normals made at asset load (:func:`crease_normals`): faces meeting at a vertex
+#: whose normals differ by less than this are shaded as one smooth surface, sharper edges stay sharp. A 24-sided cone's
+#: neighbouring sides differ by 15 deg (smooth), its base rim by ~70-90 deg (sharp); a cube's faces by 90 deg (flat).
+CREASE_ANGLE_DEG = 40.0
+
+#: Above this many (corner, corner) pairs at shared positions (the sum over positions of corners^2) the crease pass
+#: is skipped and the file's (or trimesh's) normals are kept, with a warning (a pathological file: thousands of faces
+#: at one point).
+_MAX_CREASE_PAIRS = 50_000_000
+
+
+def crease_normals(mesh: trimesh.Trimesh, crease_deg: float = CREASE_ANGLE_DEG) -> trimesh.Trimesh:
+    """A copy of ``mesh`` with angle-thresholded smooth vertex normals (same faces, in the same order).
+
+    Each face corner gets the corner-angle-weighted mean of the normals of every face touching the same *position*
+    (vertices split by UV or normal seams count as one) whose normal is within ``crease_deg`` of this face's normal;
+    a vertex whose corners end up with different normals (a crease) is split into one vertex per normal, carrying
+    its UV / colour. So a tessellated cone or cylinder is smooth along its side and sharp at its rims, a cube keeps
+    flat faces. Angle weighting makes the normal independent of how a face fan is triangulated (Thuermer &
+    Wuethrich 1998). trimesh's ``smooth_shade`` groups whole faces into patches through the face adjacency of merged
+    vertices, which UV seams break (the cone's side would stay faceted at every texture seam), hence this per-corner
+    version. Degenerate faces get their vertices' previous normals.
+    """
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if len(f) == 0:
+        return mesh.copy(include_cache=True)
+    tri = v[f]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(cross, axis=1)
+    diag = float(np.linalg.norm(np.ptp(v, axis=0)))
+    valid = length > 1e-14 * max(diag, 1e-30) ** 2          # eps: zero-area faces have no normal
+    fn = np.where(valid[:, None], cross / np.maximum(length, 1e-300)[:, None], 0.0)
+    weight = np.nan_to_num(trimesh.triangles.angles(tri)) * valid[:, None]      # (F, 3) corner angles
+    # one id per position (vertices within 1e-7 of the bounding-box diagonal are the same point)
+    q = np.round(v / max(diag * 1e-7, 1e-30)).astype(np.int64)
+    _, pos = np.unique(q, axis=0, return_inverse=True)
+    corner_pos = pos.reshape(-1)[f].reshape(-1)                                # (3F,)
+    corner_face = np.repeat(np.arange(len(f)), 3)
+    order = np.argsort(corner_pos, kind="stable")
+    cp = corner_pos[order]
+    starts = np.r_[0, np.flatnonzero(np.diff(cp)) + 1]
+    counts = np.diff(np.r_[starts, len(cp)])
+    if int(np.sum(counts.astype(np.int64) ** 2)) > _MAX_CREASE_PAIRS:
+        log.warning("crease normals skipped: %d corners at one position (file normals kept)", int(counts.max()))
+        return mesh.copy(include_cache=True)
+    group = np.repeat(np.arange(len(starts)), counts)                          # group of each sorted corner
+    c = counts[group]
+    i = np.repeat(np.arange(len(cp)), c)                                       # pairs (i, j) within a group
+    j = starts[group][i] + (np.arange(len(i)) - np.repeat(np.cumsum(c) - c, c))
+    fi, fj = corner_face[order][i], corner_face[order][j]
+    keep = np.einsum("ij,ij->i", fn[fi], fn[fj]) >= np.cos(np.radians(crease_deg))
+    contrib = fn[fj[keep]] * weight.reshape(-1)[order][j[keep]][:, None]
+    target = order[i[keep]]
+    n = np.stack([np.bincount(target, contrib[:, k], minlength=3 * len(f)) for k in range(3)], axis=1)
+    n_len = np.linalg.norm(n, axis=1)
+    old = np.asarray(mesh.vertex_normals, dtype=np.float64)[f.reshape(-1)]
+    n = np.where(n_len[:, None] > 1e-12, n / np.maximum(n_len, 1e-300)[:, None], old)   # eps: degenerate faces
+    # one vertex per (original vertex, normal): corners of one vertex with the same face set sum in the same order,
+    # so their normals are bitwise equal; the rounding only merges what differs by float noise
+    key = np.c_[f.reshape(-1), np.round(n * 1e6).astype(np.int64)]
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    src = f.reshape(-1)[first]
+    visual = None
+    kind = getattr(mesh.visual, "kind", None)
+    if isinstance(mesh.visual, trimesh.visual.TextureVisuals):
+        uv = getattr(mesh.visual, "uv", None)
+        uv = None if uv is None or len(uv) != len(v) else np.asarray(uv)[src]
+        visual = trimesh.visual.TextureVisuals(uv=uv, material=mesh.visual.material)
+    elif kind == "vertex":
+        visual = trimesh.visual.ColorVisuals(vertex_colors=np.asarray(mesh.visual.vertex_colors)[src])
+    elif kind == "face":
+        visual = trimesh.visual.ColorVisuals(face_colors=np.asarray(mesh.visual.face_colors))
+    out = trimesh.Trimesh(v[src], inverse.reshape(-1, 3), vertex_normals=n[first], visual=visual, process=False,
+                          metadata=copy.deepcopy(mesh.metadata))
+    return out
+
+
+def normalise_meshes(meshes: list[trimesh.Trimesh], crease_deg: float | None = CREASE_ANGLE_DEG
+                     ) -> tuple[trimesh.Trimesh, ...]:
+    """Centre x/y on the bounding box and put the lowest point on z = 0; vertex normals smoothed up to the crease
+    angle ``crease_deg`` (:func:`crease_normals`; None: the meshes' normals are kept, e.g. analytic ones)."""
     b = np.array([m.bounds for m in meshes])
     lo, hi = b[:, 0].min(0), b[:, 1].max(0)
     ext = hi - lo
@@ -204,8 +284,8 @@ def normalise_meshes(meshes: list[trimesh.Trimesh]) -> tuple[trimesh.Trimesh, ..
     shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
     out = []
     for m in meshes:
-        c = m.copy(include_cache=True)  # keeps explicitly given vertex normals (a plain copy recomputes them)
-        c.apply_translation(shift)
+        c = crease_normals(m, crease_deg) if crease_deg is not None else m.copy(include_cache=True)
+        c.apply_translation(shift)      # keeps the vertex normals (a plain copy would recompute them)
         out.append(c)
     return tuple(out)
 

@@ -38,7 +38,7 @@ __all__ = ["AssetBank", "get_bank", "discover_records", "import_records", "impor
            "PROCEDURAL_SPECS", "catalog_path"]
 
 _LOADERS = {"sh3f": load_sh3f_parts, "gazebo": load_gazebo_parts, "sidecar": load_sidecar_parts}
-IMPORT_VERSION = 1
+IMPORT_VERSION = 2   # 2: crease-angle vertex normals at import (assets.crease_normals)
 
 #: Procedural debris and cones: (generator, category, height range in metres, catalog records whose texture it borrows).
 PROCEDURAL_SPECS: dict[str, tuple[ProceduralSpec, tuple[str, ...]]] = {

@@ -345,7 +345,7 @@ def generate(spec: ProceduralSpec, rng: np.random.Generator, texture: Image.Imag
     height = float(rng.uniform(lo, hi))
     mesh = GENERATORS[spec.generator](rng, height, texture)
     params = mesh.metadata.pop("procedural_params", {})   # generators that record their draws (traffic_cone)
-    parts = normalise_meshes([mesh])
+    parts = normalise_meshes([mesh], crease_deg=None)   # analytic normals (smooth within a section) kept
     return Asset(name or f"procedural {spec.generator}", spec.category, parts, f"procedural:{spec.generator}",
                  licence="generated (textures: see meta)", procedural=True,
                  meta={**params, "generator": spec.generator, "height_m": height, "textured": texture is not None})

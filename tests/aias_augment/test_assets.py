@@ -69,3 +69,86 @@ def test_path_assets_missing_path_and_unit_guess(tmp_path):
     trimesh.creation.box(extents=(50, 187, 30)).export(tmp_path / "ped.obj")   # OBJ: y up
     a = PathAssets({"person": [str(tmp_path / "ped.obj")]}).sample("person", np.random.default_rng(0))
     assert np.isclose(a.height_m, 1.87) and "centimetres" in a.meta["unit_guess"]
+
+
+# --- crease-angle vertex normals (issue 15: the cone's side was faceted) -------------------------------------------
+
+def _faceted_frustum(n_seg: int, r0: float, r1: float, h: float):
+    """A frustum (base radius r0 at z = 0, top r1 at z = h) with a base disk, stored as a file exporter stores a
+    textured low-poly model: every side quad has its own 4 vertices (UV seams everywhere), so trimesh's per-vertex
+    mean gives flat facets. UV u = azimuth / 2 pi, v = z / h. Returns the mesh and the analytic outward normal of each
+    vertex's face group (side: (cos phi, sin phi, (r0 - r1) / h) normalised; base: (0, 0, -1))."""
+    import trimesh
+    verts, faces, uv, truth = [], [], [], []
+    slope = (r0 - r1) / h
+    for k in range(n_seg):
+        a0, a1 = 2 * np.pi * k / n_seg, 2 * np.pi * (k + 1) / n_seg
+        b = len(verts)
+        for a, z, r in ((a0, 0, r0), (a1, 0, r0), (a1, h, r1), (a0, h, r1)):
+            verts.append([r * np.cos(a), r * np.sin(a), z])
+            uv.append([a / (2 * np.pi), z / h])
+            nn = np.array([np.cos(a), np.sin(a), slope])
+            truth.append(nn / np.linalg.norm(nn))
+        faces += [[b, b + 1, b + 2], [b, b + 2, b + 3]]
+    c = len(verts)                                  # base disk: centre + its own rim vertices, facing down
+    verts.append([0, 0, 0]); uv.append([0.5, 0.5]); truth.append([0, 0, -1])
+    for k in range(n_seg):
+        a = 2 * np.pi * k / n_seg
+        verts.append([r0 * np.cos(a), r0 * np.sin(a), 0]); uv.append([0.5, 0.5]); truth.append([0, 0, -1])
+    for k in range(n_seg):
+        faces.append([c, c + 1 + (k + 1) % n_seg, c + 1 + k])
+    mesh = trimesh.Trimesh(np.array(verts, float), np.array(faces), process=False,
+                           visual=trimesh.visual.TextureVisuals(uv=np.array(uv)))
+    return mesh, np.array(truth)
+
+
+def _angle_deg(a, b):
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1, 1)))
+
+
+def test_crease_normals_smooth_the_side_of_a_frustum_and_keep_the_rim_sharp():
+    from aias_augment.assets import crease_normals
+    mesh, truth = _faceted_frustum(96, 0.2, 0.05, 0.7)
+    before = _angle_deg(mesh.vertex_normals, truth)
+    assert np.median(before[:-97]) > 1.0            # the input is faceted: flat face normals, 1.9 deg off at corners
+    out = crease_normals(mesh, 40.0)
+    assert len(out.faces) == len(mesh.faces)
+    # map each output vertex back to an input vertex by position + UV (the split keeps each corner's UV)
+    key_in = {tuple(np.round(np.r_[p, t], 9)): i for i, (p, t) in enumerate(zip(mesh.vertices, mesh.visual.uv))}
+    src = np.array([key_in[tuple(np.round(np.r_[p, t], 9))] for p, t in zip(out.vertices, out.visual.uv)])
+    n = np.asarray(out.vertex_normals)
+    # every face corner: its normal against the analytic normal of the surface that face belongs to
+    side = np.arange(len(out.faces)) < 2 * 96
+    err_side = _angle_deg(n[out.faces[side]].reshape(-1, 3), truth[src[out.faces[side]]].reshape(-1, 3))
+    assert err_side.max() < 0.05                    # smooth: the analytic normal at each vertex (to float precision)
+    base = n[out.faces[~side]].reshape(-1, 3)
+    assert np.allclose(base, [0, 0, -1], atol=1e-12)  # the base stays flat, exactly down: the rim is a crease
+    assert np.all(np.isfinite(n)) and np.allclose(np.linalg.norm(n, axis=1), 1)
+
+
+def test_crease_normals_keep_a_cube_flat_and_a_smooth_mesh_unchanged():
+    import trimesh
+    from aias_augment.assets import crease_normals
+    cube = trimesh.creation.box((1, 2, 3))
+    cube.merge_vertices()                           # 8 shared corners: trimesh's mean would round every edge
+    out = crease_normals(cube, 40.0)
+    assert len(out.vertices) == 24                  # each corner split into its 3 faces
+    corner_n = np.asarray(out.vertex_normals)[out.faces]
+    assert np.allclose(corner_n, out.face_normals[:, None, :], atol=1e-12)
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    out = crease_normals(sphere, 40.0)
+    assert len(out.vertices) == len(sphere.vertices)   # nothing split on a smooth closed surface
+    radial = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
+    assert _angle_deg(np.asarray(out.vertex_normals), radial).max() < 1.0
+
+
+@needs_data
+def test_gazebo_cone_side_is_smooth_after_load():
+    cone = default_asset("traffic_cone")
+    m = cone.meshes[0]
+    n, fn = np.asarray(m.vertex_normals), np.asarray(m.face_normals)
+    side = np.abs(fn[:, 2]) < 0.9                   # slanted side faces (not the base's flat top/bottom)
+    corner = _angle_deg(n[m.faces[side]], fn[side][:, None, :])
+    assert np.median(corner) > 3.0                  # corners carry the smooth normal, not the face's (24 sides: 7.5)
+    assert corner.max() < 30.0                      # never averaged across the base rim
+    assert np.allclose(cone.scaled(0.5).meshes[0].vertex_normals, n)   # scaling keeps them
