@@ -4,7 +4,7 @@ The top-level names are imported lazily: ``import aias_augment.bank`` must not p
 """
 __version__ = "0.1.0"
 
-__all__ = ["InsertObjects", "InsertionConfig", "insert_into_image", "load_preset"]
+__all__ = ["InsertObjects", "InsertionConfig", "SceneInputs", "insert_into_image", "load_preset"]
 
 
 def __getattr__(name):
@@ -14,4 +14,7 @@ def __getattr__(name):
     if name in ("InsertionConfig", "insert_into_image", "load_preset"):
         from . import pipeline
         return getattr(pipeline, name)
+    if name == "SceneInputs":
+        from .scene_inputs import SceneInputs
+        return SceneInputs
     raise AttributeError(f"module 'aias_augment' has no attribute {name!r}")

@@ -22,6 +22,7 @@ from .insertion.plan import choose_asset as _choose_asset, naive_pose as _naive_
 from .lighting.estimate import LightingEstimate
 from .placement import Placement
 from .scene import Frame
+from .scene_inputs import SceneInputs, scene_meta
 
 log = logging.getLogger(__name__)
 
@@ -67,15 +68,17 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
                       cfg: InsertionConfig = InsertionConfig(), *, intrinsics=None, depth=None,
                       meta: dict | None = None, min_visibility: float = 0.0, bank=None,
                       n_objects: int | None = None, scene_cache: SceneCache | None = None,
-                      view_cache=None) -> InsertionResult:
+                      view_cache=None, scene: SceneInputs | None = None) -> InsertionResult:
     """Insert 1..k objects into ``image`` and return the new image, boxes and a replayable record.
 
     image: (H, W, 3) uint8 RGB. bboxes_xywh: (N, 4) COCO boxes already in the image, labels their labels.
     intrinsics: Intrinsics or 3x3 K (None: FOV prior). depth: (H, W) metres (0/NaN unknown) or None.
     min_visibility: existing boxes whose visible fraction under the inserted objects drops below it are dropped.
-    meta: optional scene facts: 'placeable_mask' ((H, W) bool, where objects may stand), 'semantic' (label map for
-        the placeable region), 'lidar_points_in_cam' / 'boxes_in_cam' (3D collision checks), lighting keys of
-        :func:`aias_augment.lighting.estimate_lighting` ('lat', 'lon', 'utc', 'indoor', ...).
+    scene: typed scene facts (:class:`~aias_augment.scene_inputs.SceneInputs`: placeable mask, measured points,
+        existing 3D boxes, position/time/orientation for the sun, ...), checked against the image before anything
+        runs. meta: the same facts as a dict (its keys are SceneInputs' field names, e.g. 'placeable_mask',
+        'lidar_points_in_cam', 'lat'/'lon'/'utc') plus free-form provenance the pipeline carries but does not
+        read; a misspelt fact name raises. Facts come from one of the two.
     scene_cache: where the scene analysis is looked up / kept (None: computed for this call only). The analysis
         draws from its own fixed-seed generator, so ``rng`` only drives the plan (objects, placements, harmonizer).
     view_cache: the :class:`~aias_augment.insertion.view_cache.ViewCache` of ``render_method="view_cache"`` (None:
@@ -97,7 +100,7 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
             raise ValueError(f"depth must be {(h, w)}, got {depth.shape}")
     if intrinsics is not None and not isinstance(intrinsics, Intrinsics):
         intrinsics = Intrinsics.from_matrix(np.asarray(intrinsics), w, h)
-    meta = meta or {}
+    meta = scene_meta(meta, scene, (h, w))
     frame = Frame(img, intrinsics, depth=depth, meta=meta)
     cache = scene_cache if scene_cache is not None else SceneCache(max_items=0)
     analysis = cache.get(frame, cfg)

@@ -28,6 +28,7 @@ from .insertion.plan import PlannedObject, plan_insertion
 from .pipeline import InsertionConfig, InsertionResult, assemble_result, insert_into_image
 from .region import PlaceableRegion
 from .scene import Frame
+from .scene_inputs import SceneInputs, scene_meta
 
 #: Default analysis bound (pixels): 2 MP, the size of a 1920x1080 frame (where the analysis was tuned).
 ANALYSIS_MAX_PIXELS = 2_000_000
@@ -67,13 +68,14 @@ def insert_bounded(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.ran
                    cfg: InsertionConfig = InsertionConfig(), *, intrinsics=None, depth=None, meta: dict | None = None,
                    min_visibility: float = 0.0, bank=None, n_objects: int | None = None,
                    scene_cache: SceneCache | None = None, max_pixels: int | None = ANALYSIS_MAX_PIXELS,
-                   view_cache=None) -> InsertionResult:
+                   view_cache=None, scene: SceneInputs | None = None) -> InsertionResult:
     """:func:`insert_into_image` with the analysis and the plan at <= ``max_pixels`` (see the module docstring);
     same arguments, same result type, the result at the input's full size. ``max_pixels`` None: no bound."""
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
         raise ValueError(f"image must be (H, W, 3) uint8 RGB, got {img.shape} {img.dtype}")
     H, W = img.shape[:2]
+    meta = scene_meta(meta, scene, (H, W))  # facts checked at full size, before they are resized
     if not max_pixels or H * W <= max_pixels:
         return insert_into_image(img, bboxes_xywh, labels, rng, cfg, intrinsics=intrinsics, depth=depth, meta=meta,
                                  min_visibility=min_visibility, bank=bank, n_objects=n_objects,
