@@ -1,8 +1,9 @@
 """``InsertObjects``: the albumentations adapter over :func:`aias_augment.pipeline.insert_into_image`.
 
 Use it inside ``A.Compose(..., bbox_params=A.BboxParams(format="coco", label_fields=[...]), seed=...)``. Optional
-per-sample targets: ``camera_k`` (3x3 intrinsics of the image as passed in) and ``depth`` ((H, W) metres, 0/NaN =
-unknown). Inserted boxes are appended with their label (``category_ids[name]`` or the category name); existing
+per-sample targets: ``camera_k`` (3x3 intrinsics of the image as passed in), ``depth`` ((H, W) metres, 0/NaN =
+unknown) and ``scene`` (:class:`aias_augment.scene_inputs.SceneInputs`: e.g. a road mask where objects may stand;
+a bad one is a counted skip like any odd sample). Inserted boxes are appended with their label (``category_ids[name]`` or the category name); existing
 boxes whose visible fraction under the inserted objects falls below the Compose's ``min_visibility`` are dropped.
 Put it first in the pipeline: later geometric transforms do not update ``camera_k``/``depth``.
 
@@ -194,7 +195,7 @@ class InsertObjects(A.DualTransform):
             res = insert_bounded(
                 rgb, existing_xywh, list(range(n_existing)), self.random_generator, self.config,
                 intrinsics=data.get("camera_k"), depth=data.get("depth"), min_visibility=min_vis, bank=self._bank,
-                scene_cache=self._scene_cache, view_cache=self._view_cache,
+                scene_cache=self._scene_cache, view_cache=self._view_cache, scene=data.get("scene"),
             )
         except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
             self.counts.skip(e, log)

@@ -146,3 +146,17 @@ def test_warm_with_view_plans_renders_views_the_calls_then_read(tmp_path):
     fresh = _compose(seed=11)(image=img, bboxes=[], category_ids=[], camera_k=K)
     assert np.array_equal(a["image"], fresh["image"])
     assert np.allclose(np.asarray(a["bboxes"]), np.asarray(fresh["bboxes"]))
+
+
+def test_scene_target_reaches_the_planner_and_a_bad_one_is_a_counted_skip():
+    from aias_augment import SceneInputs
+    mask = np.zeros((480, 640), bool)
+    mask[260:, 420:] = True                      # objects may stand only in the lower right
+    tf = _compose(seed=3)
+    out = tf(image=_image(), bboxes=[], category_ids=[], camera_k=np.array(K), scene=SceneInputs(placeable_mask=mask))
+    rec = tf.transforms[0].last_record
+    assert out["bboxes"] and rec.placements
+    assert all(p.contact_pixel[0] >= 419.5 and p.contact_pixel[1] >= 259.5 for p in rec.placements)
+    bad = tf(image=_image(), bboxes=[], category_ids=[], scene=SceneInputs(placeable_mask=mask[:10]))
+    assert np.array_equal(bad["image"], _image()) and bad["bboxes"] == []
+    assert tf.transforms[0].skipped == 1
