@@ -48,7 +48,13 @@ ARM_FLAGS: dict[str, dict | None] = {
     "no_harmonize": {"harmonize": False},
     "inserted_online": {},
     "inserted_procedural": {"asset_source": "procedural"},   # a new seeded procedural cone per object
+    # The inserted image cropped, without resampling, around its largest object so that object's box height matches
+    # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
+    # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
+    "inserted_closeup": {"closeup_crop": True},
 }
+# Flags the study applies itself (not insertion-config overrides).
+STUDY_FLAGS = ("closeup_crop",)
 # Arms whose insertions happen inside the training loop (``InsertObjects`` on each sample, new draws every epoch)
 # instead of coming from the offline pool.
 ONLINE_ARMS = ("inserted_online",)
@@ -144,13 +150,52 @@ def real_box_height_fractions(train: DetectionSet) -> tuple[float, ...]:
                  for r in train.records for i in range(len(r.labels)))
 
 
+def closeup_crop(image: np.ndarray, boxes_xyxy: np.ndarray, target_fracs, rng: np.random.Generator, *,
+                 min_side_px: int = 128, min_visible: float = 0.5) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Crop ``image`` (no resampling: the crop's pixels are the image's) around its tallest box so that the box's
+    height fraction becomes a target drawn from ``target_fracs``: the frame a nearer camera or a longer lens would
+    have seen, at the photo's own sharpness (the detector letterboxes every image to its input size anyway).
+
+    The crop keeps the image's aspect, is at least ``min_side_px`` on its short side and holds the tallest box whole;
+    other boxes are clipped to it and kept when at least ``min_visible`` of their area is inside. A target at or
+    below the current size leaves the image as it is. Returns (crop, boxes in crop pixels, info)."""
+    h, w = image.shape[:2]
+    boxes = np.asarray(boxes_xyxy, np.float64).reshape(-1, 4)
+    info = {"zoom": 1.0, "dropped_boxes": 0}
+    if len(boxes) == 0 or len(target_fracs) == 0:
+        return image, boxes, info
+    k = int(np.argmax(boxes[:, 3] - boxes[:, 1]))
+    bx0, by0, bx1, by1 = boxes[k]
+    target = float(target_fracs[int(rng.integers(len(target_fracs)))])
+    zoom = target / max((by1 - by0) / h, 1e-9)
+    zoom = min(zoom, min(h, w) / min_side_px, w / max(bx1 - bx0 + 2.0, 1.0), h / max(by1 - by0 + 2.0, 1.0))
+    if zoom <= 1.0 + 1e-6:
+        return image, boxes, info
+    cw, ch = min(w, int(round(w / zoom))), min(h, int(round(h / zoom)))
+    # Origins that keep the tallest box whole, drawn uniformly (integers: the crop is a slice of the image).
+    x_lo, x_hi = max(0, int(np.ceil(bx1)) - cw), min(int(np.floor(bx0)), w - cw)
+    y_lo, y_hi = max(0, int(np.ceil(by1)) - ch), min(int(np.floor(by0)), h - ch)
+    x0 = int(rng.integers(x_lo, x_hi + 1)) if x_hi >= x_lo else max(0, min(w - cw, int(round(bx0))))
+    y0 = int(rng.integers(y_lo, y_hi + 1)) if y_hi >= y_lo else max(0, min(h - ch, int(round(by0))))
+    crop = image[y0:y0 + ch, x0:x0 + cw].copy()
+    moved = boxes - [x0, y0, x0, y0]
+    clipped = np.c_[np.clip(moved[:, [0, 2]], 0, cw), np.clip(moved[:, [1, 3]], 0, ch)][:, [0, 2, 1, 3]]
+    area = np.prod(np.maximum(boxes[:, 2:] - boxes[:, :2], 1e-9), axis=1)
+    inside = np.prod(np.maximum(clipped[:, 2:] - clipped[:, :2], 0.0), axis=1)
+    keep = inside / area >= min_visible
+    keep[k] = True
+    info = {"zoom": float(w / cw), "dropped_boxes": int((~keep).sum()), "crop_xywh": [x0, y0, cw, ch]}
+    return crop, clipped[keep], info
+
+
 def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
     from aias_augment.pipeline import load_preset
     from aias_augment.placement import PlacementConfig
 
     ic = cfg.insertion
+    flags = {k: v for k, v in ARM_FLAGS[arm].items() if k not in STUDY_FLAGS}
     overrides = dict(categories=tuple(ic.categories), min_objects=ic.min_objects, max_objects=ic.max_objects,
-                     harmonize_method=ic.harmonize_method, **ARM_FLAGS[arm])
+                     harmonize_method=ic.harmonize_method, **flags)
     if ic.match_real_sizes:
         fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
         base = load_preset(ic.preset).placement_cfg
@@ -164,6 +209,8 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
     """Render the arm's pool of ``insertion.pool_size`` inserted copies into a YOLO folder, once for all seeds.
     Resumable: finished copies are listed in ``progress.jsonl`` and kept when a run with the same parameters is
     restarted; ``done.json`` marks a complete pool and is reused while its parameters match."""
+    if ARM_FLAGS[arm].get("closeup_crop"):
+        return derive_closeup_pool(cfg, arm, train, empty)
     ic = cfg.insertion
     out = _repo_path(cfg.cache_dir) / arm / "pool"
     done, progress = out / "done.json", out / "progress.jsonl"
@@ -243,6 +290,51 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
                                 "num_boxes": sum(e["boxes"] for e in ok), "failures": failures,
                                 "seconds_per_image": float(np.median(seconds)) if seconds else None}, indent=1))
     log.info("%s: pool of %d images, %d inserted boxes", arm, len(ok), sum(e["boxes"] for e in ok))
+    return out
+
+
+def derive_closeup_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: list[int]) -> Path:
+    """The ``inserted`` pool's copies, each cropped by :func:`closeup_crop` (copy j with ``default_rng([pool_seed,
+    j, 17])``) to a height drawn from the real train boxes: the same insertions, framed closer, so the paired
+    difference to ``inserted`` measures the framing alone. No rendering: seconds for the whole pool."""
+    src = generate_arm_set(cfg, "inserted", train, empty)
+    src_done = json.loads((src / "done.json").read_text())
+    out = _repo_path(cfg.cache_dir) / arm / "pool"
+    done = out / "done.json"
+    wanted = json.loads(json.dumps({"arm": arm, "flags": ARM_FLAGS[arm], "insertion": dataclasses.asdict(cfg.insertion),
+                                    "source": {k: src_done.get(k) for k in ("code_commit", "num_images",
+                                                                            "num_boxes")}}))
+    if done.exists() and all(json.loads(done.read_text()).get(k) == v for k, v in wanted.items()):
+        log.info("%s: using cached pool %s", arm, out)
+        return out
+    done.unlink(missing_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
+    fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
+    pool = load_yolo_dir(src, names=cfg.class_names)
+    by_name = {Path(r.image_path).name: r for r in pool.records}
+    entries = []
+    for e in json.loads((src / "manifest.json").read_text()):
+        if e.get("failed"):
+            entries.append(e)
+            continue
+        r = by_name[e["image"]]
+        image = read_image_rgb(r.image_path)
+        crop, boxes, info = closeup_crop(image, r.boxes_xyxy, fracs,
+                                         np.random.default_rng([cfg.insertion.pool_seed, e["copy"], 17]))
+        stem = Path(e["image"]).stem.replace("__inserted", f"__{arm}")
+        write_yolo_sample(out, stem, crop, boxes, np.zeros(len(boxes), np.int64))
+        entries.append({**e, "image": f"{stem}.jpg", "boxes": int(len(boxes)), "closeup": info,
+                        "box_heights_frac": [float(x) for x in (boxes[:, 3] - boxes[:, 1]) / crop.shape[0]]})
+    ok = [e for e in entries if not e.get("failed")]
+    write_classes(out, cfg.class_names)
+    (out / "manifest.json").write_text(json.dumps(entries, indent=1))
+    done.write_text(json.dumps({**wanted, "code_commit": _git_head(), "num_images": len(ok),
+                                "num_boxes": sum(e["boxes"] for e in ok), "failures": src_done.get("failures", {}),
+                                "seconds_per_image": src_done.get("seconds_per_image"),
+                                "median_zoom": float(np.median([e["closeup"]["zoom"] for e in ok])) if ok else None},
+                               indent=1))
+    log.info("%s: %d close-up copies of %s, median zoom %.2f", arm, len(ok), src,
+             json.loads(done.read_text())["median_zoom"] or 1.0)
     return out
 
 
@@ -495,7 +587,7 @@ def plot_size_histograms(cfg: StudyConfig, train: DetectionSet, val: DetectionSe
     import matplotlib.pyplot as plt
 
     series = {"real train": real_box_height_fractions(train), "real val": real_box_height_fractions(val)}
-    for arm in cfg.arms:
+    for arm in ARM_FLAGS:   # every pool generated so far (the other study configs' arms too)
         mf = _repo_path(cfg.cache_dir) / arm / "pool" / "manifest.json"
         if uses_pool(arm) and mf.exists():
             series[f"{arm} pool"] = [h for e in json.loads(mf.read_text()) for h in e.get("box_heights_frac", [])]

@@ -96,3 +96,31 @@ def test_study_configs_load_and_name_known_arms():
     with pytest.raises(ValueError):
         StudyConfig(arms=("original", "bogus"))
     assert set(ARM_FLAGS) >= set(core.arms) | set(abl.arms)
+
+
+def test_closeup_crop_is_a_slice_with_the_target_height_and_exact_boxes():
+    from detection_eval.study import closeup_crop
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (360, 640, 3), dtype=np.uint8)
+    boxes = np.array([[300.0, 200.0, 330.0, 260.0],     # tallest: 60 px = 1/6 of the height
+                      [100.0, 250.0, 110.0, 270.0]])    # far left: falls outside most crops
+    for seed in range(20):
+        crop, out, info = closeup_crop(img, boxes, (0.4,), np.random.default_rng(seed), min_side_px=100)
+        ch, cw = crop.shape[:2]
+        x0, y0, w0, h0 = info["crop_xywh"]
+        assert np.array_equal(crop, img[y0:y0 + h0, x0:x0 + w0])           # no resampling: a slice
+        assert abs(cw / ch - 640 / 360) < 0.02                              # the image's aspect
+        assert abs(60 / ch - 0.4) < 0.01                                    # the tallest box now 0.4 of the frame
+        np.testing.assert_allclose(out[0], boxes[0] - [x0, y0, x0, y0])     # whole, moved by the origin
+        assert len(out) + info["dropped_boxes"] == 2
+    # A target below the current size, or no boxes: unchanged.
+    same, out, info = closeup_crop(img, boxes, (0.1,), rng)
+    assert same is img and info["zoom"] == 1.0 and np.array_equal(out, boxes)
+    # The short side never goes below min_side_px: the zoom is capped.
+    crop, _, info = closeup_crop(img, boxes, (0.95,), rng, min_side_px=160)
+    assert crop.shape[0] >= 159 and info["zoom"] <= 360 / 160 + 0.01
+
+
+def test_closeup_arm_is_a_study_flag_not_an_insertion_override():
+    from detection_eval.study import STUDY_FLAGS
+    assert ARM_FLAGS["inserted_closeup"] == {"closeup_crop": True} and "closeup_crop" in STUDY_FLAGS
