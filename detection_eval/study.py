@@ -580,6 +580,50 @@ def plot_summary(rows: list[dict], path: Path, reference: str = "original") -> N
     plt.close(fig)
 
 
+def plot_amounts(rows: list[dict], path: Path, reference: str = "original") -> bool:
+    """Paired ΔAP50:95 to ``reference`` (mean, 95 % CI, seeds as dots) against the number of inserted images, one
+    line per pool arm with at least two amounts or sharing an amount with one that has; False when nothing to draw."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    arms = list(dict.fromkeys(r["arm"] for r in rows if r.get("amount") is not None))
+    if len({r["amount"] for r in rows if r.get("amount") is not None}) < 2:
+        return False
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for k, arm in enumerate(arms):
+        amounts = sorted({r["amount"] for r in rows if r["arm"] == arm and r.get("amount") is not None})
+        pts = []
+        for a in amounts:
+            d = paired_deltas(rows, f"{arm} n={a}", reference)
+            if d:
+                m, h = mean_ci95(d)
+                pts.append((a, m, 0.0 if math.isnan(h) else h, d))
+        if not pts:
+            continue
+        off = 1.0 + 0.03 * (k - (len(arms) - 1) / 2)   # a small multiplicative offset so the bars do not overlap
+        xs = [a * off for a, *_ in pts]
+        ax.errorbar(xs, [m for _, m, _, _ in pts], yerr=[h for *_, h, _ in pts], fmt="o-", capsize=5,
+                    color=f"C{k}", label=f"{arm} (seeds: {', '.join(str(len(d)) for *_, d in pts)})")
+        for x, (_, _, _, d) in zip(xs, pts):
+            ax.scatter([x] * len(d), d, color=f"C{k}", s=10, alpha=0.35)
+    ax.axhline(0, color="0.3", lw=1)
+    ax.set_xscale("log")
+    ticks = sorted({r["amount"] for r in rows if r.get("amount") is not None})
+    ax.set_xticks(ticks, [str(t) for t in ticks])
+    ax.minorticks_off()
+    ax.set_xlabel("inserted images per run (beside the real subset's 219 images)")
+    ax.set_ylabel(f"paired ΔAP50:95 vs {reference}")
+    ax.set_title("TraCon val: gain by amount of inserted data (mean, 95% CI)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return True
+
+
 def plot_size_histograms(cfg: StudyConfig, train: DetectionSet, val: DetectionSet, path: Path) -> dict:
     """Box height / image height of real train, real val and each arm's pool; returns their medians."""
     import matplotlib
@@ -641,6 +685,8 @@ def write_summary(cfg: StudyConfig, config_path: str, command: str, train: Detec
     md = f"# Detection study: TraCon cones\n\nReproduce: `aias-study --config {config_path}` (generate, train, " \
          f"summarize); this table was written by `{command}`.\n\n{note}\n{table}\n" \
          f"![AP by arm](ap_by_arm.png)\n"
+    if plot_amounts(rows, results / "ap_by_amount.png", cfg.reference_arm):
+        md += "\n![gain by amount of inserted data](ap_by_amount.png)\n"
     if train is not None and val is not None:
         medians = plot_size_histograms(cfg, train, val, results / "size_histograms.png")
         md += "\nObject sizes (median box height / image height): " + \
