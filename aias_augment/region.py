@@ -7,12 +7,21 @@ Evidence, strongest first:
    excluded. Sparse depth is spread to neighbouring pixels (``sparse_radius_px``).
 3. ``multi_frame``: a second image and the relative pose; pixels that the ground-plane homography maps onto
    matching pixels of the other frame lie on the plane (photometric consistency, for video without depth).
-4. Prior only: every pixel below the horizon (evidence "prior:below_horizon").
+4. ``image`` (a single image, nothing measured): the road surface seen in the image (:func:`image_ground_region`):
+   the dominant smooth surface of a seed zone between the (estimated) horizon and the bottom of the image, grown
+   over pixels of the same colour and at most its texture (edges are texture: they cut it), kept only where connected to the seed,
+   its border eroded. Parked cars, walls, poles and vegetation differ from the road in colour, brightness or
+   texture and are left out; so are cast shadows (lost recall, not precision). Evidence "image:road_appearance";
+   ``PlaceableRegion.excluded`` says how much of the below-horizon area each step removed.
+5. Prior only: every pixel below the horizon (evidence "prior:below_horizon"), also when the image region is
+   smaller than ``image_min_fraction`` of the image (a texture-only or synthetic image: the record says so).
 All are intersected with "below the horizon by ``horizon_margin_px``".
+
+Measured on KITTI 06 (stereo) and DGP (LiDAR) frames: ``results/placement/image_only.md``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -21,7 +30,7 @@ from .geometry import Intrinsics, check_rigid
 from .ground import GroundPlane, depth_to_points
 
 __all__ = ["RegionConfig", "PlaceableRegion", "placeable_region", "below_horizon_mask", "plane_homography",
-           "multi_frame_plane_consistency"]
+           "multi_frame_plane_consistency", "image_ground_region"]
 
 
 @dataclass(frozen=True)
@@ -35,16 +44,36 @@ class RegionConfig:
     sparse_fraction: float = 0.2               # depth with fewer valid pixels than this is treated as sparse
     photometric_tolerance: float = 12.0        # grey levels, for multi-frame consistency
     max_depth_m: float = 60.0
+    # Single image (``image_ground_region``). Tolerances are in 8-bit CIELAB units (OpenCV), at the analysis width.
+    # Chosen on KITTI 06 (grey) and checked on DGP (colour): results/placement/image_only.md.
+    image_region: bool = True                  # False: a single image gets the below-horizon prior (as before)
+    image_width_px: int = 640                  # the image is analysed at most this wide
+    image_seed_rows: tuple[float, float] = (0.35, 0.9)   # seed zone: fraction of the rows horizon -> bottom ...
+    image_seed_cols: tuple[float, float] = (0.25, 0.75)  # ... and of the columns
+    image_luma_tol: float = 25.0               # |L - L_road|
+    image_chroma_tol: float = 8.0              # |a - a_road|, |b - b_road|
+    image_texture_tol: float = 2.0             # local gradient <= this x the road's (+ image_texture_floor)
+    image_texture_floor: float = 2.0
+    image_open_px: int = 3                     # opening radius: thin bridges (a shadow into a car) are cut
+    image_erode_px: int = 4                    # border erosion: contacts keep off the region's edge
+    image_min_fraction: float = 0.01           # smaller image region -> the below-horizon prior
+    image_road_luma: tuple[float, float] = (60.0, 215.0)  # L range of road-like seed colours ...
+    image_road_chroma: float = 15.0            # ... and their largest chroma |(a, b) - grey|
 
 
 @dataclass(frozen=True, eq=False)
 class PlaceableRegion:
     mask: np.ndarray      # (H, W) bool
-    evidence: str         # "semantic" | "depth" | "multi_frame" | "prior:below_horizon"
+    evidence: str         # "semantic" | "depth" | "multi_frame" | "image:road_appearance" | "prior:below_horizon"
     fraction: float       # of the image
+    # Image evidence: fraction of the below-horizon pixels each step excluded (why a pixel is not placeable).
+    excluded: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {"evidence": self.evidence, "fraction": self.fraction}
+        d = {"evidence": self.evidence, "fraction": self.fraction}
+        if self.excluded:
+            d["excluded"] = dict(self.excluded)
+        return d
 
 
 def below_horizon_mask(ground: GroundPlane, intrinsics: Intrinsics, margin_px: float = 0.0) -> np.ndarray:
@@ -62,8 +91,10 @@ def _disk(radius: int) -> np.ndarray:
 
 
 def placeable_region(intrinsics: Intrinsics, ground: GroundPlane, *, depth: np.ndarray | None = None,
-                     semantic: np.ndarray | None = None, cfg: RegionConfig = RegionConfig()) -> PlaceableRegion:
-    """Mask of pixels where an object's contact point may be (see module doc for the evidence order)."""
+                     semantic: np.ndarray | None = None, image: np.ndarray | None = None,
+                     cfg: RegionConfig = RegionConfig()) -> PlaceableRegion:
+    """Mask of pixels where an object's contact point may be (see module doc for the evidence order). ``image``
+    (H, W, 3) uint8 RGB: used only when nothing is measured (no depth, no semantic classes)."""
     h, w = intrinsics.height, intrinsics.width
     below = below_horizon_mask(ground, intrinsics, cfg.horizon_margin_px)
     if semantic is not None and cfg.semantic_classes:
@@ -88,7 +119,95 @@ def placeable_region(intrinsics: Intrinsics, ground: GroundPlane, *, depth: np.n
                 obstacle = cv2.dilate(obstacle, _disk(max(1, cfg.sparse_radius_px // 2)))
             mask = on_ground.astype(bool) & ~obstacle.astype(bool) & below
             return PlaceableRegion(mask, "depth", float(mask.mean()))
+    if image is not None and cfg.image_region:
+        region = image_ground_region(image, ground, intrinsics, cfg)
+        if region.fraction >= cfg.image_min_fraction:
+            return region
+        return PlaceableRegion(below, "prior:below_horizon", float(below.mean()),
+                               {"image region too small": region.fraction, **region.excluded})
     return PlaceableRegion(below, "prior:below_horizon", float(below.mean()))
+
+
+def _road_mode(feat: np.ndarray, cfg: RegionConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(road feature [L, a, b, gradient], inliers) of seed-zone features (N, 4): the peak of the (L, a, b)
+    histogram of the zone, each bin weighted by how road-like its colour is (asphalt, concrete: grey, neither
+    black nor white; dark bins are mostly shadows, tyres and dark car bodies, saturated ones car paint), then
+    refined by medians over the pixels within the tolerances."""
+    q = np.floor(feat[:, :3] / [cfg.image_luma_tol, cfg.image_chroma_tol, cfg.image_chroma_tol]).astype(np.int64)
+    keys, inverse, counts = np.unique(q, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    centre = np.stack([np.bincount(inverse, feat[:, j]) / counts for j in range(3)], axis=1)
+    chroma = np.hypot(centre[:, 1] - 128.0, centre[:, 2] - 128.0)
+    lo, hi = cfg.image_road_luma
+    prior = np.where((centre[:, 0] >= lo) & (centre[:, 0] <= hi) & (chroma <= cfg.image_road_chroma), 1.0, 0.25)
+    mode = np.median(feat[inverse == np.argmax(counts * prior)], axis=0)
+    for _ in range(3):
+        ok = _similar(feat, mode, cfg)
+        if not ok.any():
+            break
+        mode = np.median(feat[ok], axis=0)
+    return mode, _similar(feat, mode, cfg)
+
+
+def _similar(feat: np.ndarray, road: np.ndarray, cfg: RegionConfig) -> np.ndarray:
+    """Pixels of the road's colour and at most its texture (features [..., 4])."""
+    return ((np.abs(feat[..., 0] - road[0]) <= cfg.image_luma_tol)
+            & (np.abs(feat[..., 1] - road[1]) <= cfg.image_chroma_tol)
+            & (np.abs(feat[..., 2] - road[2]) <= cfg.image_chroma_tol)
+            & (feat[..., 3] <= cfg.image_texture_tol * road[3] + cfg.image_texture_floor))
+
+
+def image_ground_region(image: np.ndarray, ground: GroundPlane, intrinsics: Intrinsics,
+                        cfg: RegionConfig = RegionConfig()) -> PlaceableRegion:
+    """Road surface from the image alone (see the module doc, evidence 4), below the horizon of ``ground``."""
+    h, w = intrinsics.height, intrinsics.width
+    img = np.asarray(image)
+    if img.shape[:2] != (h, w) or img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"image {img.shape} does not match the camera {(h, w)} (need H x W x 3)")
+    below = below_horizon_mask(ground, intrinsics, cfg.horizon_margin_px)
+    scale = min(1.0, cfg.image_width_px / w)
+    sw, sh = max(1, round(w * scale)), max(1, round(h * scale))
+    small = cv2.resize(np.ascontiguousarray(img, np.uint8), (sw, sh), interpolation=cv2.INTER_AREA)
+    below_s = cv2.resize(below.astype(np.uint8), (sw, sh), interpolation=cv2.INTER_NEAREST).astype(bool)
+    lab = cv2.GaussianBlur(cv2.cvtColor(small, cv2.COLOR_RGB2LAB).astype(np.float32), (0, 0), 1.5)
+    gx = cv2.Sobel(lab[..., 0], cv2.CV_32F, 1, 0, ksize=3) / 8.0
+    gy = cv2.Sobel(lab[..., 0], cv2.CV_32F, 0, 1, ksize=3) / 8.0
+    grad = np.sqrt(gx * gx + gy * gy)
+    feat = np.dstack([lab, cv2.blur(grad, (7, 7))])
+    # seed zone: rows between the horizon (at each column) and the bottom, central columns
+    top = np.argmax(below_s, axis=0)          # first row below the horizon per column (0 when none)
+    has = below_s.any(axis=0)
+    rows = np.arange(sh)[:, None]
+    span = np.where(has, sh - top, 0)[None, :]
+    rel = (rows - top[None, :]) / np.maximum(span, 1)
+    cols = np.arange(sw)[None, :] / max(sw - 1, 1)
+    zone = (below_s & (rel >= cfg.image_seed_rows[0]) & (rel <= cfg.image_seed_rows[1])
+            & (cols >= cfg.image_seed_cols[0]) & (cols <= cfg.image_seed_cols[1]))
+    empty = PlaceableRegion(np.zeros((h, w), bool), "image:road_appearance", 0.0, {"no seed zone": 1.0})
+    if zone.sum() < 50:
+        return empty
+    road, zone_ok = _road_mode(feat[zone], cfg)
+    similar = _similar(feat, road, cfg) & below_s
+    opened = cv2.morphologyEx(similar.astype(np.uint8), cv2.MORPH_OPEN, _disk(cfg.image_open_px))
+    n, comp = cv2.connectedComponents(opened, connectivity=4)
+    seeds = np.zeros(sh * sw, bool)
+    seeds[np.flatnonzero(zone)[zone_ok]] = True
+    seed_comp = comp.reshape(-1)[seeds & (opened.reshape(-1) > 0)]
+    if len(seed_comp) == 0:
+        return empty
+    ids, counts = np.unique(seed_comp, return_counts=True)
+    keep = ids[counts >= 0.1 * counts.max()]      # components holding a good part of the road seed
+    connected = np.isin(comp, keep)
+    closed = cv2.morphologyEx(connected.astype(np.uint8), cv2.MORPH_CLOSE, _disk(2))
+    eroded = cv2.erode(closed, _disk(cfg.image_erode_px)) if cfg.image_erode_px > 0 else closed
+    mask = cv2.resize(eroded, (w, h), interpolation=cv2.INTER_NEAREST).astype(bool) & below
+    # why a below-horizon pixel is not placeable (each step's loss, as fractions of the below-horizon pixels)
+    def frac(m):
+        return round(float(m.sum()) / max(int(below_s.sum()), 1), 4)
+    excluded = {"colour or texture unlike the road": frac(below_s & ~_similar(feat, road, cfg)),
+                "thin or not connected to the road seed": frac(similar & ~connected),
+                "eroded border": frac(closed.astype(bool) & ~eroded.astype(bool) & below_s)}
+    return PlaceableRegion(mask, "image:road_appearance", float(mask.mean()), excluded)
 
 
 def plane_homography(ground_in_cam1: GroundPlane, cam2_from_cam1: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:

@@ -26,7 +26,7 @@ from ..scenes.single_image import SingleImageConfig, estimate_camera_from_image
 from .config import InsertionConfig
 
 #: Bumped whenever what analyse_scene computes changes: on-disk cache entries of another version are not read.
-ANALYSIS_VERSION = "1"
+ANALYSIS_VERSION = "2"  # 2: single images get an image-evidence region (region.image_ground_region)
 #: Seed of the analysis' own generator (the analysis must not depend on the sample's random stream).
 ANALYSIS_SEED = 20240614
 #: meta keys that are sample/plan inputs, not scene analysis inputs (not part of the cache key).
@@ -86,7 +86,8 @@ class SceneAnalysis:
         ground = None if g is None else GroundPlane(np.array(g["normal"]), g["d"], g["source"], g["inlier_ratio"],
                                                     g["rms_m"], g["num_inliers"])
         r = d["region"]
-        region = None if r is None else PlaceableRegion(mask.astype(bool), r["evidence"], r["fraction"])
+        region = None if r is None else PlaceableRegion(mask.astype(bool), r["evidence"], r["fraction"],
+                                                        r.get("excluded", {}))
         L = d["lighting"]
         lighting = LightingEstimate(None if L["sun_direction_in_cam"] is None else np.array(L["sun_direction_in_cam"]),
                                     np.array(L["sun_irradiance_rgb"]), np.array(L["ambient_sh"]), L["sun_sky_ratio"],
@@ -157,9 +158,12 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
                 raise ValueError(f"meta['placeable_mask'] must be {(h, w)}, got {m.shape}")
             region = PlaceableRegion(m & below_horizon_mask(ground, intr), "given", float(m.mean()))
         else:
-            region = placeable_region(intr, ground, depth=frame.depth, semantic=meta.get("semantic"))
+            region = placeable_region(intr, ground, depth=frame.depth, semantic=meta.get("semantic"), image=img)
         mods["region"] = f"{region.evidence} ({100 * region.fraction:.0f}% of the image placeable)"
-        if region.evidence != "prior:below_horizon" and "ground_mask" not in meta:
+        if region.excluded:
+            mods["region"] += ", excluded: " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in region.excluded.items())
+        # measured regions only: the image region leaves cast shadows out, it would bias the sun/sky ratio
+        if not region.evidence.startswith(("prior:", "image:")) and "ground_mask" not in meta:
             meta["ground_mask"] = region.mask  # lit/shadowed ground for the sun/sky ratio
     up_ground = ground or prior_ground_plane(cfg.camera_height_m)
     if small is None:

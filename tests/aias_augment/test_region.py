@@ -1,3 +1,4 @@
+import cv2
 import numpy as np
 import pytest
 
@@ -69,3 +70,98 @@ def test_multi_frame_consistency_on_textured_plane():
     assert ok.mask[150:230, 60:260].mean() > 0.9
     wrong = multi_frame_plane_consistency(img1, img2, prior_ground_plane(0.5), cam2_from_cam1, INTR)
     assert wrong.mask[150:230, 60:260].mean() < 0.5
+
+
+# --- single image: the road from the image alone (region.image_ground_region) -------------------------------------
+# Truth by construction: a synthetic street seen by a level camera (horizon through cy). The road is a polygon
+# converging to the vanishing point; left and right of it grass-like (green, coarse texture) and a wall; a parked
+# car (dark red body, black tyres, bright window edge) stands on the road; the bottom rows are the ego vehicle's
+# bonnet (smooth, bright). The region must stay on the road polygon and off the car, the bonnet and the verges.
+STREET_INTR = Intrinsics(400, 400, 319.5, 179.5, 640, 360)
+
+
+def _street(grey: bool = False, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    h, w = STREET_INTR.height, STREET_INTR.width
+    vv, uu = np.mgrid[0:h, 0:w].astype(float)
+    img = np.empty((h, w, 3), np.float32)
+    img[:] = (150, 190, 230)                                                  # sky
+    grass = np.array([70, 120, 50]) + rng.normal(0, 28, (h, w, 1))             # coarse texture
+    img[180:] = grass[180:]
+    # road: between two lines through the vanishing point (319.5, 179.5), 1.5 m camera height, 7 m wide
+    x_at = lambda v, lateral: 319.5 + lateral * (v - 179.5) / 1.5  # noqa: E731  (ground x = lateral at row v)
+    road = (vv > 182) & (uu > x_at(vv, -3.5)) & (uu < x_at(vv, 3.5))
+    asphalt = 105 + rng.normal(0, 3, (h, w)) + 0.04 * (vv - 180)               # fine texture, slow shading
+    img[road] = asphalt[road][:, None]
+    img[(vv > 120) & (vv < 215) & (uu > 420) & (uu > x_at(vv, 5.0))] = (200, 185, 160)  # a house wall
+    car = (vv >= 230) & (vv < 285) & (uu >= 380) & (uu < 470)                   # parked car on the road
+    img[car] = (90, 15, 20)
+    img[(vv >= 238) & (vv < 255) & (uu >= 392) & (uu < 458)] = (210, 220, 230)  # its window
+    img[(vv >= 272) & (vv < 288) & (((uu >= 388) & (uu < 404)) | ((uu >= 444) & (uu < 460)))] = (15, 15, 15)
+    car_px = car | ((vv >= 272) & (vv < 288) & (uu >= 388) & (uu < 460))
+    bonnet = vv >= 340
+    img[bonnet] = (230, 230, 235)
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    if grey:
+        g = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+        img = np.repeat(g[..., None], 3, axis=2)
+    return img, road & ~car_px & ~bonnet, car_px, bonnet
+
+
+@pytest.mark.parametrize("grey", [False, True])
+def test_image_region_stays_on_the_road_and_off_the_car(grey):
+    img, road, car, bonnet = _street(grey)
+    region = placeable_region(STREET_INTR, GROUND, image=img)
+    assert region.evidence == "image:road_appearance"
+    m = region.mask
+    assert (m & road).sum() / m.sum() >= 0.98                      # precision against the known road polygon
+    assert (m & road).sum() / road.sum() >= 0.5                    # and most of the road
+    assert not (m & car).any() and not (m & bonnet).any()
+    assert not m[:180].any()                                       # nothing above the horizon
+    assert set(region.excluded) >= {"colour or texture unlike the road", "eroded border"}
+
+
+def test_image_region_avoids_the_car_borders():
+    img, road, car, _ = _street()
+    m = placeable_region(STREET_INTR, GROUND, image=img).mask
+    near_car = cv2.dilate(car.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    assert not (m & near_car).any()                                # eroded: contacts keep off the occluder's edge
+
+
+def test_image_region_needs_nothing_measured_and_can_be_switched_off():
+    img, *_ = _street()
+    assert placeable_region(STREET_INTR, GROUND, depth=_street_depth(), image=img).evidence == "depth"
+    off = placeable_region(STREET_INTR, GROUND, image=img, cfg=RegionConfig(image_region=False))
+    assert off.evidence == "prior:below_horizon"
+
+
+def _street_depth():
+    v, u = np.mgrid[0:STREET_INTR.height, 0:STREET_INTR.width]
+    pts = GROUND.intersect_pixels(np.stack([u, v], -1).astype(float), STREET_INTR)
+    return np.where(np.isfinite(pts[..., 2]), pts[..., 2], 0).astype(np.float32)
+
+
+def test_image_without_a_road_surface_falls_back_to_the_prior():
+    rng = np.random.default_rng(1)
+    noise = rng.integers(0, 256, (STREET_INTR.height, STREET_INTR.width, 3), dtype=np.uint8)  # no smooth surface
+    r = placeable_region(STREET_INTR, GROUND, image=noise)
+    assert r.evidence == "prior:below_horizon" and "image region too small" in r.excluded
+    assert r.mask.sum() == below_horizon_mask(GROUND, STREET_INTR, RegionConfig().horizon_margin_px).sum()
+
+
+def test_single_image_analysis_and_plan_use_the_image_region():
+    from aias_augment.insertion import analyse_scene, plan_insertion
+    from aias_augment.insertion.config import InsertionConfig
+    from aias_augment.scene import Frame
+    img, road, car, _ = _street()
+    cfg = InsertionConfig(lighting=False, estimate_camera=False, camera_height_m=1.5, min_objects=3, max_objects=3)
+    analysis = analyse_scene(Frame(img, STREET_INTR), cfg)
+    assert analysis.region.evidence == "image:road_appearance"
+    assert "excluded" in analysis.modules["region"]
+    contacts = []
+    for seed in range(4):
+        plan = plan_insertion(analysis, cfg, np.random.default_rng(seed))
+        contacts += [o.placement.contact_pixel for o in plan.objects]
+    assert len(contacts) >= 6
+    for u, v in contacts:
+        assert road[int(round(v)), int(round(u))] and not car[int(round(v)), int(round(u))]
