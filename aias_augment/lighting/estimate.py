@@ -177,12 +177,22 @@ class LightingConfig:
     #: bluer in B than in R (white bands came out lavender, orange brown). The value is the strength (0: off; 0.75:
     #: three quarters of the way in log, since some roads are not grey); gains clamped to [1/2, 2], luminance kept.
     ground_white_balance: float = 0.75
+    #: Colour of the fill for the sky the camera did not see (issue 15, "white stays white"): "seen" keeps the
+    #: Preetham model's brightness distribution but takes its chroma from the sky the camera saw above the horizon
+    #: (its median; the ground's when too little is seen): the photo went through the camera's white balance, the
+    #: model's absolute daylight colour did not, and gave the light a colour the scene does not show: in grey copies
+    #: of 7 TraCon roads a white band's B/R was 0.68-1.7 (median |log| 0.14) after the road balance, now 1.00,
+    #: tests/aias_augment/lighting/test_white_stays_white.py). "preetham": the model's colour (before).
+    sky_fill_colour: str = "seen"
 
     def __post_init__(self):
         if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
                 or self.default_sun_sky_ratio < 0 or not 0.5 <= self.sky_out_of_view_side_prob < 1.0
                 or self.sky_colour_weight < 0 or self.facade_albedo_sigma <= 0 or self.max_direct_to_diffuse_ratio <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
             raise ValueError("LightingConfig: invalid values")
+        if self.sky_fill_colour not in ("seen", "preetham"):
+            raise ValueError(f"LightingConfig: sky_fill_colour must be 'seen' or 'preetham', "
+                             f"got {self.sky_fill_colour!r}")
         if self.ground_albedo_range is not None and not 0 < self.ground_albedo_range[0] <= self.ground_albedo_range[1]:
             raise ValueError(f"LightingConfig: ground_albedo_range must be 0 < lo <= hi, got {self.ground_albedo_range}")
         if self.sun_full_confidence < 0 or not 0 < self.white_cap_linear <= 1 or not 0 <= self.ground_white_balance <= 1 or (
@@ -255,9 +265,15 @@ def _ambient_from_image(linear: np.ndarray, K: Intrinsics, up_in_cam: np.ndarray
         zen = float(luminance(preetham_sky_radiance(np.array([0.0, 0.0, 1.0]), sun_env, turbidity=config.turbidity)))
         sky_scale = ref / max(zen, 1e-12)
     ground_rgb = np.median(linear[below], axis=0) if below.sum() > 50 else np.median(linear.reshape(-1, 3), axis=0)
+    chroma = None
+    if config.sky_fill_colour == "seen":   # the camera's white balance: the seen sky's colour at unit luminance
+        seen = np.median(linear[above], axis=0) if above.sum() > 50 else ground_rgb
+        chroma = seen / float(luminance(seen)) if float(luminance(seen)) > 1e-6 and seen.min() > 0 else None
 
     def fill(dirs_env: np.ndarray) -> np.ndarray:
         sky = preetham_sky_radiance(dirs_env, sun_env, turbidity=config.turbidity) * sky_scale
+        if chroma is not None:
+            sky = luminance(sky)[:, None] * chroma[None, :]
         return np.where(dirs_env[:, 2:3] > 0, sky, ground_rgb[None, :])
 
     radiance, _ = assemble_envmap([linear], [K], [cam_from_env], height=config.ambient_map_height, fill=fill)

@@ -1,0 +1,71 @@
+"""Issue 15, "white stays white": in a photo without colour the light has no colour the camera recorded, so a neutral
+(white) Lambertian surface must come out neutral in every orientation, R = G = B. The truth is that physical
+statement (a grey image cannot tell one light colour from another), not an output of the code under test."""
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aias_augment.composite import to_uint8
+from aias_augment.geometry import Intrinsics
+from aias_augment.lighting.estimate import LightingConfig, estimate_lighting
+from aias_augment.lighting.shading import irradiance_at_normals, shade_object
+
+from .synthetic_scene import Box, render, sun_direction
+
+K = Intrinsics.from_fov(320, 240, 60.0)
+TRACON = Path(__import__("os").environ.get("AIAS_DATA", "../shared/data")) / "tracon" / "images" / "train"
+
+
+def _grey(img: np.ndarray) -> np.ndarray:
+    y = np.round(img.astype(np.float64) @ [0.299, 0.587, 0.114]).clip(0, 255).astype(np.uint8)
+    return np.repeat(y[..., None], 3, axis=2)
+
+
+def _white_sphere(est, n=2000):
+    """Unit normals over the whole sphere, the (H, W, 3) shading of a white (albedo 0.9) surface there, uint8."""
+    rng = np.random.default_rng(3)
+    normals = rng.normal(size=(n, 1, 3))
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    shaded = shade_object(np.full((n, 1, 3), 0.9, np.float32), normals, np.ones((n, 1), bool), est)
+    return normals, to_uint8(shaded)[:, 0].astype(int)
+
+
+def _check_neutral(est):
+    normals, px = _white_sphere(est)
+    E = irradiance_at_normals(normals[:, 0], est)
+    lit = E.max(1) > 1e-4
+    assert lit.mean() > 0.5
+    log_br = np.log(E[lit, 2] / E[lit, 0])
+    assert np.abs(log_br).max() < 0.01                      # irradiance: B / R within 1 %
+    assert np.abs(px[:, 2] - px[:, 0]).max() <= 1            # pixels: R = G = B to the 8-bit level
+    assert np.abs(px[:, 1] - px[:, 0]).max() <= 1
+
+
+@pytest.mark.parametrize("sunny", [True, False])
+def test_white_stays_white_in_a_grey_synthetic_road(sunny):
+    boxes = [Box((-3.0, 0.0, 9.0), (1.0, 1.2, 1.0)), Box((2.0, 0.0, 12.0), (1.5, 2.0, 1.0))]
+    img, _ = render(boxes, sun_direction(60.0, 40.0), K, exposure=0.8, noise=0.0,
+                    sun_irradiance=6.0 if sunny else 0.0)
+    grey = _grey(img)
+    _check_neutral(estimate_lighting(grey, None, None, {}, rng=np.random.default_rng(0)))
+    # the model sky's own colour (the previous fill) gave the grey photo's light a colour: the check is not vacuous
+    old = estimate_lighting(grey, None, None, {}, rng=np.random.default_rng(0),
+                            config=replace(LightingConfig(), sky_fill_colour="preetham"))
+    normals, _ = _white_sphere(old)
+    E = irradiance_at_normals(normals[:, 0], old)
+    lit = E.max(1) > 1e-4
+    assert np.abs(np.log(E[lit, 2] / E[lit, 0])).max() > 0.05
+
+
+@pytest.mark.parametrize("name", ["imh_179_00000000.jpg", "img_814_00000000.jpg"])
+def test_white_stays_white_in_a_grey_road_photo(name):
+    import cv2
+    p = TRACON / name
+    if not p.is_file():
+        pytest.skip(f"{p} missing (AIAS_DATA)")
+    img = cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)
+    s = 480 / max(img.shape[:2])
+    img = cv2.resize(img, (round(img.shape[1] * s), round(img.shape[0] * s)), interpolation=cv2.INTER_AREA)
+    _check_neutral(estimate_lighting(_grey(img), None, None, {}, rng=np.random.default_rng(0)))
