@@ -22,12 +22,13 @@ The input arrays are never modified; a new array is returned.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from ..config import CHECKPOINT_DIR
-from .camera_pipeline import CameraMatchParams, camera_match
+from .camera_pipeline import CameraMatchParams, camera_match, chroma_subsampled, estimate_jpeg_quality
 from .color import to_float, to_uint8
 from .reinhard import reinhard_transfer
 
@@ -99,6 +100,41 @@ def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str 
     m = soft[..., None]
     blended = to_uint8(image * (1.0 - m) + result * m)
     return np.where(m > 0, blended, composite_rgb_uint8)
+
+
+#: The camera-pipeline stage run after a colour harmonizer (``InsertionConfig.camera_match``, balanced and accurate
+#: presets): blur, noise, and the JPEG re-encode (the source's quality and chroma subsampling) matched to the
+#: surroundings. Exposure and white balance are the colour harmonizer's job and already done: strengths 0 here, so
+#: the colour is not corrected twice.
+CAMERA_STAGE_PARAMS = CameraMatchParams(exposure_strength=0.0, wb_strength=0.0, noise_through_jpeg=True)
+
+
+def match_camera(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, rng: np.random.Generator,
+                 source_rgb_uint8: np.ndarray | None = None, params: CameraMatchParams = CAMERA_STAGE_PARAMS
+                 ) -> tuple[np.ndarray, dict]:
+    """Camera-pipeline matching of the masked foreground (``camera_pipeline.camera_match`` with ``params``), blended
+    with the soft mask as :func:`harmonize` does (pixels with mask 0 are returned bit for bit). The JPEG quality and
+    chroma subsampling are read from ``source_rgb_uint8`` (the image before insertion; default the composite), since
+    they describe the camera, not the pasted object. Returns (new uint8 image, what was matched: ``jpeg_quality``
+    (None: no JPEG trace, stage skipped), ``chroma_420``). ``rng`` draws the added noise."""
+    soft = _validate(composite_rgb_uint8, fg_mask, "camera")
+    hard = soft > 0.0
+    src = composite_rgb_uint8 if source_rgb_uint8 is None else source_rgb_uint8
+    if source_rgb_uint8 is not None and src.shape != composite_rgb_uint8.shape:
+        raise ValueError(f"match_camera: source {src.shape} and composite {composite_rgb_uint8.shape} differ")
+    quality = params.jpeg_quality
+    if params.match_jpeg and quality is None:
+        quality = estimate_jpeg_quality(src)
+    chroma_420 = bool(chroma_subsampled(src)) if params.match_jpeg and quality else None
+    info = {"jpeg_quality": quality if params.match_jpeg else None, "chroma_420": chroma_420}
+    if not hard.any():
+        return composite_rgb_uint8.copy(), info
+    p = replace(params, jpeg_quality=quality, match_jpeg=bool(params.match_jpeg and quality))
+    result = to_float(camera_match(composite_rgb_uint8, hard, rng, p, chroma_420=chroma_420))
+    image = to_float(composite_rgb_uint8)
+    m = soft[..., None]
+    blended = to_uint8(image * (1.0 - m) + result * m)
+    return np.where(m > 0, blended, composite_rgb_uint8), info
 
 
 def harmonize_clip(frames: list[np.ndarray], fg_masks: list[np.ndarray | None], method: str = "fast",

@@ -54,6 +54,11 @@ class CameraMatchParams:
     match_jpeg: bool = True
     jpeg_quality: int | None = None  # None: estimate from the image; the stage is skipped when it finds no JPEG
     atmosphere_beta_per_m: float = 0.0  # extinction coefficient (1/m); used only with an object depth
+    # The background's noise is measured after its JPEG compression, which removes most of the high-frequency part
+    # Immerkaer's operator sees; the object's noise is added before its re-encode, which removes it again. True: the
+    # added sigma is raised so that after a re-encode at the source's quality it measures what the background does
+    # (jpeg_noise_gain; False: the noise is added at the measured level, and a JPEG'd source keeps almost none).
+    noise_through_jpeg: bool = False
 
 
 # ------------------------------------------------------------------------------------------ 1. exposure + white balance
@@ -185,9 +190,39 @@ def noise_level_function(gray: np.ndarray, region: np.ndarray, bins: int = 6) ->
     return float(a), float(b)
 
 
+def _measured_sigma(gray: np.ndarray) -> float:
+    """Immerkaer's noise sigma of a flat patch (mean |response| sqrt(pi / 2) / 6)."""
+    r = cv2.filter2D(gray, cv2.CV_32F, IMMERKAER)[2:-2, 2:-2]
+    return float(np.mean(np.abs(r)) * np.sqrt(np.pi / 2.0) / 6.0)
+
+
+def jpeg_noise_gain(sigma: float, quality: int, subsample_420: bool, level: float = 0.5, iters: int = 4) -> float:
+    """Factor by which noise of sigma ``sigma`` (grey, [0, 1]) must be raised before a JPEG encode at ``quality`` so
+    that Immerkaer's sigma measures ``sigma`` after it (1 when it cannot be found: no noise, or none survives).
+    Found on a flat 64 x 64 patch of grey ``level`` with a fixed internal generator (the caller's stream is not
+    used: a measurement of the codec, the same for every call); at most 8."""
+    if sigma <= 0:
+        return 1.0
+    noise = np.random.default_rng(0).standard_normal((64, 64, 1)).astype(np.float32)
+    sampling = cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420 if subsample_420 else cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444
+    gain = 1.0
+    for _ in range(iters):
+        patch = np.clip(level + gain * sigma * noise, 0, 1) * np.ones((1, 1, 3), np.float32)
+        ok, buf = cv2.imencode(".jpg", to_uint8(patch), [cv2.IMWRITE_JPEG_QUALITY, int(quality),
+                                                        cv2.IMWRITE_JPEG_SAMPLING_FACTOR, sampling])
+        dec = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE).astype(np.float32) / 255.0
+        measured = _measured_sigma(dec)
+        if not ok or measured <= 1e-6:
+            return 1.0
+        gain = float(np.clip(gain * sigma / measured, 1.0, 8.0))
+    return gain
+
+
 def match_noise(image_float: np.ndarray, fg: np.ndarray, rng: np.random.Generator,
-                background: np.ndarray | None = None) -> np.ndarray:
-    """Add the noise variance the background (default: ~fg) has and the foreground lacks (per pixel, from NLFs)."""
+                background: np.ndarray | None = None, jpeg: tuple[int, bool] | None = None) -> np.ndarray:
+    """Add the noise variance the background (default: ~fg) has and the foreground lacks (per pixel, from NLFs).
+    ``jpeg``: (quality, 4:2:0) of the re-encode that follows; the added noise is raised by :func:`jpeg_noise_gain`
+    so that it measures the missing sigma after it."""
     gray = image_float @ LUMA_WEIGHTS
     nlf_bg = noise_level_function(gray, ~fg if background is None else background)
     nlf_fg = noise_level_function(gray, fg)
@@ -196,8 +231,12 @@ def match_noise(image_float: np.ndarray, fg: np.ndarray, rng: np.random.Generato
     nlf_fg = nlf_fg or (0.0, 0.0)
     level = gray[fg]
     var_add = np.maximum((nlf_bg[0] - nlf_fg[0]) * level + (nlf_bg[1] - nlf_fg[1]), 0.0)
+    gain = 1.0
+    if jpeg is not None and level.size:
+        gain = jpeg_noise_gain(float(np.sqrt(np.mean(var_add))), jpeg[0], jpeg[1], float(np.mean(level)))
     out = image_float.copy()
-    out[fg] = np.clip(image_float[fg] + np.sqrt(var_add)[:, None] * rng.standard_normal((level.size, 3)), 0.0, 1.0)
+    out[fg] = np.clip(image_float[fg] + gain * np.sqrt(var_add)[:, None] * rng.standard_normal((level.size, 3)),
+                      0.0, 1.0)
     return out.astype(np.float32)
 
 
@@ -288,8 +327,10 @@ def reapply_jpeg(image_uint8: np.ndarray, fg: np.ndarray, quality: int, subsampl
 
 # ------------------------------------------------------------------------------------------------------- composition
 def camera_match(image_uint8: np.ndarray, mask_bool: np.ndarray, rng: np.random.Generator,
-                 params: CameraMatchParams = CameraMatchParams(), object_depth_m=None) -> np.ndarray:
+                 params: CameraMatchParams = CameraMatchParams(), object_depth_m=None,
+                 chroma_420: bool | None = None) -> np.ndarray:
     """All stages; returns a new uint8 image (only foreground pixels differ). ``object_depth_m``: scalar or (H, W).
+    ``chroma_420``: the source's chroma subsampling when known (None: estimated from ``image_uint8``).
 
     Each connected component is processed in its own context crop (4 x its box side): gains from its ring, blur and
     noise statistics from the crop's background, so the cost does not grow with the image size.
@@ -301,6 +342,10 @@ def camera_match(image_uint8: np.ndarray, mask_bool: np.ndarray, rng: np.random.
     airlight = estimate_airlight(srgb) if object_depth_m is not None and params.atmosphere_beta_per_m > 0 else None
     depth = None if airlight is None else np.broadcast_to(np.asarray(object_depth_m, np.float32), mask_bool.shape)
     out = srgb.copy()
+    subsample = None
+    if params.match_jpeg and quality:
+        subsample = chroma_subsampled(image_uint8) if chroma_420 is None else chroma_420
+    through = (int(quality), bool(subsample)) if params.noise_through_jpeg and subsample is not None else None
     for comp in components(mask_bool):
         x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, 4.0)
         fg, others = comp[y0:y1, x0:x1], mask_bool[y0:y1, x0:x1] & ~comp[y0:y1, x0:x1]
@@ -314,9 +359,9 @@ def camera_match(image_uint8: np.ndarray, mask_bool: np.ndarray, rng: np.random.
         if params.match_sharpness:
             crop = match_blur(crop, fg, surround, params)
         if params.match_noise:
-            crop = match_noise(crop, fg, rng, background=~fg & ~others)
+            crop = match_noise(crop, fg, rng, background=~fg & ~others, jpeg=through)
         out[y0:y1, x0:x1][fg] = crop[fg]
     result = to_uint8(out)
     if params.match_jpeg and quality:
-        result = reapply_jpeg(result, mask_bool, quality, chroma_subsampled(image_uint8))
+        result = reapply_jpeg(result, mask_bool, quality, subsample)
     return result

@@ -137,6 +137,8 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
         union = np.clip(np.maximum.reduce(vis_full), 0, 1).astype(np.float32)
         result, mods["harmonize"] = _harmonize(result, union, cfg, np.random.default_rng(plan.harmonize_seed),
                                                within=win)
+        if cfg.camera_match:
+            result, mods["camera_match"] = _camera_match(result, union, cfg, img, plan.harmonize_seed)
     else:
         mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
 
@@ -251,6 +253,20 @@ def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,
         return out, f"harmonized ({cfg.harmonize_method}, in the objects' context window)"
     except FileNotFoundError as e:
         return image, f"skipped: {e}"
+
+
+def _camera_match(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, source: np.ndarray,
+                  harmonize_seed: int) -> tuple[np.ndarray, str]:
+    """The camera-pipeline stage after the colour harmonizer (``cfg.camera_match``): blur, noise and JPEG matched to
+    the surroundings; its noise from its own generator ``default_rng([harmonize_seed, 1])`` (the harmonizer's stream
+    is left as it was)."""
+    if cfg.harmonize_method == "camera":
+        return image, "skipped: the harmonizer is the camera pipeline already"
+    from ..harmonize.api import match_camera
+    out, info = match_camera(image, mask, np.random.default_rng([harmonize_seed, 1]), source_rgb_uint8=source)
+    jpeg = (f"JPEG q{info['jpeg_quality']} {'4:2:0' if info['chroma_420'] else '4:4:4'}" if info["jpeg_quality"]
+            else "no JPEG trace in the source: not re-encoded")
+    return out, f"blur, noise, {jpeg} matched to the surroundings (after {cfg.harmonize_method})"
 
 
 #: The fast harmonizer's largest context factor per checkpoint version (read once, not at every call).

@@ -25,6 +25,11 @@ class InsertionConfig:
     naive_paste: bool = False
     harmonize_method: str = "camera"
     harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~2-6x faster)
+    # After the colour harmonizer: camera-pipeline matching of blur, noise and JPEG (quality and chroma subsampling
+    # read from the source image) against the object's surroundings (harmonize.api.match_camera; its noise drawn
+    # from a generator seeded by the plan's harmonize_seed, so a replay gives the same bytes). Part of the
+    # harmonization stage: off with it. Redundant (skipped) when harmonize_method is "camera".
+    camera_match: bool = False
     asset_source: str = "default"        # "default": shared-data model per category, bank for others; "bank": all bank
     #                                       "procedural": a new seeded procedural asset per object where the category has
     #                                       a generator (traffic_cone), else as "default"
