@@ -12,11 +12,12 @@ camera given (``camera_k``, KITTI P0/P2) and, with ``--unknown-camera``, also wi
 Per insertion, from the record and the pixels:
 - the sun decision (``lighting.dominant_sun``), its confidence, sun/sky ratio, the estimated sun azimuth (camera frame,
   from forward, right positive) and elevation, and the record's shadow module line;
-- cast-shadow pixels: ground pixels outside the object (its RLE mask dilated by 3 px) darkened by the insertion
-  (output / input luminance < ``DARK_Q`` = 0.9) and farther than 0.75 x the object's height from its footprint
-  rectangle (nearer, the contact occlusion alone darkens by up to 40 %; at 0.75 h by < 3 %). The ground is the plane
-  through the object's base with the object's up axis (the plane the pipeline projects the shadow onto). "Cast
-  shadow" = at least ``MIN_SHADOW_PX`` such pixels;
+- cast-shadow pixels: ground pixels outside the object (its RLE mask dilated by 3 px) darkened by the insertion more
+  than the contact occlusion alone would (output / input luminance q < c(rho) - ``DARK_MARGIN``, c(rho) = 1 - 0.6
+  exp(-rho / (0.25 h)) the documented contact shade at the distance rho from the footprint rectangle, h the object's
+  height; and q < ``DARK_Q`` = 0.95). The ground is the plane through the object's base with the object's up axis (the
+  plane the pipeline projects the shadow onto). "Cast shadow" = at least max(``MIN_SHADOW_PX``, 3 % of the object's
+  own pixels) such pixels (a distant cone's shadow is a sliver of a few pixels);
 - the cast shadow's direction on the ground: from the footprint centre to the darkness-weighted centroid of those
   pixels, as an azimuth in the camera's ground frame.
 
@@ -52,9 +53,10 @@ from aias_augment.lighting import hdr, ratio  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import eval_lighting_kitti as ek  # noqa: E402
 
-DARK_Q = 0.9
-MIN_SHADOW_PX = 10
-CONTACT_FACTOR = 0.75
+DARK_Q = 0.95
+DARK_MARGIN = 0.05
+MIN_SHADOW_PX = 5
+MIN_SHADOW_FRAC = 0.03
 COLOUR_FRAMES = (12, 13, 14, 17)
 
 
@@ -118,6 +120,7 @@ def cast_shadow(img_in: np.ndarray, img_out: np.ndarray, record, K: Intrinsics) 
         rle = dict(a.rle)
         rle["counts"] = rle["counts"].encode("ascii")
         obj |= mask_utils.decode(rle).astype(bool)
+    n_obj = int(obj.sum())
     obj = ndimage.binary_dilation(obj, iterations=3)
     p = record.placements[0]
     T = np.asarray(p.cam_from_object, float)
@@ -137,10 +140,11 @@ def cast_shadow(img_in: np.ndarray, img_out: np.ndarray, record, K: Intrinsics) 
         lo, hi = -0.25 * np.array([p.height_m] * 3), 0.25 * np.array([p.height_m] * 3)
     dx = np.maximum(np.maximum(lo[0] - local[..., 0], local[..., 0] - hi[0]), 0.0)
     dy = np.maximum(np.maximum(lo[1] - local[..., 1], local[..., 1] - hi[1]), 0.0)
-    far = np.hypot(dx, dy) > CONTACT_FACTOR * float(p.height_m)
-    dark = on_ground & ~obj & far & (q < DARK_Q) & (y_in > 1e-3)
+    contact = 1.0 - 0.6 * np.exp(-np.hypot(dx, dy) / (0.25 * float(p.height_m)))
+    dark = on_ground & ~obj & (q < np.minimum(DARK_Q, contact - DARK_MARGIN)) & (y_in > 1e-3)
     out = {"cast_shadow_pixels": int(dark.sum()), "darkened_pixels_any": int((~obj & (q < DARK_Q)).sum()),
-           "min_q": float(q[~obj].min()) if (~obj).any() else 1.0}
+           "object_pixels": n_obj, "min_q": float(q[~obj].min()) if (~obj).any() else 1.0,
+           "cast_shadow": bool(dark.sum() >= max(MIN_SHADOW_PX, MIN_SHADOW_FRAC * n_obj))}
     if dark.sum() >= MIN_SHADOW_PX:
         w = (1.0 - q[dark])
         c = (local[dark][:, :2] * w[:, None]).sum(0) / w.sum() - 0.5 * (lo[:2] + hi[:2])
@@ -248,7 +252,6 @@ def main(argv=None) -> int:
                         raise RuntimeError("scene cache: unexpected analysis")
                     row["used_focal_px"] = float(used_K.fx)
                     row.update(cast_shadow(img, res["image"], rec, used_K))
-                    row["cast_shadow"] = row["cast_shadow_pixels"] >= MIN_SHADOW_PX
                     if "shadow_azimuth_deg" in row:
                         row["shadow_vs_truth_deg"] = abs(wrap_deg(row["shadow_azimuth_deg"] - (sun_az_truth + 180.0)))
                         if "sun_azimuth_deg" in row:
@@ -296,8 +299,8 @@ def main(argv=None) -> int:
              + ", ".join(f"frame {i}: {v['azimuth_deg']:.0f} deg (axis strength {v['axis_strength']:.2f})"
                          for i, v in truth.items())
              + f"; street sun at world azimuth {sun_world:.1f} deg. Azimuths: camera frame, from forward, right "
-             "positive. Cast shadow: >= 10 ground pixels darkened below 0.9 x the input, outside the object and "
-             "farther than 0.75 x its height from its footprint.", "",
+             "positive. Cast shadow: at least max(5, 3 % of the object's pixels) ground pixels outside the object darkened "
+             "by more than the contact shade alone (q < min(0.95, 1 - 0.6 exp(-rho / 0.25 h) - 0.05)).", "",
              "| preset / frames / camera | insertions | dominant sun | cast shadow | frames without sun | shadow dir vs "
              "real: median / max deg (within 45) | sun azimuth err median / max | shadow vs own sun median / max |",
              "|---|---|---|---|---|---|---|---|"]

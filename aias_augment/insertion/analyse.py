@@ -166,20 +166,27 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
         if not region.evidence.startswith(("prior:", "image:")) and "ground_mask" not in meta:
             meta["ground_mask"] = region.mask  # lit/shadowed ground for the sun/sky ratio
     up_ground = ground or prior_ground_plane(cfg.camera_height_m)
-    if small is None:
+    # The lighting's copy is at least lighting_cfg.min_input_width wide (the camera's may be narrower): on a 160 px
+    # copy the sun's side and the cast-shadow contrast are lost (results/lighting/kitti_cast_shadow.md).
+    lsmall = small if small is None else _analysis_copy(img, max(cfg.analysis_max_width,
+                                                                 cfg.lighting_cfg.min_input_width))
+    if lsmall is None:
         lighting = _scene_lighting(img, intr, up_ground, rng, cfg, meta, mods)
     else:
-        sh_, sw_ = small.shape[:2]
+        sh_, sw_ = lsmall.shape[:2]
         meta_s = dict(meta)
         for k in ("ground_mask", "semantic"):  # per-pixel inputs follow the copy (nearest: labels stay labels)
             if meta_s.get(k) is not None:
                 rows = ((np.arange(sh_) + 0.5) * h / sh_).astype(int)
                 cols = ((np.arange(sw_) + 0.5) * w / sw_).astype(int)
                 meta_s[k] = np.asarray(meta_s[k])[rows][:, cols]
-        lighting = _scene_lighting(small, _scaled_intrinsics(intr, sw_, sh_), up_ground, rng, cfg, meta_s, mods)
-        mods["analysis"] = (f"cheap: camera{'' if frame.depth is None else ' (not: depth given)'} and lighting "
-                            f"estimated on a {sw_}x{sh_} copy of the {w}x{h} image (analysis_max_width "
-                            f"{cfg.analysis_max_width}); region at full resolution")
+        lighting = _scene_lighting(lsmall, _scaled_intrinsics(intr, sw_, sh_), up_ground, rng, cfg, meta_s, mods)
+    if small is not None:
+        lw = f"{lsmall.shape[1]}x{lsmall.shape[0]} copy" if lsmall is not None else "the full image"
+        mods["analysis"] = (f"cheap: camera{'' if frame.depth is None else ' (not: depth given)'} estimated on a "
+                            f"{small.shape[1]}x{small.shape[0]} copy of the {w}x{h} image (analysis_max_width "
+                            f"{cfg.analysis_max_width}), lighting on {lw} (lighting_cfg.min_input_width "
+                            f"{cfg.lighting_cfg.min_input_width}); region at full resolution")
     return SceneAnalysis(key or scene_key(frame, cfg), (h, w), intr, ground, region, lighting, mods)
 
 

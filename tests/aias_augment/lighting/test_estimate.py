@@ -281,3 +281,54 @@ def test_kitti_clip_sun_is_on_the_left_and_one_world_direction():
         worlds.append(T[:3, :3].T @ e.sun_direction_in_cam)
     # One world sun in all frames (measured: within 0.02 deg of each other).
     assert all(np.rad2deg(np.arccos(np.clip(w @ worlds[0], -1, 1))) < 0.1 for w in worlds)
+
+
+# --- Fallback ground boxes (issue 15, section 2): a lit lane with the street's shadows on the verge ----------------
+# Ray-cast scenes (synthetic_scene: geometry and Lambert's law only). Poles on the left verge, a sun from the right
+# 35 deg high: their shadows fall on the verge (x < -1.8 m), none on the lane box (-1.5..1.5 m). Truth: the sun/sky
+# ratio on the ground is sun_irradiance sin(el) / sky_irradiance = 6 sin 35 deg.
+_KS = Intrinsics(360.0, 360.0, 319.5, 119.5, 640, 240)
+
+
+def _verge_poles():
+    from .synthetic_scene import Box
+
+    return [Box((-2.0, 1.65 - 3.0, z), (-1.8, 1.65, z + 0.2)) for z in np.arange(6.0, 19.0, 2.0)]
+
+
+def test_shadows_on_the_verge_give_a_sun_when_the_lane_has_none():
+    from .synthetic_scene import render, sun_direction
+
+    s = sun_direction(0.0, 35.0)
+    img, _ = render(_verge_poles(), s, _KS, rng=np.random.default_rng(0))
+    lane_only = estimate_lighting(img, _KS, config=LightingConfig(fallback_ground_boxes_m=()))
+    assert not lane_only.dominant_sun                     # before: the lane box alone saw no cast shadow
+    e = estimate_lighting(img, _KS)
+    _finite(e)
+    assert e.dominant_sun
+    # 4.8 against 3.4: the poles' own shaded faces (sky light on a vertical face: half the ground's) stand in the same
+    # box and join the dark mode, as real poles do; the lit mode is exact
+    truth = 6.0 * np.sin(np.deg2rad(35.0))
+    assert 0.8 * truth < e.sun_sky_ratio < 1.5 * truth
+    assert e.sun_direction_in_cam @ e.up_in_cam > 0      # (its azimuth comes from the sky and side cues, not the verge)
+    overcast, _ = render(_verge_poles(), s, _KS, sun_irradiance=0.0, rng=np.random.default_rng(0))
+    assert not estimate_lighting(overcast, _KS).dominant_sun
+
+
+def test_a_bright_strip_on_a_dark_verge_is_not_a_sun():
+    # Overcast: a dark flat verge (albedo 0.06) with one bright strip (0.35, the ground's): bimodal, lit/dark 5.8,
+    # but the dark mode is most of the verge (a bright patch on dark ground, not lit ground with shadows).
+    from .synthetic_scene import Box, render, sun_direction
+
+    verge = [Box((-6.0, 1.645, 3.0), (-3.0, 1.65, 25.0), albedo=(0.06, 0.06, 0.06)),
+             Box((-2.4, 1.645, 3.0), (-1.5, 1.65, 25.0), albedo=(0.06, 0.06, 0.06))]
+    img, _ = render(verge, sun_direction(0.0, 35.0), _KS, sun_irradiance=0.0, rng=np.random.default_rng(0))
+    assert not estimate_lighting(img, _KS).dominant_sun
+    from aias_augment.lighting.estimate import fallback_measurement_ok
+    from aias_augment.lighting.hdr import srgb_to_linear
+    from aias_augment.lighting.ratio import ground_region_mask, measure_lit_shadow
+
+    box = ground_region_mask(_KS, np.array([0.0, -1.0, 0.0]), 1.65, (-6.0, -1.5), (4.0, 20.0))
+    m = measure_lit_shadow(srgb_to_linear(img), box)
+    assert m is not None and m.dominant_sun and m.shadow_fraction > 0.6   # what the main-box test alone would accept
+    assert not fallback_measurement_ok(m, LightingConfig())

@@ -146,3 +146,43 @@ def test_white_balance_brings_the_light_colour_to_the_truth():
     # strength 0.75: three quarters of the way (in log) from the unbalanced estimate to the ground's colour (grey)
     assert off > 1.5                             # the unbalanced estimate is far too blue
     assert on == pytest.approx(off ** 0.25, rel=0.05)
+
+
+def test_tempered_sun_rest_is_the_suns_own_soft_lobe():
+    # Issue 15, section 2: the untrusted share of the sun must stay on the sun's side (shading consistent with the
+    # shadow it casts). Independent truth: a small bright disc at the sun's direction in an equirectangular map,
+    # projected to SH by quadrature, then irradiance at normals: the band-limited sun. Its shape must equal the
+    # tempered rest's, the ground's irradiance must be what the sun's share had (E_rest cos z), and a surface facing
+    # away from the sun must get almost none of it (the uniform rest gave it E_rest cos z, as much as the ground).
+    from aias_augment.lighting.envmap import pixel_directions, pixel_solid_angles
+
+    up = np.array([0.0, -1.0, 0.0])
+    s = np.array([0.3, -0.55, 0.78])
+    s /= np.linalg.norm(s)
+    cos_z = float(s @ up)
+    sh = np.zeros((9, 3))
+    sh[0] = 0.5
+    sun = np.array([6.0, 5.0, 4.0])
+    keep = 0.25
+    sh2, sun2 = temper_sun(sh, sun, cos_z, keep, s, up)
+    assert np.allclose(sun2, keep * sun)
+    rest = (1 - keep) * sun
+    assert np.allclose(sh_irradiance(sh2, up[None])[0] - sh_irradiance(sh, up[None])[0], rest * cos_z, rtol=1e-9)
+    # the disc (2 deg radius) in a 256 x 512 map whose world frame is the camera frame
+    dirs = pixel_directions(256).reshape(-1, 3)
+    omega = np.broadcast_to(pixel_solid_angles(256), (256, 512)).reshape(-1)
+    disc = dirs @ s > np.cos(np.deg2rad(2.0))
+    rad = np.zeros((len(dirs), 3))
+    rad[disc] = 1.0 / omega[disc].sum()  # unit irradiance at normal incidence
+    disc_sh = project_envmap_to_sh(rad.reshape(256, 512, 3))
+    rng = np.random.default_rng(1)
+    n = rng.normal(size=(200, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    lobe = (sh_irradiance(sh2, n) - sh_irradiance(sh, n))[:, 0] / rest[0]
+    # sh_irradiance clamps at 0, so compare the unclamped band-limited disc where it is positive
+    ref = sh_irradiance(disc_sh, n)[:, 0] * cos_z / sh_irradiance(disc_sh, up[None])[0, 0]
+    pos = ref > 0.01
+    assert pos.sum() > 100 and np.allclose(lobe[pos], ref[pos], atol=2e-3 * ref.max())
+    away = sh_irradiance(sh2, -s[None])[0] - sh_irradiance(sh, -s[None])[0]
+    assert np.all(away <= 0.1 * rest * cos_z / 0.3)  # f(-1) / f(l.up) = 0.06 / (>= 0.3 here)
+    assert np.all(sh_irradiance(sh2, s[None])[0] - sh_irradiance(sh, s[None])[0] > 1.0 * rest * cos_z)
