@@ -8,11 +8,12 @@ Evidence, strongest first:
 3. ``multi_frame``: a second image and the relative pose; pixels that the ground-plane homography maps onto
    matching pixels of the other frame lie on the plane (photometric consistency, for video without depth).
 4. ``image`` (a single image, nothing measured): the road surface seen in the image (:func:`image_ground_region`):
-   the dominant smooth surface of a seed zone between the (estimated) horizon and the bottom of the image, grown
-   over pixels of the same colour and at most its texture (edges are texture: they cut it), kept only where connected to the seed,
-   its border eroded. Parked cars, walls, poles and vegetation differ from the road in colour, brightness or
-   texture and are left out; so are cast shadows (lost recall, not precision). Evidence "image:road_appearance";
-   ``PlaceableRegion.excluded`` says how much of the below-horizon area each step removed.
+   the dominant road-coloured surface of a seed zone between the (estimated) horizon and the bottom of the image,
+   grown over pixels of the same colour and at most its texture (edges are texture: they cut it), kept only where
+   connected to the seed, its border eroded, ground farther than ``image_max_distance_m`` left out. Parked cars,
+   walls, poles and vegetation differ from the road in colour, brightness or texture and are left out; so are cast
+   shadows (lost recall, not precision). Evidence "image:road_appearance"; ``PlaceableRegion.excluded`` says how
+   much of the below-horizon area each step removed.
 5. Prior only: every pixel below the horizon (evidence "prior:below_horizon"), also when the image region is
    smaller than ``image_min_fraction`` of the image (a texture-only or synthetic image: the record says so).
 All are intersected with "below the horizon by ``horizon_margin_px``".
@@ -59,6 +60,7 @@ class RegionConfig:
     image_min_fraction: float = 0.01           # smaller image region -> the below-horizon prior
     image_road_luma: tuple[float, float] = (60.0, 215.0)  # L range of road-like seed colours ...
     image_road_chroma: float = 15.0            # ... and their largest chroma |(a, b) - grey|
+    image_max_distance_m: float = 40.0         # farther ground (on the estimated plane) is left out
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,13 +202,21 @@ def image_ground_region(image: np.ndarray, ground: GroundPlane, intrinsics: Intr
     connected = np.isin(comp, keep)
     closed = cv2.morphologyEx(connected.astype(np.uint8), cv2.MORPH_CLOSE, _disk(2))
     eroded = cv2.erode(closed, _disk(cfg.image_erode_px)) if cfg.image_erode_px > 0 else closed
-    mask = cv2.resize(eroded, (w, h), interpolation=cv2.INTER_NEAREST).astype(bool) & below
+    # vanishing geometry: near the horizon a pixel spans metres of road and the horizon estimate's error of a few
+    # pixels moves the contact by tens of metres; the far end of the road is also where cars and walls close it
+    vs, us = np.mgrid[0:sh, 0:sw]
+    uv = np.stack([(us + 0.5) / scale - 0.5, (vs + 0.5) / scale - 0.5], axis=-1).reshape(-1, 2).astype(np.float64)
+    dist = np.linalg.norm(ground.intersect_pixels(uv, intrinsics), axis=1).reshape(sh, sw)
+    far = ~(np.isfinite(dist) & (dist <= cfg.image_max_distance_m))
+    kept = eroded.astype(bool) & ~far
+    mask = cv2.resize(kept.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool) & below
     # why a below-horizon pixel is not placeable (each step's loss, as fractions of the below-horizon pixels)
     def frac(m):
         return round(float(m.sum()) / max(int(below_s.sum()), 1), 4)
     excluded = {"colour or texture unlike the road": frac(below_s & ~_similar(feat, road, cfg)),
                 "thin or not connected to the road seed": frac(similar & ~connected),
-                "eroded border": frac(closed.astype(bool) & ~eroded.astype(bool) & below_s)}
+                "eroded border": frac(closed.astype(bool) & ~eroded.astype(bool) & below_s),
+                "farther than image_max_distance_m": frac(eroded.astype(bool) & far & below_s)}
     return PlaceableRegion(mask, "image:road_appearance", float(mask.mean()), excluded)
 
 

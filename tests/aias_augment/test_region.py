@@ -118,6 +118,8 @@ def test_image_region_stays_on_the_road_and_off_the_car(grey):
     assert (m & road).sum() / road.sum() >= 0.5                    # and most of the road
     assert not (m & car).any() and not (m & bonnet).any()
     assert not m[:180].any()                                       # nothing above the horizon
+    far_row = 179.5 + 400 * 1.5 / RegionConfig().image_max_distance_m  # ground 40 m away (f h / Z below cy)
+    assert not m[:int(far_row)].any() and m[int(far_row) + 3:].any()
     assert set(region.excluded) >= {"colour or texture unlike the road", "eroded border"}
 
 
