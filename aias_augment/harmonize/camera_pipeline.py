@@ -326,6 +326,24 @@ def reapply_jpeg(image_uint8: np.ndarray, fg: np.ndarray, quality: int, subsampl
 
 
 # ------------------------------------------------------------------------------------------------------- composition
+CONTEXT = 4.0   # each component's statistics come from a crop of this many times its box side (context_box)
+
+
+def stage_window(mask_bool: np.ndarray) -> tuple[int, int, int, int] | None:
+    """A window (x0, y0, x1, y1) in which :func:`camera_match` (given the JPEG quality and chroma subsampling) gives
+    the whole image's bytes: it holds every component's context crop and the 16-aligned JPEG re-encode region, and
+    starts on the 16 px grid (the re-encode's blocks and the crops' offsets stay where they were); None: empty."""
+    boxes = [context_box(mask_box(c), mask_bool.shape, CONTEXT) for c in components(mask_bool)]
+    if not boxes:
+        return None
+    h, w = mask_bool.shape
+    mb = mask_box(mask_bool)
+    x0, y0 = (min(b[0] for b in boxes) // 16) * 16, (min(b[1] for b in boxes) // 16) * 16
+    x1 = min(w, max(max(b[2] for b in boxes), -(-mb[2] // 16) * 16))
+    y1 = min(h, max(max(b[3] for b in boxes), -(-mb[3] // 16) * 16))
+    return x0, y0, x1, y1
+
+
 def camera_match(image_uint8: np.ndarray, mask_bool: np.ndarray, rng: np.random.Generator,
                  params: CameraMatchParams = CameraMatchParams(), object_depth_m=None,
                  chroma_420: bool | None = None) -> np.ndarray:
@@ -347,7 +365,7 @@ def camera_match(image_uint8: np.ndarray, mask_bool: np.ndarray, rng: np.random.
         subsample = chroma_subsampled(image_uint8) if chroma_420 is None else chroma_420
     through = (int(quality), bool(subsample)) if params.noise_through_jpeg and subsample is not None else None
     for comp in components(mask_bool):
-        x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, 4.0)
+        x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, CONTEXT)
         fg, others = comp[y0:y1, x0:x1], mask_bool[y0:y1, x0:x1] & ~comp[y0:y1, x0:x1]
         width = max(3, int(round(params.ring_width_frac * np.sqrt(fg.sum()))))
         surround = ring(fg, width) & ~others

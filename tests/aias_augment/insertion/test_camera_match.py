@@ -80,3 +80,26 @@ def test_camera_match_stage_after_the_fast_harmonizer_replays_to_the_same_bytes(
 def test_presets_balanced_and_accurate_match_the_camera_fast_does_not():
     assert load_preset("balanced").camera_match and load_preset("accurate").camera_match
     assert not load_preset("fast").camera_match
+
+
+def test_match_camera_in_its_window_gives_the_whole_image_bytes():
+    from dataclasses import replace
+
+    from aias_augment.harmonize.api import CAMERA_STAGE_PARAMS
+    from aias_augment.harmonize.camera_pipeline import camera_match, chroma_subsampled, estimate_jpeg_quality
+    from aias_augment.harmonize.color import to_float, to_uint8
+    img = _grainy_jpeg_road()
+    comp = img.copy()
+    mask = np.zeros(img.shape[:2], np.float32)
+    for (y0, y1, x0, x1) in ((300, 380, 283, 341), (250, 290, 501, 523), (440, 480, 10, 60)):   # one at the border
+        mask[y0:y1, x0:x1] = 1.0
+        comp[y0:y1, x0:x1] = (200, 90, 40)
+    mask[299, 283:341] = 0.4
+    out, info = match_camera(comp, mask, np.random.default_rng(5), source_rgb_uint8=img)
+    q = estimate_jpeg_quality(img)
+    p = replace(CAMERA_STAGE_PARAMS, jpeg_quality=q)
+    whole = to_float(camera_match(comp, mask > 0, np.random.default_rng(5), p, chroma_420=chroma_subsampled(img)))
+    m = mask[..., None]
+    ref = np.where(m > 0, to_uint8(to_float(comp) * (1 - m) + whole * m), comp)
+    assert info["jpeg_quality"] == q
+    assert np.array_equal(out, ref)
