@@ -26,7 +26,6 @@ from .insertion.apply import apply_plan
 from .insertion.cache import SceneCache
 from .insertion.plan import PlannedObject, plan_insertion
 from .pipeline import InsertionConfig, InsertionResult, assemble_result, insert_into_image
-from .region import PlaceableRegion
 from .scene import Frame
 from .scene_inputs import SceneInputs, scene_meta
 
@@ -111,8 +110,7 @@ def insert_bounded(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.ran
     full_intr = intrinsics if intrinsics is not None else _rescale_intrinsics(analysis_small.intrinsics, W, H)
     region = analysis_small.region
     if region is not None:
-        region = PlaceableRegion(_resize_like_image(np.asarray(region.mask, bool), h, w, (W, H)), region.evidence,
-                                 region.fraction)
+        region = replace(region, mask=_resize_like_image(np.asarray(region.mask, bool), h, w, (W, H)))
     modules = {**analysis_small.modules,
                "working_resolution": f"analysis and plan at {w}x{h} (<= {max_pixels / 1e6:g} MP), rendered at {W}x{H}"}
     analysis = replace(analysis_small, image_shape=(H, W), intrinsics=full_intr, region=region, modules=modules)
