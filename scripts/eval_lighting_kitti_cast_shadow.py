@@ -15,8 +15,9 @@ Per insertion, from the record and the pixels:
 - cast-shadow pixels: ground pixels outside the object (its RLE mask dilated by 3 px) darkened by the insertion more
   than the contact occlusion alone would (output / input luminance q < c(rho) - ``DARK_MARGIN``, c(rho) = 1 - 0.6
   exp(-rho / (0.25 h)) the documented contact shade at the distance rho from the footprint rectangle, h the object's
-  height; and q < ``DARK_Q`` = 0.95). The ground is the plane through the object's base with the object's up axis (the
-  plane the pipeline projects the shadow onto). "Cast shadow" = at least max(``MIN_SHADOW_PX``, 3 % of the object's
+  height; and q < ``DARK_Q`` = 0.85; a margin of 0.15: without a sun, the object's anti-aliased edge (1-2 px
+  beyond its mask) and the contact shade darkened 5-41 pixels by 10-25 % at 0.05). The ground is the plane
+  through the object's base with the object's up axis (the plane the pipeline projects the shadow onto). "Cast shadow" = at least max(``MIN_SHADOW_PX``, 3 % of the object's
   own pixels) such pixels (a distant cone's shadow is a sliver of a few pixels);
 - the cast shadow's direction on the ground: from the footprint centre to the darkness-weighted centroid of those
   pixels, as an azimuth in the camera's ground frame.
@@ -53,8 +54,8 @@ from aias_augment.lighting import hdr, ratio  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import eval_lighting_kitti as ek  # noqa: E402
 
-DARK_Q = 0.95
-DARK_MARGIN = 0.05
+DARK_Q = 0.85
+DARK_MARGIN = 0.15
 MIN_SHADOW_PX = 5
 MIN_SHADOW_FRAC = 0.03
 COLOUR_FRAMES = (12, 13, 14, 17)
@@ -145,6 +146,21 @@ def cast_shadow(img_in: np.ndarray, img_out: np.ndarray, record, K: Intrinsics) 
     out = {"cast_shadow_pixels": int(dark.sum()), "darkened_pixels_any": int((~obj & (q < DARK_Q)).sum()),
            "object_pixels": n_obj, "min_q": float(q[~obj].min()) if (~obj).any() else 1.0,
            "cast_shadow": bool(dark.sum() >= max(MIN_SHADOW_PX, MIN_SHADOW_FRAC * n_obj))}
+    L = record.lighting
+    if L is not None and L.dominant_sun and L.sun_direction_in_cam is not None:
+        # Where the shadow of the object's top should land (its own sun): outside the image, or inside the object's
+        # own box (a sun behind the camera hides the shadow behind the object), no cast shadow can be seen.
+        sd = np.asarray(L.sun_direction_in_cam, float)
+        h_m = float(p.height_m)
+        tip = t + h_m * n - h_m / max(float(sd @ n), 1e-3) * sd
+        if tip[2] > 1e-3:
+            u, v = K.fx * tip[0] / tip[2] + K.cx, K.fy * tip[1] / tip[2] + K.cy
+            x0, y0, x1, y1 = p.amodal_box_xyxy
+            out["shadow_tip_px"] = [float(u), float(v)]
+            out["shadow_tip_in_image"] = bool(0 <= u < K.width and 0 <= v < K.height)
+            out["shadow_tip_behind_object"] = bool(x0 <= u <= x1 and y0 <= v <= y1)
+        else:
+            out["shadow_tip_in_image"] = False
     if dark.sum() >= MIN_SHADOW_PX:
         w = (1.0 - q[dark])
         c = (local[dark][:, :2] * w[:, None]).sum(0) / w.sum() - 0.5 * (lo[:2] + hi[:2])
@@ -276,6 +292,11 @@ def main(argv=None) -> int:
         s["inserted"] += 1
         s["dominant_sun"] += int(r["dominant_sun"])
         s["cast_shadow"] += int(r["cast_shadow"])
+        if r["dominant_sun"] and not r["cast_shadow"]:
+            why = ("shadow off the image" if not r.get("shadow_tip_in_image", True) else
+                   "shadow behind the object" if r.get("shadow_tip_behind_object") else "other")
+            s.setdefault("sun_but_no_visible_shadow", {}).setdefault(why, 0)
+            s["sun_but_no_visible_shadow"][why] += 1
         if not r["dominant_sun"] and r["frame"] not in s["frames_without_sun"]:
             s["frames_without_sun"].append(r["frame"])
         for k, col in (("dir_err", "shadow_vs_truth_deg"), ("sun_err", "sun_azimuth_error_deg"),
@@ -300,13 +321,15 @@ def main(argv=None) -> int:
                          for i, v in truth.items())
              + f"; street sun at world azimuth {sun_world:.1f} deg. Azimuths: camera frame, from forward, right "
              "positive. Cast shadow: at least max(5, 3 % of the object's pixels) ground pixels outside the object darkened "
-             "by more than the contact shade alone (q < min(0.95, 1 - 0.6 exp(-rho / 0.25 h) - 0.05)).", "",
-             "| preset / frames / camera | insertions | dominant sun | cast shadow | frames without sun | shadow dir vs "
-             "real: median / max deg (within 45) | sun azimuth err median / max | shadow vs own sun median / max |",
-             "|---|---|---|---|---|---|---|---|"]
+             "by more than the contact shade alone (q < min(0.85, 1 - 0.6 exp(-rho / 0.25 h) - 0.15)).", "",
+             "| preset / frames / camera | insertions | dominant sun | cast shadow | sun but no visible shadow: why "
+             "(the own sun's shadow tip) | frames without sun | shadow dir vs real: median / max deg (within 45) | sun "
+             "azimuth err median / max | shadow vs own sun median / max |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for k, s in summary.items():
         f = lambda x: "-" if x is None else f"{x:.0f}"  # noqa: E731
-        lines.append(f"| {k} | {s['inserted']} / {s['calls']} | {s['dominant_sun']} | {s['cast_shadow']} "
+        whys = ", ".join(f"{w}: {c}" for w, c in s.get("sun_but_no_visible_shadow", {}).items()) or "-"
+        lines.append(f"| {k} | {s['inserted']} / {s['calls']} | {s['dominant_sun']} | {s['cast_shadow']} | {whys} "
                      f"| {', '.join(map(str, s['frames_without_sun'])) or '-'} "
                      f"| {f(s['dir_err_median_deg'])} / {f(s['dir_err_max_deg'])} ({s['dir_within_45_deg']} of "
                      f"{s['dir_measured']}) | {f(s['sun_err_median_deg'])} / {f(s['sun_err_max_deg'])} "
