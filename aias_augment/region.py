@@ -136,7 +136,10 @@ def _road_mode(feat: np.ndarray, cfg: RegionConfig) -> tuple[np.ndarray, np.ndar
     black nor white; dark bins are mostly shadows, tyres and dark car bodies, saturated ones car paint), then
     refined by medians over the pixels within the tolerances."""
     q = np.floor(feat[:, :3] / [cfg.image_luma_tol, cfg.image_chroma_tol, cfg.image_chroma_tol]).astype(np.int64)
-    keys, inverse, counts = np.unique(q, axis=0, return_inverse=True, return_counts=True)
+    # Unique (L, a, b) bins via one integer per bin: sorted like np.unique(q, axis=0) (lexicographic), ~10x faster.
+    q = q - q.min(axis=0)
+    m = int(q.max()) + 1
+    _, inverse, counts = np.unique((q[:, 0] * m + q[:, 1]) * m + q[:, 2], return_inverse=True, return_counts=True)
     inverse = inverse.reshape(-1)
     centre = np.stack([np.bincount(inverse, feat[:, j]) / counts for j in range(3)], axis=1)
     chroma = np.hypot(centre[:, 1] - 128.0, centre[:, 2] - 128.0)

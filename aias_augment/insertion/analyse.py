@@ -102,7 +102,10 @@ def _hash_value(h, v) -> None:
     elif isinstance(v, np.ndarray) or (isinstance(v, (list, tuple)) and v and isinstance(v[0], np.ndarray)):
         a = np.ascontiguousarray(np.asarray(v))
         h.update(f"{a.dtype}{a.shape}".encode())
-        h.update(a.tobytes())
+        try:
+            h.update(memoryview(a).cast("B"))   # the same bytes as a.tobytes(), without the copy
+        except (TypeError, ValueError):         # object / odd buffer formats
+            h.update(a.tobytes())
     elif isinstance(v, Intrinsics):
         h.update(repr((v.fx, v.fy, v.cx, v.cy, v.width, v.height)).encode())
     else:
