@@ -39,3 +39,19 @@ def synthetic_ground_drive(n: int = 12, height_m: float = 1.5, K=None):
         frames.append(np.repeat(img[..., None], 3, axis=2))
         gt.append(T)
     return K, frames, np.stack(gt)
+
+
+def tracon_train_photo(name: str, max_side: int) -> np.ndarray:
+    """A TraCon train photo as RGB, area-downscaled so its longer side is ``max_side``; skips the test when the
+    shared data is absent."""
+    import os
+    from pathlib import Path
+
+    import cv2
+    import pytest
+    p = Path(os.environ.get("AIAS_DATA", "../shared/data")) / "tracon" / "images" / "train" / name
+    if not p.is_file():
+        pytest.skip(f"{p} missing (AIAS_DATA)")
+    img = cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)
+    s = max_side / max(img.shape[:2])
+    return cv2.resize(img, (round(img.shape[1] * s), round(img.shape[0] * s)), interpolation=cv2.INTER_AREA)

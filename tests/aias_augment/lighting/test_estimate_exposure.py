@@ -1,6 +1,5 @@
 """Issue 15 lighting tempering: the exposure anchor on the ground's implied albedo, sun tempering, and the saturation
 guard. Truths come from the analytic scene (known albedo, sky and sun), a uniform env map, and pixel counts."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +11,7 @@ from aias_augment.lighting.estimate import (LightingConfig, estimate_lighting, g
 from aias_augment.lighting.hdr import luminance
 from aias_augment.lighting.sh import project_envmap_to_sh, sh_irradiance
 from aias_augment.lighting.shading import shade_object
+from tests.aias_augment.fixtures import tracon_train_photo
 
 from .synthetic_scene import Box, render, sun_direction
 
@@ -95,7 +95,6 @@ def test_no_white_pixel_saturates_in_an_unclipped_sunny_scene():
                                est.sun_direction_in_cam if est.dominant_sun else None) <= 0.95 + 1e-9
 
 
-TRACON = Path(__import__("os").environ.get("AIAS_DATA", "../shared/data")) / "tracon" / "images" / "train"
 
 
 @pytest.mark.parametrize("name", ["imh_115_00000000.jpg", "imh_134_00000000.jpg", "imh_179_00000000.jpg",
@@ -103,13 +102,7 @@ TRACON = Path(__import__("os").environ.get("AIAS_DATA", "../shared/data")) / "tr
 def test_saturation_check_on_real_road_photos(name):
     # Real empty roads (low-confidence suns with sun/sky ratios up to 10.9 among them): a white Lambertian surface in
     # any orientation saturates only where the photo itself clips (its 99.5th percentile of the brightest channel).
-    import cv2
-    p = TRACON / name
-    if not p.is_file():
-        pytest.skip(f"{p} missing (AIAS_DATA)")
-    img = cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)
-    s = 640 / max(img.shape[:2])
-    img = cv2.resize(img, (round(img.shape[1] * s), round(img.shape[0] * s)), interpolation=cv2.INTER_AREA)
+    img = tracon_train_photo(name, 640)
     est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0))
     scene_clips = np.percentile(img.max(-1), 99.5) >= 252
     if not scene_clips:

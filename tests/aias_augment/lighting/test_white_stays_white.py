@@ -2,7 +2,6 @@
 (white) Lambertian surface must come out neutral in every orientation, R = G = B. The truth is that physical
 statement (a grey image cannot tell one light colour from another), not an output of the code under test."""
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,11 +10,11 @@ from aias_augment.composite import to_uint8
 from aias_augment.geometry import Intrinsics
 from aias_augment.lighting.estimate import LightingConfig, estimate_lighting
 from aias_augment.lighting.shading import irradiance_at_normals, shade_object
+from tests.aias_augment.fixtures import tracon_train_photo
 
 from .synthetic_scene import Box, render, sun_direction
 
 K = Intrinsics.from_fov(320, 240, 60.0)
-TRACON = Path(__import__("os").environ.get("AIAS_DATA", "../shared/data")) / "tracon" / "images" / "train"
 
 
 def _grey(img: np.ndarray) -> np.ndarray:
@@ -61,11 +60,5 @@ def test_white_stays_white_in_a_grey_synthetic_road(sunny):
 
 @pytest.mark.parametrize("name", ["imh_179_00000000.jpg", "img_814_00000000.jpg"])
 def test_white_stays_white_in_a_grey_road_photo(name):
-    import cv2
-    p = TRACON / name
-    if not p.is_file():
-        pytest.skip(f"{p} missing (AIAS_DATA)")
-    img = cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)
-    s = 480 / max(img.shape[:2])
-    img = cv2.resize(img, (round(img.shape[1] * s), round(img.shape[0] * s)), interpolation=cv2.INTER_AREA)
+    img = tracon_train_photo(name, 480)
     _check_neutral(estimate_lighting(_grey(img), None, None, {}, rng=np.random.default_rng(0)))
