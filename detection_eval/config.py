@@ -106,6 +106,8 @@ class TrainConfig:
     adam_beta2: float = 0.999        # AdamW's second-moment decay: its memory (1 / (1 - beta2) steps) should be
                                      # shorter than the run, or the large gradients of the first steps damp later ones
     warmup_iters: int = 30
+    grad_clip: float = 10.0          # max total gradient norm per step (the logged norm is 20-40 at lite0_320_b: with
+                                     # 10 every step is clipped, i.e. Adam sees rescaled gradients)
     head_lr_mult: float = 1.0       # the randomly initialised neck and head learn at lr * this, a pretrained
                                     # backbone at lr (param groups; 1: one lr for all)
     ema: bool = True
@@ -128,6 +130,8 @@ class TrainConfig:
             raise ValueError("batch_size and max_iters must be >= 1, warmup_iters >= 0")
         if not 0 < self.adam_beta2 < 1:
             raise ValueError(f"adam_beta2 must lie in (0, 1), got {self.adam_beta2}")
+        if self.grad_clip <= 0:
+            raise ValueError(f"grad_clip must be > 0, got {self.grad_clip}")
         if self.head_lr_mult <= 0:
             raise ValueError(f"head_lr_mult must be > 0, got {self.head_lr_mult}")
         if not 0 <= self.synthetic_fraction < 1:

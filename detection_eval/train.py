@@ -121,7 +121,7 @@ def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
             raise FloatingPointError(f"non-finite loss at iteration {it}: { {k: float(v) for k, v in out.items()} }")
         optimizer.zero_grad(set_to_none=True)
         out["loss"].backward()
-        grad_norm = torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+        grad_norm = torch.nn.utils.clip_grad_norm_(model.parameters(), tc.grad_clip)
         optimizer.step()
         if ema is not None:
             ema.update(model)
