@@ -80,11 +80,12 @@ class PlaceableRegion:
 
 def below_horizon_mask(ground: GroundPlane, intrinsics: Intrinsics, margin_px: float = 0.0) -> np.ndarray:
     """(H, W) bool: pixels whose rays hit the ground in front (margin_px below the horizon line)."""
-    vv, uu = np.mgrid[0:intrinsics.height, 0:intrinsics.width]
     try:
         a, b, c = ground.horizon_line(intrinsics)
     except ValueError:  # plane parallel to the image plane: either all or nothing is ground
         return np.full((intrinsics.height, intrinsics.width), ground.normal[2] < 0)
+    uu = np.arange(intrinsics.width)[None, :]   # broadcast, not two full grids: the same sums, element by element
+    vv = np.arange(intrinsics.height)[:, None]
     return a * uu + b * vv + c > margin_px
 
 
@@ -192,7 +193,8 @@ def image_ground_region(image: np.ndarray, ground: GroundPlane, intrinsics: Intr
     if zone.sum() < 50:
         return empty
     road, zone_ok = _road_mode(feat[zone], cfg)
-    similar = _similar(feat, road, cfg) & below_s
+    like_road = _similar(feat, road, cfg)
+    similar = like_road & below_s
     opened = cv2.morphologyEx(similar.astype(np.uint8), cv2.MORPH_OPEN, _disk(cfg.image_open_px))
     n, comp = cv2.connectedComponents(opened, connectivity=4)
     seeds = np.zeros(sh * sw, bool)
@@ -207,19 +209,22 @@ def image_ground_region(image: np.ndarray, ground: GroundPlane, intrinsics: Intr
     eroded = cv2.erode(closed, _disk(cfg.image_erode_px)) if cfg.image_erode_px > 0 else closed
     # vanishing geometry: near the horizon a pixel spans metres of road and the horizon estimate's error of a few
     # pixels moves the contact by tens of metres; the far end of the road is also where cars and walls close it
-    vs, us = np.mgrid[0:sh, 0:sw]
-    uv = np.stack([(us + 0.5) / scale - 0.5, (vs + 0.5) / scale - 0.5], axis=-1).reshape(-1, 2).astype(np.float64)
-    dist = np.linalg.norm(ground.intersect_pixels(uv, intrinsics), axis=1).reshape(sh, sw)
-    far = ~(np.isfinite(dist) & (dist <= cfg.image_max_distance_m))
-    kept = eroded.astype(bool) & ~far
+    # (distances only where the eroded road is: nowhere else is "far" read)
+    er = eroded.astype(bool)
+    vs, us = np.nonzero(er)
+    uv = np.stack([(us + 0.5) / scale - 0.5, (vs + 0.5) / scale - 0.5], axis=-1).astype(np.float64)
+    dist = np.linalg.norm(ground.intersect_pixels(uv, intrinsics), axis=1) if len(uv) else np.zeros(0)
+    far = np.zeros((sh, sw), bool)
+    far[vs, us] = ~(np.isfinite(dist) & (dist <= cfg.image_max_distance_m))
+    kept = er & ~far
     mask = cv2.resize(kept.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST).astype(bool) & below
     # why a below-horizon pixel is not placeable (each step's loss, as fractions of the below-horizon pixels)
     def frac(m):
         return round(float(m.sum()) / max(int(below_s.sum()), 1), 4)
-    excluded = {"colour or texture unlike the road": frac(below_s & ~_similar(feat, road, cfg)),
+    excluded = {"colour or texture unlike the road": frac(below_s & ~like_road),
                 "thin or not connected to the road seed": frac(similar & ~connected),
-                "eroded border": frac(closed.astype(bool) & ~eroded.astype(bool) & below_s),
-                "farther than image_max_distance_m": frac(eroded.astype(bool) & far & below_s)}
+                "eroded border": frac(closed.astype(bool) & ~er & below_s),
+                "farther than image_max_distance_m": frac(er & far & below_s)}
     return PlaceableRegion(mask, "image:road_appearance", float(mask.mean()), excluded)
 
 

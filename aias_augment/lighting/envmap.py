@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
+import cv2
 import numpy as np
 from scipy import ndimage
 
@@ -202,7 +203,11 @@ def assemble_envmap(
         # Pre-blur to the map's resolution: sigma ~ half a map pixel expressed in image pixels.
         sigma_px = 0.5 * map_pixel_rad * K.fx
         if sigma_px > 0.7:
-            img = ndimage.gaussian_filter(img, (sigma_px, sigma_px, 0), mode="nearest")
+            # scipy's gaussian_filter(mode="nearest", truncate 4) as one OpenCV call (same kernel, replicated
+            # border; ~10x faster on a full frame): half of the radius is int(4 sigma + 0.5)
+            r = int(4.0 * sigma_px + 0.5)
+            img = cv2.GaussianBlur(img, (2 * r + 1, 2 * r + 1), sigma_px, sigmaY=sigma_px,
+                                   borderType=cv2.BORDER_REPLICATE)
         d_cam = dirs @ R.T
         z = d_cam[:, 2]
         front = z > 1e-6  # rays behind or on the camera plane are not seen

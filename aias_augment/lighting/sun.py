@@ -21,7 +21,7 @@ from ..geometry import Intrinsics
 from .envmap import (azimuth_elevation_to_direction, camera_ray_directions, direction_to_azimuth_elevation,
                      pixel_directions, pixel_solid_angles)
 from .hdr import luminance, srgb_to_linear
-from .sky import preetham_luminance_ratio
+from .sky import preetham_exposure_fit_cost
 
 __all__ = [
     "solar_direction_enu",
@@ -410,14 +410,7 @@ def sun_cue_from_image(
         ly = logY.ravel()[idx]
         cos_theta = d @ up_in_cam  # view zenith cosine
         cos_gamma = np.clip(grid_in_cam @ d.T, -1.0, 1.0)  # (N, P)
-        gamma = np.arccos(cos_gamma)
-        sun_zen = np.arccos(np.clip(grid_in_cam @ up_in_cam, -1.0, 1.0))[:, None]
-        best_cost = np.full(len(grid_in_world), np.inf)
-        for T in turbidities:
-            logF = np.log(np.maximum(preetham_luminance_ratio(cos_theta[None, :], gamma, sun_zen, T), 1e-12))
-            res = ly[None, :] - logF
-            res -= res.mean(axis=1, keepdims=True)
-            best_cost = np.minimum(best_cost, np.mean(res * res, axis=1))
+        best_cost = preetham_exposure_fit_cost(ly, cos_theta, cos_gamma, turbidities)
         sigma2 = max(float(best_cost.min()), 1e-4)  # eps: a perfect fit would otherwise be infinitely sharp
         # How much better the best sun explains the sky than a typical candidate: 0 = no azimuthal information.
         sky_contrast = float(np.clip(1.0 - best_cost.min() / max(float(np.median(best_cost)), 1e-12), 0.0, 1.0))
@@ -518,8 +511,11 @@ def sun_exclusion_by_visible_sky(sky_rays_in_cam: np.ndarray, grid_in_cam: np.nd
         step = int(np.ceil(len(rays) / max_pixels))
         scale = len(rays) / len(rays[::step])
         rays = rays[::step]
-    near = (grid @ rays.T) >= np.cos(np.deg2rad(radius_deg))  # (N, P)
-    count = near.sum(axis=1) * scale
+    # Sky rays within radius_deg of each candidate, counted with a k-d tree on the unit vectors: the chord
+    # |g - r| = 2 sin(angle / 2) grows with the angle, so "chord <= 2 sin(radius / 2)" is "g . r >= cos(radius)".
+    from scipy.spatial import cKDTree
+    chord = 2.0 * np.sin(np.deg2rad(radius_deg) / 2.0)
+    count = cKDTree(rays).query_ball_point(grid, chord, return_length=True) * scale
     return -np.clip(count / float(min_pixels), 0.0, 1.0)
 
 

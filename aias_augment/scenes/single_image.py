@@ -94,6 +94,40 @@ def _consistency_deg(seg: np.ndarray, vps: np.ndarray) -> np.ndarray:
     return np.where(norm > 1e-9, ang, 90.0)
 
 
+def weighted_pairs(rng: np.random.Generator, prob: np.ndarray, n: int) -> np.ndarray:
+    """``np.stack([rng.choice(len(prob), 2, replace=False, p=prob) for _ in range(n)])``, the same pairs and the same
+    generator state afterwards (tested), without n calls: numpy draws two uniforms per pair through the cdf and, when
+    both hit the same index, one more through the cdf without it; that walk runs here over one block of uniforms,
+    then the generator is set to where the n calls would have left it."""
+    prob = np.asarray(prob, dtype=np.float64)
+    if n <= 0 or np.count_nonzero(prob > 0) < 2:
+        return np.stack([rng.choice(len(prob), 2, replace=False, p=prob) for _ in range(n)]).reshape(-1, 2)
+    state = rng.bit_generator.state
+    cdf = np.cumsum(prob)
+    cdf /= cdf[-1]
+    x = rng.random(3 * n)                      # enough for every pair drawing its third uniform
+    first = cdf.searchsorted(x, side="right")
+    out = np.empty((n, 2), np.int64)
+    pos = 0
+    for i in range(n):
+        a, b = first[pos], first[pos + 1]
+        pos += 2
+        while a == b:                          # numpy: the found index gets p = 0, the cdf is rebuilt, one more draw
+            if pos >= len(x):
+                x = np.concatenate([x, rng.random(n)])
+                first = cdf.searchsorted(x, side="right")
+            q = prob.copy()
+            q[a] = 0.0
+            c2 = np.cumsum(q)
+            c2 /= c2[-1]
+            b = c2.searchsorted(x[pos], side="right")
+            pos += 1
+        out[i] = a, b
+    rng.bit_generator.state = state
+    rng.random(pos)                            # consume exactly what the n calls consumed
+    return out
+
+
 def fit_vanishing_point(seg: np.ndarray, rng: np.random.Generator, *, iterations: int = 400,
                         inlier_angle_deg: float = 1.5, min_inliers: int = 6,
                         finite_within: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray] | None:
@@ -106,7 +140,7 @@ def fit_vanishing_point(seg: np.ndarray, rng: np.random.Generator, *, iterations
     lines = _homogeneous_lines(seg)
     length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
     prob = length / length.sum()
-    pairs = np.stack([rng.choice(len(seg), 2, replace=False, p=prob) for _ in range(iterations)])
+    pairs = weighted_pairs(rng, prob, iterations)
     vps = np.cross(lines[pairs[:, 0]], lines[pairs[:, 1]])
     norm = np.linalg.norm(vps, axis=1)
     ok = norm > 1e-12

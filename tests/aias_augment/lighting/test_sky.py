@@ -36,3 +36,30 @@ def test_sky_finite_including_horizon_sun(el_deg, az_deg, turbidity):
 def test_bad_turbidity():
     with pytest.raises(ValueError):
         sky.perez_coefficients(0.5)
+
+
+def test_exposure_fit_cost_equals_the_direct_fit():
+    """The split fit (theta term per pixel, gamma term per candidate, exposure absorbed) gives the residual variance
+    of fitting log(F / F0) + c directly with preetham_luminance_ratio, for every candidate and the best turbidity."""
+    rng = np.random.default_rng(3)
+    P, N = 300, 50
+    d = rng.normal(size=(P, 3))
+    d[:, 2] = np.abs(d[:, 2])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    suns = rng.normal(size=(N, 3))
+    suns /= np.linalg.norm(suns, axis=1, keepdims=True)
+    up = np.array([0.0, 0.0, 1.0])
+    cos_theta, cos_gamma = d @ up, np.clip(suns @ d.T, -1, 1)
+    ly = rng.normal(0.0, 0.5, P)
+    turbidities = (2.5, 4.0, 7.0)
+    direct = np.full(N, np.inf)
+    sun_zen = np.arccos(np.clip(suns @ up, -1, 1))[:, None]
+    for T in turbidities:
+        res = ly[None] - np.log(sky.preetham_luminance_ratio(cos_theta[None], np.arccos(cos_gamma), sun_zen, T))
+        res -= res.mean(axis=1, keepdims=True)
+        direct = np.minimum(direct, np.mean(res * res, axis=1))
+    fast = sky.preetham_exposure_fit_cost(ly, cos_theta, cos_gamma, turbidities)
+    np.testing.assert_allclose(fast, direct, rtol=1e-5, atol=1e-8)
+    assert int(np.argmin(fast)) == int(np.argmin(direct))
+    with pytest.raises(ValueError):
+        sky.preetham_exposure_fit_cost(ly[:-1], cos_theta, cos_gamma)

@@ -228,3 +228,17 @@ def test_kitti_sky_fraction_does_not_collapse_on_a_small_copy(width):
     cue = sun.sun_cue_from_image(small, K)
     above = int(np.sum(em.camera_ray_directions(K) @ np.array([0.0, -1.0, 0.0]) > np.sin(np.deg2rad(2.0))))
     assert cue.n_sky_pixels / above > 0.15
+
+
+def test_exclusion_counts_equal_the_brute_force_angles():
+    """The k-d tree count of sky rays within the radius equals counting angles directly."""
+    rng = np.random.default_rng(5)
+    rays = rng.normal(size=(900, 3))
+    rays[:, 2] = np.abs(rays[:, 2]) + 1.0   # a cone of directions in front of the camera
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    grid = np.vstack([rays[:40] + rng.normal(0, 0.03, (40, 3)), rng.normal(size=(40, 3))])
+    grid /= np.linalg.norm(grid, axis=1, keepdims=True)
+    count = ((grid @ rays.T) >= np.cos(np.deg2rad(4.0))).sum(axis=1)
+    expect = -np.clip(count / 12.0, 0.0, 1.0)
+    np.testing.assert_array_equal(sun.sun_exclusion_by_visible_sky(rays, grid, radius_deg=4.0, min_pixels=12), expect)
+    assert (expect < 0).sum() > 10 and (expect == 0).sum() > 10  # both outcomes occur

@@ -5,7 +5,8 @@ import pytest
 from aias_augment.config import data_root
 from aias_augment.geometry import Intrinsics, project_points
 from aias_augment.ground import prior_ground_plane
-from aias_augment.scenes.single_image import estimate_camera_from_image, fit_vanishing_point, horizon_row_error_px
+from aias_augment.scenes.single_image import (estimate_camera_from_image, fit_vanishing_point, horizon_row_error_px,
+                                              weighted_pairs)
 
 INTR = Intrinsics(500, 500, 399.5, 299.5, 800, 600)
 
@@ -77,3 +78,17 @@ def test_kitti_frame_horizon_near_truth():
     est = estimate_camera_from_image(seq.frame(0).image, np.random.default_rng(0), intrinsics=seq.intrinsics)
     # KITTI cam0 is mounted level to within ~1 deg: the true horizon is within ~12 px of cy (fy tan 1 deg)
     assert abs(est.horizon_row_at(seq.intrinsics.cx) - seq.intrinsics.cy) < 25
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_weighted_pairs_are_numpys_pairs_and_leave_the_same_state(seed):
+    """The RANSAC pairs equal n calls of Generator.choice(2, replace=False, p), including pairs where one heavy
+    segment is drawn twice (numpy's redraw), and the generator continues where those calls leave it."""
+    r = np.random.default_rng(seed)
+    w = r.uniform(0.0, 1.0, int(r.integers(2, 30))) ** 4
+    w[0] *= 200.0 if seed % 2 else 1.0        # a dominant segment: duplicates and redraws happen
+    prob = w / w.sum()
+    a_rng, b_rng = np.random.default_rng(seed + 10), np.random.default_rng(seed + 10)
+    expect = np.stack([a_rng.choice(len(prob), 2, replace=False, p=prob) for _ in range(300)])
+    np.testing.assert_array_equal(weighted_pairs(b_rng, prob, 300), expect)
+    assert a_rng.random() == b_rng.random()
