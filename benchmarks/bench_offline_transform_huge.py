@@ -3,6 +3,11 @@ seconds and peak RSS of a fresh process per run, with the working resolution bou
 render at full size) and, with ``--unbounded``, without the bound (the issue-16 baseline: 204 s and 5.7 GB).
 
   python benchmarks/bench_offline_transform_huge.py --out results/bench/offline_huge.json [--unbounded]
+  python benchmarks/bench_offline_transform_huge.py --width 1920 --height 1216 --presets fast balanced accurate \
+      --out results/bench/worker_rss_1920.json     # issue 14's worker bound (<= 1 GiB on a 1920x1216 frame)
+
+Also reported, after the calls: the process's private memory (its own heap and arrays) and its shared library pages
+(/proc/self/smaps_rollup): RSS counts both, and the shared ones are mapped once for every DataLoader worker.
 """
 from __future__ import annotations
 
@@ -35,8 +40,18 @@ _ONE = textwrap.dedent("""
         res = insert_bounded(img, rng=np.random.default_rng(i), cfg=cfg, scene_cache=cache, max_pixels=max_pixels)
         out.append({"wall_s": time.perf_counter() - t, "cpu_s": time.process_time() - c,
                     "objects": len(res.inserted_labels)})
+    # After the calls: what of the resident memory is this process's own (private: heap, arrays, the renderer's
+    # buffers) and what is shared library pages (torch, Mesa, OpenCV: mapped once, shared by every worker).
+    sm = {}
+    for line in open("/proc/self/smaps_rollup"):
+        p = line.split()
+        if len(p) >= 3 and p[-1] == "kB":
+            sm[p[0].rstrip(":")] = int(p[1]) / 1024.0
     print(json.dumps({"calls": out, "base_rss_mb": base / 1e3,
-                      "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3}))
+                      "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3,
+                      "after_rss_mib": sm.get("Rss"), "after_pss_mib": sm.get("Pss"),
+                      "after_private_mib": sm.get("Private_Clean", 0.0) + sm.get("Private_Dirty", 0.0),
+                      "after_shared_mib": sm.get("Shared_Clean", 0.0) + sm.get("Shared_Dirty", 0.0)}))
 """)
 
 

@@ -342,11 +342,14 @@ def main(argv=None) -> int:
     vc = _view_cache_summary(out)
     for preset in ("fast", "balanced", "accurate"):
         from aias_augment.insertion import load_preset
+        from aias_augment.region import RegionConfig
         c = load_preset(preset)
         cold, warm = calls[f"{preset}_cold"], calls[f"{preset}_warm"]
         layers = "view cache (warped + relit)" if c.render_method == "view_cache" else "full GL render"
         acc = vc if c.render_method == "view_cache" else "reference (full render)"
-        analysis = f"cheap: {c.analysis_max_width} px copy" if c.analysis_max_width else "full resolution"
+        analysis = (f"cheap: camera on a {c.analysis_max_width} px copy, lighting on a "
+                    f"{max(c.analysis_max_width, c.lighting_cfg.min_input_width)} px copy, region at <= "
+                    f"{RegionConfig().image_width_px} px" if c.analysis_max_width else "full resolution")
         lines.append(f"| {preset} | {cold['median_ms']:.0f} / {cold['median_cpu_ms']:.0f} | {warm['median_ms']:.0f} / "
                      f"{warm['median_cpu_ms']:.0f} | {layers} | ssaa {c.ssaa}, shadow {c.shadow_method} | {analysis} | "
                      f"{acc} |")
