@@ -13,6 +13,7 @@ Cameras looking into a map use the OpenCV convention (x right, y down, z forward
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -154,13 +155,24 @@ def cam_from_env_look(yaw_rad: float, pitch_rad: float = 0.0, roll_rad: float = 
 
 
 def camera_ray_directions(intrinsics: Intrinsics) -> np.ndarray:
-    """Unit ray directions of every pixel centre in the OpenCV camera frame, (H, W, 3)."""
+    """Unit ray directions of every pixel centre in the OpenCV camera frame, (H, W, 3), read-only: one analysis
+    asks for the same camera's rays several times (sky, ambient, ground boxes, side cues), so the last few cameras'
+    rays are kept (a pure function of the intrinsics)."""
+    return _camera_rays(float(intrinsics.fx), float(intrinsics.fy), float(intrinsics.cx), float(intrinsics.cy),
+                        int(intrinsics.width), int(intrinsics.height))
+
+
+@functools.lru_cache(maxsize=8)
+def _camera_rays(fx: float, fy: float, cx: float, cy: float, width: int, height: int) -> np.ndarray:
+    intrinsics = Intrinsics(fx, fy, cx, cy, width, height)
     u = np.arange(intrinsics.width, dtype=np.float64)
     v = np.arange(intrinsics.height, dtype=np.float64)
     x = (u[None, :] - intrinsics.cx) / intrinsics.fx
     y = (v[:, None] - intrinsics.cy) / intrinsics.fy
     d = np.stack(np.broadcast_arrays(x, y, np.ones_like(x * y)), axis=-1)
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    d.flags.writeable = False
+    return d
 
 
 def render_perspective(radiance: np.ndarray, intrinsics: Intrinsics, cam_from_env: np.ndarray) -> np.ndarray:

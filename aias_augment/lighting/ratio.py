@@ -12,6 +12,7 @@ least ``min_fraction`` of the region, and lit / shadow >= ``min_lit_to_shadow``.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,7 +48,17 @@ def ground_coordinates(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_hei
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Where each pixel's ray meets a flat ground ``camera_height_m`` below the camera: (H, W, 2) (lateral, forward)
     metres in the gravity-aligned camera frame (lateral positive to the right, forward along the camera's heading) and
-    (H, W) bool (False at or above the horizon, where the ray never meets the ground)."""
+    (H, W) bool (False at or above the horizon, where the ray never meets the ground). Both read-only: the last few
+    (camera, up, height) are kept, one analysis asks for them once per ground box."""
+    up = np.asarray(up_in_cam, dtype=np.float64).reshape(3)
+    return _ground_coordinates(float(intrinsics.fx), float(intrinsics.fy), float(intrinsics.cx),
+                               float(intrinsics.cy), int(intrinsics.width), int(intrinsics.height),
+                               tuple(float(x) for x in up), float(camera_height_m))
+
+
+@functools.lru_cache(maxsize=8)
+def _ground_coordinates(fx, fy, cx, cy, width, height, up_in_cam, camera_height_m):
+    intrinsics = Intrinsics(fx, fy, cx, cy, width, height)
     up = np.asarray(up_in_cam, dtype=np.float64)
     up = up / np.linalg.norm(up)
     rays = camera_ray_directions(intrinsics)
@@ -58,7 +69,9 @@ def ground_coordinates(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_hei
     fwd = np.array([0.0, 0.0, 1.0]) - up[2] * up
     fwd /= np.linalg.norm(fwd)
     right = np.cross(fwd, up)  # level OpenCV camera: z x (-y) = +x
-    return np.stack([pts @ right, pts @ fwd], axis=-1), ok
+    g = np.stack([pts @ right, pts @ fwd], axis=-1)
+    g.flags.writeable = ok.flags.writeable = False
+    return g, ok
 
 
 def ground_region_mask(intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = CAMERA_HEIGHT_PRIOR_M,
