@@ -224,12 +224,20 @@ def evaluate_scene(path: Path, args, out: Path) -> dict:
                "camera_height_m_used": float(analysis.ground.camera_height_m)}
         existing = boxes_2d(frame)
         contacts_after = []
+        # "random_2d": where the realism/study arms without placement (no_placement, naive_paste) put an object: a
+        # random pixel and size, no geometry; its contact is the bottom centre of its box. The other arms (no shadow,
+        # no lighting, no harmonization) place exactly as "after" (same analysis, same planner).
+        variants["random_2d"] = analysis
         for vname, an in variants.items():
             row[vname] = region_scores(an.region.mask, labels)
+            vcfg = dataclasses.replace(cfg, placement=False) if vname == "random_2d" else cfg
             for seed in args.seeds:
-                plan = plan_insertion(an, cfg, np.random.default_rng([seed, len(rows)]), existing_boxes_xyxy=existing)
+                plan = plan_insertion(an, vcfg, np.random.default_rng([seed, len(rows)]), existing_boxes_xyxy=existing)
                 for o in plan.objects:
                     uv = o.placement.contact_pixel
+                    if vname == "random_2d":
+                        x0, _, x1, y1 = o.placement.amodal_box_xyxy
+                        uv = (0.5 * (x0 + x1), y1)
                     radius = args.contact_radius if source == "stereo" else args.contact_radius_sparse
                     lab, n_known = contact_label(labels, uv, radius)
                     placements.append({"variant": vname, "frame": name, "seed": seed,
@@ -252,6 +260,7 @@ def evaluate_scene(path: Path, args, out: Path) -> dict:
     return {"scene": str(path.resolve()), "depth_source": rows[0]["depth_source"], "frames": len(rows),
             "step": step, "seeds": args.seeds,
             "before": summarise(rows, placements, "before"), "after": summarise(rows, placements, "after"),
+            "random_2d": summarise(rows, placements, "random_2d"),
             "horizon_row_err_at_cx_px": {"median": float(np.median(herr)), "p90": float(np.percentile(herr, 90)),
                                          "max": float(herr.max())},
             "seconds": time.perf_counter() - t0, "per_frame": rows, "placements": placements}
@@ -283,7 +292,7 @@ def main(argv=None) -> int:
     for path in args.scenes:
         res = evaluate_scene(path, args, args.out)
         results["scenes"][path.resolve().name] = res
-        print(json.dumps({k: res[k] for k in ("scene", "frames", "before", "after", "horizon_row_err_at_cx_px",
+        print(json.dumps({k: res[k] for k in ("scene", "frames", "before", "after", "random_2d", "horizon_row_err_at_cx_px",
                                               "seconds")}, indent=1))
     (args.out / f"{args.name}.json").write_text(json.dumps(results, indent=1))
     return 0
