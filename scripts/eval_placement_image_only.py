@@ -119,6 +119,8 @@ def contact_label(labels, uv, radius_px: int) -> tuple[int, int]:
     """(GROUND / OFF_GROUND / UNKNOWN, number of known pixels) by majority of the known pixels within radius."""
     h, w = labels.shape
     u, v = int(round(uv[0])), int(round(uv[1]))
+    if not (-radius_px <= u < w + radius_px and -radius_px <= v < h + radius_px):
+        return UNKNOWN, 0   # the contact is outside the image (a random 2D box reaching below the frame)
     win = labels[max(0, v - radius_px):min(h, v + radius_px + 1), max(0, u - radius_px):min(w, u + radius_px + 1)]
     yy, xx = np.mgrid[max(0, v - radius_px):min(h, v + radius_px + 1), max(0, u - radius_px):min(w, u + radius_px + 1)]
     known = (win != UNKNOWN) & ((yy - v) ** 2 + (xx - u) ** 2 <= radius_px ** 2)
