@@ -19,21 +19,55 @@ def draw_boxes(image_rgb: np.ndarray, boxes_xywh, labels, inserted=None) -> np.n
     return out
 
 
-def contact_sheet(images: list[np.ndarray], cols: int = 3, cell_width: int = 480, titles=None) -> np.ndarray:
-    """Tile RGB images (resized to a common width) into one sheet."""
+def contact_sheet(images: list[np.ndarray], cols: int = 3, cell_width: int = 480, titles=None,
+                  gap_px: int = 4, background: int = 235) -> np.ndarray:
+    """Tile RGB images into one sheet ``cols * cell_width`` wide in justified rows: each row holds images of one
+    height, chosen so that the row fills the width exactly (no empty cells under short images); images join a row
+    until their widths at the nominal height ``0.6 * cell_width`` reach the sheet's width, at most ``cols`` per
+    row. The last row keeps the nominal height and is left-aligned. ``gap_px`` of ``background`` grey between
+    tiles; ``titles`` are drawn in each tile's top-left corner."""
     if not images:
         raise ValueError("contact_sheet: no images")
-    cells = []
-    for i, im in enumerate(images):
-        s = cell_width / im.shape[1]
-        c = cv2.resize(im, (cell_width, max(1, int(round(im.shape[0] * s)))), interpolation=cv2.INTER_AREA)
-        if titles:
-            cv2.putText(c, str(titles[i]), (5, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
-        cells.append(c)
-    rows = []
-    for r in range(0, len(cells), cols):
-        cell_h = max(c.shape[0] for c in cells[r:r + cols])  # each row as tall as its tallest image
-        row = [np.pad(c, ((0, cell_h - c.shape[0]), (0, 0), (0, 0))) for c in cells[r:r + cols]]
-        row += [np.zeros((cell_h, cell_width, 3), np.uint8)] * (cols - len(row))
-        rows.append(np.concatenate(row, axis=1))
-    return np.concatenate(rows, axis=0)
+    width = cols * cell_width
+    nominal = 0.6 * cell_width
+    aspects = [im.shape[1] / max(im.shape[0], 1) for im in images]
+    rows, cur = [], []
+    for i, a in enumerate(aspects):
+        cur.append(i)
+        if len(cur) == cols or sum(aspects[j] for j in cur) * nominal + gap_px * (len(cur) - 1) >= width:
+            rows.append((cur, True))
+            cur = []
+    if cur:
+        rows.append((cur, False))
+    strips = []
+    for idx, full in rows:
+        free = width - gap_px * (len(idx) - 1)
+        h = free / sum(aspects[j] for j in idx) if full else nominal
+        h = max(1, int(round(min(h, 2.0 * nominal))))   # a single very wide image may not fill: keep it sane
+        tiles = []
+        for j in idx:
+            im = images[j]
+            w = max(1, int(round(aspects[j] * h)))
+            c = cv2.resize(np.ascontiguousarray(im), (w, h),
+                           interpolation=cv2.INTER_AREA if w < im.shape[1] else cv2.INTER_LINEAR)
+            if titles:
+                cv2.putText(c, str(titles[j]), (5, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
+                            cv2.LINE_AA)
+            tiles.append(c)
+        row = np.full((h, width, 3), background, np.uint8)
+        x = 0
+        for k, c in enumerate(tiles):
+            if k == len(tiles) - 1 and full:      # rounding: the last tile of a full row ends at the sheet's edge
+                c = cv2.resize(c, (max(1, width - x), h), interpolation=cv2.INTER_LINEAR) if width - x != \
+                    c.shape[1] and width - x > 0 else c
+            w = min(c.shape[1], width - x)
+            row[:, x:x + w] = c[:, :w]
+            x += w + gap_px
+            if x >= width:
+                break
+        strips.append(row)
+    sep = np.full((gap_px, width, 3), background, np.uint8)
+    out = [strips[0]]
+    for r in strips[1:]:
+        out += [sep, r]
+    return np.concatenate(out, axis=0)

@@ -26,7 +26,8 @@ from ..scenes.single_image import SingleImageConfig, estimate_camera_from_image
 from .config import InsertionConfig
 
 #: Bumped whenever what analyse_scene computes changes: on-disk cache entries of another version are not read.
-ANALYSIS_VERSION = "2"  # 2: single images get an image-evidence region (region.image_ground_region)
+ANALYSIS_VERSION = "3"  # 2: single images get an image-evidence region (region.image_ground_region); 3: monochrome
+#                        cameras are recorded (modules["colour"]) and their insertions rendered as luminance
 #: Seed of the analysis' own generator (the analysis must not depend on the sample's random stream).
 ANALYSIS_SEED = 20240614
 #: meta keys that are sample/plan inputs, not scene analysis inputs (not part of the cache key).
@@ -184,6 +185,9 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
                 cols = ((np.arange(sw_) + 0.5) * w / sw_).astype(int)
                 meta_s[k] = np.asarray(meta_s[k])[rows][:, cols]
         lighting = _scene_lighting(lsmall, _scaled_intrinsics(intr, sw_, sh_), up_ground, rng, cfg, meta_s, mods)
+    if is_monochrome(img):
+        mods["colour"] = ("monochrome camera (R = G = B in the image): inserted objects are written as luminance, "
+                          "as this camera sees them")
     if small is not None:
         lw = f"{lsmall.shape[1]}x{lsmall.shape[0]} copy" if lsmall is not None else "the full image"
         mods["analysis"] = (f"cheap: camera{'' if frame.depth is None else ' (not: depth given)'} estimated on a "
@@ -191,6 +195,18 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
                             f"{cfg.analysis_max_width}), lighting on {lw} (lighting_cfg.min_input_width "
                             f"{cfg.lighting_cfg.min_input_width}); region at full resolution")
     return SceneAnalysis(key or scene_key(frame, cfg), (h, w), intr, ground, region, lighting, mods)
+
+
+def is_monochrome(image: np.ndarray, tol: int = 2, min_fraction: float = 0.99) -> bool:
+    """Whether an RGB uint8 image comes from a monochrome camera (a grey image stored as RGB): on a regular sample of
+    its pixels (every 4th row and column), at least ``min_fraction`` have their three channels within ``tol``
+    levels of each other (JPEG chroma noise stays within it; a colour photo of a grey road does not: sky, paint,
+    foliage and lamps are coloured)."""
+    s = np.asarray(image)[::4, ::4].astype(np.int16)
+    if s.ndim != 3 or s.shape[2] != 3 or s.size == 0:
+        return False
+    d = np.maximum(np.abs(s[..., 0] - s[..., 1]), np.abs(s[..., 1] - s[..., 2]))
+    return bool(np.mean(d <= tol) >= min_fraction)
 
 
 def _analysis_copy(image: np.ndarray, max_width: int) -> np.ndarray | None:

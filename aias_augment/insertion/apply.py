@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field, replace
 
+import cv2
 import numpy as np
 
 from .. import composite as comp
@@ -141,6 +142,12 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
             result, mods["camera_match"] = _camera_match(result, union, cfg, img, plan.harmonize_seed)
     else:
         mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
+    if analysis.modules.get("colour", "").startswith("monochrome"):
+        # A monochrome camera records luminance: the window's pixels (objects, shadows and the scene between them,
+        # which is grey already and unchanged by this) as the camera's grey, R = G = B.
+        grey = cv2.cvtColor(np.ascontiguousarray(result[Y0:Y1, X0:X1]), cv2.COLOR_RGB2GRAY)
+        result[Y0:Y1, X0:X1] = grey[..., None]
+        mods["colour"] = "luminance only: monochrome camera"
 
     annotations = []
     cover = np.zeros(full, np.float32)

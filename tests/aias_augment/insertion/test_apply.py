@@ -124,3 +124,39 @@ def test_fast_harmonizer_blended_on_the_mask_only_gives_harmonize_bytes():
     for tta in (False, True):
         assert np.array_equal(harmonize_fast_masked(load_fast(DEFAULT_CHECKPOINTS["fast"]), comp, mask, tta),
                               harmonize(comp, mask, method="fast", test_time_views=tta))
+
+
+def test_a_monochrome_camera_gets_grey_objects_and_a_colour_one_keeps_colour():
+    """A grey frame stored as RGB (R = G = B, like KITTI's grey cameras) is recorded as a monochrome camera and its
+    inserted cone is written as luminance (every output pixel has R = G = B, and the cone changed pixels); the scene
+    from a colour camera
+    keeps an orange cone (R well above B on the object)."""
+    from aias_augment.insertion import analyse_scene, apply_plan, plan_insertion
+    from aias_augment.insertion.analyse import is_monochrome
+    from aias_augment.insertion.config import load_preset
+    from aias_augment.scene import Frame
+
+    rng = np.random.default_rng(0)
+    grey = np.full((240, 320), 120, np.uint8)
+    grey[:100] = 200                                        # sky
+    grey = np.clip(grey + rng.integers(-6, 7, grey.shape), 0, 255).astype(np.uint8)
+    mono = np.repeat(grey[..., None], 3, axis=2)
+    colour = np.full((240, 320, 3), 120, np.int16)           # the same scene from a colour camera: grey road,
+    colour[:100] = (150, 180, 220)                           # blue sky, noise per channel
+    colour = np.clip(colour + rng.integers(-6, 7, colour.shape), 0, 255).astype(np.uint8)
+    assert is_monochrome(mono) and not is_monochrome(colour)
+    cfg = load_preset("fast", categories=("traffic_cone",), min_objects=1, max_objects=1)
+    for img, expect_grey in ((mono, True), (colour, False)):
+        frame = Frame(img)
+        analysis = analyse_scene(frame, cfg)
+        assert ("colour" in analysis.modules) == expect_grey
+        plan = plan_insertion(analysis, cfg, np.random.default_rng(3))
+        assert plan.objects
+        out = apply_plan(frame, analysis, plan, cfg)
+        obj = out.cover > 0.5
+        assert obj.sum() > 20 and np.abs(out.image.astype(int) - img.astype(int))[obj].max() > 10
+        if expect_grey:
+            assert (out.image[..., 0] == out.image[..., 1]).all() and (out.image[..., 1] == out.image[..., 2]).all()
+        else:
+            px = out.image[obj].astype(int)
+            assert np.mean(px[:, 0] - px[:, 2] > 30) > 0.2     # the orange body stays orange (base black, bands white)
