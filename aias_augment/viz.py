@@ -44,27 +44,23 @@ def contact_sheet(images: list[np.ndarray], cols: int = 3, cell_width: int = 480
         free = width - gap_px * (len(idx) - 1)
         h = free / sum(aspects[j] for j in idx) if full else nominal
         h = max(1, int(round(min(h, 2.0 * nominal))))   # a single very wide image may not fill: keep it sane
-        tiles = []
-        for j in idx:
+        ws = [max(1, int(round(aspects[j] * h))) for j in idx]
+        if full:   # rounding: the last tile of a full row ends exactly at the sheet's edge
+            ws[-1] = max(1, width - gap_px * (len(idx) - 1) - sum(ws[:-1]))
+        row = np.full((h, width, 3), background, np.uint8)
+        x = 0
+        for j, w in zip(idx, ws):
             im = images[j]
-            w = max(1, int(round(aspects[j] * h)))
             c = cv2.resize(np.ascontiguousarray(im), (w, h),
                            interpolation=cv2.INTER_AREA if w < im.shape[1] else cv2.INTER_LINEAR)
             if titles:
                 cv2.putText(c, str(titles[j]), (5, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1,
                             cv2.LINE_AA)
-            tiles.append(c)
-        row = np.full((h, width, 3), background, np.uint8)
-        x = 0
-        for k, c in enumerate(tiles):
-            if k == len(tiles) - 1 and full:      # rounding: the last tile of a full row ends at the sheet's edge
-                c = cv2.resize(c, (max(1, width - x), h), interpolation=cv2.INTER_LINEAR) if width - x != \
-                    c.shape[1] and width - x > 0 else c
-            w = min(c.shape[1], width - x)
+            w = min(w, width - x)
+            if w <= 0:
+                break
             row[:, x:x + w] = c[:, :w]
             x += w + gap_px
-            if x >= width:
-                break
         strips.append(row)
     sep = np.full((gap_px, width, 3), background, np.uint8)
     out = [strips[0]]
