@@ -225,7 +225,7 @@ def _write_atomic(path: Path, data: bytes) -> None:
         tmp.write_bytes(data)
         tmp.replace(path)
     except OSError as e:
-        log.warning("view cache: cannot write %s (%s)", path, e)
+        log.warning("cache: cannot write %s (%s)", path, e)
 
 
 #: Bump when what a view holds or how it is rendered changes (old folders are then not read).

@@ -1,0 +1,211 @@
+"""Insertion variants: at most K insertions per image, the training loop's fast path.
+
+``InsertObjects(variants_per_image=K)`` gives each image a fixed set of K insertions instead of a new one per call:
+a call draws ``j`` in ``[0, K)`` with its generator and returns variant ``j`` of the image. Variant ``j`` is the
+full pipeline's output (analysis, plan, apply: nothing is approximated) for the plan drawn from a generator seeded
+by ``(seed, j, key)``, where ``key`` (:func:`variant_key`) is a 128-bit hash of everything the insertion reads: image
+bytes, ``camera_k``, depth, scene facts, the existing boxes, the config and the asset bank. So a variant is a pure
+function of the sample, ``seed`` and ``j``; which variant a call gets is the call's own draw.
+
+A variant is kept as the window of pixels the insertion changed (:class:`Variant`) with its boxes and record:
+applying it is a copy of the image and a paste of the window (~0.1 ms at 320x320), against ~15-30 ms for a fresh
+fast insertion on a warm scene cache. The :class:`VariantCache` (an LRU in memory by bytes, and with a folder, files
+every DataLoader worker and later run reads) changes when a variant is computed, never its pixels: a hit and a miss
+give the same bytes (tested).
+
+The trade is variety, and it is the user's to make: over training an image shows at most K different insertions
+(K = None: a new one per call, the default). ``InsertObjects.warm(images, variants=True)`` computes all K variants
+before training, so that no epoch pays for one; without it, variants are computed when first drawn (an image needs
+about K / p calls before all its variants exist).
+
+Not part of the key: ``min_visibility`` (a variant stores the existing boxes' visible fractions; the call decides
+which to keep) and the existing boxes' labels (the insertion does not read them).
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import pickle
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import xxhash
+
+from .analyse import _hash_value
+from .view_cache import _write_atomic
+
+log = logging.getLogger(__name__)
+
+#: Bump when what a variant holds, or what an insertion computes, changes: files of another version are not read.
+VARIANT_FORMAT = 1
+
+
+def variant_key_prefix(cfg=None, assets=None, seed: int = 0):
+    """The part of :func:`variant_key` that is fixed for a transform (config, asset bank, seed, versions): a
+    hash object to pass as ``prefix`` (copied, never changed). ``cfg``: the InsertionConfig (its repr is complete:
+    no arrays in it); ``assets``: ``{category: [paths]}`` or None. xxh3-128, not sha256: the key is computed at
+    every call and hashes the image (0.01 ms for 320x320x3 against 0.16 for sha256); 128 bits make an accidental
+    collision negligible (a cache of your own data, not a defence against crafted inputs)."""
+    from .. import __version__
+    h = xxhash.xxh3_128(f"aias-variant v{VARIANT_FORMAT} package {__version__} seed {int(seed)}".encode())
+    for name, v in (("cfg", repr(cfg)), ("assets", repr(sorted((assets or {}).items())))):
+        h.update(name.encode())
+        _hash_value(h, v)
+    return h
+
+
+def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, meta=None, existing_xywh=None,
+                prefix=None) -> str:
+    """xxh3-128 (hex) of everything a variant depends on except its index: ``prefix`` (from
+    :func:`variant_key_prefix`; None: its defaults), image bytes, K, depth, scene facts (``scene``: SceneInputs;
+    ``meta``: a facts dict) and the existing boxes."""
+    h = (prefix if prefix is not None else variant_key_prefix()).copy()
+    for name, v in (("image", image), ("K", None if camera_k is None else np.asarray(camera_k, np.float64)),
+                    ("depth", depth),
+                    ("boxes", np.zeros((0, 4)) if existing_xywh is None else np.asarray(existing_xywh, np.float64))):
+        h.update(name.encode())
+        _hash_value(h, v)
+    for where, facts in (("scene", scene), ("meta", meta)):
+        if facts is None:
+            continue
+        items = ([(f.name, getattr(facts, f.name)) for f in dataclasses.fields(facts)]
+                 if dataclasses.is_dataclass(facts) else sorted(facts.items()))
+        for k, v in items:   # arrays by their bytes (the repr of a large array elides its middle)
+            h.update(f"{where}:{k}".encode())
+            _hash_value(h, v if isinstance(v, np.ndarray) or v is None else repr(v))
+    return h.hexdigest()
+
+
+def variant_rng(seed: int, j: int, key: str) -> np.random.Generator:
+    """The generator variant ``j`` of the sample with ``key`` is planned with (independent of the call's)."""
+    return np.random.default_rng([int(seed), int(j), int(key[:16], 16)])
+
+
+@dataclass(frozen=True, eq=False)
+class Variant:
+    """One insertion into one image, kept as what it changed.
+
+    window: (y0, y1, x0, x1) of the pixels the insertion changed ((0, 0, 0, 0): none); pixels: the output there
+    ((y1-y0, x1-x0, 3) uint8); inserted_bboxes (K, 4) COCO xywh and inserted_labels: the new boxes;
+    existing_visibility (N,): visible fraction of each existing box under what was drawn; record: the insertion's
+    :class:`~aias_augment.pipeline.InsertionRecord` (replayable)."""
+
+    window: tuple[int, int, int, int]
+    pixels: np.ndarray
+    inserted_bboxes: np.ndarray
+    inserted_labels: tuple[str, ...]
+    existing_visibility: np.ndarray
+    record: object
+
+    @classmethod
+    def from_result(cls, image: np.ndarray, result) -> "Variant":
+        """The variant of an :class:`~aias_augment.pipeline.InsertionResult` made from ``image``."""
+        changed = np.any(result.image != image, axis=2)
+        rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+        if len(rows) == 0:
+            window = (0, 0, 0, 0)
+        else:
+            window = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+        y0, y1, x0, x1 = window
+        return cls(window, np.ascontiguousarray(result.image[y0:y1, x0:x1]),
+                   np.asarray(result.inserted_bboxes, np.float64).reshape(-1, 4), tuple(result.inserted_labels),
+                   np.asarray(result.record.existing_visibility, np.float64), result.record)
+
+    @property
+    def nbytes(self) -> int:
+        return self.pixels.nbytes + self.inserted_bboxes.nbytes + self.existing_visibility.nbytes + 2048
+
+    def result(self, image: np.ndarray, existing_xywh: np.ndarray, labels: list, min_visibility: float = 0.0):
+        """The :class:`~aias_augment.pipeline.InsertionResult` of this variant on ``image`` (the same bytes the
+        variant was made from; not modified): a copy with the window pasted, boxes as
+        :func:`~aias_augment.pipeline.assemble_result` orders them."""
+        from ..pipeline import InsertionResult
+        if len(self.existing_visibility) != len(existing_xywh):
+            raise ValueError(f"variant made with {len(self.existing_visibility)} existing boxes, called with "
+                             f"{len(existing_xywh)}")
+        out = image.copy()
+        y0, y1, x0, x1 = self.window
+        out[y0:y1, x0:x1] = self.pixels
+        keep = self.existing_visibility >= min_visibility
+        boxes = np.asarray(existing_xywh, np.float64).reshape(-1, 4)
+        return InsertionResult(out, np.concatenate([boxes[keep], self.inserted_bboxes], axis=0),
+                               [lab for lab, k in zip(labels, keep) if k] + list(self.inserted_labels),
+                               self.inserted_bboxes.copy(), list(self.inserted_labels), keep, self.record)
+
+
+class VariantCache:
+    """Variants by ``(key, j)``: an LRU in memory of at most ``max_bytes`` and, with a ``directory``, one file per
+    variant (``<dir>/<key[:2]>/<key>_<j>.pkl``, written atomically) shared by processes and runs. The folder is
+    trusted like any cache of your own (its files are pickles). Pickles empty (each DataLoader worker fills its own
+    LRU; the folder is shared)."""
+
+    def __init__(self, max_bytes: int = 128 * 2**20, directory: str | Path | None = None):
+        if max_bytes < 0:
+            raise ValueError(f"max_bytes must be >= 0, got {max_bytes}")
+        self.max_bytes = int(max_bytes)
+        self.directory = None if directory is None else Path(directory)
+        self._lru: OrderedDict[tuple[str, int], Variant] = OrderedDict()
+        self.nbytes = 0
+        self.hits = self.disk_hits = self.misses = 0
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_lru"] = OrderedDict()
+        state["nbytes"] = state["hits"] = state["disk_hits"] = state["misses"] = 0
+        return state
+
+    def __len__(self) -> int:
+        return len(self._lru)
+
+    def _path(self, key: str, j: int) -> Path:
+        return self.directory / key[:2] / f"{key}_{j}.pkl"
+
+    def get(self, key: str, j: int) -> Variant | None:
+        """The variant if this process or the folder holds it, else None (counted as a miss)."""
+        v = self._lru.get((key, j))
+        if v is not None:
+            self._lru.move_to_end((key, j))
+            self.hits += 1
+            return v
+        v = self._read(key, j)
+        if v is None:
+            self.misses += 1
+            return None
+        self.disk_hits += 1
+        self._remember(key, j, v)
+        return v
+
+    def put(self, key: str, j: int, v: Variant) -> None:
+        self._remember(key, j, v)
+        if self.directory is not None:
+            _write_atomic(self._path(key, j), pickle.dumps((VARIANT_FORMAT, key, j, v), protocol=5))
+
+    def _remember(self, key: str, j: int, v: Variant) -> None:
+        if v.nbytes > self.max_bytes:
+            return
+        old = self._lru.pop((key, j), None)
+        if old is not None:
+            self.nbytes -= old.nbytes
+        self._lru[(key, j)] = v
+        self.nbytes += v.nbytes
+        while self.nbytes > self.max_bytes:
+            _, gone = self._lru.popitem(last=False)
+            self.nbytes -= gone.nbytes
+
+    def _read(self, key: str, j: int) -> Variant | None:
+        if self.directory is None:
+            return None
+        p = self._path(key, j)
+        if not p.exists():
+            return None
+        try:
+            fmt, k, jj, v = pickle.loads(p.read_bytes())
+        except Exception as e:  # a damaged file or another version's: computed again (and overwritten)
+            log.info("variant cache: %s not used (%s)", p, e)
+            return None
+        if fmt != VARIANT_FORMAT or k != key or jj != j or not isinstance(v, Variant):
+            return None
+        return v

@@ -1,0 +1,133 @@
+"""Insertion variants (insertion/variants.py, ``InsertObjects(variants_per_image=K)``): a variant is the full
+pipeline's output for its own generator (the pasted window reproduces it byte for byte), a cached variant and a
+computed one give the same bytes (memory, disk, a fresh transform, warm), an image shows at most K insertions, and
+the key follows what the insertion reads."""
+import pickle
+
+import albumentations as A
+import numpy as np
+import pytest
+
+from aias_augment import InsertObjects
+from aias_augment.insertion.variants import Variant, VariantCache, variant_key, variant_key_prefix, variant_rng
+from aias_augment.pipeline import load_preset
+from aias_augment.working_resolution import insert_bounded
+from tests.aias_augment.test_pipeline import _image
+
+K = [[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]]
+BOXES = [[20.0, 300.0, 40.0, 60.0]]   # an existing box (COCO xywh) the insertion must avoid / may cover
+
+
+def _compose(seed=5, k=3, **kw):
+    return A.Compose([InsertObjects(categories=["traffic_cone"], max_objects=2, p=1.0, preset="fast",
+                                    variants_per_image=k, **kw)],
+                     bbox_params=A.BboxParams(format="coco", label_fields=["labels"], min_visibility=0.2), seed=seed)
+
+
+def _call(tf, img, boxes=BOXES):
+    return tf(image=img, bboxes=boxes, labels=["real"] * len(boxes), camera_k=K)
+
+
+def test_variant_window_reproduces_the_full_insertion_byte_for_byte():
+    """Variant j pasted on the image equals the pipeline's own output for variant j's generator (the window holds
+    every changed pixel), with the same boxes."""
+    img = _image()
+    cfg = load_preset("fast", categories=("traffic_cone",), max_objects=2)
+    boxes = np.asarray(BOXES)
+    key = variant_key(img, camera_k=K, existing_xywh=boxes, prefix=variant_key_prefix(cfg))
+    full = insert_bounded(img, boxes, [0], variant_rng(0, 1, key), cfg, intrinsics=K)
+    v = Variant.from_result(img, full)
+    y0, y1, x0, x1 = v.window
+    assert (y1 - y0) * (x1 - x0) < img.shape[0] * img.shape[1] / 2   # a window, not the frame
+    got = v.result(img, boxes, ["real"], min_visibility=0.0)
+    assert np.array_equal(got.image, full.image)
+    assert np.array_equal(got.inserted_bboxes, full.inserted_bboxes) and got.inserted_labels == full.inserted_labels
+    assert np.array_equal(got.keep_existing, full.keep_existing)
+    outside = np.ones(img.shape[:2], bool)
+    outside[y0:y1, x0:x1] = False
+    assert np.array_equal(full.image[outside], img[outside])   # nothing changed outside the window
+    assert not np.shares_memory(got.image, img)
+
+
+def test_at_most_k_insertions_per_image_and_cached_equals_computed(tmp_path):
+    """Over 12 calls an image shows at most K = 2 different outputs (both of them); every output equals that of a
+    transform that computed nothing before (same seed), one reading the variants from disk, and one warmed."""
+    img = _image()
+    a = _compose(k=2, scene_cache=str(tmp_path))
+    outs = [_call(a, img) for _ in range(12)]
+    distinct = {o["image"].tobytes() for o in outs}
+    assert len(distinct) == 2
+    va = a.transforms[0]._variants
+    assert va.misses == 2 and va.hits == 10
+    fresh = _compose(k=2)                                  # no cache folder, nothing computed
+    reader = _compose(k=2, scene_cache=str(tmp_path))      # a DataLoader worker: reads the folder
+    warmed = _compose(k=2)
+    assert warmed.transforms[0].warm([img], camera_ks=[K], variants=True, bboxes=[BOXES])["variants_computed"] == 2
+    for t in (fresh, reader, warmed):
+        for o in outs:
+            got = _call(t, img)
+            assert np.array_equal(got["image"], o["image"])
+            assert np.allclose(np.asarray(got["bboxes"]), np.asarray(o["bboxes"])) and got["labels"] == o["labels"]
+    assert reader.transforms[0]._variants.disk_hits == 2 and reader.transforms[0]._variants.misses == 0
+    assert warmed.transforms[0]._variants.misses == 2   # warm's own misses; the calls only hit
+
+
+def test_key_follows_what_the_insertion_reads():
+    img = _image()
+    p = variant_key_prefix(load_preset("fast"))
+    k0 = variant_key(img, camera_k=K, existing_xywh=np.asarray(BOXES), prefix=p)
+    assert variant_key(img.copy(), camera_k=np.asarray(K), existing_xywh=np.asarray(BOXES), prefix=p) == k0
+    img2 = img.copy()
+    img2[0, 0, 0] ^= 1
+    others = [variant_key(img2, camera_k=K, existing_xywh=np.asarray(BOXES), prefix=p),
+              variant_key(img, camera_k=None, existing_xywh=np.asarray(BOXES), prefix=p),
+              variant_key(img, camera_k=K, existing_xywh=np.asarray(BOXES) + 1, prefix=p),
+              variant_key(img, camera_k=K, existing_xywh=np.asarray(BOXES), prefix=variant_key_prefix(
+                  load_preset("balanced"))),
+              variant_key(img, camera_k=K, existing_xywh=np.asarray(BOXES),
+                          prefix=variant_key_prefix(load_preset("fast"), seed=1))]
+    assert len(set(others + [k0])) == 6
+
+
+def test_boxes_through_the_compose_round_trip_find_warms_variant():
+    """warm() gets raw COCO boxes; the call sees them after albumentations' normalise/denormalise: both must key
+    (and insert) the same, or warming would be wasted."""
+    img = _image()
+    boxes = [[20.123456789, 300.3333333, 40.7777777, 60.1]]
+    t = _compose(k=1)
+    t.transforms[0].warm([img], camera_ks=[K], variants=True, bboxes=[boxes])
+    _call(t, img, boxes)
+    assert t.transforms[0]._variants.hits == 1 and t.transforms[0]._variants.misses == 1
+
+
+def test_min_visibility_decided_per_call_from_the_stored_visibility():
+    img = _image()
+    cfg = load_preset("fast", categories=("traffic_cone",), max_objects=2)
+    full = insert_bounded(img, np.asarray(BOXES), [0], np.random.default_rng(3), cfg, intrinsics=K)
+    v = Variant.from_result(img, full)
+    vis = float(v.existing_visibility[0])
+    assert v.result(img, np.asarray(BOXES), ["real"], min_visibility=vis).keep_existing[0]
+    assert not v.result(img, np.asarray(BOXES), ["real"], min_visibility=vis + 1e-6).keep_existing[0]
+    with pytest.raises(ValueError, match="existing boxes"):
+        v.result(img, np.zeros((0, 4)), [])
+
+
+def test_bad_arguments_pickling_and_cache_bounds(tmp_path):
+    for bad in (0, -1, 2.5, True):
+        with pytest.raises(ValueError, match="variants_per_image"):
+            InsertObjects(variants_per_image=bad)
+    with pytest.raises(ValueError, match="variants_per_image"):
+        InsertObjects().warm([_image()], variants=True)
+    t = _compose(k=2)
+    _call(t, _image())
+    t2 = pickle.loads(pickle.dumps(t))   # spawn workers get an empty LRU and no hash object
+    assert len(t2.transforms[0]._variants) == 0 and t2.transforms[0]._variant_prefix is None
+    assert np.array_equal(_call(t2, _image())["image"], _call(_compose(k=2), _image())["image"])
+    c = VariantCache(max_bytes=5000)
+    small = Variant((0, 1, 0, 1), np.zeros((1, 1, 3), np.uint8), np.zeros((0, 4)), (), np.zeros(0), None)
+    for j in range(5):
+        c.put("ab" * 16, j, small)
+    assert len(c) == 5000 // small.nbytes and c.nbytes <= 5000
+    (tmp_path / "ab").mkdir()
+    (tmp_path / "ab" / f"{'ab' * 16}_0.pkl").write_bytes(b"not a pickle")
+    assert VariantCache(directory=tmp_path).get("ab" * 16, 0) is None   # damaged file: recomputed, not fatal
