@@ -267,6 +267,7 @@ def main(argv=None) -> int:
     ap.add_argument("--variants", type=int, default=4, help="variants_per_image of the variant arms")
     ap.add_argument("--loader-arms", nargs="+", default=list(LOADER_ARMS), choices=LOADER_ARMS,
                     help="loader arms, in this order ('without' is also run again at the end)")
+    ap.add_argument("--repeats", type=int, default=1, help="loader arms run this many times (medians reported)")
     ap.add_argument("--worker-profile", action="store_true", help="also profile a worker's stages (fresh arm)")
     ap.add_argument("--out", default="results/bench")
     a = ap.parse_args(argv)
@@ -281,21 +282,27 @@ def main(argv=None) -> int:
     loader = None
     if not a.skip_loader:
         small = sorted((data_root() / "tracon" / "images" / "train").glob("*.jpg"))[:a.loader_images]
-        arms, warms = {}, {}
-        for arm in a.loader_arms:   # each arm a new loader (and a new cache folder); "without" first and last
-            warm = {} if arm in ("fresh_warmed", "variants_warmed") else None
-            with tempfile.TemporaryDirectory() as d:
-                arms[arm] = loader_rates(small, a.epochs, arm != "without", d, warm,
-                                         a.warm_view_plans if arm == "fresh_warmed" else 0,
-                                         a.variants if arm.startswith("variants") else None)
-            if warm is not None:
-                warms[arm] = warm
-        with tempfile.TemporaryDirectory() as d:
-            arms["without (again)"] = loader_rates(small, a.epochs, False, d)
-        base = [(x + y) / 2 for x, y in zip(arms["without"], arms["without (again)"])]
-        loader = {"images": a.loader_images, "variants_per_image": a.variants, "img_s": arms, "warm": warms,
-                  "ratio_per_epoch": {k: [w / b for w, b in zip(v, base)] for k, v in arms.items()
-                                      if not k.startswith("without")}}
+        runs, warms = [], {}
+        for rep in range(a.repeats):   # each arm a new loader and cache folder; "without" first and last
+            arms = {}
+            for arm in list(a.loader_arms) + ["without (again)"]:
+                warm = {} if arm in ("fresh_warmed", "variants_warmed") else None
+                with tempfile.TemporaryDirectory() as d:
+                    arms[arm] = loader_rates(small, a.epochs, not arm.startswith("without"), d, warm,
+                                             a.warm_view_plans if arm == "fresh_warmed" else 0,
+                                             a.variants if arm.startswith("variants") else None)
+                if warm is not None:
+                    warms[arm] = warm
+            base = [(x + y) / 2 for x, y in zip(arms["without"], arms["without (again)"])]
+            runs.append({"img_s": arms, "ratio_per_epoch": {k: [w / b for w, b in zip(v, base)]
+                                                            for k, v in arms.items() if not k.startswith("without")}})
+        names = list(runs[0]["img_s"])
+        loader = {"images": a.loader_images, "variants_per_image": a.variants, "repeats": runs, "warm": warms,
+                  # per arm and epoch: the median over repeats
+                  "img_s": {k: [float(np.median([r["img_s"][k][e] for r in runs])) for e in range(a.epochs)]
+                            for k in names},
+                  "ratio_per_epoch": {k: [float(np.median([r["ratio_per_epoch"][k][e] for r in runs]))
+                                          for e in range(a.epochs)] for k in runs[0]["ratio_per_epoch"]}}
         if a.worker_profile:
             loader["worker_profile"] = worker_profile(small, a.epochs - 1, warm=True, view_plans=a.warm_view_plans)
     res = {"command": cmd, "machine": f"{os.cpu_count()} CPU cores, {platform.processor() or platform.machine()}",
@@ -339,7 +346,8 @@ def main(argv=None) -> int:
                   "on-disk scene cache (a new folder per arm). Arms: fresh = a new insertion per call; fresh_warmed = "
                   f"after `warm(images, view_plans={a.warm_view_plans})`; variants = `variants_per_image="
                   f"{a.variants}` (made when first drawn); variants_warmed = the same after `warm(images, "
-                  "variants=True)`. Ratios against the mean of the two runs without insertion (first and last).", "",
+                  "variants=True)`. Ratios against the mean of the two runs without insertion (first and last) of the "
+                  f"same repeat; {a.repeats} repeat(s) of every arm, medians over repeats.", "",
                   "| epoch | " + " | ".join(f"{k} img/s" for k in names) + " | "
                   + " | ".join(f"ratio {k}" for k in loader["ratio_per_epoch"]) + " |",
                   "|---:|" + "---:|" * (len(names) + len(loader["ratio_per_epoch"]))]

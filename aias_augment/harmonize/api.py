@@ -93,9 +93,9 @@ def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str 
     elif method == "camera":
         result = to_float(camera_match(composite_rgb_uint8, hard, rng, CameraMatchParams()))
     elif method == "fast":
-        from .fast import load_fast, run_fast  # torch is imported only for the learnt methods
+        from .fast_infer import load_fast_np, run_fast  # NumPy inference: no torch for the fast method
 
-        result = run_fast(load_fast(_checkpoint(method, checkpoint)), image, hard, tta=test_time_views)
+        result = run_fast(load_fast_np(_checkpoint(method, checkpoint)), image, hard, tta=test_time_views)
     else:
         from .network import load_generator, run_network
 
@@ -182,9 +182,9 @@ def harmonize_clip(frames: list[np.ndarray], fg_masks: list[np.ndarray | None], 
         for i in visible:
             out[i] = harmonize(frames[i], softs[i], method, rng.spawn(1)[0], checkpoint)
         return out
-    from .fast import apply_affine_np, load_fast, predict_affine
+    from .fast_infer import apply_affine_np, load_fast_np, predict_affine
 
-    model = load_fast(_checkpoint(method, checkpoint))
+    model = load_fast_np(_checkpoint(method, checkpoint))
     affine = np.median(np.stack([predict_affine(model, to_float(frames[i]), softs[i] > 0) for i in visible]), axis=0)
     for i in visible:
         image = to_float(frames[i])

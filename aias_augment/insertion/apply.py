@@ -253,8 +253,8 @@ def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,
         out = image.copy()
         # _harmonize_window returns a window for "fast" only: harmonize()'s fast path, blended on the mask only.
         from ..harmonize.api import DEFAULT_CHECKPOINTS
-        from ..harmonize.fast import harmonize_fast_masked, load_fast
-        out[y0:y1, x0:x1] = harmonize_fast_masked(load_fast(DEFAULT_CHECKPOINTS["fast"]), image[y0:y1, x0:x1],
+        from ..harmonize.fast_infer import harmonize_fast_masked, load_fast_np
+        out[y0:y1, x0:x1] = harmonize_fast_masked(load_fast_np(DEFAULT_CHECKPOINTS["fast"]), image[y0:y1, x0:x1],
                                                   np.ascontiguousarray(mask[y0:y1, x0:x1], dtype=np.float32),
                                                   tta=cfg.harmonize_test_time_views)
         return out, f"harmonized ({cfg.harmonize_method}, in the objects' context window)"
@@ -293,14 +293,14 @@ def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int,
     if cfg.harmonize_method != "fast":
         return None
     from ..harmonize.api import DEFAULT_CHECKPOINTS
-    from ..harmonize.fast import TTA_CONTEXTS, load_fast
+    from ..harmonize.fast_infer import TTA_CONTEXTS, load_fast_np
     if not DEFAULT_CHECKPOINTS["fast"].is_file():
         return None  # harmonize() raises the missing-checkpoint error with its training command
     path = DEFAULT_CHECKPOINTS["fast"]
     st = path.stat()
-    key = (str(path), st.st_mtime_ns, st.st_size)  # the checkpoint's version, as load_fast keys it
+    key = (str(path), st.st_mtime_ns, st.st_size)  # the checkpoint's version, as load_fast_np keys it
     if key not in _FAST_CONTEXT:
-        _FAST_CONTEXT[key] = max(TTA_CONTEXTS + (load_fast(path).cfg.context,))
+        _FAST_CONTEXT[key] = max(TTA_CONTEXTS + (load_fast_np(path).cfg.context,))
     ctx = _FAST_CONTEXT[key]
     ox, oy, ox1, oy1 = within if within is not None else (0, 0, mask.shape[1], mask.shape[0])
     ys, xs = np.nonzero(mask[oy:oy1, ox:ox1] > 0)

@@ -65,9 +65,14 @@ def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, met
     h = (prefix if prefix is not None else variant_key_prefix()).copy()
     for name, v in (("image", image), ("K", None if camera_k is None else np.asarray(camera_k, np.float64)),
                     ("depth", depth),
-                    ("boxes", np.zeros((0, 4)) if existing_xywh is None else np.asarray(existing_xywh, np.float64))):
-        h.update(name.encode())
-        _hash_value(h, v)
+                    ("boxes", None if existing_xywh is None or len(existing_xywh) == 0
+                     else np.asarray(existing_xywh, np.float64))):
+        if v is None:
+            h.update(f"{name}:None".encode())
+        else:
+            a = np.ascontiguousarray(v)
+            h.update(f"{name}:{a.dtype}{a.shape}".encode())
+            h.update(memoryview(a).cast("B") if a.dtype != object else repr(a.tolist()).encode())
     for where, facts in (("scene", scene), ("meta", meta)):
         if facts is None:
             continue

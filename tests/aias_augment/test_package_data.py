@@ -24,6 +24,8 @@ out = {"module": aias_augment.__file__,
        "presets": {n: load_preset(n).ssaa for n in ("fast", "balanced", "accurate")},
        "taxonomy": sorted(load_taxonomy().categories),
        "checkpoints": {k: (str(v), v.is_file()) for k, v in DEFAULT_CHECKPOINTS.items()},
+       "fast_npz": __import__("aias_augment.harmonize.fast_infer", fromlist=["x"]).load_fast_np(
+           DEFAULT_CHECKPOINTS["fast"]).cfg.thumbnail_px,
        "detector": load_detector_config("lite0_320").train.img_size}
 print(json.dumps(out))
 """
@@ -45,7 +47,7 @@ def test_wheel_ships_configs_and_checkpoints(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     for rel in ("configs/presets/fast.yaml", "configs/presets/balanced.yaml", "configs/presets/accurate.yaml",
                 "configs/taxonomy.yaml", "configs/detector/lite0_320.yaml", "checkpoints/harmonizer_fast.pt",
-                "checkpoints/harmonizer_small.pt"):
+                "checkpoints/harmonizer_fast.npz", "checkpoints/harmonizer_small.pt"):
         assert f"aias_augment/_data/{rel}" in names, rel
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
@@ -60,4 +62,5 @@ def test_wheel_ships_configs_and_checkpoints(tmp_path):
     for path, exists in out["checkpoints"].values():
         assert exists and Path(path).resolve().is_relative_to(site.resolve())
     assert out["detector"] == 320
+    assert out["fast_npz"] == 64   # the fast harmonizer's NumPy weights load from the wheel (checked against the .pt)
     assert "traffic_cone" in out["taxonomy"]
