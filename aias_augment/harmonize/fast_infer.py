@@ -16,6 +16,7 @@ import dataclasses
 import functools
 import hashlib
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -86,16 +87,15 @@ def adaptive_avg_pool(x: np.ndarray, out_hw: tuple[int, int]) -> np.ndarray:
 
 def conv3x3_s2_relu(x: np.ndarray, weight: np.ndarray, bias: np.ndarray) -> np.ndarray:
     """(C, H, W) -> (Cout, ceil(H/2), ceil(W/2)): ``relu(conv2d(x, weight, bias, stride=2, padding=1))``;
-    ``weight`` (Cout, C * 9) in torch's (c, ky, kx) order."""
+    ``weight`` (Cout, C * 9) in torch's (c, ky, kx) order. im2col by 9 strided slices, then one matmul."""
     c, h, w = x.shape
-    xp = np.zeros((c, h + 2, w + 2), np.float32)
-    xp[:, 1:-1, 1:-1] = x
-    win = np.lib.stride_tricks.sliding_window_view(xp, (3, 3), axis=(1, 2))[:, ::2, ::2]   # (C, Ho, Wo, 3, 3)
-    ho, wo = win.shape[1:3]
-    cols = win.transpose(1, 2, 0, 3, 4).reshape(ho * wo, c * 9)
-    out = cols @ weight.T + bias
+    ho, wo = (h + 1) // 2, (w + 1) // 2
+    xp = np.zeros((c, 2 * ho + 2, 2 * wo + 2), np.float32)   # padding 1 (and one more row/column, never read)
+    xp[:, 1:h + 1, 1:w + 1] = x
+    cols = np.stack([xp[:, ky:ky + 2 * ho:2, kx:kx + 2 * wo:2] for ky in range(3) for kx in range(3)], axis=1)
+    out = weight @ cols.reshape(c * 9, ho * wo) + bias[:, None]
     np.maximum(out, 0.0, out=out)
-    return out.T.reshape(-1, ho, wo)
+    return out.reshape(-1, ho, wo)
 
 
 def _masked_stats(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -109,6 +109,17 @@ def _masked_stats(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.concatenate(out).astype(np.float32)
 
 
+def _quantiles(v: np.ndarray) -> np.ndarray:
+    """(C, N), N >= 1 -> (C, len(QUANTILES)): linear interpolation between order statistics (numpy's and torch's
+    default method: position q (N - 1)), from one sort instead of np.quantile's per-call machinery."""
+    s = np.sort(v, axis=1)
+    pos = np.asarray(QUANTILES) * (s.shape[1] - 1)
+    lo = np.floor(pos).astype(np.intp)
+    hi = np.minimum(lo + 1, s.shape[1] - 1)
+    t = (pos - lo).astype(np.float32)
+    return s[:, lo] + (s[:, hi] - s[:, lo]) * t
+
+
 def _masked_quantiles(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """(C, H, W), (H, W) -> (2 * C * len(QUANTILES),): per-channel quantiles of the foreground, then the
     background's (0.5 where a side is empty); linear interpolation, as ``torch.quantile``."""
@@ -117,7 +128,7 @@ def _masked_quantiles(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
     parts = []
     for sel in (m, ~m):
         v = x[:, sel]
-        parts.append(np.quantile(v, QUANTILES, axis=1).T.reshape(-1).astype(np.float32) if v.shape[1]
+        parts.append(_quantiles(v).reshape(-1).astype(np.float32) if v.shape[1]
                      else np.full(len(QUANTILES) * x.shape[0], 0.5, np.float32))
     return np.concatenate(parts)
 
@@ -215,16 +226,26 @@ def _load_np_cached(path: str, mtime_ns: int, checkpoint: str | None, checkpoint
     return FastColorNetNP.from_state_dict(from_dict(FastConfig, meta["config"]), state)
 
 
+_RESOLVED: dict[str, tuple[Path, Path]] = {}
+
+
 def load_fast_np(checkpoint: str | Path) -> FastColorNetNP:
     """The NumPy model of the fast-harmonizer ``checkpoint`` (a ``.pt`` path; its ``.npz`` is read, and checked
-    against the ``.pt`` when that exists), once per process and file version."""
-    checkpoint = Path(checkpoint).resolve()
-    p = npz_path(checkpoint)
-    if not p.is_file():
-        raise FileNotFoundError(f"{p} (export it: python -m aias_augment.harmonize.fast_infer {checkpoint})")
-    has_pt = checkpoint.is_file() and checkpoint.suffix != ".npz"
-    return _load_np_cached(str(p), p.stat().st_mtime_ns, str(checkpoint) if has_pt else None,
-                           checkpoint.stat().st_mtime_ns if has_pt else 0)
+    against the ``.pt`` when that exists), once per process and file version (a call costs two ``stat``)."""
+    got = _RESOLVED.get(str(checkpoint))
+    if got is None:
+        pt = Path(checkpoint).resolve()
+        got = _RESOLVED[str(checkpoint)] = (pt, npz_path(pt))
+    pt, p = got
+    try:
+        npz_mtime = os.stat(p).st_mtime_ns
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{p} (export it: python -m aias_augment.harmonize.fast_infer {pt})") from None
+    try:
+        pt_mtime = os.stat(pt).st_mtime_ns if pt.suffix != ".npz" else None
+    except FileNotFoundError:
+        pt_mtime = None
+    return _load_np_cached(str(p), npz_mtime, None if pt_mtime is None else str(pt), pt_mtime or 0)
 
 
 # ------------------------------------------------------------------------------------------------ inference

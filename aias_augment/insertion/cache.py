@@ -1,6 +1,6 @@
 """Scene analyses cached by content: an in-process LRU and, optionally, a folder of ``<scene_key>.npz`` files.
 
-A cache never changes what is computed, only when: an entry is found by the sha256 of everything the analysis
+A cache never changes what is computed, only when: an entry is found by a 128-bit hash of everything the analysis
 reads (:func:`scene_key`), and an entry written by another analysis version is ignored (recomputed, overwritten).
 """
 from __future__ import annotations
