@@ -33,7 +33,7 @@ def mask_box_xywh(mask: np.ndarray) -> tuple[float, float, float, float] | None:
 
 
 def encode_rle(mask: np.ndarray) -> dict:
-    rle = mask_utils.encode(np.asfortranarray(mask.astype(np.uint8)))
+    rle = mask_utils.encode(np.asfortranarray(mask, dtype=np.uint8))   # no copy when already uint8, column-major
     rle["counts"] = rle["counts"].decode("ascii")
     return rle
 

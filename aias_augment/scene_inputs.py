@@ -181,6 +181,8 @@ def scene_meta(meta: Mapping[str, Any] | None, scene: SceneInputs | None, image_
     """The ``meta`` dict the pipeline's stages read, from a caller's ``meta`` and/or ``scene``: the facts checked
     against the image (``ValueError`` on any problem), provenance passed through. Facts may come from one of the
     two, not both."""
+    if not meta and scene is None:   # nothing given: nothing to check (the common case, at every call)
+        return {}
     facts, provenance = SceneInputs.from_meta(meta)
     if scene is not None:
         if not isinstance(scene, SceneInputs):

@@ -132,10 +132,12 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     result = img.copy()
     result[Y0:Y1, X0:X1] = comp.to_uint8(out)
     full = (h, w)
-    vis_full = [_paste_window(full, win, v) for v in vis_alphas]
+    # The union of the objects' visible coverages: the one full-frame float layer (what hides existing boxes, and
+    # the harmonizer's mask, whose context reaches outside the window); per object, only windows.
+    cover = _paste_window(full, win, np.clip(np.maximum.reduce(vis_alphas), 0, 1))
 
     if cfg.harmonize:
-        union = np.clip(np.maximum.reduce(vis_full), 0, 1).astype(np.float32)
+        union = cover
         result, mods["harmonize"] = _harmonize(result, union, cfg, np.random.default_rng(plan.harmonize_seed),
                                                within=win)
         if cfg.camera_match:
@@ -149,26 +151,25 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
         result[Y0:Y1, X0:X1] = grey[..., None]
         mods["colour"] = "luminance only: monochrome camera"
 
-    annotations = []
-    cover = np.zeros(full, np.float32)
-    for (obj, alpha, _, _), vis, vis_w in zip(layers, vis_full, vis_alphas):
-        annotations.append(_annotate_in_window(obj.placement.category, win, alpha, vis_w, vis))
-        cover = np.maximum(cover, vis)
+    annotations = [_annotate_in_window(obj.placement.category, win, alpha, vis_w, full)
+                   for (obj, alpha, _, _), vis_w in zip(layers, vis_alphas)]
     return AppliedPlan(result, tuple(o.placement for o, _, _, _ in layers), tuple(annotations), cover, mods,
                        tuple(dropped))
 
 
 def _annotate_in_window(category: str, win: tuple, amodal_w: np.ndarray, visible_w: np.ndarray,
-                        visible_full: np.ndarray) -> ObjectAnnotation:
+                        full_hw: tuple[int, int]) -> ObjectAnnotation:
     """:func:`annotate_object` of the full frame, computed on the window: boxes shifted by its origin, the RLE of
-    the full-frame visible mask (the same annotation, without scanning the whole frame for the boxes)."""
+    the full-frame visible mask (the same annotation, without building or scanning a full-frame float layer)."""
     a = annotate_object(category, amodal_w, visible_w)
 
     def shift(b):
         return None if b is None else (b[0] + win[0], b[1] + win[1], b[2], b[3])
 
+    visible = np.zeros(full_hw, np.uint8, order="F")   # pycocotools reads column-major masks
+    visible[win[1]:win[3], win[0]:win[2]] = visible_w > 0.5
     return replace(a, visible_box_xywh=shift(a.visible_box_xywh), amodal_box_xywh=shift(a.amodal_box_xywh),
-                   rle=encode_rle(visible_full > 0.5))
+                   rle=encode_rle(visible))
 
 
 def _in_window(wshape: tuple, win: tuple, roi: tuple, arr: np.ndarray, fill: float = 0.0) -> np.ndarray:
