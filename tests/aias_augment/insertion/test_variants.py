@@ -131,3 +131,37 @@ def test_bad_arguments_pickling_and_cache_bounds(tmp_path):
     (tmp_path / "ab").mkdir()
     (tmp_path / "ab" / f"{'ab' * 16}_0.pkl").write_bytes(b"not a pickle")
     assert VariantCache(directory=tmp_path).get("ab" * 16, 0) is None   # damaged file: recomputed, not fatal
+
+
+_PROCESS_SCRIPT = r"""
+import hashlib, sys
+import albumentations as A
+import numpy as np
+from aias_augment import InsertObjects
+from tests.aias_augment.test_pipeline import _image
+img = _image()
+t = InsertObjects(categories=["traffic_cone"], max_objects=2, p=1.0, preset="fast", variants_per_image=3)
+if sys.argv[1] == "warm":   # another history: every variant made beforehand, in another order than drawn
+    t.warm([img], variants=True)
+tf = A.Compose([t], bbox_params=A.BboxParams(format="coco", label_fields=["l"]), seed=9)
+print(*[hashlib.sha256(tf(image=img, bboxes=np.zeros((0, 4)), l=[])["image"]).hexdigest()[:16] for _ in range(6)])
+"""
+
+
+@pytest.mark.slow
+def test_same_variants_across_processes_hash_seeds_and_histories():
+    """Two fresh interpreters (PYTHONHASHSEED 1 and 2), one computing variants as drawn and one warmed first: the
+    same six outputs, byte for byte."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    outs = []
+    for hash_seed, history in (("1", "cold"), ("2", "warm")):
+        r = subprocess.run([sys.executable, "-c", _PROCESS_SCRIPT, history],
+                           env={**os.environ, "PYTHONHASHSEED": hash_seed}, capture_output=True, text=True,
+                           timeout=600, cwd=Path(__file__).resolve().parents[3])
+        assert r.returncode == 0, r.stderr[-2000:]
+        outs.append(r.stdout.split())
+    assert len(outs[0]) == 6 and outs[0] == outs[1]
+    assert 1 < len(set(outs[0])) <= 3   # more than one variant drawn, never more than K
