@@ -55,6 +55,7 @@ FLOOR = "floor: real cones of the B photos"
 CONTROL = "control: full arm's windows, B photos before insertion (no inserted cone)"
 REF = "real cones of the A photos (reference)"
 SPLIT_SEED = 21
+COPY_STRIDE = 1000        # copy id = photo index + COPY_STRIDE * k (k-th insertion draw into that photo)
 
 
 # ------------------------------------------------------------------ photos
@@ -76,9 +77,10 @@ def _downscaled(path: str, max_side: int) -> tuple[np.ndarray, float]:
     return img, s
 
 
-def road_photo_halves(cfg, seed: int = 0) -> tuple[list[Photo], list[Photo]]:
+def road_photo_halves(cfg, seed: int = 0, swap: bool = False) -> tuple[list[Photo], list[Photo]]:
     """Road-scene cone photos of TraCon train + val, split into halves A (reference) and B (backgrounds) by a seeded
-    permutation of the photos (sorted by key first, so the split does not depend on listing order)."""
+    permutation of the photos (sorted by key first, so the split does not depend on listing order); ``swap``: the
+    halves exchanged (the replication with roles reversed)."""
     from detection_eval import study
     from detection_eval.data import load_yolo_dir
     root = study.dataset_root(cfg)
@@ -94,7 +96,8 @@ def road_photo_halves(cfg, seed: int = 0) -> tuple[list[Photo], list[Photo]]:
     photos.sort(key=lambda p: p.key)
     order = np.random.default_rng([seed, SPLIT_SEED]).permutation(len(photos))
     half = len(photos) // 2
-    return [photos[i] for i in order[:half]], [photos[i] for i in order[half:]]
+    a, b = [photos[i] for i in order[:half]], [photos[i] for i in order[half:]]
+    return (b, a) if swap else (a, b)
 
 
 # ------------------------------------------------------------------ generation
@@ -111,14 +114,15 @@ def cmd_generate(args) -> None:
 
     cfg = _study_cfg(args.cache_dir, args.n)
     train = load_yolo_dir(study.dataset_root(cfg), cfg.train_split, cfg.class_names)
-    _, half_b = road_photo_halves(cfg)
+    _, half_b = road_photo_halves(cfg, swap=args.swap)
     photos = half_b[:args.n]
     log.info("%d B photos (of %d)", len(photos), len(half_b))
     for arm in args.arms:
         out = _arm_dir(args.cache_dir, arm)
         ins_cfg = study.insertion_config_for_arm(cfg, arm, train)   # the study's insertion config for this arm
         params = json.loads(json.dumps({"arm": arm, "insertion": dataclasses.asdict(cfg.insertion),
-                                        "flags": study.ARM_FLAGS[arm], "split_seed": SPLIT_SEED}))
+                                        "flags": study.ARM_FLAGS[arm], "split_seed": SPLIT_SEED,
+                                        **({"swap": True} if args.swap else {})}))
         progress = out / "progress.jsonl"
         if (out / "params.json").exists() and json.loads((out / "params.json").read_text()) != params:
             raise SystemExit(f"{out}: made with other parameters; use another --cache-dir")
@@ -134,14 +138,16 @@ def cmd_generate(args) -> None:
                 done[e["copy"]] = e
         t0, n_new = time.perf_counter(), 0
         with progress.open("a") as plog:
-            for j, ph in enumerate(photos):
-                if j in done:
+            for k, j in ((k, j) for k in range(args.copies) for j in range(len(photos))):
+                ph, copy = photos[j], j + COPY_STRIDE * k
+                if copy in done:
                     continue
                 img, _ = _downscaled(ph.path, cfg.insertion.max_side_px)
                 existing = np.c_[ph.boxes_xyxy[:, :2], ph.boxes_xyxy[:, 2:] - ph.boxes_xyxy[:, :2]]
-                rng = np.random.default_rng([cfg.insertion.pool_seed, 7, j])   # same stream in every arm
+                # same stream in every arm; copy k > 0 of a photo: another draw
+                rng = np.random.default_rng([cfg.insertion.pool_seed, 7, j] + ([k] if k else []))
                 t_img = time.perf_counter()
-                entry = {"copy": j, "photo": ph.key}
+                entry = {"copy": copy, "photo": ph.key}
                 try:
                     res = insert_into_image(img, existing, ["cone"] * len(existing), rng, ins_cfg)
                 except Exception as exc:  # counted; the copy is left out
@@ -151,7 +157,7 @@ def cmd_generate(args) -> None:
                     b = np.asarray(res.inserted_bboxes, np.float64).reshape(-1, 4)
                     b = b[(b[:, 2] >= 1) & (b[:, 3] >= 1)]
                     xyxy = np.c_[b[:, :2], b[:, :2] + b[:, 2:]]
-                    stem = f"{j:04d}_{ph.key.replace('/', '-')}__{arm}"
+                    stem = f"{j:04d}{f'k{k}' if k else ''}_{ph.key.replace('/', '-')}__{arm}"
                     write_yolo_sample(out, stem, res.image, xyxy, np.zeros(len(xyxy), np.int64))
                     entry.update(image=f"{stem}.jpg", boxes=xyxy.tolist(),
                                  existing_visibility=[float(v) for v in res.record.existing_visibility],
@@ -159,8 +165,8 @@ def cmd_generate(args) -> None:
                 plog.write(json.dumps(entry) + "\n")
                 plog.flush()
                 n_new += 1
-                if n_new % 10 == 0:
-                    log.info("%s: %d/%d, %.1f s/image", arm, j + 1, len(photos), (time.perf_counter() - t0) / n_new)
+                if n_new % 20 == 0:
+                    log.info("%s: %d new, %.1f s/image", arm, n_new, (time.perf_counter() - t0) / n_new)
         log.info("%s: %d new copies in %.0f s", arm, n_new, time.perf_counter() - t0)
 
 
@@ -184,6 +190,15 @@ def _arm_entries(cache_dir: str, arm: str) -> dict:
 @dataclasses.dataclass
 class MatchedCropSet(CropSet):
     crowded: list = dataclasses.field(default_factory=list)   # another cone (>= 1/4 of its box) inside the window
+    at_bottom: list = dataclasses.field(default_factory=list)  # the box touches the image's bottom edge (cut off)
+    box_h: list = dataclasses.field(default_factory=list)      # source box height, px (in the 640 px photo)
+    rel_h: list = dataclasses.field(default_factory=list)      # box height / median height of the photo's real cones
+
+    def summary(self) -> dict:
+        return {"another_cone_in_window": float(np.mean(self.crowded)),
+                "touches_bottom_edge": float(np.mean(self.at_bottom)),
+                "box_height_px_quartiles": np.percentile(self.box_h, [25, 50, 75]).tolist(),
+                "height_vs_photo_real_cones_quartiles": np.percentile(self.rel_h, [25, 50, 75]).tolist()}
 
 
 def another_cone_in_window(window_xyxy, others_xyxy, min_inside: float = 0.25) -> bool:
@@ -197,28 +212,40 @@ def another_cone_in_window(window_xyxy, others_xyxy, min_inside: float = 0.25) -
     return bool(np.any(iw * ih / area >= min_inside))
 
 
-def crops_of(name: str, items, rng: np.random.Generator, cfg: CropConfig, isolated: bool = False) -> MatchedCropSet:
-    """Crops of (photo key, image, boxes_xyxy to crop, other boxes_xyxy in the image) items, in order (same items
-    and rng -> same windows). ``isolated``: keep only crops whose window holds no other cone (decided after the
-    crops are drawn, so the kept windows are the same as without the filter)."""
+def crops_of(name: str, items, rng: np.random.Generator, cfg: CropConfig, isolated: bool = False,
+             min_box_height: float = 0.0, scene_scale: tuple[float, float] | None = None) -> MatchedCropSet:
+    """Crops of (photo key, image, boxes_xyxy to crop, other boxes_xyxy in the image, the photo's real cone boxes)
+    items, in order (same items and rng -> same windows). ``isolated``: keep only crops whose window holds no other
+    cone; ``min_box_height``: only boxes at least this tall (px); ``scene_scale`` (lo, hi): only boxes not cut by the
+    bottom edge whose height is lo..hi times the median of the photo's real cones. The filters apply after the crops
+    are drawn, so the kept windows are the same as without them."""
     cs = MatchedCropSet(name)
-    for key, img, boxes, others in items:
+    for key, img, boxes, others, real in items:
         boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
         others = np.asarray(others, np.float64).reshape(-1, 4)
+        real = np.asarray(real, np.float64).reshape(-1, 4)
         if not len(boxes):
             continue
+        real_h = float(np.median(real[:, 3] - real[:, 1])) if len(real) else float("nan")
         crops, kept = object_crops(img, boxes, rng, cfg)
         stats = box_colour_stats(img, boxes[kept])
         for crop, i, st in zip(crops, kept, stats):
             rest = np.concatenate([boxes[np.arange(len(boxes)) != i], others])
             crowded = another_cone_in_window(context_window(boxes[i], img.shape[:2], cfg.context), rest)
-            if isolated and crowded:
+            h = float(boxes[i, 3] - boxes[i, 1])
+            at_bottom = bool(boxes[i, 3] >= img.shape[0] - 1.5)
+            if (isolated and crowded) or h < min_box_height:
+                continue
+            if scene_scale is not None and (at_bottom or not scene_scale[0] <= h / real_h <= scene_scale[1]):
                 continue
             cs.crops.append(crop)
             cs.groups.append(key)
             cs.road.append(True)
             cs.stats.append(st)
             cs.crowded.append(crowded)
+            cs.at_bottom.append(at_bottom)
+            cs.box_h.append(h)
+            cs.rel_h.append(h / real_h)
     return cs
 
 
@@ -231,31 +258,34 @@ def cmd_report(args) -> None:
     seed = 0
     ccfg = CropConfig(context=args.context)
     cfg = _study_cfg(args.cache_dir, args.n)
-    half_a, half_b = road_photo_halves(cfg)
+    half_a, half_b = road_photo_halves(cfg, swap=args.swap)
     photos_b = half_b[:args.n]
     max_side = cfg.insertion.max_side_px
     entries = {arm: _arm_entries(args.cache_dir, arm) for arm in args.arms}
     entries = {a: e for a, e in entries.items() if e}
     common = sorted(set.intersection(*[set(e) for e in entries.values()]) if entries else set())
-    common = [j for j in common if j < len(photos_b)]
+    common = [c for c in common if c % COPY_STRIDE < len(photos_b)]
     log.info("arms %s; %d paired copies", list(entries), len(common))
 
-    iso = args.isolated
-    ref = crops_of(REF, ((p.key, _downscaled(p.path, max_side)[0], p.boxes_xyxy, ()) for p in half_a),
-                   np.random.default_rng([seed, 1]), ccfg, iso)
-    used_b = [photos_b[j] for j in common]
-    floor = crops_of(FLOOR, ((p.key, _downscaled(p.path, max_side)[0], p.boxes_xyxy, ()) for p in used_b),
-                     np.random.default_rng([seed, 2]), ccfg, iso)
+    iso, mh = args.isolated, args.min_box_height
+    sc = tuple(args.scene_scale) if args.scene_scale else None
+    ref = crops_of(REF, ((p.key, _downscaled(p.path, max_side)[0], p.boxes_xyxy, (), p.boxes_xyxy) for p in half_a),
+                   np.random.default_rng([seed, 1]), ccfg, iso, mh, sc)
+    used_b = [photos_b[j] for j in sorted({c % COPY_STRIDE for c in common})]
+    floor = crops_of(FLOOR, ((p.key, _downscaled(p.path, max_side)[0], p.boxes_xyxy, (), p.boxes_xyxy)
+                             for p in used_b), np.random.default_rng([seed, 2]), ccfg, iso, mh, sc)
     sets = []
     for arm, ent in entries.items():
-        items = ((photos_b[j].key, read_image_rgb(str(_arm_dir(args.cache_dir, arm) / "images" / ent[j]["image"])),
-                  ent[j]["boxes"], photos_b[j].boxes_xyxy) for j in common)
-        sets.append(crops_of(arm, items, np.random.default_rng([seed, 3]), ccfg, iso))
+        items = ((photos_b[c % COPY_STRIDE].key,
+                  read_image_rgb(str(_arm_dir(args.cache_dir, arm) / "images" / ent[c]["image"])), ent[c]["boxes"],
+                  photos_b[c % COPY_STRIDE].boxes_xyxy, photos_b[c % COPY_STRIDE].boxes_xyxy) for c in common)
+        sets.append(crops_of(arm, items, np.random.default_rng([seed, 3]), ccfg, iso, mh, sc))
     if "inserted" in entries:
         # the full arm's windows and the same "another cone" decision (its real and other inserted boxes)
-        items = ((photos_b[j].key, _downscaled(photos_b[j].path, max_side)[0], entries["inserted"][j]["boxes"],
-                  photos_b[j].boxes_xyxy) for j in common)
-        sets.append(crops_of(CONTROL, items, np.random.default_rng([seed, 3]), ccfg, iso))
+        items = ((photos_b[c % COPY_STRIDE].key, _downscaled(photos_b[c % COPY_STRIDE].path, max_side)[0],
+                  entries["inserted"][c]["boxes"], photos_b[c % COPY_STRIDE].boxes_xyxy,
+                  photos_b[c % COPY_STRIDE].boxes_xyxy) for c in common)
+        sets.append(crops_of(CONTROL, items, np.random.default_rng([seed, 3]), ccfg, iso, mh, sc))
     log.info("crops: ref %d (%d photos), floor %d, %s", len(ref.crops), len(half_a), len(floor.crops),
              ", ".join(f"{s.name} {len(s.crops)}" for s in sets))
 
@@ -287,7 +317,7 @@ def cmd_report(args) -> None:
         use_cnn = cs.name in cnn_sets or (cs is floor and "floor" in cnn_sets) or (cs.name == CONTROL
                                                                                     and "control" in cnn_sets)
         res = evaluate(cs, ref, feats[cs.name], ref_f, fid_n, rng, cnn=use_cnn, road_only=False, epochs=args.epochs)
-        res["another_cone_in_window"] = float(np.mean(cs.crowded))
+        res.update(cs.summary())
         res["seconds"] = time.perf_counter() - t0
         results[cs.name] = res
         log.info("%s: KID %.4f FID %.1f AUC(logreg) %s AUC(cnn) %s", cs.name, res["kid_crops"][0], res["fid_crops"],
@@ -308,14 +338,14 @@ def cmd_report(args) -> None:
     out.mkdir(parents=True, exist_ok=True)
     contact_sheet([ref, floor] + sets, out / "contact_sheet.png", rng=np.random.default_rng(5))
     command = "python scripts/eval_realism_matched.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-    report = {"command": command, "crop_config": dataclasses.asdict(ccfg), "fid_n": fid_n, "n_boot": args.n_boot,
+    report = {"command": command, "cache_dir": args.cache_dir, "crop_config": dataclasses.asdict(ccfg), "fid_n": fid_n, "n_boot": args.n_boot,
               "split_seed": SPLIT_SEED,
-              "photos": {"A": len(half_a), "B": len(half_b), "B_used": len(common),
+              "photos": {"A": len(half_a), "B": len(half_b), "B_used": len(used_b), "copies": len(common),
+                         "draws_per_photo": max(c // COPY_STRIDE for c in common) + 1, "swap": bool(args.swap),
                          "A_keys": [p.key for p in half_a], "B_used_keys": [p.key for p in used_b]},
-              "isolated": bool(iso),
+              "isolated": bool(iso), "min_box_height": mh, "scene_scale": sc,
               "reference": {"name": ref.name, "crops": len(ref.crops), "photos": len(set(ref.groups)),
-                            "colour": _colour_summary(ref.stats),
-                            "another_cone_in_window": float(np.mean(ref.crowded))},
+                            "colour": _colour_summary(ref.stats), **ref.summary()},
               "failures": {arm: sum(1 for line in (_arm_dir(args.cache_dir, arm) / "progress.jsonl").read_text()
                                     .splitlines() if '"failed"' in line) for arm in entries},
               "arms": results, "kid_paired_differences": paired, "seconds": time.perf_counter() - t_start}
@@ -361,6 +391,18 @@ def _reading(rep: dict) -> list[str]:
         sign = 1 if f"{full} - {k}" in pd else -1
         lo, hi = sorted(sign * np.asarray(d["ci95"]))
         diffs.append(f"{k} {sign * d['mean']:+.3f} [{lo:+.3f}, {hi:+.3f}]")
+    paper = [k for k in PAPER_ORDER if k in a]
+    steps = []
+    for lo_arm, hi_arm in zip(paper, paper[1:]):
+        key = f"{lo_arm} - {hi_arm}" if f"{lo_arm} - {hi_arm}" in pd else f"{hi_arm} - {lo_arm}"
+        sign = 1 if key.startswith(lo_arm + " - ") else -1
+        ci = sorted(sign * np.asarray(pd[key]["ci95"]))
+        verdict = ("agrees, resolved" if ci[1] < 0 else "reversed, resolved" if ci[0] > 0 else
+                   ("agrees" if sign * pd[key]["mean"] < 0 else "reversed") + ", not resolved")
+        steps.append(f"{lo_arm} vs {hi_arm}: {sign * pd[key]['mean']:+.3f} [{ci[0]:+.3f}, {ci[1]:+.3f}] ({verdict})")
+    lines.append("- The paper's ordering (full better than without shadow, better than without HDR lighting, better "
+                 "than without placement), step by step as paired KID differences (first minus second; negative "
+                 "agrees): " + "; ".join(steps) + ".")
     lines.append("- Paired KID differences, full minus arm (photo bootstrap over the same B photos; negative = "
                  "full closer to real): " + "; ".join(diffs) + ".")
     return lines
@@ -369,13 +411,20 @@ def _reading(rep: dict) -> list[str]:
 def render_markdown(rep: dict, args) -> str:
     ph = rep["photos"]
     lines = ["# Realism with matched backgrounds: real vs inserted cones in TraCon road-scene cone photos (issue 15)",
-             "", f"Written by `{rep['command']}` ({rep['seconds'] / 60:.0f} min on one CPU core, after the "
-             "generation below). Code: `scripts/eval_realism_matched.py`, `aias_augment/realism/`.", "",
+             "", f"Written by `{rep['command']}` ({rep['seconds'] / 60:.0f} min on one CPU core) after "
+             f"`python scripts/eval_realism_matched.py generate --n {ph['B_used']}"
+             + (f" --copies {ph['draws_per_photo']}" if ph.get("draws_per_photo", 1) > 1 else "")
+             + (" --swap" if ph.get("swap") else "")
+             + (f" --cache-dir {rep['cache_dir']}" if rep.get("cache_dir", "out/realism/matched") != "out/realism/matched"
+                else "")
+             + "` (6 arms, about 0.25 s per image; every command under `taskset -c 0`). Code: `scripts/eval_realism_matched.py`, `aias_augment/realism/` "
+             "(KID bootstrap: `bootstrap.py`).", "",
              f"Photos: the {ph['A'] + ph['B']} TraCon train + val cone photos that are road scenes (not stock shots "
              "on white), downscaled to 640 px, split by photo (seeded) into half A "
              f"({ph['A']} photos: the real reference, {rep['reference']['crops']} cone crops) and half B "
-             f"({ph['B']} photos; {ph['B_used']} used: the backgrounds). Each arm inserts 1-3 cones into every B "
-             "photo with the study's ablation insertion config, the photo's real cones passed as existing boxes "
+             f"({ph['B']} photos; {ph['B_used']} used: the backgrounds)"
+             + (" (halves swapped: the replication with roles reversed)" if ph.get("swap") else "")
+             + f". Each arm inserts 1-3 cones into every B photo ({ph.get('draws_per_photo', 1)} draw(s) per photo) with the study's ablation insertion config, the photo's real cones passed as existing boxes "
              "(copy j: same random stream in every arm); only the inserted cones are cropped. No photo is on both "
              "sides of any comparison, so no fold can learn a photo from one class and test it on the other. "
              "Floor: the real cones of the same B photos against A. Control: the full arm's crop windows on the B "
@@ -389,17 +438,34 @@ def render_markdown(rep: dict, args) -> str:
              "distribution sits a little below 0.5 (see results/realism/report.md), so read the floor as "
              "'indistinguishable'. CNN: `cnn_two_sample` from scratch, " + f"{args.epochs} epochs; '—' = not run.",
              "", ("Only crops whose window holds no other cone (real or inserted, >= 1/4 of its box inside) are "
-                  "kept in every set (`--isolated`)." if rep.get("isolated") else
-                  "'another cone in window': share of crops whose window holds >= 1/4 of another cone's box (real "
-                  f"or inserted); real reference: {100 * rep['reference']['another_cone_in_window']:.0f} %."),
-             "", "| set | crops (photos) | another cone in window | Lite0-KID [photo bootstrap 95 %] | Lite0-FID | "
+                  "kept in every set (`--isolated`). " if rep.get("isolated") else "")
+             + (f"Only boxes at least {rep['min_box_height']:.0f} px tall (in the 640 px photo) are kept in every "
+                "set (`--min-box-height`): every crop is then shrunk, none enlarged. " if rep.get("min_box_height")
+                else "")
+             + ("Only boxes not cut by the photo's bottom edge and {:.2f}-{:.2f} times the median height of the same "
+                "photo's real cones are kept in every set (`--scene-scale`): inserted cones the size of the "
+                "scene's own.".format(*rep["scene_scale"]) if rep.get("scene_scale") else ""),
+             "", "| set | crops (photos) | Lite0-KID [photo bootstrap 95 %] | Lite0-FID | "
              "AUC logreg (pooled) | AUC logreg (fold mean) | AUC CNN (pooled) | AUC CNN (fold mean) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|"]
     for name, r in rep["arms"].items():
-        lines.append(f"| {name} | {r['crops']} ({r['photos']}) | {100 * r['another_cone_in_window']:.0f} % | "
+        lines.append(f"| {name} | {r['crops']} ({r['photos']}) | "
                      f"{_kid(r)} | {r['fid_crops']:.1f} | "
                      f"{_fmt_ci(r['auc_logreg_lite0'])} | {_fmt_folds(r['auc_logreg_lite0'])} | "
                      f"{_fmt_ci(r.get('auc_cnn'))} | {_fmt_folds(r.get('auc_cnn'))} |")
+    lines += ["", "Where the cropped boxes sit: another cone (real or inserted, >= 1/4 of its box) inside the crop "
+              "window; box touching the photo's bottom edge (cut off by the frame); source box height in the 640 px "
+              "photo; box height over the median height of the same photo's real cones (1 = the size of the cones "
+              "already in the scene). Quartiles.", "",
+              "| set | another cone in window | touches bottom edge | box height px | height / photo's real cones |",
+              "|---|---|---|---|---|"]
+    geo = [(rep["reference"]["name"], rep["reference"])] + list(rep["arms"].items())
+    for name, r in geo:
+        if "touches_bottom_edge" not in r:
+            continue
+        bh, rh = r["box_height_px_quartiles"], r["height_vs_photo_real_cones_quartiles"]
+        lines.append(f"| {name} | {100 * r['another_cone_in_window']:.0f} % | {100 * r['touches_bottom_edge']:.0f} % | "
+                     f"{bh[1]:.0f} [{bh[0]:.0f}, {bh[2]:.0f}] | {rh[1]:.2f} [{rh[0]:.2f}, {rh[2]:.2f}] |")
     lines += ["", "Colour inside the boxes (means over boxes; as in results/realism/report.md).", "",
               "| set | mean brightness | saturated orange | clipped in box | clipped in ring | boxes clipped where "
               "the scene is not |", "|---|---|---|---|---|---|"]
@@ -430,16 +496,23 @@ def main(argv=None) -> None:
     g.add_argument("--n", type=int, default=100, help="B photos to insert into (the first n of half B)")
     g.add_argument("--arms", nargs="+", default=list(ARMS))
     g.add_argument("--cache-dir", default="out/realism/matched")
+    g.add_argument("--copies", type=int, default=1, help="insertion draws per B photo (different seeds)")
+    g.add_argument("--swap", action="store_true", help="halves exchanged (insert into A, reference B)")
     r = sub.add_parser("report")
     r.add_argument("--n", type=int, default=100)
     r.add_argument("--arms", nargs="+", default=list(ARMS))
     r.add_argument("--cache-dir", default="out/realism/matched")
+    r.add_argument("--swap", action="store_true", help="halves exchanged (insert into A, reference B)")
     r.add_argument("--cnn-sets", nargs="*", help="run the CNN test on these sets ('floor', 'control', arm names)")
     r.add_argument("--epochs", type=int, default=8)
     r.add_argument("--n-boot", type=int, default=1000)
     r.add_argument("--feature-size", type=int, default=160)
     r.add_argument("--context", type=float, default=0.25)
     r.add_argument("--isolated", action="store_true", help="only crops whose window holds no other cone")
+    r.add_argument("--scene-scale", nargs=2, type=float, metavar=("LO", "HI"),
+                   help="only boxes not cut by the bottom edge, LO..HI times the photo's real cones' median height")
+    r.add_argument("--min-box-height", type=float, default=0.0, help="only boxes at least this tall (px, in the "
+                   "640 px photo), in every set")
     r.add_argument("--out", default="results/realism/matched")
     m = sub.add_parser("render", help="rewrite report.md from report.json")
     m.add_argument("--out", default="results/realism/matched")
