@@ -2,10 +2,15 @@
 the real cones of other road-scene cone photos, so the crops around inserted and real cones differ by the object,
 not by the scene.
 
-    # 1. insert cones into half B of the road-scene cone photos, every arm, same draws per photo (resumable)
-    taskset -c 0 python scripts/eval_realism_matched.py generate --n 100
-    # 2. the report: results/realism/matched/report.md, report.json, contact_sheet.png
-    taskset -c 0 python scripts/eval_realism_matched.py report --n 100
+    # 1. insert cones into half B of the road-scene cone photos, every arm, 3 draws per photo (resumable, ~6 min)
+    taskset -c 0 python scripts/eval_realism_matched.py generate --n 106 --copies 3
+    # 2. the report: results/realism/matched/report.md, report.json, contact_sheet.png (~6 min with the CNN)
+    taskset -c 0 python scripts/eval_realism_matched.py report --n 106 --cnn-sets floor inserted no_placement \
+        naive_paste control
+    # replication with the halves' roles swapped, and crop variants (--isolated, --context 0, --min-box-height 48,
+    # --scene-scale 0.67 1.5) into subfolders of results/realism/matched/ (each report.md has its command)
+    taskset -c 0 python scripts/eval_realism_matched.py generate --n 106 --copies 3 --swap \
+        --cache-dir out/realism/matched_swap
 
 Photos: TraCon train + val images with cones that are road scenes (not stock shots on white:
 ``eval_realism.is_stock_photo``), downscaled to the study's ``max_side_px`` (640), split by a seeded permutation
@@ -408,6 +413,11 @@ def _reading(rep: dict) -> list[str]:
     return lines
 
 
+def _paragraph(text: str) -> list[str]:
+    """A markdown paragraph and its blank line, or nothing for empty text."""
+    return [text.strip(), ""] if text.strip() else []
+
+
 def render_markdown(rep: dict, args) -> str:
     ph = rep["photos"]
     lines = ["# Realism with matched backgrounds: real vs inserted cones in TraCon road-scene cone photos (issue 15)",
@@ -435,17 +445,17 @@ def render_markdown(rep: dict, args) -> str:
              f"{rep['n_boot']} replicates]; Lite0-FID on {rep['fid_n']} crops per set (mean of 5 draws). AUC: "
              "logistic regression on Lite0 features, real vs set, 5 folds grouped by photo, pooled out-of-fold "
              "[photo-bootstrap 95 %] and fold mean ± t-interval; a cross-validated AUC between two samples of one "
-             "distribution sits a little below 0.5 (see results/realism/report.md), so read the floor as "
-             "'indistinguishable'. CNN: `cnn_two_sample` from scratch, " + f"{args.epochs} epochs; '—' = not run.",
-             "", ("Only crops whose window holds no other cone (real or inserted, >= 1/4 of its box inside) are "
+             "distribution is not exactly 0.5 (it tends to fall below; see results/realism/report.md): read the "
+             "floor's values as 'indistinguishable' and only distances from them as signal. CNN: `cnn_two_sample` from scratch, " + f"{args.epochs} epochs; '—' = not run.",
+             "", *_paragraph(("Only crops whose window holds no other cone (real or inserted, >= 1/4 of its box inside) are "
                   "kept in every set (`--isolated`). " if rep.get("isolated") else "")
              + (f"Only boxes at least {rep['min_box_height']:.0f} px tall (in the 640 px photo) are kept in every "
                 "set (`--min-box-height`): every crop is then shrunk, none enlarged. " if rep.get("min_box_height")
                 else "")
              + ("Only boxes not cut by the photo's bottom edge and {:.2f}-{:.2f} times the median height of the same "
                 "photo's real cones are kept in every set (`--scene-scale`): inserted cones the size of the "
-                "scene's own.".format(*rep["scene_scale"]) if rep.get("scene_scale") else ""),
-             "", "| set | crops (photos) | Lite0-KID [photo bootstrap 95 %] | Lite0-FID | "
+                "scene's own.".format(*rep["scene_scale"]) if rep.get("scene_scale") else "")),
+             "| set | crops (photos) | Lite0-KID [photo bootstrap 95 %] | Lite0-FID | "
              "AUC logreg (pooled) | AUC logreg (fold mean) | AUC CNN (pooled) | AUC CNN (fold mean) |",
              "|---|---|---|---|---|---|---|---|"]
     for name, r in rep["arms"].items():
