@@ -104,9 +104,12 @@ class Asset:
                                   vertex_normals=m.vertex_normals, visual=copy.copy(m.visual), process=False)
                   for m in self.meshes]
         root = self.render_root if self.render_root is not None else self
-        return Asset(self.name, self.category, tuple(meshes), self.source, self.licence, self.procedural,
-                     {**self.meta, "scale": self.meta.get("scale", 1.0) * factor}, root,
-                     self.render_scale * float(factor))
+        out = Asset(self.name, self.category, tuple(meshes), self.source, self.licence, self.procedural,
+                    {**self.meta, "scale": self.meta.get("scale", 1.0) * factor}, root,
+                    self.render_scale * float(factor))
+        # Its bounds are this asset's times the (positive) factor, exactly: min/max commute with the product.
+        out.__dict__["_bounds_m"] = self.bounds_m * float(factor)
+        return out
 
     @property
     def triangle_count(self) -> int:

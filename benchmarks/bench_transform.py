@@ -19,6 +19,7 @@ compare the ratios measured within one run.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import platform
@@ -155,6 +156,16 @@ def _decoded(paths) -> list[np.ndarray]:
             for p in paths]
 
 
+#: OpenCV threads in each loader worker (None: OpenCV's default). albumentations' advice for DataLoader workers is
+#: ``cv2.setNumThreads(0)``: with its default pool on a pinned core, the pool's threads spin after each decode/resize
+#: and take CPU from whatever Python runs next in the worker (the transform), in every arm alike.
+CV2_THREADS: int | None = None
+
+
+def _set_cv2_threads(n: int, worker_id: int) -> None:
+    cv2.setNumThreads(n)
+
+
 def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str, warm: dict | None = None,
                  view_plans: int = 0, variants: int | None = None) -> list[float]:
     """Images/s per epoch. ``warm``: a dict; the transform's ``warm`` (with ``view_plans``) is run on the items'
@@ -169,9 +180,10 @@ def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str, warm:
             t0, c0 = time.perf_counter(), time.process_time()
             warm.update(tf.transforms[0].warm(_decoded(paths), view_plans=view_plans, variants=bool(variants)))
             warm["wall_s"], warm["cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
+    init = None if CV2_THREADS is None else functools.partial(_set_cv2_threads, CV2_THREADS)
     dl = torch.utils.data.DataLoader(_Images(paths, tf), batch_size=8, shuffle=True, num_workers=2,
                                      multiprocessing_context="spawn", persistent_workers=True,
-                                     generator=torch.Generator().manual_seed(0))
+                                     generator=torch.Generator().manual_seed(0), worker_init_fn=init)
     rates = []
     for e in range(epochs):
         t0 = time.perf_counter()
@@ -267,6 +279,8 @@ def main(argv=None) -> int:
     ap.add_argument("--variants", type=int, default=4, help="variants_per_image of the variant arms")
     ap.add_argument("--loader-arms", nargs="+", default=list(LOADER_ARMS), choices=LOADER_ARMS,
                     help="loader arms, in this order ('without' is also run again at the end)")
+    ap.add_argument("--cv2-threads", type=int, default=None,
+                    help="cv2.setNumThreads in each loader worker (albumentations advises 0); default: OpenCV's")
     ap.add_argument("--repeats", type=int, default=1, help="loader arms run this many times (medians reported)")
     ap.add_argument("--worker-profile", action="store_true", help="also profile a worker's stages (fresh arm)")
     ap.add_argument("--out", default="results/bench")
@@ -274,6 +288,8 @@ def main(argv=None) -> int:
     cmd = "python benchmarks/bench_transform.py " + " ".join(argv if argv is not None else sys.argv[1:])
     import torch
     torch.set_num_threads(a.torch_threads)
+    global CV2_THREADS
+    CV2_THREADS = a.cv2_threads
     load_before = os.getloadavg()
     images = tracon_images(a.rounds + 1, (640, 480))
     calls = per_call(a.rounds, images, a.view_warmup, a.variants)
@@ -347,7 +363,8 @@ def main(argv=None) -> int:
                   f"after `warm(images, view_plans={a.warm_view_plans})`; variants = `variants_per_image="
                   f"{a.variants}` (made when first drawn); variants_warmed = the same after `warm(images, "
                   "variants=True)`. Ratios against the mean of the two runs without insertion (first and last) of the "
-                  f"same repeat; {a.repeats} repeat(s) of every arm, medians over repeats.", "",
+                  f"same repeat; {a.repeats} repeat(s) of every arm, medians over repeats. OpenCV threads per worker: "
+                  f"{'default' if a.cv2_threads is None else a.cv2_threads}.", "",
                   "| epoch | " + " | ".join(f"{k} img/s" for k in names) + " | "
                   + " | ".join(f"ratio {k}" for k in loader["ratio_per_epoch"]) + " |",
                   "|---:|" + "---:|" * (len(names) + len(loader["ratio_per_epoch"]))]

@@ -25,10 +25,17 @@ def shadow_triangles(asset: Asset, sun_in_object: np.ndarray) -> np.ndarray:
     """(F, 3, 3) the asset's sun-facing triangles (all of them for an open mesh's two sides: a triangle facing away
     is skipped only when the mesh is watertight) projected along the unit sun onto z = 0, in the object frame."""
     out = []
-    for m in asset.meshes:
+    # A scaled asset's triangles are its root's times the scale (the same products as its own vertices): the root's
+    # meshes keep trimesh's caches (triangles, watertightness), a per-sample scaled copy would recompute them.
+    root, scale = (asset.render_root, float(asset.render_scale)) if asset.render_root is not None else (asset, 1.0)
+    if len(root.meshes) != len(asset.meshes):
+        root, scale = asset, 1.0
+    for m in root.meshes:
         tri = np.asarray(m.triangles, np.float64)
         if len(tri) == 0:
             continue
+        if scale != 1.0:
+            tri = tri * scale
         if m.is_watertight:  # a closed surface's shadow is the shadow of its sun-facing half
             n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
             tri = tri[n @ sun_in_object > 0]
