@@ -57,6 +57,10 @@ class PlacementConfig:
     box_height_frac_samples: tuple[float, ...] = ()
     box_height_jitter: float = 0.1
     box_height_tolerance: float = 0.2
+    # The image's existing boxes are objects of the inserted kind (e.g. the real cones of a cone dataset): when an
+    # image has any, target box heights are drawn from theirs (jittered as above) instead of the samples/range above,
+    # so an inserted object is as large as the same scene's own objects (a close-up's cones are close-up sized).
+    sizes_from_existing: bool = False
 
     def __post_init__(self):
         if self.box_height_frac_range is not None and not (

@@ -52,6 +52,11 @@ ARM_FLAGS: dict[str, dict | None] = {
     # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
     # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
     "inserted_closeup": {"closeup_crop": True},
+    # Placement fitted to the photo (issue 15's matched-background protocol: TraCon's close-ups got cones half the
+    # size of their own and a third cut by the frame): box heights from the photo's own cones, objects in frame.
+    "inserted_scene_sizes": {"placement_cfg": {"sizes_from_existing": True}},
+    "inserted_in_frame": {"placement_cfg": {"min_in_image_frac": 1.0}},
+    "inserted_scene_sizes_in_frame": {"placement_cfg": {"sizes_from_existing": True, "min_in_image_frac": 1.0}},
 }
 # Flags the study applies itself (not insertion-config overrides).
 STUDY_FLAGS = ("closeup_crop",)
@@ -194,14 +199,17 @@ def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
 
     ic = cfg.insertion
     flags = {k: v for k, v in ARM_FLAGS[arm].items() if k not in STUDY_FLAGS}
+    placement_flags = flags.pop("placement_cfg", {})   # fields of the placement config, on top of the preset's
     overrides = dict(categories=tuple(ic.categories), min_objects=ic.min_objects, max_objects=ic.max_objects,
                      harmonize_method=ic.harmonize_method, **flags)
+    base = load_preset(ic.preset).placement_cfg
     if ic.match_real_sizes:
         fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
-        base = load_preset(ic.preset).placement_cfg
         overrides["placement_cfg"] = dataclasses.replace(base, box_height_frac_samples=fracs)
         if ARM_FLAGS[arm].get("naive_paste"):   # naive paste draws its own random sizes from the same distribution
             overrides["naive_height_frac_samples"] = fracs
+    if placement_flags:
+        overrides["placement_cfg"] = dataclasses.replace(overrides.get("placement_cfg", base), **placement_flags)
     return load_preset(ic.preset, **overrides)
 
 

@@ -68,13 +68,16 @@ def plan_insertion(analysis: SceneAnalysis, cfg: InsertionConfig, rng: np.random
     if cfg.placement and (scene_points is not None or boxes_3d):
         mods["collision"] = (f"3D checks: {0 if scene_points is None else len(scene_points)} scene points, "
                              f"{len(boxes_3d)} existing 3D boxes, earlier insertions")
+    pcfg = scene_sized_placement(cfg.placement_cfg, taken, analysis.image_shape[0])
+    if pcfg is not cfg.placement_cfg:
+        mods["sizes"] = f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes"
     objects, reports = [], []
     for _ in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
         base = choose_asset(category, rng, cfg, bank)
         if cfg.placement:
             placement, report = sample_placement(base, ground, intr, rng, existing_boxes_xyxy=np.array(taken),
-                                                 depth=depth, cfg=cfg.placement_cfg, region_mask=region.mask,
+                                                 depth=depth, cfg=pcfg, region_mask=region.mask,
                                                  height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
                                                  points_in_cam=scene_points,
                                                  existing_objects=boxes_3d if "collision" in mods else None)
@@ -101,6 +104,17 @@ def plan_insertion(analysis: SceneAnalysis, cfg: InsertionConfig, rng: np.random
                                                            tuple(asset.extents_m), category))
     harmonize_seed = int(rng.integers(0, 2**63 - 1))
     return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods)
+
+
+def scene_sized_placement(pcfg, existing_xyxy: list, image_height: int):
+    """``pcfg`` with its box-height samples taken from the existing boxes (heights / image height) when
+    ``pcfg.sizes_from_existing`` and the image has boxes of positive height; else ``pcfg`` itself."""
+    if not pcfg.sizes_from_existing or not existing_xyxy:
+        return pcfg
+    b = np.asarray(existing_xyxy, float).reshape(-1, 4)
+    fr = (b[:, 3] - b[:, 1]) / float(image_height)
+    fr = fr[np.isfinite(fr) & (fr > 0) & (fr <= 1)]
+    return pcfg if len(fr) == 0 else replace(pcfg, box_height_frac_samples=tuple(float(f) for f in fr))
 
 
 def _json_safe(x):
