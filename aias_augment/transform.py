@@ -110,7 +110,6 @@ class InsertObjects(A.DualTransform):
         # process-wide one (shared by every transform of the process).
         self._view_cache = None if scene_cache is None else ViewCache(directory=Path(scene_cache) / "views")
         self._variants = VariantCache(directory=None if scene_cache is None else Path(scene_cache) / "variants")
-        self._encoded_rows: dict = {}   # a variant's new boxes as the Compose encodes them (per process)
         self._variant_prefix = None   # hash of config, assets and seed (made on first use; not picklable)
         self.counts = TransformCounts()   # calls, insertions, skips and empty calls by reason (this process)
         self.last_record = None   # InsertionRecord of the latest call in this process (for debugging/replay)
@@ -269,7 +268,6 @@ class InsertObjects(A.DualTransform):
         state = self.__dict__.copy()
         state["params"] = {}
         state["_variant_prefix"] = None
-        state["_encoded_rows"] = {}
         state["last_record"] = None
         return state
 
@@ -304,26 +302,6 @@ class InsertObjects(A.DualTransform):
         are encoded by the same label manager the Compose will use to decode them, even when the image had no box."""
         h, w = shape[:2]
         xywh = np.asarray(res.inserted_bboxes, np.float64)
-        memo_key = None
-        if self.variants_per_image:   # a variant's boxes come again and again: encoded once per processor and size
-            memo_key = (id(self._bbox_processor()), h, w, xywh.tobytes(), tuple(res.inserted_labels))
-            rows = self._encoded_rows.get(memo_key)
-            if rows is not None:
-                return self._pad_rows(rows, bboxes)
-        rows = self._encode_rows(res, xywh, h, w)
-        if memo_key is not None:
-            if len(self._encoded_rows) >= 4096:
-                self._encoded_rows.clear()
-            self._encoded_rows[memo_key] = rows
-        return self._pad_rows(rows, bboxes)
-
-    @staticmethod
-    def _pad_rows(rows: np.ndarray, bboxes: np.ndarray) -> np.ndarray:
-        if len(bboxes) and rows.shape[1] < bboxes.shape[1]:  # extra columns (e.g. bbox ids): pad with zeros
-            rows = np.c_[rows, np.zeros((len(rows), bboxes.shape[1] - rows.shape[1]), rows.dtype)]
-        return rows
-
-    def _encode_rows(self, res, xywh: np.ndarray, h: int, w: int) -> np.ndarray:
         xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
         internal = xyxy / np.array([w, h, w, h], np.float64)  # albumentations' normalised x_min, y_min, x_max, y_max
         proc = self._bbox_processor()
@@ -344,7 +322,10 @@ class InsertObjects(A.DualTransform):
         finally:
             proc.is_sequence_input.clear()
             proc.is_sequence_input.update(saved)
-        return temp["bboxes"]
+        rows = temp["bboxes"]
+        if len(bboxes) and rows.shape[1] < bboxes.shape[1]:  # extra columns (e.g. bbox ids): pad with zeros
+            rows = np.c_[rows, np.zeros((len(rows), bboxes.shape[1] - rows.shape[1]), rows.dtype)]
+        return rows
 
     def _label_for(self, category: str, proc, field: str):
         if self.category_ids is not None:

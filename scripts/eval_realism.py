@@ -233,6 +233,24 @@ def _pool_copies(folder: Path) -> set:
     return {int(p.name[:4]) for p in (folder / "images").glob("*.jpg")}
 
 
+def cached_features(extractor, feature_size: int, cache: Path):
+    """``images -> features`` of ``extractor``, cached in ``cache`` by the bytes of the (normalised) crops and the
+    input size: re-runs pay only for new sets."""
+    def feat(images: list) -> np.ndarray:
+        import hashlib
+        h = hashlib.sha256(str(feature_size).encode())
+        for im in images:
+            h.update(np.ascontiguousarray(im).tobytes())
+        path = cache / f"{h.hexdigest()[:24]}.npy"
+        if path.exists():
+            return np.load(path)
+        f = extractor(images)
+        cache.mkdir(parents=True, exist_ok=True)
+        np.save(path, f)
+        return f
+    return feat
+
+
 def cmd_report(args) -> None:
     from detection_eval import study
     from detection_eval.data import load_yolo_dir
@@ -278,22 +296,8 @@ def cmd_report(args) -> None:
                 sets.append(crop_set(name, pool.records, np.random.default_rng([seed, 3]), ccfg))
     log.info("crops: ref %d, floor %d, %s", len(ref.crops), len(floor.crops),
              ", ".join(f"{s.name} {len(s.crops)}" for s in sets))
-    extractor = Lite0Features(input_size=args.feature_size)
-    cache = REPO / args.cache_dir / "features"
-
-    def feat(images: list) -> np.ndarray:
-        # cached by the bytes of the (normalised) crops and the input size: re-runs pay only for new sets
-        import hashlib
-        h = hashlib.sha256(str(args.feature_size).encode())
-        for im in images:
-            h.update(np.ascontiguousarray(im).tobytes())
-        path = cache / f"{h.hexdigest()[:24]}.npy"
-        if path.exists():
-            return np.load(path)
-        f = extractor(images)
-        cache.mkdir(parents=True, exist_ok=True)
-        np.save(path, f)
-        return f
+    feat = cached_features(Lite0Features(input_size=args.feature_size), args.feature_size,
+                           REPO / args.cache_dir / "features")
 
     ref_f, floor_f = feat(ref.crops), feat(floor.crops)
     ref_fr, floor_fr = feat(ref.frames), feat(floor.frames)

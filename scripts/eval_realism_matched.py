@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
 import json
 import logging
 import shlex
@@ -46,8 +45,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "scripts"))
 
-from eval_realism import (CropSet, _colour_summary, _fmt_ci, _fmt_folds, _study_cfg, contact_sheet,  # noqa: E402
-                          evaluate, is_stock_photo)
+from eval_realism import (CropSet, _colour_summary, _fmt_ci, _fmt_folds, _study_cfg, cached_features,  # noqa: E402
+                          contact_sheet, evaluate, is_stock_photo)
 
 from aias_augment.realism.appearance import box_colour_stats  # noqa: E402
 from aias_augment.realism.bootstrap import kid_photo_bootstrap  # noqa: E402
@@ -294,20 +293,8 @@ def cmd_report(args) -> None:
     log.info("crops: ref %d (%d photos), floor %d, %s", len(ref.crops), len(half_a), len(floor.crops),
              ", ".join(f"{s.name} {len(s.crops)}" for s in sets))
 
-    extractor = Lite0Features(input_size=args.feature_size)
-    cache = REPO / args.cache_dir / "features"
-
-    def feat(images: list) -> np.ndarray:
-        h = hashlib.sha256(str(args.feature_size).encode())
-        for im in images:
-            h.update(np.ascontiguousarray(im).tobytes())
-        path = cache / f"{h.hexdigest()[:24]}.npy"
-        if path.exists():
-            return np.load(path)
-        f = extractor(images)
-        cache.mkdir(parents=True, exist_ok=True)
-        np.save(path, f)
-        return f
+    feat = cached_features(Lite0Features(input_size=args.feature_size), args.feature_size,
+                           REPO / args.cache_dir / "features")
 
     ref_f = feat(ref.crops)
     all_sets = [floor] + sets

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import os
 import pickle
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -57,11 +56,11 @@ def variant_key_prefix(cfg=None, assets=None, seed: int = 0):
     return h
 
 
-def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, meta=None, existing_xywh=None,
+def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, existing_xywh=None,
                 prefix=None) -> str:
     """xxh3-128 (hex) of everything a variant depends on except its index: ``prefix`` (from
-    :func:`variant_key_prefix`; None: its defaults), image bytes, K, depth, scene facts (``scene``: SceneInputs;
-    ``meta``: a facts dict) and the existing boxes."""
+    :func:`variant_key_prefix`; None: its defaults), image bytes, K, depth, scene facts (``scene``: SceneInputs)
+    and the existing boxes."""
     h = (prefix if prefix is not None else variant_key_prefix()).copy()
     for name, v in (("image", image), ("K", None if camera_k is None else np.asarray(camera_k, np.float64)),
                     ("depth", depth),
@@ -73,13 +72,10 @@ def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, met
             a = np.ascontiguousarray(v)
             h.update(f"{name}:{a.dtype}{a.shape}".encode())
             h.update(memoryview(a).cast("B") if a.dtype != object else repr(a.tolist()).encode())
-    for where, facts in (("scene", scene), ("meta", meta)):
-        if facts is None:
-            continue
-        items = ([(f.name, getattr(facts, f.name)) for f in dataclasses.fields(facts)]
-                 if dataclasses.is_dataclass(facts) else sorted(facts.items()))
-        for k, v in items:   # arrays by their bytes (the repr of a large array elides its middle)
-            h.update(f"{where}:{k}".encode())
+    if scene is not None:   # SceneInputs: arrays by their bytes (the repr of a large array elides its middle)
+        for f in dataclasses.fields(scene):
+            v = getattr(scene, f.name)
+            h.update(f"scene:{f.name}".encode())
             _hash_value(h, v if isinstance(v, np.ndarray) or v is None else repr(v))
     return h.hexdigest()
 

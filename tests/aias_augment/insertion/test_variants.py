@@ -87,6 +87,13 @@ def test_key_follows_what_the_insertion_reads():
               variant_key(img, camera_k=K, existing_xywh=np.asarray(BOXES),
                           prefix=variant_key_prefix(load_preset("fast"), seed=1))]
     assert len(set(others + [k0])) == 6
+    from aias_augment.scene_inputs import SceneInputs
+    m = np.zeros(img.shape[:2], bool)
+    m[300:, :] = True
+    m2 = m.copy()
+    m2[479, 639] = False   # one pixel of a large mask (a repr would elide it)
+    ks = {variant_key(img, camera_k=K, scene=SceneInputs(placeable_mask=x), prefix=p) for x in (m, m2)}
+    assert len(ks) == 2 and k0 not in ks
 
 
 def test_boxes_through_the_compose_round_trip_find_warms_variant():
