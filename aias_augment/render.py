@@ -11,7 +11,9 @@ coordinates: pyrender's window convention puts pixel centres at +0.5, which :fun
 from __future__ import annotations
 
 import atexit
+import logging
 import os
+import sys
 import weakref
 from dataclasses import dataclass
 
@@ -28,6 +30,7 @@ from .geometry import (Intrinsics, check_finite, check_rigid, invert_rigid, open
 __all__ = ["RenderLayers", "ShadowLayers", "render_object", "render_object_window", "render_ground_shadow",
            "srgb_to_linear", "linear_to_srgb"]
 
+log = logging.getLogger(__name__)
 _STATE: dict = {"renderer": None, "pid": None, "size": None}
 
 
@@ -45,6 +48,26 @@ def _release() -> None:
 atexit.register(_release)
 
 
+def _block_triton_under_llvmpipe() -> None:
+    """Mesa's llvmpipe has loaded its LLVM into this process; Triton's ``libtriton`` loads another one, and importing
+    it now crashes the interpreter (a segfault: torch imports it lazily, e.g. from ``torch.optim.Adam`` through
+    ``torch._dynamo``, in a process that rendered first). Triton compiles GPU kernels only, and a process rendering
+    on llvmpipe has no GPU context: when it is not imported yet, ``import triton`` is made to raise ImportError
+    (torch then runs without it), and this is logged. A process that imported Triton before rendering keeps it
+    (that order does not crash)."""
+    if "triton" in sys.modules:
+        return
+    try:
+        from OpenGL import GL
+        name = GL.glGetString(GL.GL_RENDERER) or b""
+    except Exception:  # no current context to ask: leave the imports as they are
+        return
+    if b"llvmpipe" in name:
+        sys.modules["triton"] = None
+        log.info("render: %s holds its own LLVM; 'import triton' now raises ImportError in this process (loading "
+                 "libtriton's LLVM beside it crashes the interpreter)", name.decode(errors="replace"))
+
+
 def _renderer(width: int, height: int) -> "pyrender.OffscreenRenderer":
     pid = os.getpid()
     if _STATE["renderer"] is not None and _STATE["pid"] != pid:
@@ -56,6 +79,7 @@ def _renderer(width: int, height: int) -> "pyrender.OffscreenRenderer":
     if _STATE["renderer"] is None:
         _STATE["renderer"] = pyrender.OffscreenRenderer(width, height)
         _STATE["pid"] = pid
+        _block_triton_under_llvmpipe()
     r = _STATE["renderer"]
     if (r.viewport_width, r.viewport_height) != (width, height):
         r.viewport_width, r.viewport_height = width, height

@@ -20,6 +20,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from ..config import from_dict
@@ -87,13 +88,16 @@ def adaptive_avg_pool(x: np.ndarray, out_hw: tuple[int, int]) -> np.ndarray:
 
 def conv3x3_s2_relu(x: np.ndarray, weight: np.ndarray, bias: np.ndarray) -> np.ndarray:
     """(C, H, W) -> (Cout, ceil(H/2), ceil(W/2)): ``relu(conv2d(x, weight, bias, stride=2, padding=1))``;
-    ``weight`` (Cout, C * 9) in torch's (c, ky, kx) order. im2col by 9 strided slices, then one matmul."""
+    ``weight`` (Cout, C * 9) in torch's (c, ky, kx) order. im2col as one strided view of the padded input (copied
+    once by the reshape), then one matmul."""
     c, h, w = x.shape
     ho, wo = (h + 1) // 2, (w + 1) // 2
     xp = np.zeros((c, 2 * ho + 2, 2 * wo + 2), np.float32)   # padding 1 (and one more row/column, never read)
     xp[:, 1:h + 1, 1:w + 1] = x
-    cols = np.stack([xp[:, ky:ky + 2 * ho:2, kx:kx + 2 * wo:2] for ky in range(3) for kx in range(3)], axis=1)
-    out = weight @ cols.reshape(c * 9, ho * wo) + bias[:, None]
+    sc, sy, sx = xp.strides
+    cols = np.lib.stride_tricks.as_strided(xp, (c, 3, 3, ho, wo), (sc, sy, sx, 2 * sy, 2 * sx), writeable=False)
+    out = weight @ cols.reshape(c * 9, ho * wo)
+    out += bias[:, None]
     np.maximum(out, 0.0, out=out)
     return out.reshape(-1, ho, wo)
 
@@ -255,27 +259,35 @@ def as_np_model(model) -> FastColorNetNP:
 
 
 def predict_affine(model, image_float: np.ndarray, comp: np.ndarray, context: float | None = None,
-                   flip: bool = False) -> np.ndarray:
-    """The (3, 4) sRGB affine ``[M | b]`` for one object (bool mask ``comp``), from its context-crop thumbnail."""
+                   flip: bool = False, box: tuple[int, int, int, int] | None = None) -> np.ndarray:
+    """The (3, 4) sRGB affine ``[M | b]`` for one object (bool mask ``comp``), from its context-crop thumbnail.
+    ``image_float``: the float image in [0, 1], or the uint8 image (only the crop is converted: the same values);
+    ``box``: ``mask_box(comp)`` when the caller has it."""
     model = as_np_model(model)
     t = model.cfg.in_px
-    x0, y0, x1, y1 = context_box(mask_box(comp), comp.shape, model.cfg.context if context is None else context)
+    x0, y0, x1, y1 = context_box(mask_box(comp) if box is None else box, comp.shape,
+                                 model.cfg.context if context is None else context)
     crop, cm = image_float[y0:y1, x0:x1], comp[y0:y1, x0:x1]
+    if crop.dtype == np.uint8:
+        crop = to_float(crop)
     if flip:
         crop, cm = crop[:, ::-1], cm[:, ::-1]
     crop = resize(np.ascontiguousarray(crop), (t, t))
-    m = (resize(np.ascontiguousarray(cm).astype(np.float32), (t, t)) > 0.5).astype(np.float32)
+    cmf = resize(np.ascontiguousarray(cm).astype(np.float32), (t, t))
+    m = (cmf > 0.5).astype(np.float32)
     if not m.any():
-        m = (resize(np.ascontiguousarray(cm).astype(np.float32), (t, t)) > 0).astype(np.float32)
+        m = (cmf > 0).astype(np.float32)
     return model.forward(crop, m)
 
 
 def predict_affine_tta(model, image_float: np.ndarray, comp: np.ndarray,
-                       contexts: tuple[float, ...] = TTA_CONTEXTS, flip: bool = True) -> np.ndarray:
+                       contexts: tuple[float, ...] = TTA_CONTEXTS, flip: bool = True,
+                       box: tuple[int, int, int, int] | None = None) -> np.ndarray:
     """Mean of :func:`predict_affine` over ``contexts`` x (no flip, flip)."""
     model = as_np_model(model)
+    box = mask_box(comp) if box is None else box
     views = [(c, f) for c in contexts for f in ((False, True) if flip else (False,))]
-    return np.mean([predict_affine(model, image_float, comp, c, f) for c, f in views], axis=0)
+    return np.mean([predict_affine(model, image_float, comp, c, f, box=box) for c, f in views], axis=0)
 
 
 def apply_affine_np(pixels: np.ndarray, affine: np.ndarray) -> np.ndarray:
@@ -299,22 +311,29 @@ def harmonize_fast_masked(model, composite_uint8: np.ndarray, soft_mask: np.ndar
     bytes) with the blend computed on the masked pixels only: the composite's other pixels are returned as they are,
     so nothing is converted, blended or compared there. ``soft_mask`` (H, W) float32 in [0, 1] (checked by the
     caller). Every step is elementwise or reads the same pixels in the same order as there (the affine of each
-    component on its own pixels), so the values are identical."""
+    component on its own pixels; each context crop converted to float on its own), so the values are identical."""
     model = as_np_model(model)
     hard = soft_mask > 0
     out = composite_uint8.copy()
-    if not hard.any():
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(hard.view(np.uint8), connectivity=8)
+    if n <= 1:
         return out
-    image = to_float(composite_uint8)   # the context crops read it
-    result = image[hard]                # (N, 3), row-major order of the mask
-    pos = np.full(hard.shape, -1, np.intp)
-    pos[hard] = np.arange(len(result))
-    for comp in components(hard):
-        a = predict_affine_tta(model, image, comp) if tta else predict_affine(model, image, comp)
-        idx = pos[comp]
-        result[idx] = apply_affine_np(result[idx], a)
+    pixels = to_float(composite_uint8[hard])   # (N, 3), row-major order of the mask
+    result = pixels.copy()
+    L, T, W, H = cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT
+    for i in range(1, n):
+        st = stats[i]
+        box = (int(st[L]), int(st[T]), int(st[L] + st[W]), int(st[T] + st[H]))
+        comp = hard if n == 2 else labels == i
+        a = (predict_affine_tta(model, composite_uint8, comp, box=box) if tta
+             else predict_affine(model, composite_uint8, comp, box=box))
+        if n == 2:
+            result = apply_affine_np(result, a)
+        else:
+            idx = (labels[hard] == i)
+            result[idx] = apply_affine_np(result[idx], a)
     m = soft_mask[hard].astype(np.float32)[:, None]
-    out[hard] = to_uint8(image[hard] * (1.0 - m) + result * m)
+    out[hard] = to_uint8(pixels * (1.0 - m) + result * m)
     return out
 
 

@@ -134,12 +134,15 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     full = (h, w)
     # The union of the objects' visible coverages: the one full-frame float layer (what hides existing boxes, and
     # the harmonizer's mask, whose context reaches outside the window); per object, only windows.
-    cover = _paste_window(full, win, np.clip(np.maximum.reduce(vis_alphas), 0, 1))
+    cover_w = np.clip(np.maximum.reduce(vis_alphas), 0, 1)
+    cover = _paste_window(full, win, cover_w)
 
     if cfg.harmonize:
         union = cover
+        bx, by, bw, bh = cv2.boundingRect((cover_w > 0).view(np.uint8))
         result, mods["harmonize"] = _harmonize(result, union, cfg, np.random.default_rng(plan.harmonize_seed),
-                                               within=win)
+                                               within=win,
+                                               mask_box=(bx + X0, by + Y0, bx + X0 + bw, by + Y0 + bh) if bw else None)
         if cfg.camera_match:
             result, mods["camera_match"] = _camera_match(result, union, cfg, img, plan.harmonize_seed)
     else:
@@ -239,23 +242,23 @@ def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intri
 
 
 def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,
-               within: tuple[int, int, int, int] | None = None) -> tuple[np.ndarray, str]:
-    """``within``: a window (x0, y0, x1, y1) known to hold every masked pixel (None: the whole image)."""
+               within: tuple[int, int, int, int] | None = None, mask_box: tuple | None = None) -> tuple[np.ndarray, str]:
+    """``within``: a window (x0, y0, x1, y1) known to hold every masked pixel (None: the whole image);
+    ``mask_box``: the box (x0, y0, x1, y1) of the mask's non-zero pixels when the caller has it."""
     try:
         from ..harmonize import harmonize
     except ImportError as e:  # the harmonization package is optional at this stage of the pipeline
         return image, f"skipped: harmonizer unavailable ({e})"
     try:
-        win = _harmonize_window(mask, cfg, within)
+        win, model = _harmonize_window(mask, cfg, within, mask_box)
         if win is None:
             return (harmonize(image, mask, method=cfg.harmonize_method, rng=rng,
                               test_time_views=cfg.harmonize_test_time_views), f"harmonized ({cfg.harmonize_method})")
         x0, y0, x1, y1 = win
         out = image.copy()
         # _harmonize_window returns a window for "fast" only: harmonize()'s fast path, blended on the mask only.
-        from ..harmonize.api import DEFAULT_CHECKPOINTS
-        from ..harmonize.fast_infer import harmonize_fast_masked, load_fast_np
-        out[y0:y1, x0:x1] = harmonize_fast_masked(load_fast_np(DEFAULT_CHECKPOINTS["fast"]), image[y0:y1, x0:x1],
+        from ..harmonize.fast_infer import harmonize_fast_masked
+        out[y0:y1, x0:x1] = harmonize_fast_masked(model, image[y0:y1, x0:x1],
                                                   np.ascontiguousarray(mask[y0:y1, x0:x1], dtype=np.float32),
                                                   tta=cfg.harmonize_test_time_views)
         return out, f"harmonized ({cfg.harmonize_method}, in the objects' context window)"
@@ -277,37 +280,45 @@ def _camera_match(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, sou
     return out, f"blur, noise, {jpeg} matched to the surroundings (after {cfg.harmonize_method})"
 
 
-#: The fast harmonizer's largest context factor per checkpoint version (read once, not at every call).
-_FAST_CONTEXT: dict = {}
+def _fast_model_and_context():
+    """(model, largest context factor) of the shipped fast harmonizer, or None when its checkpoint is missing.
+    ``load_fast_np`` keys the model by the files' versions (two ``stat``); the context is read from its config."""
+    from ..harmonize.api import DEFAULT_CHECKPOINTS
+    from ..harmonize.fast_infer import TTA_CONTEXTS, load_fast_np
+    path = DEFAULT_CHECKPOINTS["fast"]
+    try:
+        model = load_fast_np(path)
+    except FileNotFoundError:
+        if not path.is_file():
+            return None  # harmonize() raises the missing-checkpoint error with its training command
+        raise
+    return model, max(TTA_CONTEXTS + (model.cfg.context,))
 
 
-def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int, int, int, int] | None = None
-                      ) -> tuple[int, int, int, int] | None:
-    """The window (x0, y0, x1, y1) in which the "fast" harmonizer gives the same bytes as on the whole image, or
-    None (other methods use whole-image statistics or draw per pixel: they get the whole image).
+def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int, int, int, int] | None = None,
+                      mask_box: tuple | None = None) -> tuple[tuple[int, int, int, int] | None, object]:
+    """(window, model): the window (x0, y0, x1, y1) in which the "fast" harmonizer gives the same bytes as on the
+    whole image, and its NumPy model; (None, None) for other methods (they use whole-image statistics or draw per
+    pixel: they get the whole image) or when there is nothing to harmonize.
 
     The fast harmonizer changes only masked pixels, and reads, per connected component, a square context crop of
     side ``context x`` the component's longer side, centred on it and clipped to the image. Every component lies in
     the mask's box B, so every crop lies in B grown by ``max context / 2 x`` B's longer side: a window holding that
     (clipped to the image where the crops are clipped too) gives the same crops, the same predictions, the same
-    pixels (``tests/aias_augment/insertion/test_apply.py``)."""
+    pixels (``tests/aias_augment/insertion/test_apply.py``). ``mask_box``: B when the caller has it."""
     if cfg.harmonize_method != "fast":
-        return None
-    from ..harmonize.api import DEFAULT_CHECKPOINTS
-    from ..harmonize.fast_infer import TTA_CONTEXTS, load_fast_np
-    if not DEFAULT_CHECKPOINTS["fast"].is_file():
-        return None  # harmonize() raises the missing-checkpoint error with its training command
-    path = DEFAULT_CHECKPOINTS["fast"]
-    st = path.stat()
-    key = (str(path), st.st_mtime_ns, st.st_size)  # the checkpoint's version, as load_fast_np keys it
-    if key not in _FAST_CONTEXT:
-        _FAST_CONTEXT[key] = max(TTA_CONTEXTS + (load_fast_np(path).cfg.context,))
-    ctx = _FAST_CONTEXT[key]
-    ox, oy, ox1, oy1 = within if within is not None else (0, 0, mask.shape[1], mask.shape[0])
-    ys, xs = np.nonzero(mask[oy:oy1, ox:ox1] > 0)
-    if len(xs) == 0:
-        return None
-    bx0, by0, bx1, by1 = int(xs.min()) + ox, int(ys.min()) + oy, int(xs.max()) + 1 + ox, int(ys.max()) + 1 + oy
+        return None, None
+    got = _fast_model_and_context()
+    if got is None:
+        return None, None
+    model, ctx = got
+    if mask_box is None:
+        ox, oy, ox1, oy1 = within if within is not None else (0, 0, mask.shape[1], mask.shape[0])
+        x, y, bw, bh = cv2.boundingRect((mask[oy:oy1, ox:ox1] > 0).view(np.uint8))
+        if bw == 0:
+            return None, None
+        mask_box = (x + ox, y + oy, x + ox + bw, y + oy + bh)
+    bx0, by0, bx1, by1 = mask_box
     grow = int(np.ceil(ctx / 2 * max(bx1 - bx0, by1 - by0))) + 2
     h, w = mask.shape
-    return max(0, bx0 - grow), max(0, by0 - grow), min(w, bx1 + grow), min(h, by1 + grow)
+    return (max(0, bx0 - grow), max(0, by0 - grow), min(w, bx1 + grow), min(h, by1 + grow)), model

@@ -178,3 +178,33 @@ def test_a_textured_asset_is_uploaded_once_across_its_two_passes(monkeypatch):
     assert n_first <= 1 and len(uploads) == n_first
     assert np.array_equal(first[1].albedo_linear, again[1].albedo_linear)
     assert np.array_equal(first[1].normals_in_cam, again[1].normals_in_cam)
+
+
+def test_a_process_that_rendered_can_still_build_a_torch_optimizer():
+    """Regression: on llvmpipe, importing Triton after the first render crashed the interpreter (two LLVMs; torch
+    imports Triton from torch.optim.Adam through torch._dynamo). A fresh interpreter renders, then builds Adam and
+    steps it: it must exit normally."""
+    import subprocess
+    import sys
+    import textwrap
+    pytest = __import__("pytest")
+    pytest.importorskip("torch")
+    code = textwrap.dedent("""
+        import numpy as np
+        from aias_augment.assets import default_asset
+        from aias_augment.geometry import Intrinsics
+        from aias_augment.render import render_object
+        K = Intrinsics(300.0, 300.0, 63.5, 63.5, 128, 128)
+        T = np.eye(4); T[:3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]; T[:3, 3] = [0, 0.3, 3]
+        assert render_object(default_asset("traffic_cone"), T, K, ssaa=1).alpha.max() > 0.5
+        import torch
+        p = torch.nn.Parameter(torch.ones(3))
+        opt = torch.optim.Adam([p], lr=0.1)
+        (p ** 2).sum().backward()
+        opt.step()
+        assert float(p.detach().max()) < 1.0
+        print("stepped")
+    """)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "stepped" in r.stdout

@@ -93,15 +93,18 @@ def test_fast_harmonizer_in_the_context_window_gives_the_whole_image_bytes():
         comp = img.copy()
         comp[mask > 0] = (200, 90, 30)
         whole = harmonize(comp, mask, method="fast", test_time_views=False)
-        win = _harmonize_window(mask, cfg)
-        assert win is not None and (win[2] - win[0]) * (win[3] - win[1]) < mask.size
+        win, model = _harmonize_window(mask, cfg)
+        assert win is not None and model is not None and (win[2] - win[0]) * (win[3] - win[1]) < mask.size
         out, how = _harmonize(comp, mask, cfg, np.random.default_rng(0))
         assert "window" in how
         assert np.array_equal(out, whole)
         ys, xs = np.nonzero(mask)  # the caller's window holding the mask (apply passes the objects' window)
         within = (max(0, xs.min() - 3), max(0, ys.min() - 3), xs.max() + 4, ys.max() + 4)
-        assert _harmonize_window(mask, cfg, within) == win
+        assert _harmonize_window(mask, cfg, within)[0] == win
+        mbox = (xs.min(), ys.min(), xs.max() + 1, ys.max() + 1)   # apply passes the mask's box when it has it
+        assert _harmonize_window(mask, cfg, None, mbox)[0] == win
         assert np.array_equal(_harmonize(comp, mask, cfg, np.random.default_rng(0), within=within)[0], whole)
+        assert np.array_equal(_harmonize(comp, mask, cfg, np.random.default_rng(0), mask_box=mbox)[0], whole)
 
 
 def test_fast_harmonizer_blended_on_the_mask_only_gives_harmonize_bytes():
