@@ -55,7 +55,15 @@ def alpha_over(background_linear: np.ndarray, foreground_linear: np.ndarray, alp
     return foreground_linear * a + background_linear * (1.0 - a)
 
 
+#: ``srgb_to_linear(k / 255)`` for the 256 uint8 levels: :func:`to_linear` is a table lookup with the same values.
+_SRGB_TO_LINEAR_U8 = srgb_to_linear(np.arange(256, dtype=np.float32) / np.float32(255.0))
+
+
 def to_linear(image_rgb_uint8: np.ndarray) -> np.ndarray:
+    """uint8 sRGB -> float32 linear: ``srgb_to_linear(image / 255)``, by table lookup (the same values; a float
+    input is converted as before)."""
+    if image_rgb_uint8.dtype == np.uint8:
+        return np.take(_SRGB_TO_LINEAR_U8, image_rgb_uint8)
     return srgb_to_linear(image_rgb_uint8.astype(np.float32) / 255.0)
 
 

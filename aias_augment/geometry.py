@@ -65,13 +65,24 @@ def check_finite(x: np.ndarray, name: str = "array") -> np.ndarray:
     return x
 
 
+_EYE3 = np.eye(3)
+
+
 def check_rigid(T: np.ndarray, name: str = "pose", atol: float = 1e-4) -> np.ndarray:
-    """Validate a 4x4 rigid transform: finite, last row (0,0,0,1), orthonormal rotation with det +1."""
-    T = check_finite(check_shape(np.asarray(T, dtype=np.float64), (4, 4), name), name)
-    R = T[:3, :3]
-    if not np.allclose(T[3], [0, 0, 0, 1], atol=atol):
+    """Validate a 4x4 rigid transform: finite, last row (0,0,0,1), orthonormal rotation with det +1 (closeness as
+    ``np.allclose(..., atol=atol)``: ``|a - b| <= atol + 1e-5 |b|``)."""
+    T = np.asarray(T, dtype=np.float64)
+    if T.shape != (4, 4):
+        check_shape(T, (4, 4), name)
+    if not np.isfinite(T).all():
+        raise ValueError(f"{name}: contains NaN or Inf")
+    r0, r1, r2, last = T.tolist()
+    if (abs(last[0]) > atol or abs(last[1]) > atol or abs(last[2]) > atol or abs(last[3] - 1.0) > atol + 1e-5):
         raise ValueError(f"{name}: last row must be (0, 0, 0, 1), got {T[3]}")
-    if not np.allclose(R @ R.T, np.eye(3), atol=atol) or np.linalg.det(R) < 0:
+    R = T[:3, :3]
+    det = (r0[0] * (r1[1] * r2[2] - r1[2] * r2[1]) - r0[1] * (r1[0] * r2[2] - r1[2] * r2[0])
+           + r0[2] * (r1[0] * r2[1] - r1[1] * r2[0]))
+    if (np.abs(R @ R.T - _EYE3) > atol + 1e-5 * _EYE3).any() or det < 0:
         raise ValueError(f"{name}: rotation part is not a proper rotation")
     return T
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import albumentations as A
@@ -26,13 +27,25 @@ from albumentations.core.bbox_utils import convert_bboxes_from_albumentations, d
 
 from .assets import PathAssets
 from .insertion.cache import SceneCache
-from .insertion.variants import Variant, VariantCache, variant_key, variant_key_prefix, variant_rng
+from .insertion.variants import (Variant, VariantCache, VariantResult, variant_key, variant_key_prefix,
+                                 variant_rng)
 from .insertion.view_cache import ViewCache
 from .pipeline import PRESETS, InsertionConfig, load_preset
 from .validate import SampleSkip, TransformCounts, check_categories, check_sample_targets, image_for_insertion
 from .working_resolution import ANALYSIS_MAX_PIXELS, insert_bounded
 
 log = logging.getLogger(__name__)
+
+_NO_BOXES = np.zeros((0, 4))
+_NO_BOXES.flags.writeable = False
+_NO_TARGETS = MappingProxyType({})
+#: Bbox formats whose round trip through the Compose's processor :func:`_encode_boxes` reproduces.
+_ENCODED_FORMATS = ("coco", "pascal_voc", "yolo")
+
+
+def _same(image: np.ndarray) -> np.ndarray:
+    """``restore`` of a uint8 RGB input (C-contiguous): the output is already in the input's form."""
+    return image
 
 
 class InsertObjects(A.DualTransform):
@@ -197,13 +210,14 @@ class InsertObjects(A.DualTransform):
             j = int(self.random_generator.integers(self.variants_per_image))
         # Boxes to 1e-3 px, in the key and in the insertion alike: the Compose's normalise/denormalise round trip
         # (or warm's raw boxes) must find the same variant, and the variant is made from exactly what its key says.
-        existing_xywh = np.round(np.asarray(existing_xywh, np.float64).reshape(-1, 4), 3)
+        if len(existing_xywh):
+            existing_xywh = np.round(np.asarray(existing_xywh, np.float64).reshape(-1, 4), 3)
         if self._variant_prefix is None:
             self._variant_prefix = variant_key_prefix(self.config, self.assets, self.variants_seed)
         key = variant_key(rgb, camera_k=data.get("camera_k"), depth=data.get("depth"), scene=data.get("scene"),
                           existing_xywh=existing_xywh, prefix=self._variant_prefix)
-        labels = list(range(len(existing_xywh)))
         v = self._variants.get(key, j)
+        labels = list(range(len(existing_xywh)))
         if v is None:
             full = insert_bounded(rgb, existing_xywh, labels, variant_rng(self.variants_seed, j, key), self.config,
                                   intrinsics=data.get("camera_k"), depth=data.get("depth"), bank=self._bank,
@@ -228,6 +242,31 @@ class InsertObjects(A.DualTransform):
 
     # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
     def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+        if self.variants_per_image:
+            img = data["image"]
+            boxes = data.get("bboxes")
+            if (type(img) is np.ndarray and img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3
+                    and img.size and img.flags.c_contiguous and (boxes is None or len(boxes) == 0)
+                    and data.get("camera_k") is None and data.get("depth") is None and data.get("scene") is None):
+                return self._plain_variant(img)
+        return self._general_params(data)
+
+    def _plain_variant(self, rgb: np.ndarray) -> dict[str, Any]:
+        """A variant call on a uint8 RGB image (the training loop's usual input) without existing boxes, K, depth
+        or scene facts: what :meth:`_general_params` does for it (the image passes the boundary as it is and
+        ``restore`` is the identity), in fewer steps: a draw, the key, a lookup, a copy with the window pasted."""
+        j = int(self.random_generator.integers(self.variants_per_image))
+        try:
+            res = self._variant(rgb, _NO_BOXES, 0.0, _NO_TARGETS, j=j)
+        except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
+            self.counts.skip(e, log)
+            return {"insert_result": None, "restore": _same}
+        self.last_record = res.variant if isinstance(res, VariantResult) else res.record
+        n = len(res.inserted_labels)
+        self.counts.result(n, None if n else res.record.to_dict(), log)
+        return {"insert_result": res, "restore": _same}
+
+    def _general_params(self, data: dict[str, Any]) -> dict[str, Any]:
         try:   # the sample's boundary: dtype/range/shape of the image, camera_k and depth (SampleSkip: counted)
             rgb, restore, conversion = image_for_insertion(data["image"])
             h, w = rgb.shape[:2]
@@ -259,16 +298,26 @@ class InsertObjects(A.DualTransform):
         except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
             self.counts.skip(e, log)
             return {"insert_result": None, "restore": restore}
-        self.last_record = res.record
+        self.last_record = res.variant if isinstance(res, VariantResult) else res.record
         self.counts.result(len(res.inserted_labels), None if res.inserted_labels else res.record.to_dict(), log)
         return {"insert_result": res, "restore": restore}
+
+    @property
+    def last_record(self):
+        """The InsertionRecord of the latest call in this process (for debugging/replay; None before any)."""
+        r = self._last_record
+        return r.record if isinstance(r, Variant) else r
+
+    @last_record.setter
+    def last_record(self, value) -> None:
+        self._last_record = value   # a record, or the variant whose record it is (unpickled when read)
 
     def __getstate__(self):
         # Per-call state (render results, the restore closure) is not part of the transform.
         state = self.__dict__.copy()
         state["params"] = {}
         state["_variant_prefix"] = None
-        state["last_record"] = None
+        state["_last_record"] = None
         return state
 
     def _bbox_processor(self):
@@ -299,18 +348,44 @@ class InsertObjects(A.DualTransform):
 
     def _encode_new_boxes(self, res, bboxes: np.ndarray, shape) -> np.ndarray:
         """Run the new boxes through the Compose bbox processor (as albumentations' Mosaic does) so that their labels
-        are encoded by the same label manager the Compose will use to decode them, even when the image had no box."""
+        are encoded by the same label manager the Compose will use to decode them, even when the image had no box.
+
+        With the processor's defaults (``clip`` and ``filter_invalid_bboxes`` off) and a COCO / Pascal VOC / YOLO
+        format, the boxes' round trip (to the user's format and back, in float32) is :func:`_encode_boxes`, kept
+        per variant, image size and format (a variant's boxes come again and again), and only the labels go
+        through the processor's label manager (``process_field``, as its ``preprocess`` calls it): the same rows,
+        byte for byte (tested against ``preprocess``). Anything else, or a box the processor's check would look
+        at twice, goes through ``preprocess`` itself."""
         h, w = shape[:2]
+        proc = self._bbox_processor()
+        label_fields = None if proc is None else proc.params.label_fields
+        if label_fields:
+            values = [self._label_for(c, proc, label_fields[0]) for c in res.inserted_labels]
+            p = proc.params
+            if p.format in _ENCODED_FORMATS and not p.clip and not p.filter_invalid_bboxes:
+                memo = getattr(getattr(res, "variant", None), "encoded", None)
+                mk = (h, w, p.format)
+                geo = None if memo is None else memo.get(mk)
+                if geo is None:
+                    geo = _encode_boxes(res.inserted_bboxes, h, w, p.format)
+                    if memo is not None:
+                        memo[mk] = geo
+                if geo is not False:   # False: a box the processor's check must see (it may raise)
+                    manager = proc.label_manager
+                    encoded = [manager.process_field("bboxes", f, list(values)) for f in label_fields]
+                    rows = np.hstack((geo, np.hstack((geo[:, :0], *encoded)).astype(np.float32)))
+                    return _pad_columns(rows, bboxes)
+            return _pad_columns(self._preprocess_new_boxes(res, proc, values, label_fields, h, w), bboxes)
+        xywh = np.asarray(res.inserted_bboxes, np.float64)
+        xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
+        return (xyxy / np.array([w, h, w, h], np.float64)).astype(np.float32)   # albumentations' normalised xyxy
+
+    @staticmethod
+    def _preprocess_new_boxes(res, proc, values: list, label_fields, h: int, w: int) -> np.ndarray:
+        """The new boxes through ``proc.preprocess`` (the Compose's own conversion, checks and label encoding)."""
         xywh = np.asarray(res.inserted_bboxes, np.float64)
         xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
         internal = xyxy / np.array([w, h, w, h], np.float64)  # albumentations' normalised x_min, y_min, x_max, y_max
-        proc = self._bbox_processor()
-        if proc is None:
-            return internal.astype(np.float32)
-        label_fields = list(proc.params.label_fields or [])
-        if not label_fields:
-            return internal.astype(np.float32)
-        values = [self._label_for(c, proc, label_fields[0]) for c in res.inserted_labels]
         user_fmt = convert_bboxes_from_albumentations(internal.astype(np.float32), proc.params.format,
                                                       {"height": h, "width": w})
         temp = {"image": np.zeros((h, w, 1), np.uint8), "bboxes": user_fmt}
@@ -322,10 +397,7 @@ class InsertObjects(A.DualTransform):
         finally:
             proc.is_sequence_input.clear()
             proc.is_sequence_input.update(saved)
-        rows = temp["bboxes"]
-        if len(bboxes) and rows.shape[1] < bboxes.shape[1]:  # extra columns (e.g. bbox ids): pad with zeros
-            rows = np.c_[rows, np.zeros((len(rows), bboxes.shape[1] - rows.shape[1]), rows.dtype)]
-        return rows
+        return temp["bboxes"]
 
     def _label_for(self, category: str, proc, field: str):
         if self.category_ids is not None:
@@ -338,3 +410,51 @@ class InsertObjects(A.DualTransform):
             )
         return category
 
+
+def _pad_columns(rows: np.ndarray, bboxes: np.ndarray) -> np.ndarray:
+    """``rows`` with zero columns added up to ``bboxes``' (extra columns, e.g. bbox ids)."""
+    if len(bboxes) and rows.shape[1] < bboxes.shape[1]:
+        rows = np.c_[rows, np.zeros((len(rows), bboxes.shape[1] - rows.shape[1]), rows.dtype)]
+    return rows
+
+
+def _encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
+    """(K, 4) float32: COCO xywh pixel boxes as albumentations' processor (``clip`` and ``filter_invalid_bboxes``
+    off) encodes them when they arrive in ``fmt`` ("coco", "pascal_voc" or "yolo") from our normalised float32
+    boxes: ``convert_bboxes_from_albumentations`` then ``convert_bboxes_to_albumentations``, the same operations
+    in the same dtypes (float32 storage, float64 where albumentations scales), so the same bits. False when a box
+    is not strictly inside [0, 1] with x_max > x_min and y_max > y_min: the processor's ``check_bboxes`` must
+    then decide (its tolerance, its error)."""
+    scale = np.array([w, h, w, h], np.float64)
+    xywh = np.asarray(xywh, np.float64)
+    xyxy = np.empty_like(xywh)
+    xyxy[:, :2] = xywh[:, :2]
+    xyxy[:, 2:] = xywh[:, :2] + xywh[:, 2:]
+    norm = (xyxy / scale).astype(np.float32)           # what the boxes are in albumentations' format
+    user = np.empty_like(norm)                         # convert_bboxes_from_albumentations(norm, fmt)
+    if fmt == "yolo":
+        user[:, :2] = (norm[:, :2] + norm[:, 2:]) / 2
+        user[:, 2:] = norm[:, 2:] - norm[:, :2]
+    else:
+        den = norm * scale                             # denormalize_bboxes: float64
+        if fmt == "coco":
+            user[:, :2] = den[:, :2]
+            user[:, 2:] = den[:, 2:] - den[:, :2]
+        else:
+            user[:] = den
+    geo = np.empty_like(user)                          # convert_bboxes_to_albumentations(user, fmt)
+    if fmt == "yolo":
+        half = user[:, 2:] / 2
+        geo[:, :2] = user[:, :2] - half
+        geo[:, 2:] = user[:, :2] + half
+    else:
+        if fmt == "coco":
+            geo[:, :2] = user[:, :2]
+            geo[:, 2:] = user[:, :2] + user[:, 2:]
+        else:
+            geo[:] = user
+        geo[:] = geo.astype(np.float64) / scale        # normalize_bboxes: float64, stored as float32
+    if not (((geo >= 0) & (geo <= 1)).all() and (geo[:, 2:] > geo[:, :2]).all()):
+        return False
+    geo.flags.writeable = False
+    return geo

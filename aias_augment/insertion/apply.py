@@ -16,7 +16,7 @@ from ..annotate import ObjectAnnotation, annotate_object, encode_rle
 from ..assets import Asset
 from ..geometry import Intrinsics, invert_rigid, transform_points, unproject_points
 from ..lighting.estimate import LightingEstimate
-from ..lighting.shading import shade_object
+from ..lighting.shading import shade_object, shade_pixels
 from ..lighting.shadows import (contact_occlusion, occluder_distance_from_footprint, shadow_ratio_from_sun_sky,
                                 soften_shadow)
 from ..placement import Placement
@@ -25,8 +25,8 @@ from ..scene import Frame
 from .analyse import SceneAnalysis
 from .config import InsertionConfig
 from .plan import InsertionPlan
-from .projected_shadow import projected_ground_shadow
-from .view_cache import ViewCache, render_from_view_cache
+from .projected_shadow import projected_ground
+from .view_cache import ViewCache, warp_from_view_cache
 
 log = logging.getLogger(__name__)
 
@@ -64,30 +64,39 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     rendered, dropped = [], []
     n_cached = 0
     for obj in plan.objects:
-        got = None
+        warped = None
         if cfg.render_method == "view_cache":
-            got = render_from_view_cache(obj.asset, obj.cam_from_object, intr, view_cache)
-            n_cached += got is not None
-        roi, rl = got if got is not None else render_object_window(obj.asset, obj.cam_from_object, intr,
-                                                                   ssaa=cfg.ssaa)
-        if rl.alpha.size == 0 or rl.alpha.max() <= 0.5:
-            dropped.append({"rejected": {"renders to no pixel": 1}})
-            continue
-        rendered.append((obj, roi, rl))
+            warped = warp_from_view_cache(obj.asset, obj.cam_from_object, intr, view_cache)
+            n_cached += warped is not None
+        if warped is not None:   # shaded on its covered pixels only
+            roi, alpha, odepth = warped.roi, warped.alpha, warped.depth
+            if alpha.size == 0 or alpha.max() <= 0.5:
+                dropped.append({"rejected": {"renders to no pixel": 1}})
+                continue
+            shaded = np.zeros(alpha.shape + (3,), np.float32)
+            shaded[warped.inside] = shade_pixels(warped.albedo, warped.normals, lighting)
+        else:
+            roi, rl = render_object_window(obj.asset, obj.cam_from_object, intr, ssaa=cfg.ssaa)
+            alpha, odepth = rl.alpha, rl.depth
+            if alpha.size == 0 or alpha.max() <= 0.5:
+                dropped.append({"rejected": {"renders to no pixel": 1}})
+                continue
+            shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, alpha > 0, lighting)
+        rendered.append((obj, roi, alpha, odepth, shaded))
     if cfg.render_method == "view_cache":
         mods["render"] = (f"view cache: {n_cached} of {len(plan.objects)} objects warped from their view bin's "
                           "render and relit (the others rendered in full: too near or too large for the cache)")
     shadows = []
     if cfg.shadow and rendered:
         shadows = [_object_shadow_window(o.asset, o.cam_from_object, intr, lighting, depth, cfg.shadow_method)
-                   for o, _, _ in rendered]
+                   for o, *_ in rendered]
         how = ("shadow catcher (ground patch with/without the object)" if cfg.shadow_method == "catcher" else
                "projected silhouette (triangles along the sun onto the ground)")
         mods["shadow"] = (f"{how}, soft penumbra, contact occlusion" if lighting.dominant_sun
                           else "contact occlusion only: no dominant sun")
     elif not cfg.shadow:
         mods["shadow"] = "skipped: disabled (ablation or naive paste)"
-    rois = [r for _, r, _ in rendered] + [r for r, _ in shadows if r[2] > r[0] and r[3] > r[1]]
+    rois = [r for _, r, *_ in rendered] + [r for r, _ in shadows if r[2] > r[0] and r[3] > r[1]]
     if not rois:
         if not cfg.harmonize:
             mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
@@ -97,28 +106,36 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     wshape = (Y1 - Y0, X1 - X0)
     sdepth = None if depth is None else depth[Y0:Y1, X0:X1]
 
-    # Each object shaded in its own window (only where it covers a pixel), then placed in the common window.
-    layers = []
-    for obj, roi, rl in rendered:
-        alpha = _in_window(wshape, win, roi, rl.alpha)
-        odepth = _in_window(wshape, win, roi, rl.depth)
-        shaded = _in_window(wshape, win, roi, shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0,
-                                                           lighting))
-        layers.append((obj, alpha, odepth, shaded))
+    # Each object's coverage and depth placed in the common window (its shading stays in its own window).
+    layers = [(obj, _in_window(wshape, win, roi, alpha), _in_window(wshape, win, roi, odepth), (roi, alpha, odepth,
+                                                                                                  shaded))
+              for obj, roi, alpha, odepth, shaded in rendered]
 
     bg = comp.to_linear(img[Y0:Y1, X0:X1])
-    if shadows:
+    if len(shadows) > 1:
         ratio = np.ones(wshape, np.float32)
         for roi, r in shadows:
             ratio = np.minimum(ratio, _in_window(wshape, win, roi, r, fill=1.0))
         bg = comp.apply_shadow(bg, ratio)  # overlapping shadows of one sun do not darken twice: min, not product
+    elif shadows:  # one shadow: applied in its window only (the ratio is 1 elsewhere: the same values)
+        (sx0, sy0, sx1, sy1), r = shadows[0]
+        if sx1 > sx0 and sy1 > sy0:
+            sl = np.s_[sy0 - Y0:sy1 - Y0, sx0 - X0:sx1 - X0]
+            bg[sl] = comp.apply_shadow(bg[sl], r)
 
-    # Far to near by median object depth, so nearer objects are blended last.
-    order = sorted(range(len(layers)), key=lambda i: -float(np.median(layers[i][2][layers[i][1] > 0])))
+    # Far to near by median object depth, so nearer objects are blended last; each blended in its own window
+    # (its coverage is 0 elsewhere: the same values).
+    def median_depth(i):
+        _, alpha, odepth, _ = layers[i][3]
+        return float(np.median(odepth[alpha > 0]))
+
+    order = sorted(range(len(layers)), key=lambda i: -median_depth(i))
     out = bg
     for i in order:
-        _, alpha, odepth, shaded = layers[i]
-        out = comp.alpha_over(out, shaded, alpha * comp.visible_fraction_against_depth(odepth, sdepth))
+        (x0, y0, x1, y1), alpha, odepth, shaded = layers[i][3]
+        sl = np.s_[y0 - Y0:y1 - Y0, x0 - X0:x1 - X0]
+        a = alpha if sdepth is None else alpha * comp.visible_fraction_against_depth(odepth, sdepth[sl])
+        out[sl] = comp.alpha_over(out[sl], shaded, a)
     # Visible part of each object: not behind the scene, not behind nearer inserted objects.
     vis_alphas = []
     for i, (_, a_i, d_i, _) in enumerate(layers):
@@ -209,26 +226,28 @@ def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intri
     # Below-horizon direction: the catcher then returns the ground geometry with full visibility.
     sun_obj = R.T @ sun_cam if sun_cam is not None else np.array([0.0, 0.0, -1.0])
     if method == "projected":
-        sl = projected_ground_shadow(asset, cam_from_object, intr, sun_obj)
+        sl, ground_xy = projected_ground(asset, cam_from_object, intr, sun_obj)
     else:
-        sl = render_ground_shadow(asset, cam_from_object, intr, sun_obj, window=True)
+        sl, ground_xy = render_ground_shadow(asset, cam_from_object, intr, sun_obj, window=True), None
     x0, y0, x1, y1 = sl.roi
     gm = sl.ground_mask
     if not gm.any():
         return sl.roi, np.ones(gm.shape, np.float32)
     gdepth = sl.ground_depth
-    vv, uu = np.nonzero(gm)
-    pts_cam = unproject_points(np.stack([uu + x0, vv + y0], -1).astype(float), gdepth[gm], intr.K)
-    pts_obj = transform_points(invert_rigid(cam_from_object), pts_cam)
+    if ground_xy is None:  # the catcher's ground points, from its depth
+        vv, uu = np.nonzero(gm)
+        pts_cam = unproject_points(np.stack([uu + x0, vv + y0], -1).astype(float), gdepth[gm], intr.K)
+        ground_xy = transform_points(invert_rigid(cam_from_object), pts_cam)[:, :2]
+    pts_obj = ground_xy
     lo, hi = asset.bounds_m
     # Horizontal distance from each ground point to the object's footprint rectangle.
     dx = np.maximum(np.maximum(lo[0] - pts_obj[:, 0], pts_obj[:, 0] - hi[0]), 0.0)
     dy = np.maximum(np.maximum(lo[1] - pts_obj[:, 1], pts_obj[:, 1] - hi[1]), 0.0)
-    rho = np.full(gm.shape, 1e6)  # off the ground patch: far from the object, no contact occlusion
-    rho[gm] = np.hypot(dx, dy)
-    ao = contact_occlusion(rho, asset.height_m)
-    ratio = shadow_ratio_from_sun_sky(sl.visibility, lighting.sun_sky_ratio if sun_cam is not None else 0.0,
-                                      ambient_occlusion=ao)
+    ao = np.ones(gm.shape, np.float32)  # off the ground patch: far from the object, no contact occlusion
+    ao[gm] = contact_occlusion(np.hypot(dx, dy), asset.height_m)
+    # Without a sun the ratio is the contact occlusion alone ((a + 0 v) / 1).
+    ratio = (shadow_ratio_from_sun_sky(sl.visibility, lighting.sun_sky_ratio, ambient_occlusion=ao)
+             if sun_cam is not None else ao)
     if sun_cam is not None:
         elevation = float(np.arcsin(np.clip(sun_obj[2], -1.0, 1.0)))
         dist = np.full(gm.shape, np.nan)
@@ -237,6 +256,8 @@ def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intri
         ratio = soften_shadow(ratio, dist, pixels_per_metre=ppm)
     # The real scene in front of the shadowed ground hides the shadow.
     sd = None if scene_depth is None else scene_depth[y0:y1, x0:x1]
+    if sd is None:  # nothing in front of the ground
+        return sl.roi, (1.0 - (1.0 - ratio)).astype(np.float32)
     unoccluded = comp.visible_fraction_against_depth(gdepth, sd)
     return sl.roi, (1.0 - (1.0 - ratio) * unoccluded).astype(np.float32)
 

@@ -48,24 +48,36 @@ def projected_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsic
                             sun_direction_in_object: np.ndarray, *, znear: float = 0.05) -> ShadowLayers:
     """:class:`ShadowLayers` of the window (as ``render_ground_shadow(..., window=True)``) with the projected
     silhouette as the sun visibility (0 in the shadow, 1 elsewhere)."""
+    return projected_ground(asset, cam_from_object, intrinsics, sun_direction_in_object, znear=znear)[0]
+
+
+def projected_ground(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics,
+                     sun_direction_in_object: np.ndarray, *, znear: float = 0.05
+                     ) -> tuple[ShadowLayers, np.ndarray]:
+    """(:func:`projected_ground_shadow`'s layers, (N, 2) the object-frame x, y of the ground point seen by each pixel
+    of the ground patch, in the row-major order of ``ground_mask``): the ray-plane intersection gives both."""
     T = check_rigid(cam_from_object, "cam_from_object")
     sun = unit_sun(sun_direction_in_object)
     roi, radius = shadow_window(asset, T, intrinsics, sun, znear)
     x0, y0, x1, y1 = roi
     if x1 <= x0 or y1 <= y0:
         z = np.zeros((0, 0), np.float32)
-        return ShadowLayers(np.ones((0, 0), np.float32), np.zeros((0, 0), bool), z, (0, 0, 0, 0))
+        return ShadowLayers(np.ones((0, 0), np.float32), np.zeros((0, 0), bool), z, (0, 0, 0, 0)), np.zeros((0, 2))
     K = intrinsics
-    uu, vv = np.meshgrid(np.arange(x0, x1, dtype=np.float64), np.arange(y0, y1, dtype=np.float64))
-    rays = np.stack([(uu - K.cx) / K.fx, (vv - K.cy) / K.fy, np.ones_like(uu)], -1)  # z = 1: lambda is z-depth
+    # The ray of pixel (u, v) is (a_u, b_v, 1) (z = 1: lambda is z-depth); everything linear in the ray is a sum of a
+    # column term and a row term, so no (H, W, 3) array is built.
+    a = ((np.arange(x0, x1, dtype=np.float64) - K.cx) / K.fx)[None, :]
+    b = ((np.arange(y0, y1, dtype=np.float64) - K.cy) / K.fy)[:, None]
     R, t = T[:3, :3], T[:3, 3]
     n = R[:, 2]  # the ground's normal (object z) in the camera
-    denom = rays @ n
+    denom = a * n[0] + (b * n[1] + n[2])
     with np.errstate(divide="ignore", invalid="ignore"):
         lam = np.where(np.abs(denom) > 1e-12, (n @ t) / denom, -1.0)
     hit = lam > znear
-    p_obj = (rays * lam[..., None] - t) @ R  # R^T (p - t) row-wise
-    on_patch = hit & (np.abs(p_obj[..., 0]) <= radius) & (np.abs(p_obj[..., 1]) <= radius)
+    tR = t @ R
+    px = lam * (a * R[0, 0] + (b * R[1, 0] + R[2, 0])) - tR[0]   # R^T (lambda ray - t), x and y
+    py = lam * (a * R[0, 1] + (b * R[1, 1] + R[2, 1])) - tR[1]
+    on_patch = hit & (np.abs(px) <= radius) & (np.abs(py) <= radius)
     depth = np.where(on_patch, lam, 0.0).astype(np.float32)
     vis = np.ones(on_patch.shape, np.float32)
     if sun[2] > 0.02 and on_patch.any():
@@ -82,4 +94,4 @@ def projected_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsic
             cv2.fillConvexPoly(mask, p, 1, lineType=cv2.LINE_8, shift=4)
         cover = mask.reshape(h, ss, w, ss).mean(axis=(1, 3), dtype=np.float32)
         vis = np.where(on_patch, 1.0 - cover, 1.0).astype(np.float32)
-    return ShadowLayers(vis, on_patch, depth, roi)
+    return ShadowLayers(vis, on_patch, depth, roi), np.stack([px[on_patch], py[on_patch]], -1)

@@ -27,7 +27,7 @@ import dataclasses
 import logging
 import pickle
 from collections import OrderedDict
-from dataclasses import dataclass
+import os
 from pathlib import Path
 
 import numpy as np
@@ -38,8 +38,11 @@ from .view_cache import _write_atomic
 
 log = logging.getLogger(__name__)
 
-#: Bump when what a variant holds, or what an insertion computes, changes: files of another version are not read.
+#: Bump when what an insertion computes changes: it is part of every key (so of each variant's generator: a bump
+#: changes which insertions the variants are).
 VARIANT_FORMAT = 1
+#: Bump when how a variant is stored in its file changes: files of another version are not read (computed again).
+FILE_FORMAT = 2
 
 
 def variant_key_prefix(cfg=None, assets=None, seed: int = 0):
@@ -60,18 +63,25 @@ def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, exi
                 prefix=None) -> str:
     """xxh3-128 (hex) of everything a variant depends on except its index: ``prefix`` (from
     :func:`variant_key_prefix`; None: its defaults), image bytes, K, depth, scene facts (``scene``: SceneInputs)
-    and the existing boxes."""
+    and the existing boxes. The stream hashed is ``image:<dtype><shape>``, the bytes, then for each of K, depth and
+    the boxes ``<name>:None`` or ``<name>:<dtype><shape>`` and its bytes, then the scene's fields. It is computed
+    at every variant call: an image alone (the common case in a training loop) is three updates."""
     h = (prefix if prefix is not None else variant_key_prefix()).copy()
-    for name, v in (("image", image), ("K", None if camera_k is None else np.asarray(camera_k, np.float64)),
-                    ("depth", depth),
-                    ("boxes", None if existing_xywh is None or len(existing_xywh) == 0
-                     else np.asarray(existing_xywh, np.float64))):
-        if v is None:
-            h.update(f"{name}:None".encode())
-        else:
-            a = np.ascontiguousarray(v)
-            h.update(f"{name}:{a.dtype}{a.shape}".encode())
-            h.update(memoryview(a).cast("B") if a.dtype != object else repr(a.tolist()).encode())
+    a = np.ascontiguousarray(image)
+    h.update(f"image:{a.dtype}{a.shape}".encode())
+    h.update(a if a.dtype != object else repr(a.tolist()).encode())
+    if camera_k is None and depth is None and (existing_xywh is None or len(existing_xywh) == 0):
+        h.update(b"K:Nonedepth:Noneboxes:None")
+    else:
+        for name, v in (("K", None if camera_k is None else np.asarray(camera_k, np.float64)), ("depth", depth),
+                        ("boxes", None if existing_xywh is None or len(existing_xywh) == 0
+                         else np.asarray(existing_xywh, np.float64))):
+            if v is None:
+                h.update(f"{name}:None".encode())
+            else:
+                a = np.ascontiguousarray(v)
+                h.update(f"{name}:{a.dtype}{a.shape}".encode())
+                h.update(memoryview(a).cast("B") if a.dtype != object else repr(a.tolist()).encode())
     if scene is not None:   # SceneInputs: arrays by their bytes (the repr of a large array elides its middle)
         for f in dataclasses.fields(scene):
             v = getattr(scene, f.name)
@@ -85,21 +95,33 @@ def variant_rng(seed: int, j: int, key: str) -> np.random.Generator:
     return np.random.default_rng([int(seed), int(j), int(key[:16], 16)])
 
 
-@dataclass(frozen=True, eq=False)
 class Variant:
     """One insertion into one image, kept as what it changed.
 
     window: (y0, y1, x0, x1) of the pixels the insertion changed ((0, 0, 0, 0): none); pixels: the output there
     ((y1-y0, x1-x0, 3) uint8); inserted_bboxes (K, 4) COCO xywh and inserted_labels: the new boxes;
     existing_visibility (N,): visible fraction of each existing box under what was drawn; record: the insertion's
-    :class:`~aias_augment.pipeline.InsertionRecord` (replayable)."""
+    :class:`~aias_augment.pipeline.InsertionRecord` (replayable).
 
-    window: tuple[int, int, int, int]
-    pixels: np.ndarray
-    inserted_bboxes: np.ndarray
-    inserted_labels: tuple[str, ...]
-    existing_visibility: np.ndarray
-    record: object
+    Pickled compactly (raw bytes, no NumPy reconstruction), with the record as its own pickle that is only
+    unpickled when ``record`` is read: a hit from the folder reads one file and rebuilds four arrays on its bytes,
+    and never the record's objects unless someone asks for it. A variant read back is immutable (its arrays are
+    read-only views of the file's bytes). ``encoded``: a memo of this process (not pickled) of the new boxes as a
+    Compose's bbox processor encodes them, filled by :class:`~aias_augment.transform.InsertObjects`."""
+
+    __slots__ = ("window", "pixels", "inserted_bboxes", "inserted_labels", "existing_visibility", "_record",
+                 "_record_pickle", "encoded")
+
+    def __init__(self, window, pixels: np.ndarray, inserted_bboxes: np.ndarray, inserted_labels,
+                 existing_visibility: np.ndarray, record):
+        self.window = tuple(int(x) for x in window)
+        self.pixels = np.ascontiguousarray(pixels, np.uint8)
+        self.inserted_bboxes = np.asarray(inserted_bboxes, np.float64).reshape(-1, 4)
+        self.inserted_labels = tuple(inserted_labels)
+        self.existing_visibility = np.asarray(existing_visibility, np.float64).reshape(-1)
+        self._record = record
+        self._record_pickle = None
+        self.encoded = {}
 
     @classmethod
     def from_result(cls, image: np.ndarray, result) -> "Variant":
@@ -111,30 +133,82 @@ class Variant:
         else:
             window = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
         y0, y1, x0, x1 = window
-        return cls(window, np.ascontiguousarray(result.image[y0:y1, x0:x1]),
-                   np.asarray(result.inserted_bboxes, np.float64).reshape(-1, 4), tuple(result.inserted_labels),
-                   np.asarray(result.record.existing_visibility, np.float64), result.record)
+        return cls(window, result.image[y0:y1, x0:x1], result.inserted_bboxes, result.inserted_labels,
+                   result.record.existing_visibility, result.record)
+
+    @property
+    def record(self):
+        """The insertion's record (unpickled on first read for a variant read from a file)."""
+        if self._record is None and self._record_pickle is not None:
+            self._record = pickle.loads(self._record_pickle)
+        return self._record
+
+    def __reduce__(self):
+        rec = self._record_pickle if self._record_pickle is not None else pickle.dumps(self._record, protocol=5)
+        return (_variant_from_state, (self.window, self.pixels.shape, self.pixels.tobytes(),
+                                      self.inserted_bboxes.tobytes(), self.inserted_labels,
+                                      self.existing_visibility.tobytes(), rec))
 
     @property
     def nbytes(self) -> int:
         return self.pixels.nbytes + self.inserted_bboxes.nbytes + self.existing_visibility.nbytes + 2048
 
-    def result(self, image: np.ndarray, existing_xywh: np.ndarray, labels: list, min_visibility: float = 0.0):
-        """The :class:`~aias_augment.pipeline.InsertionResult` of this variant on ``image`` (the same bytes the
-        variant was made from; not modified): a copy with the window pasted, boxes as
-        :func:`~aias_augment.pipeline.assemble_result` orders them."""
-        from ..pipeline import InsertionResult
-        if len(self.existing_visibility) != len(existing_xywh):
+    def result(self, image: np.ndarray, existing_xywh: np.ndarray, labels: list,
+               min_visibility: float = 0.0) -> "VariantResult":
+        """The result of this variant on ``image`` (the same bytes the variant was made from; not modified): a
+        copy with the window pasted, boxes as :func:`~aias_augment.pipeline.assemble_result` orders them (the
+        fields of an :class:`~aias_augment.pipeline.InsertionResult`)."""
+        n = len(existing_xywh)
+        if len(self.existing_visibility) != n:
             raise ValueError(f"variant made with {len(self.existing_visibility)} existing boxes, called with "
-                             f"{len(existing_xywh)}")
+                             f"{n}")
         out = image.copy()
         y0, y1, x0, x1 = self.window
         out[y0:y1, x0:x1] = self.pixels
+        if n == 0:
+            return VariantResult(out, self.inserted_bboxes, list(self.inserted_labels), _NO_KEEP, self)
         keep = self.existing_visibility >= min_visibility
         boxes = np.asarray(existing_xywh, np.float64).reshape(-1, 4)
-        return InsertionResult(out, np.concatenate([boxes[keep], self.inserted_bboxes], axis=0),
-                               [lab for lab, k in zip(labels, keep) if k] + list(self.inserted_labels),
-                               self.inserted_bboxes.copy(), list(self.inserted_labels), keep, self.record)
+        return VariantResult(out, np.concatenate([boxes[keep], self.inserted_bboxes], axis=0),
+                             [lab for lab, k in zip(labels, keep) if k] + list(self.inserted_labels), keep, self)
+
+
+_NO_KEEP = np.zeros(0, bool)
+_NO_KEEP.flags.writeable = False
+
+
+def _variant_from_state(window, shape, pixels, boxes, labels, visibility, record_pickle) -> Variant:
+    """A :class:`Variant` from what :meth:`Variant.__reduce__` wrote (arrays as read-only views of the bytes)."""
+    v = Variant.__new__(Variant)
+    v.window = window
+    v.pixels = np.frombuffer(pixels, np.uint8).reshape(shape)
+    v.inserted_bboxes = np.frombuffer(boxes, np.float64).reshape(-1, 4)
+    v.inserted_labels = labels
+    v.existing_visibility = np.frombuffer(visibility, np.float64)
+    v._record = None
+    v._record_pickle = record_pickle
+    v.encoded = {}
+    return v
+
+
+class VariantResult:
+    """A variant applied to its image: the fields of an :class:`~aias_augment.pipeline.InsertionResult`
+    (``image``, ``bboxes``, ``labels``, ``inserted_bboxes``, ``inserted_labels``, ``keep_existing``, ``record``)
+    and the ``variant`` itself. The boxes are the variant's own read-only arrays (not copies); ``record`` is
+    the variant's (unpickled when read)."""
+
+    __slots__ = ("image", "bboxes", "labels", "inserted_bboxes", "inserted_labels", "keep_existing", "variant")
+
+    def __init__(self, image, bboxes, labels, keep_existing, variant: Variant):
+        self.image, self.bboxes, self.labels = image, bboxes, labels
+        self.inserted_bboxes = variant.inserted_bboxes
+        self.inserted_labels = list(variant.inserted_labels)
+        self.keep_existing = keep_existing
+        self.variant = variant
+
+    @property
+    def record(self):
+        return self.variant.record
 
 
 class VariantCache:
@@ -148,6 +222,7 @@ class VariantCache:
             raise ValueError(f"max_bytes must be >= 0, got {max_bytes}")
         self.max_bytes = int(max_bytes)
         self.directory = None if directory is None else Path(directory)
+        self._dirname = None if directory is None else str(directory)
         self._lru: OrderedDict[tuple[str, int], Variant] = OrderedDict()
         self.nbytes = 0
         self.hits = self.disk_hits = self.misses = 0
@@ -182,7 +257,7 @@ class VariantCache:
     def put(self, key: str, j: int, v: Variant) -> None:
         self._remember(key, j, v)
         if self.directory is not None:
-            _write_atomic(self._path(key, j), pickle.dumps((VARIANT_FORMAT, key, j, v), protocol=5))
+            _write_atomic(self._path(key, j), pickle.dumps((FILE_FORMAT, key, j, v), protocol=5))
 
     def _remember(self, key: str, j: int, v: Variant) -> None:
         if v.nbytes > self.max_bytes:
@@ -197,16 +272,18 @@ class VariantCache:
             self.nbytes -= gone.nbytes
 
     def _read(self, key: str, j: int) -> Variant | None:
-        if self.directory is None:
+        if self._dirname is None:
             return None
-        p = self._path(key, j)
-        if not p.exists():
+        try:   # one open and read (no exists() first: a missing file is the exception)
+            with open(os.path.join(self._dirname, key[:2], f"{key}_{j}.pkl"), "rb") as f:
+                data = f.read()
+        except OSError:
             return None
         try:
-            fmt, k, jj, v = pickle.loads(p.read_bytes())
+            fmt, k, jj, v = pickle.loads(data)
         except Exception as e:  # a damaged file or another version's: computed again (and overwritten)
-            log.info("variant cache: %s not used (%s)", p, e)
+            log.info("variant cache: %s_%d not used (%s)", key, j, e)
             return None
-        if fmt != VARIANT_FORMAT or k != key or jj != j or not isinstance(v, Variant):
+        if fmt != FILE_FORMAT or k != key or jj != j or not isinstance(v, Variant):
             return None
         return v

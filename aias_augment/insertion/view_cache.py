@@ -61,7 +61,7 @@ from ..render import RenderLayers, render_object_window
 log = logging.getLogger(__name__)
 
 __all__ = ["ViewBinning", "DEFAULT_BINNING", "CachedView", "ViewCache", "default_view_cache", "view_key",
-           "render_from_view_cache", "rotational_symmetry_order", "asset_digest"]
+           "render_from_view_cache", "warp_from_view_cache", "WarpedView", "rotational_symmetry_order", "asset_digest"]
 
 
 @dataclass(frozen=True)
@@ -434,6 +434,49 @@ def render_from_view_cache(asset: Asset, cam_from_object: np.ndarray, intrinsics
                            ) -> tuple[tuple[int, int, int, int], RenderLayers] | None:
     """(roi, layers) as :func:`aias_augment.render.render_object_window` returns them, from the view cache; None
     when the view cache does not apply to this pose (see :func:`view_key`: the caller renders in full)."""
+    got = warp_from_view_cache(asset, cam_from_object, intrinsics, cache, znear)
+    return None if got is None else (got.roi, got.layers())
+
+
+@dataclass(frozen=True, eq=False)
+class WarpedView:
+    """A view warped into the image, as pixel lists: ``roi`` (x0, y0, x1, y1); ``alpha`` and ``depth`` (h, w)
+    float32 over the roi (0 outside the object); ``inside`` (h, w) bool, the covered pixels; ``albedo`` and
+    ``normals`` (N, 3) float32 (linear albedo, unit camera-frame normals or 0) of the ``inside`` pixels in
+    row-major order. Shading reads the pixel lists only (:func:`aias_augment.lighting.shading.shade_pixels`)."""
+
+    roi: tuple[int, int, int, int]
+    alpha: np.ndarray
+    depth: np.ndarray
+    inside: np.ndarray
+    albedo: np.ndarray
+    normals: np.ndarray
+
+    def layers(self) -> RenderLayers:
+        """The full-roi :class:`RenderLayers` (0 outside the object)."""
+        h, w = self.alpha.shape
+        albedo = np.zeros((h, w, 3), np.float32)
+        normals = np.zeros((h, w, 3), np.float32)
+        albedo[self.inside] = self.albedo
+        normals[self.inside] = self.normals
+        return RenderLayers(albedo, self.alpha, self.depth, normals)
+
+
+def _view_channels(view: CachedView) -> tuple[np.ndarray, np.ndarray]:
+    """The view's layers as two contiguous 4-channel images (what ``cv2.warpPerspective`` takes): albedo x coverage
+    + coverage, normal x coverage + depth offset x coverage; made once per view."""
+    got = view.__dict__.get("_channels")
+    if got is None:
+        pre = view.premultiplied
+        got = (np.ascontiguousarray(pre[..., [0, 1, 2, 7]]), np.ascontiguousarray(pre[..., 3:7]))
+        view.__dict__["_channels"] = got   # a memo, not a field (the dataclass stays frozen)
+    return got
+
+
+def warp_from_view_cache(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics,
+                         cache: ViewCache | None = None, znear: float = 0.05) -> WarpedView | None:
+    """The cached view of ``asset`` warped to ``cam_from_object`` (:class:`WarpedView`), or None when the view cache
+    does not apply to this pose (see :func:`view_key`: the caller renders in full)."""
     cache = cache if cache is not None else default_view_cache()
     b = cache.binning
     root = asset.render_root if asset.render_root is not None else asset
@@ -456,44 +499,48 @@ def render_from_view_cache(asset: Asset, cam_from_object: np.ndarray, intrinsics
     view = cache.get(root, key)
     c_obj, _ = _centre_and_radius(root)
     c_cam = R @ c_obj + t_root
-    d = float(np.linalg.norm(c_cam))
+    d = math.sqrt(float(c_cam @ c_cam))
     R_e = _view_rotation(-(R.T @ c_cam) / d)  # a virtual camera here looking at the centre, object up = image up
     # view pixel -> image pixel: K R R_e^T (the rotation about the camera centre) after scaling the view about its
     # principal point by d0 / d (the distance within the bin: the object's centre plane scales as 1 / distance).
     Kv = view.K_view
     sc = view.distance / d
-    Kv_scaled_inv = np.linalg.inv(np.array([[Kv[0, 0] / sc, 0, Kv[0, 2]], [0, Kv[1, 1] / sc, Kv[1, 2]], [0, 0, 1]]))
     x0v, y0v = view.roi[:2]
-    H = intrinsics.K @ R @ R_e.T @ Kv_scaled_inv @ np.array([[1, 0, x0v], [0, 1, y0v], [0, 0, 1.0]])
+    fx, fy = sc / Kv[0, 0], sc / Kv[1, 1]   # the inverse of the scaled view intrinsics, then the roi's offset
+    Kv_inv_roi = np.array([[fx, 0.0, fx * (x0v - Kv[0, 2])], [0.0, fy, fy * (y0v - Kv[1, 2])], [0.0, 0.0, 1.0]])
+    H = intrinsics.K @ R @ R_e.T @ Kv_inv_roi
     hv, wv = view.premultiplied.shape[:2]
     corners = np.array([[-0.5, -0.5, 1], [wv - 0.5, -0.5, 1], [-0.5, hv - 0.5, 1], [wv - 0.5, hv - 0.5, 1]]) @ H.T
-    if np.any(corners[:, 2] <= 1e-9):
+    if (corners[:, 2] <= 1e-9).any():
         return None
     uv = corners[:, :2] / corners[:, 2:]
+    (umin, vmin), (umax, vmax) = uv.min(0).tolist(), uv.max(0).tolist()
     W, Hh = intrinsics.width, intrinsics.height
-    x0 = int(np.clip(np.floor(uv[:, 0].min()), 0, W))
-    y0 = int(np.clip(np.floor(uv[:, 1].min()), 0, Hh))
-    x1 = int(np.clip(np.ceil(uv[:, 0].max()) + 1, 0, W))
-    y1 = int(np.clip(np.ceil(uv[:, 1].max()) + 1, 0, Hh))
+    x0, y0 = min(max(math.floor(umin), 0), W), min(max(math.floor(vmin), 0), Hh)
+    x1, y1 = min(max(math.ceil(umax) + 1, 0), W), min(max(math.ceil(vmax) + 1, 0), Hh)
     if x1 <= x0 or y1 <= y0:
         z = np.zeros((0, 0), np.float32)
-        return (0, 0, 0, 0), RenderLayers(np.zeros((0, 0, 3), np.float32), z, z.copy(), np.zeros((0, 0, 3), np.float32))
-    H_win = np.array([[1, 0, -x0], [0, 1, -y0], [0, 0, 1.0]]) @ H
+        return WarpedView((0, 0, 0, 0), z, z.copy(), np.zeros((0, 0), bool), np.zeros((0, 3), np.float32),
+                          np.zeros((0, 3), np.float32))
+    H_win = H.copy()
+    H_win[0] -= x0 * H[2]
+    H_win[1] -= y0 * H[2]
     size = (x1 - x0, y1 - y0)
-    pre = view.premultiplied
-    flags = cv2.INTER_LINEAR
-    a = cv2.warpPerspective(pre[..., [0, 1, 2, 7]], H_win, size, flags=flags, borderMode=cv2.BORDER_CONSTANT)
-    bq = cv2.warpPerspective(pre[..., 3:7], H_win, size, flags=flags, borderMode=cv2.BORDER_CONSTANT)
-    cov = np.clip(a[..., 3], 0.0, 1.0)
-    inside = cov > 1e-3  # eps: below it the warped coverage is interpolation round-off of empty texels
-    w = np.where(inside, np.maximum(a[..., 3], 1e-3), 1.0)[..., None]
-    albedo = np.where(inside[..., None], a[..., :3] / w, 0.0)
-    n_obj = bq[..., :3]
-    n_len = np.linalg.norm(n_obj, axis=-1, keepdims=True)
-    n_cam = np.where(inside[..., None] & (n_len > 1e-6), (n_obj / np.maximum(n_len, 1e-6)) @ R.T, 0.0)
-    off = np.where(inside, bq[..., 3] / w[..., 0], 0.0)
+    pre_a, pre_b = _view_channels(view)
+    a = cv2.warpPerspective(pre_a, H_win, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    inside = a[..., 3] > 1e-3  # eps: below it the warped coverage is interpolation round-off of empty texels
+    bq = cv2.warpPerspective(pre_b, H_win, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    a_in, b_in = a[inside], bq[inside]
+    cov_in = a_in[:, 3]
+    w = np.maximum(cov_in, np.float32(1e-3))
+    albedo = a_in[:, :3] / w[:, None]
+    n_obj = b_in[:, :3]
+    n_len = np.sqrt(np.einsum("ij,ij->i", n_obj, n_obj))[:, None]
+    n_cam = np.where(n_len > 1e-6, (n_obj / np.maximum(n_len, np.float32(1e-6))) @ R.T.astype(np.float32), 0.0)
     # z-depth: (distance to the centre + the view's depth offset), along the ray to the centre, in the asset's units.
-    depth = np.where(inside, s * (d + off) * (c_cam[2] / d), 0.0)
-    cov = np.where(inside, cov, 0.0)
-    return (x0, y0, x1, y1), RenderLayers(albedo.astype(np.float32), cov.astype(np.float32), depth.astype(np.float32),
-                                          n_cam.astype(np.float32))
+    depth = np.zeros(inside.shape, np.float32)
+    depth[inside] = s * (d + b_in[:, 3] / w) * (c_cam[2] / d)
+    cov = np.zeros(inside.shape, np.float32)
+    cov[inside] = np.minimum(cov_in, np.float32(1.0))
+    return WarpedView((x0, y0, x1, y1), cov, depth, inside, albedo.astype(np.float32, copy=False),
+                      n_cam.astype(np.float32, copy=False))

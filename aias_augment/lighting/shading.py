@@ -20,7 +20,7 @@ import numpy as np
 from .estimate import LightingEstimate
 from .sh import sh_irradiance
 
-__all__ = ["shade_object", "irradiance_at_normals", "fluorescent_gain", "FLUORESCENT_GAIN"]
+__all__ = ["shade_object", "shade_pixels", "irradiance_at_normals", "fluorescent_gain", "FLUORESCENT_GAIN"]
 
 #: Luminance gain of a fully fluorescent-orange albedo: (255, 72, 18) reflects 0.26; x 1.6 = 0.41, mid-range of the
 #: daylight-fluorescent orange luminance factors (0.3-0.45). Read at call time (1.0: off, as the realism report's
@@ -69,13 +69,22 @@ def shade_object(albedo_linear: np.ndarray, normals_in_cam: np.ndarray, mask: np
         raise ValueError(f"shade_object: sun_visibility must be {m.shape}")
     if not (np.all(np.isfinite(albedo[m])) and np.all(np.isfinite(n[m]))):
         raise ValueError("shade_object: albedo or normals contain NaN or Inf inside the mask")
-    length = np.linalg.norm(n, axis=-1, keepdims=True)
+    out = np.zeros(albedo.shape, np.float32)
+    out[m] = shade_pixels(albedo[m], n[m], lighting,
+                          None if sun_visibility is None else np.asarray(sun_visibility, dtype=np.float64)[m])
+    return out
+
+
+def shade_pixels(albedo_linear: np.ndarray, normals_in_cam: np.ndarray, lighting: LightingEstimate,
+                 sun_visibility: np.ndarray | None = None) -> np.ndarray:
+    """:func:`shade_object` on a list of pixels: albedo (N, 3), normals (N, 3) (renormalised; a zero normal gets
+    the up direction), sun visibility (N,) or None -> (N, 3) float32 linear radiance (non-finite results as 0). The
+    caller checks finiteness (``shade_object`` does)."""
+    n = np.asarray(normals_in_cam, dtype=np.float64)
+    length = np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
     n = np.where(length > 1e-6, n / np.maximum(length, 1e-6), lighting.up_in_cam)  # eps: degenerate normals
-    out = np.zeros_like(albedo)
-    vis = None if sun_visibility is None else np.asarray(sun_visibility, dtype=np.float64)[m]
-    E = irradiance_at_normals(n[m], lighting, vis)
-    a = np.clip(albedo[m], 0.0, None)
+    E = irradiance_at_normals(n, lighting, sun_visibility)
+    a = np.clip(np.asarray(albedo_linear, dtype=np.float64), 0.0, None)
     # the gain never lifts a channel above white's response (albedo 1): the saturation guard on white holds for it
     a = np.minimum(a * fluorescent_gain(a, FLUORESCENT_GAIN)[:, None], np.maximum(a, 1.0))
-    out[m] = a * E / np.pi
-    return np.nan_to_num(out, nan=0.0, posinf=0.0).astype(np.float32)
+    return np.nan_to_num(a * E / np.pi, nan=0.0, posinf=0.0).astype(np.float32)

@@ -88,3 +88,19 @@ def test_sun_below_horizon_casts_no_shadow():
     T = _pose(0.0, 6.0, 0.0)
     s = projected_ground_shadow(box_asset(), T, K, np.array([0.3, 0.2, -0.5]))
     assert s.ground_mask.any() and (s.visibility == 1).all()
+
+
+def test_ground_points_are_the_pixels_rays_on_the_ground_plane():
+    """projected_ground's object-frame x, y of each ground-patch pixel: the pixel's ray (from K) scaled by the
+    patch's z-depth, taken into the object frame by the inverse pose, lies on z = 0 at that x, y."""
+    from aias_augment.insertion.projected_shadow import projected_ground
+    T = _pose(0.4, 7.0, 0.6)
+    layers, xy = projected_ground(box_asset(extents=(0.5, 0.4, 0.9)), T, K, np.array([0.3, -0.2, 0.8]))
+    vv, uu = np.nonzero(layers.ground_mask)
+    assert len(xy) == len(vv) > 100
+    d = layers.ground_depth[vv, uu].astype(np.float64)
+    x0, y0 = layers.roi[:2]
+    pc = np.stack([(uu + x0 - K.cx) / K.fx * d, (vv + y0 - K.cy) / K.fy * d, d], -1)
+    po = (pc - T[:3, 3]) @ T[:3, :3]
+    np.testing.assert_allclose(po[:, 2], 0.0, atol=1e-5)        # float32 depth: ~1e-7 relative
+    np.testing.assert_allclose(xy, po[:, :2], atol=1e-5)
