@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from pycocotools import mask as mask_utils
 
@@ -25,11 +26,12 @@ class ObjectAnnotation:
 
 def mask_box_xywh(mask: np.ndarray) -> tuple[float, float, float, float] | None:
     """Tight COCO box [x, y, w, h] of a boolean mask in pixel-edge coordinates (pixel i spans [i, i+1])."""
-    ys, xs = np.nonzero(mask)
-    if len(xs) == 0:
+    m = np.asarray(mask)
+    x, y, w, h = cv2.boundingRect(m.view(np.uint8) if m.dtype == bool and m.flags.c_contiguous
+                                  else (m != 0).astype(np.uint8))
+    if w == 0:
         return None
-    x0, y0, x1, y1 = xs.min(), ys.min(), xs.max() + 1, ys.max() + 1
-    return float(x0), float(y0), float(x1 - x0), float(y1 - y0)
+    return float(x), float(y), float(w), float(h)
 
 
 def encode_rle(mask: np.ndarray) -> dict:
@@ -38,17 +40,58 @@ def encode_rle(mask: np.ndarray) -> dict:
     return rle
 
 
-def annotate_object(category: str, amodal_alpha: np.ndarray, visible_alpha: np.ndarray,
-                    threshold: float = 0.5) -> ObjectAnnotation:
+def encode_rle_in_window(mask_w: np.ndarray, x0: int, y0: int, full_hw: tuple[int, int]) -> dict:
+    """:func:`encode_rle` of the (H, W) frame that is 0 except for the bool window ``mask_w`` at (x0, y0), without
+    building the frame: COCO's column-major run lengths of the window's columns (full height), the empty columns
+    before and after added to the first and last runs of zeros."""
+    H, W = full_hw
+    h, w = mask_w.shape
+    cols = np.zeros((H, w), bool, order="F")
+    cols[y0:y0 + h] = mask_w
+    flat = cols.ravel(order="F")
+    edges = np.flatnonzero(flat[1:] != flat[:-1]) + 1
+    counts = np.diff(np.concatenate(([0], edges, [flat.size]))).tolist()
+    if flat[0]:
+        counts.insert(0, 0)   # runs start with zeros
+    counts[0] += x0 * H
+    after = (W - x0 - w) * H
+    if len(counts) % 2:   # the last run is zeros
+        counts[-1] += after
+    elif after:
+        counts.append(after)
+    rle = mask_utils.frPyObjects({"counts": counts, "size": [H, W]}, H, W)
+    rle["counts"] = rle["counts"].decode("ascii")
+    return rle
+
+
+def _annotation_parts(amodal_alpha: np.ndarray, visible_alpha: np.ndarray, threshold: float):
     amodal = amodal_alpha > threshold
     visible = visible_alpha > threshold
     amodal_box = mask_box_xywh(amodal)
     if amodal_box is None:
         raise ValueError("annotate_object: the object covers no pixel")
-    n_amodal = int(amodal.sum())
-    n_vis = int(visible.sum())
-    return ObjectAnnotation(category, mask_box_xywh(visible), amodal_box, n_vis / max(n_amodal, 1), float(n_vis),
-                            encode_rle(visible))
+    n_amodal = int(np.count_nonzero(amodal))
+    n_vis = int(np.count_nonzero(visible))
+    return visible, mask_box_xywh(visible), amodal_box, n_vis / max(n_amodal, 1), float(n_vis)
+
+
+def annotate_object(category: str, amodal_alpha: np.ndarray, visible_alpha: np.ndarray,
+                    threshold: float = 0.5) -> ObjectAnnotation:
+    visible, vbox, abox, visibility, area = _annotation_parts(amodal_alpha, visible_alpha, threshold)
+    return ObjectAnnotation(category, vbox, abox, visibility, area, encode_rle(visible))
+
+
+def annotate_in_window(category: str, win: tuple[int, int, int, int], amodal_w: np.ndarray, visible_w: np.ndarray,
+                       full_hw: tuple[int, int], threshold: float = 0.5) -> ObjectAnnotation:
+    """:func:`annotate_object` of the full frame whose layers are 0 outside the window ``win`` (x0, y0, x1, y1),
+    computed on the window: the same boxes (shifted by its origin), visibility, area and RLE."""
+    visible, vbox, abox, visibility, area = _annotation_parts(amodal_w, visible_w, threshold)
+
+    def shift(b):
+        return None if b is None else (b[0] + win[0], b[1] + win[1], b[2], b[3])
+
+    return ObjectAnnotation(category, shift(vbox), shift(abox), visibility, area,
+                            encode_rle_in_window(visible, win[0], win[1], full_hw))
 
 
 def box_visibility_under_cover(boxes_xyxy: np.ndarray, cover: np.ndarray) -> np.ndarray:

@@ -10,6 +10,7 @@ import copy
 import logging
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,6 +49,37 @@ DEFAULT_ASSETS: dict[str, list[str]] = {
 
 class AssetError(ValueError):
     """A mesh could not be loaded or is unusable (reason in the message)."""
+
+
+class _ScaledMeshes(Sequence):
+    """The meshes of :meth:`Asset.scaled`, made on first read: new vertices, shared faces, the given normals (a
+    uniform scale keeps unit normals: no recompute at a seam) and a shallow copy of the visual (the texture is not
+    copied). The fast path never reads them (it draws and shadows the root's meshes times the scale), so a sample
+    does not pay for building them (~0.25 ms per call). Pickles as the tuple of meshes."""
+
+    __slots__ = ("_base", "_factor", "_built")
+
+    def __init__(self, base, factor: float):
+        self._base, self._factor, self._built = base, factor, None
+
+    def _meshes(self) -> tuple:
+        if self._built is None:
+            self._built = tuple(trimesh.Trimesh(vertices=np.asarray(m.vertices) * self._factor, faces=m.faces,
+                                                vertex_normals=m.vertex_normals, visual=copy.copy(m.visual),
+                                                process=False) for m in self._base)
+        return self._built
+
+    def __len__(self) -> int:
+        return len(self._base)
+
+    def __getitem__(self, i):
+        return self._meshes()[i]
+
+    def __iter__(self):
+        return iter(self._meshes())
+
+    def __reduce__(self):
+        return (tuple, (self._meshes(),))
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,13 +130,9 @@ class Asset:
         """Uniformly scaled copy about the contact point (origin); stays on z = 0."""
         if not np.isfinite(factor) or factor <= 0:
             raise AssetError(f"scale factor must be positive and finite, got {factor}")
-        # New vertices, shared faces, normals (a uniform scale keeps unit normals: the given ones, no recompute at a
-        # seam) and a shallow copy of the visual (the texture is not copied: ~0.5 ms instead of ~3-9 ms per call).
-        meshes = [trimesh.Trimesh(vertices=np.asarray(m.vertices) * float(factor), faces=m.faces,
-                                  vertex_normals=m.vertex_normals, visual=copy.copy(m.visual), process=False)
-                  for m in self.meshes]
         root = self.render_root if self.render_root is not None else self
-        out = Asset(self.name, self.category, tuple(meshes), self.source, self.licence, self.procedural,
+        out = Asset(self.name, self.category, _ScaledMeshes(self.meshes, float(factor)), self.source, self.licence,
+                    self.procedural,
                     {**self.meta, "scale": self.meta.get("scale", 1.0) * factor}, root,
                     self.render_scale * float(factor))
         # Its bounds are this asset's times the (positive) factor, exactly: min/max commute with the product.

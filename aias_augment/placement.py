@@ -6,6 +6,7 @@ another stage. Every rejected candidate keeps its reason in the returned :class:
 from __future__ import annotations
 
 import hashlib
+import math
 from collections import Counter, OrderedDict
 from dataclasses import dataclass, field
 
@@ -125,18 +126,19 @@ def object_pose_on_ground(contact_point_in_cam: np.ndarray, ground: GroundPlane,
 
     Yaw 0 points the object x axis along the camera x axis projected onto the ground.
     """
-    up = ground.normal
-    ref = np.array([1.0, 0.0, 0.0])
-    x0 = ref - (ref @ up) * up
-    if np.linalg.norm(x0) < 1e-6:  # camera x axis vertical (rolled 90 deg): use the optical axis instead
-        ref = np.array([0.0, 0.0, 1.0])
-        x0 = ref - (ref @ up) * up
-    x0 /= np.linalg.norm(x0)
-    y0 = np.cross(up, x0)
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    x = c * x0 + s * y0
-    y = np.cross(up, x)
-    return make_rigid(np.stack([x, y, up], axis=1), contact_point_in_cam)
+    ux, uy, uz = (float(v) for v in ground.normal)
+    # ref - (ref . up) up, ref = camera x (or the optical axis when camera x is vertical: rolled 90 deg)
+    x0 = (1.0 - ux * ux, -ux * uy, -ux * uz)
+    if math.sqrt(x0[0] ** 2 + x0[1] ** 2 + x0[2] ** 2) < 1e-6:
+        x0 = (-uz * ux, -uz * uy, 1.0 - uz * uz)
+    nrm = math.sqrt(x0[0] ** 2 + x0[1] ** 2 + x0[2] ** 2)
+    x0 = (x0[0] / nrm, x0[1] / nrm, x0[2] / nrm)
+    y0 = (uy * x0[2] - uz * x0[1], uz * x0[0] - ux * x0[2], ux * x0[1] - uy * x0[0])   # up x x0
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    x = (c * x0[0] + s * y0[0], c * x0[1] + s * y0[1], c * x0[2] + s * y0[2])
+    y = (uy * x[2] - uz * x[1], uz * x[0] - ux * x[2], ux * x[1] - uy * x[0])           # up x x
+    p = np.asarray(contact_point_in_cam, dtype=np.float64).reshape(3)
+    return np.array([[x[0], y[0], ux, p[0]], [x[1], y[1], uy, p[1]], [x[2], y[2], uz, p[2]], [0.0, 0.0, 0.0, 1.0]])
 
 
 def box_of_points(uv: np.ndarray) -> np.ndarray:
@@ -298,13 +300,26 @@ class _GroundCandidates:
     def __init__(self, max_entries: int = 32):
         self.max_entries = max_entries
         self._entries: OrderedDict = OrderedDict()
+        self._digests: OrderedDict = OrderedDict()   # id -> (mask, digest) of read-only masks that own their data
 
-    @staticmethod
-    def _key(ground: GroundPlane, intrinsics: Intrinsics, region_mask, margin: float) -> tuple:
-        region = None
-        if region_mask is not None:
-            m = np.ascontiguousarray(np.asarray(region_mask, bool))
-            region = (m.shape, hashlib.blake2b(np.packbits(m).tobytes(), digest_size=16).digest())
+    def _region_digest(self, region_mask) -> tuple:
+        m = region_mask
+        # A read-only array that owns its memory (PlaceableRegion's mask) cannot change: digested once.
+        frozen = isinstance(m, np.ndarray) and not m.flags.writeable and m.base is None
+        if frozen:
+            got = self._digests.get(id(m))
+            if got is not None and got[0] is m:
+                return got[1]
+        a = np.ascontiguousarray(np.asarray(m, bool))
+        digest = (a.shape, hashlib.blake2b(np.packbits(a).tobytes(), digest_size=16).digest())
+        if frozen:
+            self._digests[id(m)] = (m, digest)
+            while len(self._digests) > self.max_entries:
+                self._digests.popitem(last=False)
+        return digest
+
+    def _key(self, ground: GroundPlane, intrinsics: Intrinsics, region_mask, margin: float) -> tuple:
+        region = None if region_mask is None else self._region_digest(region_mask)
         return (tuple(np.asarray(ground.normal, float).tolist()), float(ground.d), intrinsics.width,
                 intrinsics.height, float(intrinsics.fx), float(intrinsics.fy), float(intrinsics.cx),
                 float(intrinsics.cy), float(margin), region)
@@ -385,9 +400,11 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
         report.target_box_height_px = target_frac * h
     # A child generator for the refits, so that how many points the scene has does not change the draws of
     # pixels, heights and yaws from ``rng`` (same seed -> same candidates with or without measured points).
-    refit_rng = _child_generator(rng) if cfg.local_refit else None
+    # (Made only when there are measured points to refit on: a spawn leaves the draws from ``rng`` unchanged.)
+    measured = points_in_cam is not None or depth is not None
+    refit_rng = _child_generator(rng) if cfg.local_refit and measured else None
     band = (ground_band_points(ground, intrinsics, refit_rng, points_in_cam=points_in_cam, depth=depth, cfg=cfg)
-            if cfg.local_refit else None)
+            if refit_rng is not None else None)
     for _ in range(cfg.max_tries):
         report.tries += 1
         idx = cand[rng.integers(len(cand))]

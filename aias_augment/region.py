@@ -71,6 +71,12 @@ class PlaceableRegion:
     # Image evidence: fraction of the below-horizon pixels each step excluded (why a pixel is not placeable).
     excluded: dict = field(default_factory=dict)
 
+    def __post_init__(self):
+        # The region's own read-only copy: it cannot change after the analysis (placement memoises by identity).
+        m = np.array(self.mask, dtype=bool, copy=True)
+        m.setflags(write=False)
+        object.__setattr__(self, "mask", m)
+
     def to_dict(self) -> dict:
         d = {"evidence": self.evidence, "fraction": self.fraction}
         if self.excluded:

@@ -6,13 +6,13 @@ plan give the same bytes.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
 from .. import composite as comp
-from ..annotate import ObjectAnnotation, annotate_object, encode_rle
+from ..annotate import ObjectAnnotation, annotate_in_window
 from ..assets import Asset
 from ..geometry import Intrinsics, invert_rigid, transform_points, unproject_points
 from ..lighting.estimate import LightingEstimate
@@ -171,25 +171,10 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
         result[Y0:Y1, X0:X1] = grey[..., None]
         mods["colour"] = "luminance only: monochrome camera"
 
-    annotations = [_annotate_in_window(obj.placement.category, win, alpha, vis_w, full)
+    annotations = [annotate_in_window(obj.placement.category, win, alpha, vis_w, full)
                    for (obj, alpha, _, _), vis_w in zip(layers, vis_alphas)]
     return AppliedPlan(result, tuple(o.placement for o, _, _, _ in layers), tuple(annotations), cover, mods,
                        tuple(dropped))
-
-
-def _annotate_in_window(category: str, win: tuple, amodal_w: np.ndarray, visible_w: np.ndarray,
-                        full_hw: tuple[int, int]) -> ObjectAnnotation:
-    """:func:`annotate_object` of the full frame, computed on the window: boxes shifted by its origin, the RLE of
-    the full-frame visible mask (the same annotation, without building or scanning a full-frame float layer)."""
-    a = annotate_object(category, amodal_w, visible_w)
-
-    def shift(b):
-        return None if b is None else (b[0] + win[0], b[1] + win[1], b[2], b[3])
-
-    visible = np.zeros(full_hw, np.uint8, order="F")   # pycocotools reads column-major masks
-    visible[win[1]:win[3], win[0]:win[2]] = visible_w > 0.5
-    return replace(a, visible_box_xywh=shift(a.visible_box_xywh), amodal_box_xywh=shift(a.amodal_box_xywh),
-                   rle=encode_rle(visible))
 
 
 def _in_window(wshape: tuple, win: tuple, roi: tuple, arr: np.ndarray, fill: float = 0.0) -> np.ndarray:

@@ -39,3 +39,31 @@ def test_coco_file_is_valid_for_pycocotools(tmp_path):
     coco = b.write(tmp_path / "x.json")
     assert coco.getCatIds() == [1] and coco.loadAnns(coco.getAnnIds())[0]["bbox"] == [1, 2, 3, 4]
     assert json.loads((tmp_path / "x.json").read_text())["annotations"][0]["inserted"] is True
+
+
+def test_rle_in_window_is_the_full_frame_rle():
+    """encode_rle_in_window against pycocotools' encoding of the whole frame, for windows at the frame's corners and
+    edges, masks that start or end with a covered pixel, empty and full windows."""
+    from aias_augment.annotate import encode_rle, encode_rle_in_window
+    rng = np.random.default_rng(0)
+    H, W = 37, 53
+    cases = [(0, 0, 10, 12), (W - 9, H - 7, 9, 7), (5, 0, 20, H), (0, 3, W, 20), (0, 0, W, H), (17, 11, 1, 1)]
+    for x0, y0, w, h in cases:
+        for kind in ("random", "empty", "full", "corner"):
+            m = {"random": rng.random((h, w)) > 0.5, "empty": np.zeros((h, w), bool), "full": np.ones((h, w), bool),
+                 "corner": np.pad(np.ones((1, 1), bool), ((0, h - 1), (0, w - 1)))}[kind]
+            frame = np.zeros((H, W), bool)
+            frame[y0:y0 + h, x0:x0 + w] = m
+            assert encode_rle_in_window(m, x0, y0, (H, W)) == encode_rle(frame), (x0, y0, w, h, kind)
+
+
+def test_annotate_in_window_is_annotate_object_of_the_frame():
+    from aias_augment.annotate import annotate_in_window
+    rng = np.random.default_rng(1)
+    a = (rng.random((20, 30)) > 0.3).astype(np.float32)
+    v = a * (rng.random((20, 30)) > 0.4)
+    win = (40, 25, 70, 45)
+    A = np.zeros((60, 80), np.float32)
+    V = np.zeros((60, 80), np.float32)
+    A[25:45, 40:70], V[25:45, 40:70] = a, v
+    assert annotate_in_window("cone", win, a, v, (60, 80)) == annotate_object("cone", A, V)

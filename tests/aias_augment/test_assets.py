@@ -53,6 +53,23 @@ def test_scaled_keeps_contact_plane():
         box_asset().scaled(float("nan"))
 
 
+def test_scaled_meshes_are_the_vertices_times_the_factor_and_pickle():
+    """A scaled asset's meshes (made on first read): each vertex is the original's times the factor, faces shared,
+    the bounds the mesh's own; a pickled copy has the same vertices."""
+    import pickle
+    from tests.aias_augment.fixtures import box_asset
+    a = box_asset(extents=(0.5, 0.4, 0.9))
+    b = a.scaled(1.7)
+    assert len(b.meshes) == len(a.meshes)
+    for mb, ma in zip(b.meshes, a.meshes):
+        np.testing.assert_allclose(mb.vertices, np.asarray(ma.vertices) * 1.7, rtol=1e-15)
+        assert np.array_equal(mb.faces, ma.faces)
+    np.testing.assert_allclose(b.bounds_m, np.array([m.bounds for m in b.meshes]).reshape(-1, 2, 3)[0], rtol=1e-12)
+    c = pickle.loads(pickle.dumps(b))
+    assert np.array_equal(c.meshes[0].vertices, b.meshes[0].vertices)
+    assert np.isclose(b.scaled(2.0).meshes[0].vertices.max(), np.asarray(a.meshes[0].vertices).max() * 3.4)
+
+
 def test_path_assets_pickles_without_meshes(tmp_path):
     import pickle
     (tmp_path / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 1\nf 1 2 3\n")

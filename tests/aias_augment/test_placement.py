@@ -269,3 +269,26 @@ def test_candidate_cache_changes_nothing_and_sees_a_mask_changed_in_place():
     region[300:, 320:] = True                          # in place: now only the right half
     moved = [draw(s) for s in range(6)]
     assert all(p.contact_pixel[0] >= 319.5 for p in moved)
+
+
+def test_object_pose_on_ground_is_a_yawed_frame_standing_on_the_plane():
+    """For tilted planes and yaws: a proper rotation, object z = the plane normal, the origin at the contact point,
+    yaw 0's x axis = camera x projected onto the plane (normalised), and yaw turning x about the normal by yaw."""
+    from aias_augment.ground import GroundPlane
+    from aias_augment.placement import object_pose_on_ground
+    for normal in ([0.0, -1.0, 0.0], [0.1, -0.98, 0.17], [0.99, -0.1, 0.05]):
+        n = np.asarray(normal) / np.linalg.norm(normal)
+        g = GroundPlane(n, 1.6, "test")
+        p = np.array([0.3, 1.5, 8.0])
+        T0 = object_pose_on_ground(p, g, 0.0)
+        x_ref = np.array([1.0, 0, 0]) - n[0] * n
+        np.testing.assert_allclose(T0[:3, 0], x_ref / np.linalg.norm(x_ref), atol=1e-12)
+        for yaw in (0.0, 0.7, -2.5):
+            T = object_pose_on_ground(p, g, yaw)
+            R = T[:3, :3]
+            np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+            assert np.isclose(np.linalg.det(R), 1.0)
+            np.testing.assert_allclose(R[:, 2], n, atol=1e-12)
+            np.testing.assert_allclose(T[:3, 3], p)
+            np.testing.assert_allclose(T[3], [0, 0, 0, 1])
+            assert np.isclose(np.arctan2(np.cross(T0[:3, 0], R[:, 0]) @ n, T0[:3, 0] @ R[:, 0]), yaw)
