@@ -27,8 +27,8 @@ from albumentations.core.bbox_utils import convert_bboxes_from_albumentations, d
 
 from .assets import PathAssets
 from .insertion.cache import SceneCache
-from .insertion.variants import (Variant, VariantCache, VariantResult, variant_key, variant_key_prefix,
-                                 variant_rng)
+from .insertion.variants import (Variant, VariantCache, VariantResult, plain_image_key, variant_key,
+                                 variant_key_prefix, variant_rng)
 from .insertion.view_cache import ViewCache
 from .pipeline import PRESETS, InsertionConfig, load_preset
 from .validate import SampleSkip, TransformCounts, check_categories, check_sample_targets, image_for_insertion
@@ -204,8 +204,10 @@ class InsertObjects(A.DualTransform):
                 if render_from_view_cache(o.asset, o.cam_from_object, analysis.intrinsics, vc) is not None:
                     out["views_rendered" if vc.misses > m0 else "views_cached"] += 1
 
-    def _variant(self, rgb: np.ndarray, existing_xywh: np.ndarray, min_vis: float, data: dict, j: int | None = None):
-        """Variant ``j`` (None: drawn with the call's generator) of this sample, computed on a miss."""
+    def _variant(self, rgb: np.ndarray, existing_xywh: np.ndarray, min_vis: float, data, j: int | None = None,
+                 key: str | None = None):
+        """Variant ``j`` (None: drawn with the call's generator) of this sample, computed on a miss. ``key``: the
+        sample's :func:`variant_key` when the caller has it (and found it missing: it is not looked up again)."""
         if j is None:
             j = int(self.random_generator.integers(self.variants_per_image))
         # Boxes to 1e-3 px, in the key and in the insertion alike: the Compose's normalise/denormalise round trip
@@ -214,9 +216,11 @@ class InsertObjects(A.DualTransform):
             existing_xywh = np.round(np.asarray(existing_xywh, np.float64).reshape(-1, 4), 3)
         if self._variant_prefix is None:
             self._variant_prefix = variant_key_prefix(self.config, self.assets, self.variants_seed)
-        key = variant_key(rgb, camera_k=data.get("camera_k"), depth=data.get("depth"), scene=data.get("scene"),
-                          existing_xywh=existing_xywh, prefix=self._variant_prefix)
-        v = self._variants.get(key, j)
+        v = None
+        if key is None:
+            key = variant_key(rgb, camera_k=data.get("camera_k"), depth=data.get("depth"), scene=data.get("scene"),
+                              existing_xywh=existing_xywh, prefix=self._variant_prefix)
+            v = self._variants.get(key, j)
         labels = list(range(len(existing_xywh)))
         if v is None:
             full = insert_bounded(rgb, existing_xywh, labels, variant_rng(self.variants_seed, j, key), self.config,
@@ -224,6 +228,9 @@ class InsertObjects(A.DualTransform):
                                   scene_cache=self._scene_cache, view_cache=self._view_cache,
                                   scene=data.get("scene"))
             v = Variant.from_result(rgb, full)
+            h, w = rgb.shape[:2]
+            for fmt in _ENCODED_FORMATS:   # the new boxes as a Compose will encode them, made once, kept with it
+                v.encoded[(h, w, fmt)] = _encode_boxes(v.inserted_bboxes, h, w, fmt)
             self._variants.put(key, j, v)
         return v.result(rgb, existing_xywh, labels, min_vis)
 
@@ -257,7 +264,12 @@ class InsertObjects(A.DualTransform):
         ``restore`` is the identity), in fewer steps: a draw, the key, a lookup, a copy with the window pasted."""
         j = int(self.random_generator.integers(self.variants_per_image))
         try:
-            res = self._variant(rgb, _NO_BOXES, 0.0, _NO_TARGETS, j=j)
+            if self._variant_prefix is None:
+                self._variant_prefix = variant_key_prefix(self.config, self.assets, self.variants_seed)
+            key = plain_image_key(rgb, self._variant_prefix)
+            v = self._variants.get(key, j)
+            res = (self._variant(rgb, _NO_BOXES, 0.0, _NO_TARGETS, j=j, key=key) if v is None
+                   else v.result(rgb, _NO_BOXES, ()))
         except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
             self.counts.skip(e, log)
             return {"insert_result": None, "restore": _same}
@@ -370,11 +382,12 @@ class InsertObjects(A.DualTransform):
                     geo = _encode_boxes(res.inserted_bboxes, h, w, p.format)
                     if memo is not None:
                         memo[mk] = geo
+                elif type(geo) is bytes:   # as stored
+                    geo = memo[mk] = np.frombuffer(geo, np.float32).reshape(-1, 4)
                 if geo is not False:   # False: a box the processor's check must see (it may raise)
-                    manager = proc.label_manager
-                    encoded = [manager.process_field("bboxes", f, list(values)) for f in label_fields]
-                    rows = np.hstack((geo, np.hstack((geo[:, :0], *encoded)).astype(np.float32)))
-                    return _pad_columns(rows, bboxes)
+                    # the labels' columns promoted as preprocess's hstack promotes them, then float32
+                    rows = np.hstack((geo, *_encoded_labels(proc.label_manager, label_fields, values)))
+                    return _pad_columns(rows.astype(np.float32, copy=False), bboxes)
             return _pad_columns(self._preprocess_new_boxes(res, proc, values, label_fields, h, w), bboxes)
         xywh = np.asarray(res.inserted_bboxes, np.float64)
         xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
@@ -458,3 +471,22 @@ def _encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
         return False
     geo.flags.writeable = False
     return geo
+
+
+def _encoded_labels(manager, label_fields, values: list) -> list[np.ndarray]:
+    """``manager.process_field("bboxes", field, values)`` for each label field, as the processor's ``preprocess``
+    calls it: (K, 1) arrays. Where that call would change nothing in the manager (a field it has seen, holding
+    numbers; or strings its encoder knows all of) the same array is made here without it; else it is called."""
+    meta = manager.metadata.get("bboxes")
+    out = []
+    for f in label_fields:
+        m = None if meta is None else meta.get(f)
+        if m is not None and m.is_numerical:        # _encode_data of a list: float32
+            out.append(np.array(values, dtype=np.float32).reshape(-1, 1))
+            continue
+        e = None if m is None else m.encoder
+        if e is not None and not e.is_numerical and all(type(v) is str and v in e.classes_ for v in values):
+            out.append(np.array([e.classes_[v] for v in values]).reshape(-1, 1))   # LabelEncoder.transform
+            continue
+        out.append(manager.process_field("bboxes", f, list(values)))
+    return out

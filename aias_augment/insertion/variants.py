@@ -90,6 +90,18 @@ def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, exi
     return h.hexdigest()
 
 
+def plain_image_key(image: np.ndarray, prefix) -> str:
+    """:func:`variant_key` of a C-contiguous (H, W, 3) uint8 image without K, depth, scene facts or boxes (what a
+    training loop passes), with ``prefix`` from :func:`variant_key_prefix`: the same stream, its text built
+    without NumPy's dtype and shape reprs (their Python code costs more than hashing the pixels right after a
+    JPEG decode has left the caches cold)."""
+    h = prefix.copy()
+    h.update(b"image:uint8(%d, %d, 3)" % image.shape[:2])
+    h.update(image)
+    h.update(b"K:Nonedepth:Noneboxes:None")
+    return h.hexdigest()
+
+
 def variant_rng(seed: int, j: int, key: str) -> np.random.Generator:
     """The generator variant ``j`` of the sample with ``key`` is planned with (independent of the call's)."""
     return np.random.default_rng([int(seed), int(j), int(key[:16], 16)])
@@ -103,11 +115,15 @@ class Variant:
     existing_visibility (N,): visible fraction of each existing box under what was drawn; record: the insertion's
     :class:`~aias_augment.pipeline.InsertionRecord` (replayable).
 
+    ``encoded``: the new boxes as an albumentations Compose's bbox processor encodes them, by ``(height, width,
+    bbox format)``: (K, 4) float32, or False (the processor itself must look at them); filled by
+    :class:`~aias_augment.transform.InsertObjects` when it makes the variant (for its image's size and each
+    format) and when a call needs another. Stored with the variant (as bytes, made arrays when first used).
+
     Pickled compactly (raw bytes, no NumPy reconstruction), with the record as its own pickle that is only
-    unpickled when ``record`` is read: a hit from the folder reads one file and rebuilds four arrays on its bytes,
-    and never the record's objects unless someone asks for it. A variant read back is immutable (its arrays are
-    read-only views of the file's bytes). ``encoded``: a memo of this process (not pickled) of the new boxes as a
-    Compose's bbox processor encodes them, filled by :class:`~aias_augment.transform.InsertObjects`."""
+    unpickled when ``record`` is read: a hit from the folder reads one file and rebuilds three arrays on its
+    bytes, and never the record's objects unless someone asks for it. A variant read back is immutable (its arrays
+    are read-only views of the file's bytes)."""
 
     __slots__ = ("window", "pixels", "inserted_bboxes", "inserted_labels", "existing_visibility", "_record",
                  "_record_pickle", "encoded")
@@ -145,9 +161,11 @@ class Variant:
 
     def __reduce__(self):
         rec = self._record_pickle if self._record_pickle is not None else pickle.dumps(self._record, protocol=5)
+        encoded = {k: (g if g is False or isinstance(g, bytes) else np.asarray(g, np.float32).tobytes())
+                   for k, g in self.encoded.items()}
         return (_variant_from_state, (self.window, self.pixels.shape, self.pixels.tobytes(),
                                       self.inserted_bboxes.tobytes(), self.inserted_labels,
-                                      self.existing_visibility.tobytes(), rec))
+                                      self.existing_visibility.tobytes(), rec, encoded))
 
     @property
     def nbytes(self) -> int:
@@ -177,7 +195,7 @@ _NO_KEEP = np.zeros(0, bool)
 _NO_KEEP.flags.writeable = False
 
 
-def _variant_from_state(window, shape, pixels, boxes, labels, visibility, record_pickle) -> Variant:
+def _variant_from_state(window, shape, pixels, boxes, labels, visibility, record_pickle, encoded) -> Variant:
     """A :class:`Variant` from what :meth:`Variant.__reduce__` wrote (arrays as read-only views of the bytes)."""
     v = Variant.__new__(Variant)
     v.window = window
@@ -187,7 +205,7 @@ def _variant_from_state(window, shape, pixels, boxes, labels, visibility, record
     v.existing_visibility = np.frombuffer(visibility, np.float64)
     v._record = None
     v._record_pickle = record_pickle
-    v.encoded = {}
+    v.encoded = encoded
     return v
 
 
@@ -274,11 +292,16 @@ class VariantCache:
     def _read(self, key: str, j: int) -> Variant | None:
         if self._dirname is None:
             return None
-        try:   # one open and read (no exists() first: a missing file is the exception)
-            with open(os.path.join(self._dirname, key[:2], f"{key}_{j}.pkl"), "rb") as f:
-                data = f.read()
+        try:   # one open, fstat and read (no exists() first, no buffered file object: this is the call path)
+            fd = os.open(f"{self._dirname}/{key[:2]}/{key}_{j}.pkl", os.O_RDONLY)
         except OSError:
             return None
+        try:
+            data = os.read(fd, os.fstat(fd).st_size)
+        except OSError:
+            return None
+        finally:
+            os.close(fd)
         try:
             fmt, k, jj, v = pickle.loads(data)
         except Exception as e:  # a damaged file or another version's: computed again (and overwritten)

@@ -161,3 +161,78 @@ def test_scene_target_reaches_the_planner_and_a_bad_one_is_a_counted_skip():
     bad = tf(image=_image(), bboxes=[], category_ids=[], scene=SceneInputs(placeable_mask=mask[:10]))
     assert np.array_equal(bad["image"], _image()) and bad["bboxes"] == []
     assert tf.transforms[0].skipped == 1
+
+
+class _Boxes:
+    """What ``_encode_new_boxes`` reads from a result: the new boxes (COCO xywh pixels) and their category names."""
+
+    def __init__(self, xywh, labels):
+        self.inserted_bboxes = np.asarray(xywh, np.float64).reshape(-1, 4)
+        self.inserted_labels = list(labels)
+
+
+def _attached(fmt, label_fields, ids=None, **bbox_kw):
+    """An InsertObjects inside a Compose (so it has the Compose's bbox processor), and that processor."""
+    t = InsertObjects(categories=["traffic_cone"], preset="fast", category_ids=ids)
+    A.Compose([t], bbox_params=A.BboxParams(format=fmt, label_fields=label_fields, **bbox_kw))
+    return t, t.get_processor("bboxes")
+
+
+@pytest.mark.parametrize("fmt", ["coco", "pascal_voc", "yolo"])
+@pytest.mark.parametrize("ids,fields", [(None, ["labels"]), ({"traffic_cone": 7}, ["labels"]),
+                                        ({"traffic_cone": 2.5}, ["labels", "extra"]), ({"traffic_cone": "c"}, ["l"])])
+def test_new_boxes_encoded_as_the_compose_processor_encodes_them(fmt, ids, fields):
+    """The new boxes' rows (our float32 round trip plus the label manager's codes) equal, byte for byte and dtype,
+    what the Compose's processor makes of them with ``preprocess`` (run on a twin transform), call after call, and
+    both leave their label managers in the same state. Boxes of random sizes and places, on edges and corners, in
+    images of random sizes."""
+    from aias_augment.transform import _encode_boxes
+    rng = np.random.default_rng(0)
+    ours, proc = _attached(fmt, fields, ids)
+    ref, ref_proc = _attached(fmt, fields, ids)
+    for _ in range(60):
+        h, w = (int(v) for v in rng.integers(8, 2000, 2))
+        n = int(rng.integers(1, 4))
+        x0, y0 = rng.uniform(0, w - 1, n), rng.uniform(0, h - 1, n)
+        bw, bh = rng.uniform(1e-3, 1, n) * (w - x0), rng.uniform(1e-3, 1, n) * (h - y0)
+        xywh = np.c_[x0, y0, bw, bh]
+        if rng.random() < 0.3:   # integer pixel boxes touching the image's edges
+            xywh = np.array([[0, 0, w, h], [w - 3, h - 5, 3, 5]], np.float64)[: n]
+        res = _Boxes(xywh, ["traffic_cone"] * len(xywh))
+        got = ours._encode_new_boxes(res, np.zeros((0, 4 + len(fields))), (h, w, 3))
+        assert _encode_boxes(res.inserted_bboxes, h, w, fmt) is not False   # the fast path was taken
+        values = [ref._label_for(c, ref_proc, fields[0]) for c in res.inserted_labels]
+        want = ref._preprocess_new_boxes(res, ref_proc, values, fields, h, w)
+        assert got.dtype == want.dtype and got.shape == want.shape and got.tobytes() == want.tobytes()
+    for f in fields:
+        a, b = proc.label_manager.metadata["bboxes"][f], ref_proc.label_manager.metadata["bboxes"][f]
+        assert (a.is_numerical, a.input_type) == (b.is_numerical, b.input_type)
+        assert (a.encoder is None) == (b.encoder is None)
+        if a.encoder is not None:
+            assert a.encoder.classes_ == b.encoder.classes_ and a.encoder.is_numerical == b.encoder.is_numerical
+
+
+def test_new_box_labels_known_or_not_to_the_manager_get_its_codes():
+    """Label strings the manager already codes (from the caller's boxes) keep their codes; a new one gets the next
+    code, as ``process_field`` gives it, and the Compose decodes both."""
+    tf = A.Compose([InsertObjects(categories=["traffic_cone"], max_objects=2, p=1.0, preset="fast",
+                                  variants_per_image=1)],
+                   bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=3)
+    out = tf(image=_image(), bboxes=[[5, 5, 30, 30]], labels=["car"], camera_k=K)
+    assert out["labels"][0] == "car" and set(out["labels"][1:]) == {"traffic_cone"}
+    enc = tf.processors["bboxes"].label_manager.metadata["bboxes"]["labels"].encoder
+    assert enc.classes_ == {"car": 0, "traffic_cone": 1}
+    again = tf(image=_image(), bboxes=[[5, 5, 30, 30]], labels=["truck"], camera_k=K)
+    assert again["labels"][0] == "truck" and set(again["labels"][1:]) == {"traffic_cone"}
+    assert enc.classes_ == {"car": 0, "traffic_cone": 1, "truck": 2}
+
+
+def test_a_box_the_processor_must_check_goes_through_preprocess():
+    """A box outside [0, 1] once normalised is not encoded by the fast path: the processor's own check decides
+    (here: its error), as before."""
+    from aias_augment.transform import _encode_boxes
+    t, _ = _attached("coco", ["labels"])
+    res = _Boxes([[300.0, 10.0, 30.0, 20.0]], ["traffic_cone"])   # x_max 330 > width 320
+    assert _encode_boxes(res.inserted_bboxes, 240, 320, "coco") is False
+    with pytest.raises(ValueError, match="x_max"):
+        t._encode_new_boxes(res, np.zeros((0, 5)), (240, 320, 3))

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from aias_augment import InsertObjects
-from aias_augment.insertion.variants import Variant, VariantCache, variant_key, variant_key_prefix, variant_rng
+from aias_augment.insertion.variants import (Variant, VariantCache, plain_image_key, variant_key, variant_key_prefix,
+                                            variant_rng)
 from aias_augment.pipeline import load_preset
 from aias_augment.working_resolution import insert_bounded
 from tests.aias_augment.test_pipeline import _image
@@ -172,3 +173,69 @@ def test_same_variants_across_processes_hash_seeds_and_histories():
         outs.append(r.stdout.split())
     assert len(outs[0]) == 6 and outs[0] == outs[1]
     assert 1 < len(set(outs[0])) <= 3   # more than one variant drawn, never more than K
+
+
+def test_plain_image_key_is_the_variant_key_of_the_documented_stream():
+    import xxhash
+    img = _image()
+    p = variant_key_prefix(load_preset("fast"), seed=3)
+    stream = xxhash.xxh3_128(b"aias-variant v1 package " + __import__("aias_augment").__version__.encode()
+                             + b" seed 3")
+    for name, v in (("cfg", repr(load_preset("fast"))), ("assets", repr([]))):
+        stream.update(name.encode())
+        from aias_augment.insertion.analyse import _hash_value
+        _hash_value(stream, v)
+    stream.update(b"image:uint8(480, 640, 3)" + img.tobytes() + b"K:Nonedepth:Noneboxes:None")
+    assert plain_image_key(img, p) == variant_key(img, prefix=p) == stream.hexdigest()
+    assert variant_key(img, existing_xywh=np.zeros((0, 4)), prefix=p) == stream.hexdigest()
+
+
+def test_the_training_loop_path_returns_what_the_general_path_returns(tmp_path):
+    """A uint8 RGB image without boxes or targets takes the short path (key, lookup, paste, prebuilt boxes); the
+    same pixels as a non-contiguous view take the general one: call by call the same image bytes, boxes, labels,
+    counts and records, computed and read back from the folder alike."""
+    img = _image()
+    view = np.zeros((480, 640, 4), np.uint8)
+    view[..., :3] = img
+    view = view[..., :3]
+    assert not view.flags.c_contiguous
+
+    def compose(**kw):
+        return A.Compose([InsertObjects(categories=["traffic_cone"], max_objects=3, p=0.7, preset="fast",
+                                        variants_per_image=3, **kw)],
+                         bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=21)
+
+    short, general, reader = compose(scene_cache=str(tmp_path)), compose(), compose(scene_cache=str(tmp_path))
+    for _ in range(10):
+        a = short(image=img, bboxes=[], labels=[])
+        b = general(image=view, bboxes=[], labels=[])
+        c = reader(image=img, bboxes=[], labels=[])
+        for o in (b, c):
+            assert np.array_equal(a["image"], o["image"]) and a["labels"] == o["labels"]
+            assert np.asarray(a["bboxes"]).tobytes() == np.asarray(o["bboxes"]).tobytes()
+        ra, rb = short.transforms[0].last_record, general.transforms[0].last_record
+        assert (ra is None) == (rb is None) and (ra is None or ra.to_dict() == rb.to_dict())
+    assert short.transforms[0].counts.to_dict() == general.transforms[0].counts.to_dict()
+    assert reader.transforms[0]._variants.disk_hits >= 1 and reader.transforms[0]._variants.misses == 0
+
+
+def test_variant_file_round_trip_keeps_everything_and_reads_the_record_when_asked(tmp_path):
+    img = _image()
+    cfg = load_preset("fast", categories=("traffic_cone",), max_objects=2)
+    full = insert_bounded(img, np.asarray(BOXES), [0], np.random.default_rng(3), cfg, intrinsics=K)
+    v = Variant.from_result(img, full)
+    v.encoded[(480, 640, "coco")] = np.ones((len(v.inserted_labels), 4), np.float32)
+    v.encoded[(480, 640, "yolo")] = False
+    c = VariantCache(directory=tmp_path)
+    c.put("cd" * 16, 2, v)
+    back = VariantCache(directory=tmp_path).get("cd" * 16, 2)
+    assert back is not None and back._record is None   # the record stays bytes until read
+    assert back.window == v.window and back.inserted_labels == v.inserted_labels
+    for name in ("pixels", "inserted_bboxes", "existing_visibility"):
+        a, b = getattr(v, name), getattr(back, name)
+        assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b) and not b.flags.writeable
+    assert back.encoded[(480, 640, "yolo")] is False
+    assert back.encoded[(480, 640, "coco")] == np.ones((len(v.inserted_labels), 4), np.float32).tobytes()
+    assert back.record.to_dict() == full.record.to_dict()
+    assert np.array_equal(back.result(img, np.asarray(BOXES), ["real"]).image, full.image)
+    assert VariantCache(directory=tmp_path).get("cd" * 16, 1) is None   # another index: not there
