@@ -2,6 +2,7 @@
 visibility ratio, RLE mask; visibility of existing boxes under the inserted objects."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -94,23 +95,31 @@ def annotate_in_window(category: str, win: tuple[int, int, int, int], amodal_w: 
                             encode_rle_in_window(visible, win[0], win[1], full_hw))
 
 
-def box_visibility_under_cover(boxes_xyxy: np.ndarray, cover: np.ndarray) -> np.ndarray:
+def box_visibility_under_cover(boxes_xyxy: np.ndarray, cover: np.ndarray, origin: tuple[int, int] = (0, 0),
+                               frame_hw: tuple[int, int] | None = None) -> np.ndarray:
     """Fraction of each existing box's pixels NOT covered by the inserted objects (``cover`` in [0, 1]).
 
-    Boxes are in pixel-edge coordinates; a box with no pixel area counts as fully visible.
+    Boxes are in pixel-edge coordinates, clipped to the frame; a box with no pixel area counts as fully visible.
+    ``cover`` may be a window of the frame: placed at ``origin`` (x, y) in a frame of ``frame_hw`` (default: the
+    cover is the whole frame), 0 outside it.
     """
     boxes = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4)
-    h, w = cover.shape
+    h, w = cover.shape if frame_hw is None else frame_hw
+    ox, oy = origin
+    ch, cw = cover.shape
     out = np.ones(len(boxes))
-    if len(boxes) == 0:
+    if len(boxes) == 0 or cover.size == 0:
         return out
     integral = np.pad(np.cumsum(np.cumsum(cover.astype(np.float64), 0), 1), ((1, 0), (1, 0)))
-    for i, (x0, y0, x1, y1) in enumerate(boxes):
-        xa, ya = int(np.clip(np.floor(x0), 0, w)), int(np.clip(np.floor(y0), 0, h))
-        xb, yb = int(np.clip(np.ceil(x1), 0, w)), int(np.clip(np.ceil(y1), 0, h))
+    for i, (x0, y0, x1, y1) in enumerate(boxes.tolist()):
+        xa, ya = min(max(math.floor(x0), 0), w), min(max(math.floor(y0), 0), h)
+        xb, yb = min(max(math.ceil(x1), 0), w), min(max(math.ceil(y1), 0), h)
         area = (xb - xa) * (yb - ya)
         if area <= 0:
             continue
-        covered = integral[yb, xb] - integral[ya, xb] - integral[yb, xa] + integral[ya, xa]
+        # the box in the cover's own pixels, clipped to it
+        ca, cb = min(max(xa - ox, 0), cw), min(max(xb - ox, 0), cw)
+        ra, rb = min(max(ya - oy, 0), ch), min(max(yb - oy, 0), ch)
+        covered = integral[rb, cb] - integral[ra, cb] - integral[rb, ca] + integral[ra, ca]
         out[i] = 1.0 - covered / area
     return out

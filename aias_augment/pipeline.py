@@ -125,7 +125,8 @@ def assemble_result(analysis, plan, applied, boxes: np.ndarray, labels: list, mi
             inserted_boxes.append(ann.visible_box_xywh)
             inserted_labels.append(placement.category)
     existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
-    existing_vis = box_visibility_under_cover(existing_xyxy, applied.cover)
+    existing_vis = box_visibility_under_cover(existing_xyxy, applied.cover_window, applied.window[:2],
+                                              applied.image.shape[:2])
     keep = existing_vis >= min_visibility
     record.existing_visibility = existing_vis.tolist()
     ins = np.array(inserted_boxes, float).reshape(-1, 4)

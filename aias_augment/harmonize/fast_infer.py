@@ -306,34 +306,42 @@ def run_fast(model, image_float: np.ndarray, mask_bool: np.ndarray, tta: bool = 
     return out
 
 
-def harmonize_fast_masked(model, composite_uint8: np.ndarray, soft_mask: np.ndarray, tta: bool = True) -> np.ndarray:
+def harmonize_fast_masked(model, composite_uint8: np.ndarray, soft_mask: np.ndarray, tta: bool = True,
+                          box: tuple[int, int, int, int] | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """``harmonize(composite, soft_mask, method="fast")`` (:func:`aias_augment.harmonize.api.harmonize`: the same
     bytes) with the blend computed on the masked pixels only: the composite's other pixels are returned as they are,
     so nothing is converted, blended or compared there. ``soft_mask`` (H, W) float32 in [0, 1] (checked by the
     caller). Every step is elementwise or reads the same pixels in the same order as there (the affine of each
-    component on its own pixels; each context crop converted to float on its own), so the values are identical."""
+    component on its own pixels; each context crop converted to float on its own), so the values are identical.
+    ``box`` (x0, y0, x1, y1): a box holding every non-zero of ``soft_mask`` (the masks are scanned there only);
+    ``out``: the array written (it may be ``composite_uint8`` itself: every crop is read before the first write);
+    None: a copy of the composite."""
     model = as_np_model(model)
-    hard = soft_mask > 0
-    out = composite_uint8.copy()
+    H, W = soft_mask.shape
+    bx0, by0, bx1, by1 = (0, 0, W, H) if box is None else box
+    sm = soft_mask[by0:by1, bx0:bx1]
+    hard = sm > 0
+    out = composite_uint8.copy() if out is None else out
     n, labels, stats, _ = cv2.connectedComponentsWithStats(hard.view(np.uint8), connectivity=8)
     if n <= 1:
         return out
-    pixels = to_float(composite_uint8[hard])   # (N, 3), row-major order of the mask
+    pixels = to_float(composite_uint8[by0:by1, bx0:bx1][hard])   # (N, 3), row-major order of the mask
     result = pixels.copy()
-    L, T, W, H = cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT
+    L, T, Wd, Ht = cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT
     for i in range(1, n):
         st = stats[i]
-        box = (int(st[L]), int(st[T]), int(st[L] + st[W]), int(st[T] + st[H]))
-        comp = hard if n == 2 else labels == i
-        a = (predict_affine_tta(model, composite_uint8, comp, box=box) if tta
-             else predict_affine(model, composite_uint8, comp, box=box))
+        cbox = (int(st[L]) + bx0, int(st[T]) + by0, int(st[L] + st[Wd]) + bx0, int(st[T] + st[Ht]) + by0)
+        comp = np.zeros((H, W), bool)
+        comp[by0:by1, bx0:bx1] = hard if n == 2 else labels == i
+        a = (predict_affine_tta(model, composite_uint8, comp, box=cbox) if tta
+             else predict_affine(model, composite_uint8, comp, box=cbox))
         if n == 2:
             result = apply_affine_np(result, a)
         else:
             idx = (labels[hard] == i)
             result[idx] = apply_affine_np(result[idx], a)
-    m = soft_mask[hard].astype(np.float32)[:, None]
-    out[hard] = to_uint8(pixels * (1.0 - m) + result * m)
+    m = sm[hard].astype(np.float32)[:, None]
+    out[by0:by1, bx0:bx1][hard] = to_uint8(pixels * (1.0 - m) + result * m)
     return out
 
 

@@ -34,15 +34,22 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True, eq=False)
 class AppliedPlan:
     """The result of :func:`apply_plan`: the new image (H, W, 3) uint8, one annotation per object that rendered to a
-    pixel (with its placement), ``cover`` (H, W) float32: the union of the objects' visible coverage (what hides
-    existing boxes), and per stage what was done ('shadow', 'harmonize') and which planned objects were dropped."""
+    pixel (with its placement), ``cover_window`` float32 over ``window`` (x0, y0, x1, y1): the union of the objects'
+    visible coverage (what hides existing boxes; 0 outside the window; :attr:`cover` is it on the whole frame), and
+    per stage what was done ('shadow', 'harmonize') and which planned objects were dropped."""
 
     image: np.ndarray
     placements: tuple[Placement, ...]
     annotations: tuple[ObjectAnnotation, ...]
-    cover: np.ndarray
+    cover_window: np.ndarray
+    window: tuple[int, int, int, int]
     modules: dict = field(default_factory=dict)
     dropped: tuple[dict, ...] = ()
+
+    @property
+    def cover(self) -> np.ndarray:
+        """(H, W) float32: :attr:`cover_window` on the whole frame."""
+        return _paste_window(self.image.shape[:2], self.window, self.cover_window)
 
 
 def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
@@ -100,7 +107,7 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     if not rois:
         if not cfg.harmonize:
             mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
-        return AppliedPlan(img.copy(), (), (), np.zeros((h, w), np.float32), mods, tuple(dropped))
+        return AppliedPlan(img.copy(), (), (), np.zeros((0, 0), np.float32), (0, 0, 0, 0), mods, tuple(dropped))
     win = (min(r[0] for r in rois), min(r[1] for r in rois), max(r[2] for r in rois), max(r[3] for r in rois))
     X0, Y0, X1, Y1 = win
     wshape = (Y1 - Y0, X1 - X0)
@@ -151,17 +158,16 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     full = (h, w)
     # The union of the objects' visible coverages: the one full-frame float layer (what hides existing boxes, and
     # the harmonizer's mask, whose context reaches outside the window); per object, only windows.
-    cover_w = np.clip(np.maximum.reduce(vis_alphas), 0, 1)
-    cover = _paste_window(full, win, cover_w)
+    cover_w = np.clip(np.maximum.reduce(vis_alphas), 0, 1).astype(np.float32, copy=False)
 
     if cfg.harmonize:
-        union = cover
         bx, by, bw, bh = cv2.boundingRect((cover_w > 0).view(np.uint8))
-        result, mods["harmonize"] = _harmonize(result, union, cfg, np.random.default_rng(plan.harmonize_seed),
-                                               within=win,
+        result, mods["harmonize"] = _harmonize(result, cover_w, cfg, np.random.default_rng(plan.harmonize_seed),
+                                               within=win, mask_origin=(X0, Y0), in_place=True,
                                                mask_box=(bx + X0, by + Y0, bx + X0 + bw, by + Y0 + bh) if bw else None)
         if cfg.camera_match:
-            result, mods["camera_match"] = _camera_match(result, union, cfg, img, plan.harmonize_seed)
+            result, mods["camera_match"] = _camera_match(result, _paste_window(full, win, cover_w), cfg, img,
+                                                         plan.harmonize_seed)
     else:
         mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
     if analysis.modules.get("colour", "").startswith("monochrome"):
@@ -173,7 +179,7 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
 
     annotations = [annotate_in_window(obj.placement.category, win, alpha, vis_w, full)
                    for (obj, alpha, _, _), vis_w in zip(layers, vis_alphas)]
-    return AppliedPlan(result, tuple(o.placement for o, _, _, _ in layers), tuple(annotations), cover, mods,
+    return AppliedPlan(result, tuple(o.placement for o, _, _, _ in layers), tuple(annotations), cover_w, win, mods,
                        tuple(dropped))
 
 
@@ -248,25 +254,44 @@ def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intri
 
 
 def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,
-               within: tuple[int, int, int, int] | None = None, mask_box: tuple | None = None) -> tuple[np.ndarray, str]:
-    """``within``: a window (x0, y0, x1, y1) known to hold every masked pixel (None: the whole image);
-    ``mask_box``: the box (x0, y0, x1, y1) of the mask's non-zero pixels when the caller has it."""
+               within: tuple[int, int, int, int] | None = None, mask_box: tuple | None = None, *,
+               mask_origin: tuple[int, int] = (0, 0), in_place: bool = False) -> tuple[np.ndarray, str]:
+    """``mask``: the soft mask, placed at ``mask_origin`` (x, y) in ``image`` (0 elsewhere; by default the whole
+    image's mask); ``within``: a window (x0, y0, x1, y1) known to hold every masked pixel (None: the whole image);
+    ``mask_box``: the box (x0, y0, x1, y1) of the mask's non-zero pixels when the caller has it; ``in_place``: the
+    fast harmonizer writes into ``image`` (the caller's own copy) instead of a new array."""
+    H, W = image.shape[:2]
+    ox, oy = mask_origin
+    mh, mw = mask.shape
+    windowed = (ox, oy, mh, mw) != (0, 0, H, W)
+
+    def whole() -> np.ndarray:
+        return _paste_window((H, W), (ox, oy, ox + mw, oy + mh), mask) if windowed else mask
+
     try:
         from ..harmonize import harmonize
     except ImportError as e:  # the harmonization package is optional at this stage of the pipeline
         return image, f"skipped: harmonizer unavailable ({e})"
     try:
-        win, model = _harmonize_window(mask, cfg, within, mask_box)
+        if mask_box is None:   # the box of the mask's non-zero pixels, scanned in ``within`` when given
+            sx0, sy0, sx1, sy1 = (0, 0, mw, mh) if windowed or within is None else within
+            x, y, bw, bh = cv2.boundingRect((mask[sy0:sy1, sx0:sx1] > 0).view(np.uint8))
+            mask_box = (x + sx0 + ox, y + sy0 + oy, x + sx0 + ox + bw, y + sy0 + oy + bh) if bw else None
+        win, model = (None, None) if mask_box is None else _harmonize_window(mask, cfg, within, mask_box, (H, W))
         if win is None:
-            return (harmonize(image, mask, method=cfg.harmonize_method, rng=rng,
+            return (harmonize(image, whole(), method=cfg.harmonize_method, rng=rng,
                               test_time_views=cfg.harmonize_test_time_views), f"harmonized ({cfg.harmonize_method})")
         x0, y0, x1, y1 = win
-        out = image.copy()
+        soft = np.zeros((y1 - y0, x1 - x0), np.float32)   # the mask's part in the window
+        ix0, iy0, ix1, iy1 = max(x0, ox), max(y0, oy), min(x1, ox + mw), min(y1, oy + mh)
+        if ix1 > ix0 and iy1 > iy0:
+            soft[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = mask[iy0 - oy:iy1 - oy, ix0 - ox:ix1 - ox]
+        out = image if in_place else image.copy()
         # _harmonize_window returns a window for "fast" only: harmonize()'s fast path, blended on the mask only.
         from ..harmonize.fast_infer import harmonize_fast_masked
-        out[y0:y1, x0:x1] = harmonize_fast_masked(model, image[y0:y1, x0:x1],
-                                                  np.ascontiguousarray(mask[y0:y1, x0:x1], dtype=np.float32),
-                                                  tta=cfg.harmonize_test_time_views)
+        bx0, by0, bx1, by1 = mask_box
+        harmonize_fast_masked(model, image[y0:y1, x0:x1], soft, tta=cfg.harmonize_test_time_views,
+                              box=(bx0 - x0, by0 - y0, bx1 - x0, by1 - y0), out=out[y0:y1, x0:x1])
         return out, f"harmonized ({cfg.harmonize_method}, in the objects' context window)"
     except FileNotFoundError as e:
         return image, f"skipped: {e}"
@@ -302,7 +327,8 @@ def _fast_model_and_context():
 
 
 def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int, int, int, int] | None = None,
-                      mask_box: tuple | None = None) -> tuple[tuple[int, int, int, int] | None, object]:
+                      mask_box: tuple | None = None, image_hw: tuple[int, int] | None = None
+                      ) -> tuple[tuple[int, int, int, int] | None, object]:
     """(window, model): the window (x0, y0, x1, y1) in which the "fast" harmonizer gives the same bytes as on the
     whole image, and its NumPy model; (None, None) for other methods (they use whole-image statistics or draw per
     pixel: they get the whole image) or when there is nothing to harmonize.
@@ -311,7 +337,8 @@ def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int,
     side ``context x`` the component's longer side, centred on it and clipped to the image. Every component lies in
     the mask's box B, so every crop lies in B grown by ``max context / 2 x`` B's longer side: a window holding that
     (clipped to the image where the crops are clipped too) gives the same crops, the same predictions, the same
-    pixels (``tests/aias_augment/insertion/test_apply.py``). ``mask_box``: B when the caller has it."""
+    pixels (``tests/aias_augment/insertion/test_apply.py``). ``mask_box``: B when the caller has it (``mask`` is then
+    not read); ``image_hw``: the image's size (default: the mask's)."""
     if cfg.harmonize_method != "fast":
         return None, None
     got = _fast_model_and_context()
@@ -326,5 +353,5 @@ def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int,
         mask_box = (x + ox, y + oy, x + ox + bw, y + oy + bh)
     bx0, by0, bx1, by1 = mask_box
     grow = int(np.ceil(ctx / 2 * max(bx1 - bx0, by1 - by0))) + 2
-    h, w = mask.shape
+    h, w = mask.shape if image_hw is None else image_hw
     return (max(0, bx0 - grow), max(0, by0 - grow), min(w, bx1 + grow), min(h, by1 + grow)), model

@@ -67,3 +67,16 @@ def test_annotate_in_window_is_annotate_object_of_the_frame():
     V = np.zeros((60, 80), np.float32)
     A[25:45, 40:70], V[25:45, 40:70] = a, v
     assert annotate_in_window("cone", win, a, v, (60, 80)) == annotate_object("cone", A, V)
+
+
+def test_box_visibility_under_a_window_cover_is_that_of_the_frame():
+    """A cover given as a window at an origin: the same visibilities as the cover pasted into the whole frame
+    (boxes inside, across and outside the window, and past the frame's edges)."""
+    rng = np.random.default_rng(3)
+    win = rng.random((30, 40)).astype(np.float32)
+    frame = np.zeros((100, 120), np.float32)
+    frame[50:80, 60:100] = win
+    boxes = np.array([[55, 45, 70, 60], [0, 0, 120, 100], [10, 10, 30, 30], [90, 75, 130, 110], [-5, -5, 62, 52],
+                      [61.5, 52.2, 61.7, 52.9]])
+    np.testing.assert_allclose(box_visibility_under_cover(boxes, win, (60, 50), (100, 120)),
+                               box_visibility_under_cover(boxes, frame), atol=1e-12)
