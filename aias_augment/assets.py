@@ -122,9 +122,14 @@ class Asset:
         return float(self.extents_m[2])
 
     def corners_m(self) -> np.ndarray:
-        """(8, 3) corners of the axis-aligned bounding box in the object frame."""
-        lo, hi = self.bounds_m
-        return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        """(8, 3) corners of the axis-aligned bounding box in the object frame (read-only; made once per asset)."""
+        c = self.__dict__.get("_corners_m")
+        if c is None:
+            lo, hi = self.bounds_m
+            c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            c.setflags(write=False)
+            self.__dict__["_corners_m"] = c
+        return c
 
     def scaled(self, factor: float) -> "Asset":
         """Uniformly scaled copy about the contact point (origin); stays on z = 0."""

@@ -14,7 +14,7 @@ import numpy as np
 
 from .assets import CATEGORY_HEIGHT_RANGE_M, Asset
 from .collision import CollisionConfig, OrientedBox, check_candidate
-from .geometry import Intrinsics, make_rigid, project_points, transform_points
+from .geometry import Intrinsics, project_points, transform_points
 from .ground import GroundFitError, GroundPlane, depth_to_points, fit_ground_plane
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import atexit
 import logging
+import math
 import os
 import sys
 import weakref
@@ -24,8 +25,7 @@ import pyrender  # noqa: E402
 import trimesh  # noqa: E402
 
 from .assets import Asset  # noqa: E402
-from .geometry import (Intrinsics, check_finite, check_rigid, invert_rigid, opengl_from_opencv, project_points,
-                       transform_points)  # noqa: E402
+from .geometry import Intrinsics, check_rigid, invert_rigid, opengl_from_opencv  # noqa: E402
 
 __all__ = ["RenderLayers", "ShadowLayers", "render_object", "render_object_window", "render_ground_shadow",
            "srgb_to_linear", "linear_to_srgb"]
@@ -208,13 +208,18 @@ def _roi(points_in_obj: np.ndarray, cam_from_object: np.ndarray, intr: Intrinsic
          znear: float) -> tuple[int, int, int, int]:
     """Pixel window (x0, y0, x1, y1), x1/y1 exclusive, that contains the projection of ``points_in_obj`` (whose
     convex hull bounds what is rendered) plus a margin; the full frame when a point is not in front of the camera."""
-    uv, z = project_points(transform_points(cam_from_object, points_in_obj), intr.K)
-    if np.any(z <= znear) or not np.all(np.isfinite(uv)):
+    p = np.asarray(points_in_obj, np.float64).reshape(-1, 3) @ cam_from_object[:3, :3].T + cam_from_object[:3, 3]
+    z = p[:, 2]
+    if (z <= znear).any() or not np.isfinite(p).all():
         return 0, 0, intr.width, intr.height
-    x0 = int(np.clip(np.floor(uv[:, 0].min() - margin_px), 0, intr.width))
-    y0 = int(np.clip(np.floor(uv[:, 1].min() - margin_px), 0, intr.height))
-    x1 = int(np.clip(np.ceil(uv[:, 0].max() + margin_px) + 1, 0, intr.width))
-    y1 = int(np.clip(np.ceil(uv[:, 1].max() + margin_px) + 1, 0, intr.height))
+    K = intr.K   # project_points' arithmetic, in the same order
+    u = K[0, 0] * p[:, 0] / z + K[0, 1] * p[:, 1] / z + K[0, 2]
+    v = K[1, 1] * p[:, 1] / z + K[1, 2]
+    W, H = intr.width, intr.height
+    x0 = min(max(math.floor(float(u.min()) - margin_px), 0), W)
+    y0 = min(max(math.floor(float(v.min()) - margin_px), 0), H)
+    x1 = min(max(math.ceil(float(u.max()) + margin_px) + 1, 0), W)
+    y1 = min(max(math.ceil(float(v.max()) + margin_px) + 1, 0), H)
     return x0, y0, x1, y1
 
 
@@ -328,8 +333,10 @@ def _ground_patch(radius: float, node_origin: np.ndarray) -> "pyrender.Mesh":
 
 
 def unit_sun(sun_direction: np.ndarray) -> np.ndarray:
-    sun = check_finite(np.asarray(sun_direction, dtype=np.float64).reshape(3), "sun direction")
-    norm = np.linalg.norm(sun)
+    sun = np.asarray(sun_direction, dtype=np.float64).reshape(3)
+    if not np.isfinite(sun).all():
+        raise ValueError("sun direction: contains NaN or Inf")
+    norm = math.sqrt(float(sun @ sun))
     if norm < 1e-9:
         raise ValueError("sun direction has zero length")
     return sun / norm
@@ -340,11 +347,16 @@ def shadow_window(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrins
     """(roi, ground patch radius in m) of the shadow catcher: the window holding the object, its whole shadow (each
     bounding-box corner projected along the unit ``sun`` onto z = 0) and a ring of ground around its footprint."""
     corners = asset.corners_m()
-    ext = asset.extents_m
-    ring = max(float(ext[2]), float(ext[:2].max()))  # ground around the footprint kept for contact shadows
-    lo, hi = asset.bounds_m
-    pts = [corners, np.array([[lo[0] - ring, lo[1] - ring, 0], [hi[0] + ring, lo[1] - ring, 0],
-                              [lo[0] - ring, hi[1] + ring, 0], [hi[0] + ring, hi[1] + ring, 0]])]
+    got = asset.__dict__.get("_shadow_ring")   # a memo on the (immutable) asset, as its bounds
+    if got is None:
+        ext = asset.extents_m
+        ring = max(float(ext[2]), float(ext[:2].max()))  # ground around the footprint kept for contact shadows
+        lo, hi = asset.bounds_m
+        got = asset.__dict__["_shadow_ring"] = (ring, np.array(
+            [[lo[0] - ring, lo[1] - ring, 0], [hi[0] + ring, lo[1] - ring, 0], [lo[0] - ring, hi[1] + ring, 0],
+             [hi[0] + ring, hi[1] + ring, 0]]))
+    ring, ring_pts = got
+    pts = [corners, ring_pts]
     if sun[2] > 0.02:
         # The whole shadow: each corner projected along the sun onto z = 0 (length height / tan(elevation)), with the
         # ray length capped at 60 m for a sun grazing the horizon.

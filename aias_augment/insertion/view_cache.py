@@ -357,18 +357,26 @@ def rotational_symmetry_order(asset: Asset, binning: ViewBinning = DEFAULT_BINNI
 
 
 def _centre_and_radius(asset: Asset) -> tuple[np.ndarray, float]:
-    lo, hi = asset.bounds_m
-    return (lo + hi) / 2.0, float(np.linalg.norm(hi - lo) / 2.0)
+    got = asset.__dict__.get("_view_centre_radius")   # a memo on the (immutable) asset, as its bounds
+    if got is None:
+        lo, hi = asset.bounds_m
+        got = ((lo + hi) / 2.0, float(np.linalg.norm(hi - lo) / 2.0))
+        got[0].setflags(write=False)
+        asset.__dict__["_view_centre_radius"] = got
+    return got
 
 
 def _view_rotation(v_obj: np.ndarray) -> np.ndarray:
     """view_from_object rotation (rows x, y, z of the OpenCV view camera in the object frame) of a camera looking
     along -v_obj (v_obj: unit, from the object toward the camera) with the object's up (z) pointing up in the image."""
-    z = -v_obj
-    up = np.array([0.0, 0.0, 1.0]) if abs(v_obj[2]) < 0.999 else np.array([1.0, 0.0, 0.0])
-    y = -(up - (up @ z) * z)
-    y /= np.linalg.norm(y)
-    return np.stack([np.cross(y, z), y, z])
+    vx, vy, vz = (float(c) for c in v_obj)
+    zx, zy, zz = -vx, -vy, -vz
+    ux, uy, uz = (0.0, 0.0, 1.0) if abs(vz) < 0.999 else (1.0, 0.0, 0.0)
+    k = ux * zx + uy * zy + uz * zz
+    yx, yy, yz = -(ux - k * zx), -(uy - k * zy), -(uz - k * zz)
+    n = math.sqrt(yx * yx + yy * yy + yz * yz)
+    yx, yy, yz = yx / n, yy / n, yz / n
+    return np.array([[yy * zz - yz * zy, yz * zx - yx * zz, yx * zy - yy * zx], [yx, yy, yz], [zx, zy, zz]])
 
 
 def _bin_direction(ia: int, ie: int, b: ViewBinning) -> np.ndarray:
@@ -384,17 +392,16 @@ def view_key(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, 
     apply (the object is partly behind ``znear``, nearer than ``max_nearness``, or larger than 1.5 ``max_px``)."""
     c_obj, r = _centre_and_radius(asset)
     R, t = cam_from_object[:3, :3], cam_from_object[:3, 3]
-    corners_z = (asset.corners_m() @ R.T + t)[:, 2]
-    if corners_z.min() <= znear:
+    if float((asset.corners_m() @ R[2] + t[2]).min()) <= znear:   # the corners' z in the camera
         return None
     c_cam = R @ c_obj + t
-    d = float(np.linalg.norm(c_cam))
+    d = math.sqrt(float(c_cam @ c_cam))
     u = r / d
     if u >= binning.max_nearness:
         return None
-    v_obj = -(R.T @ c_cam) / d
-    az = math.degrees(math.atan2(v_obj[1], v_obj[0]))
-    el = math.degrees(math.asin(float(np.clip(v_obj[2], -1.0, 1.0))))
+    vx, vy, vz = (-(R.T @ c_cam) / d).tolist()
+    az = math.degrees(math.atan2(vy, vx))
+    el = math.degrees(math.asin(min(max(vz, -1.0), 1.0)))
     n_az = int(round(360.0 / binning.azimuth_step_deg))
     ia = int(round(az / binning.azimuth_step_deg)) % n_az
     ie = int(math.floor(el / binning.elevation_step_deg))
@@ -402,7 +409,7 @@ def view_key(asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, 
     diameter_px = 2.0 * max(intrinsics.fx, intrinsics.fy) * math.tan(math.asin(u))
     if diameter_px > 1.5 * binning.max_px:
         return None
-    px = int(np.clip(2 ** math.ceil(math.log2(max(diameter_px, 1.0))), binning.min_px, binning.max_px))
+    px = int(min(max(2 ** math.ceil(math.log2(max(diameter_px, 1.0))), binning.min_px), binning.max_px))
     return ia, ie, iu, px
 
 
