@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .render import linear_to_srgb, srgb_to_linear
+from .render import srgb_to_linear
 
 #: Relative depth margin (fraction of the object depth) inside which the scene is *not* considered in front of an
 #: inserted surface: stereo/LiDAR depth is noisy and the object stands on the very surface it is compared with.
@@ -68,4 +68,15 @@ def to_linear(image_rgb_uint8: np.ndarray) -> np.ndarray:
 
 
 def to_uint8(image_linear: np.ndarray) -> np.ndarray:
-    return np.clip(np.round(linear_to_srgb(image_linear) * 255.0), 0, 255).astype(np.uint8)
+    """float linear -> uint8 sRGB: ``round(linear_to_srgb(x) * 255)`` (the same float32 arithmetic, in place on one
+    array instead of a new array per step)."""
+    x = np.clip(np.asarray(image_linear, dtype=np.float32), 0.0, 1.0)
+    y = np.power(x, 1 / 2.4)
+    y *= 1.055
+    y -= 0.055
+    low = x <= 0.0031308
+    y[low] = 12.92 * x[low]
+    y *= 255.0
+    np.round(y, out=y)
+    np.clip(y, 0, 255, out=y)
+    return y.astype(np.uint8)

@@ -6,6 +6,7 @@ plan give the same bytes.
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass, field
 
 import cv2
@@ -17,7 +18,7 @@ from ..assets import Asset
 from ..geometry import Intrinsics, invert_rigid, transform_points, unproject_points
 from ..lighting.estimate import LightingEstimate
 from ..lighting.shading import shade_object, shade_pixels
-from ..lighting.shadows import (contact_occlusion, occluder_distance_from_footprint, shadow_ratio_from_sun_sky,
+from ..lighting.shadows import (contact_occlusion_of, occluder_distance_from_footprint, shadow_ratio_from_sun_sky,
                                 soften_shadow)
 from ..placement import Placement
 from ..render import render_ground_shadow, render_object_window
@@ -136,7 +137,7 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
         _, alpha, odepth, _ = layers[i][3]
         return float(np.median(odepth[alpha > 0]))
 
-    order = sorted(range(len(layers)), key=lambda i: -median_depth(i))
+    order = sorted(range(len(layers)), key=lambda i: -median_depth(i)) if len(layers) > 1 else [0]
     out = bg
     for i in order:
         (x0, y0, x1, y1), alpha, odepth, shaded = layers[i][3]
@@ -235,7 +236,7 @@ def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intri
     dx = np.maximum(np.maximum(lo[0] - pts_obj[:, 0], pts_obj[:, 0] - hi[0]), 0.0)
     dy = np.maximum(np.maximum(lo[1] - pts_obj[:, 1], pts_obj[:, 1] - hi[1]), 0.0)
     ao = np.ones(gm.shape, np.float32)  # off the ground patch: far from the object, no contact occlusion
-    ao[gm] = contact_occlusion(np.hypot(dx, dy), asset.height_m)
+    ao[gm] = contact_occlusion_of(np.hypot(dx, dy), asset.height_m)   # >= 0, finite: the ground points are
     # Without a sun the ratio is the contact occlusion alone ((a + 0 v) / 1).
     ratio = (shadow_ratio_from_sun_sky(sl.visibility, lighting.sun_sky_ratio, ambient_occlusion=ao)
              if sun_cam is not None else ao)
@@ -311,9 +312,19 @@ def _camera_match(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, sou
     return out, f"blur, noise, {jpeg} matched to the surroundings (after {cfg.harmonize_method})"
 
 
+#: The fast harmonizer's files are looked at (two ``stat``) at most this often (s): a checkpoint replaced while a
+#: process runs is read within this long.
+FAST_MODEL_RECHECK_S = 1.0
+_FAST_MODEL: dict = {}
+
+
 def _fast_model_and_context():
     """(model, largest context factor) of the shipped fast harmonizer, or None when its checkpoint is missing.
-    ``load_fast_np`` keys the model by the files' versions (two ``stat``); the context is read from its config."""
+    ``load_fast_np`` keys the model by the files' versions; the context is read from its config."""
+    now = time.monotonic()
+    got = _FAST_MODEL.get("m")
+    if got is not None and now - got[0] < FAST_MODEL_RECHECK_S:
+        return got[1]
     from ..harmonize.api import DEFAULT_CHECKPOINTS
     from ..harmonize.fast_infer import TTA_CONTEXTS, load_fast_np
     path = DEFAULT_CHECKPOINTS["fast"]
@@ -321,9 +332,12 @@ def _fast_model_and_context():
         model = load_fast_np(path)
     except FileNotFoundError:
         if not path.is_file():
+            _FAST_MODEL.pop("m", None)
             return None  # harmonize() raises the missing-checkpoint error with its training command
         raise
-    return model, max(TTA_CONTEXTS + (model.cfg.context,))
+    out = (model, max(TTA_CONTEXTS + (model.cfg.context,)))
+    _FAST_MODEL["m"] = (now, out)
+    return out
 
 
 def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int, int, int, int] | None = None,

@@ -126,6 +126,14 @@ def contact_occlusion(distance_to_object_m: np.ndarray, object_height_m: float, 
     Returns the factor ``a`` for :func:`shadow_ratio_from_sun_sky` in [1 - strength, 1]."""
     if not 0.0 <= strength <= 1.0:
         raise ValueError(f"strength must be in [0, 1], got {strength}")
-    R = max(float(object_height_m) * radius_fraction, 1e-3)  # eps: a flat object still gets a thin contact line
     rho = np.clip(np.nan_to_num(np.asarray(distance_to_object_m, dtype=np.float64), nan=np.inf), 0.0, None)
-    return (1.0 - strength * np.exp(-rho / R)).astype(np.float32)
+    return contact_occlusion_of(rho, object_height_m, strength, radius_fraction)
+
+
+def contact_occlusion_of(rho_m: np.ndarray, object_height_m: float, strength: float = 0.6,
+                         radius_fraction: float = 0.25) -> np.ndarray:
+    """:func:`contact_occlusion` of distances known to be >= 0 and not NaN (float64; not checked)."""
+    R = max(float(object_height_m) * radius_fraction, 1e-3)  # eps: a flat object still gets a thin contact line
+    e = np.exp(-rho_m / R)
+    e *= strength
+    return (1.0 - e).astype(np.float32)
