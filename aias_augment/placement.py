@@ -14,8 +14,8 @@ import numpy as np
 
 from .assets import CATEGORY_HEIGHT_RANGE_M, Asset
 from .collision import CollisionConfig, OrientedBox, check_candidate
-from .geometry import Intrinsics, project_points, transform_points
-from .ground import GroundFitError, GroundPlane, depth_to_points, fit_ground_plane
+from .geometry import MIN_DEPTH, Intrinsics, project_points, transform_points
+from .ground import RAY_PARALLEL_EPS, GroundFitError, GroundPlane, depth_to_points, fit_ground_plane
 
 
 @dataclass(frozen=True)
@@ -155,6 +155,23 @@ def _overlap_frac(box: np.ndarray, others: np.ndarray) -> float:
     area_b = max((box[2] - box[0]) * (box[3] - box[1]), 1e-9)
     area_o = np.maximum((others[:, 2] - others[:, 0]) * (others[:, 3] - others[:, 1]), 1e-9)
     return float(np.max(inter / np.minimum(area_b, area_o)))
+
+
+def _ground_point(ground: GroundPlane, uv: np.ndarray, K: tuple) -> np.ndarray | None:
+    """``ground.intersect_pixels`` of one pixel in scalar arithmetic (the same operations): the ground point (3,) in
+    the camera frame, or None where that gives NaN (horizon, sky, behind the camera). ``K``: fx, fy, cx, cy, skew."""
+    fx, fy, cx, cy, skew = K
+    u, v = float(uv[0]), float(uv[1])
+    y = (v - cy) / fy
+    x = (u - cx - skew * y) / fx
+    nx, ny, nz = (float(c) for c in ground.normal)
+    denom = x * nx + y * ny + nz
+    if not abs(denom) > RAY_PARALLEL_EPS:
+        return None
+    t = -float(ground.d) / denom
+    if not t > 0 or not t > MIN_DEPTH:   # z = t (the ray's z is 1)
+        return None
+    return np.array([x * t, y * t, t])
 
 
 def _child_generator(rng: np.random.Generator) -> np.random.Generator:
@@ -381,6 +398,8 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
     of :mod:`.collision` when ``points_in_cam`` or ``existing_objects`` (OrientedBox list) are given.
     """
     w, h = intrinsics.width, intrinsics.height
+    K = (float(intrinsics.fx), float(intrinsics.fy), float(intrinsics.cx), float(intrinsics.cy),
+         float(intrinsics.K[0, 1]))
     existing = np.zeros((0, 4)) if existing_boxes_xyxy is None else np.asarray(existing_boxes_xyxy, float).reshape(-1, 4)
     hr = height_range_m or CATEGORY_HEIGHT_RANGE_M.get(asset.category, (asset.height_m, asset.height_m))
     report = PlacementReport()
@@ -410,11 +429,11 @@ def sample_placement(asset: Asset, ground: GroundPlane, intrinsics: Intrinsics, 
         idx = cand[rng.integers(len(cand))]
         v, u = divmod(int(idx), w)
         uv = np.array([u + rng.uniform(-0.5, 0.5), v + rng.uniform(-0.5, 0.5)])
-        p = ground.intersect_pixels(uv, intrinsics)
-        if not np.all(np.isfinite(p)):
+        p = _ground_point(ground, uv, K)
+        if p is None:
             report.rejected["ray misses the ground"] += 1
             continue
-        dist = float(np.linalg.norm(p))
+        dist = math.sqrt(float(p @ p))
         if not (cfg.min_distance_m <= dist <= cfg.max_distance_m):
             report.rejected["distance out of range"] += 1
             continue

@@ -292,3 +292,24 @@ def test_object_pose_on_ground_is_a_yawed_frame_standing_on_the_plane():
             np.testing.assert_allclose(T[:3, 3], p)
             np.testing.assert_allclose(T[3], [0, 0, 0, 1])
             assert np.isclose(np.arctan2(np.cross(T0[:3, 0], R[:, 0]) @ n, T0[:3, 0] @ R[:, 0]), yaw)
+
+
+def test_ground_point_of_a_pixel_is_intersect_pixels():
+    """placement's scalar ray-plane intersection against GroundPlane.intersect_pixels: the same point below the
+    horizon (to 1e-12), None where that gives NaN (above the horizon, on it)."""
+    from aias_augment.geometry import Intrinsics
+    from aias_augment.ground import GroundPlane
+    from aias_augment.placement import _ground_point
+    K = Intrinsics.from_fov(640, 480, 70.0)
+    kt = (K.fx, K.fy, K.cx, K.cy, float(K.K[0, 1]))
+    rng = np.random.default_rng(0)
+    for n in ([0.0, -1.0, 0.0], [0.05, -0.99, 0.12], [0.0, -0.2, 0.98]):
+        g = GroundPlane(np.asarray(n) / np.linalg.norm(n), 1.65, "test")
+        uv = np.c_[rng.uniform(-50, 690, 400), rng.uniform(-50, 530, 400)]
+        ref = g.intersect_pixels(uv, K)
+        for q, r in zip(uv, ref):
+            got = _ground_point(g, q, kt)
+            if np.all(np.isfinite(r)):
+                np.testing.assert_allclose(got, r, rtol=1e-12, atol=1e-12)
+            else:
+                assert got is None
