@@ -268,12 +268,17 @@ def predict_affine(model, image_float: np.ndarray, comp: np.ndarray, context: fl
     x0, y0, x1, y1 = context_box(mask_box(comp) if box is None else box, comp.shape,
                                  model.cfg.context if context is None else context)
     crop, cm = image_float[y0:y1, x0:x1], comp[y0:y1, x0:x1]
-    if crop.dtype == np.uint8:
-        crop = to_float(crop)
     if flip:
         crop, cm = crop[:, ::-1], cm[:, ::-1]
-    crop = resize(np.ascontiguousarray(crop), (t, t))
-    cmf = resize(np.ascontiguousarray(cm).astype(np.float32), (t, t))
+    # The crop (as float, [0, 1]) and its mask as one 4-channel image: one resize (channels are resized alike).
+    both = np.empty(crop.shape[:2] + (4,), np.float32)
+    if crop.dtype == np.uint8:
+        np.divide(crop, np.float32(255.0), out=both[..., :3])   # to_float, into place
+    else:
+        both[..., :3] = crop
+    both[..., 3] = cm
+    both = resize(both, (t, t))
+    crop, cmf = both[..., :3], both[..., 3]
     m = (cmf > 0.5).astype(np.float32)
     if not m.any():
         m = (cmf > 0).astype(np.float32)
