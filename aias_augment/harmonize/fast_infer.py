@@ -270,14 +270,10 @@ def predict_affine(model, image_float: np.ndarray, comp: np.ndarray, context: fl
     crop, cm = image_float[y0:y1, x0:x1], comp[y0:y1, x0:x1]
     if flip:
         crop, cm = crop[:, ::-1], cm[:, ::-1]
-    # The crop (as float, [0, 1]) and its mask as one 4-channel image: one resize (channels are resized alike).
-    both = np.empty(crop.shape[:2] + (4,), np.float32)
-    if crop.dtype == np.uint8:
-        np.divide(crop, np.float32(255.0), out=both[..., :3])   # to_float, into place
-    else:
-        both[..., :3] = crop
-    both[..., 3] = cm
-    both = resize(both, (t, t))
+    # The crop (as float, [0, 1]) and its mask as one 4-channel image: one resize (channels are resized alike;
+    # cv2.merge: a strided NumPy write of 3 of 4 channels is ~8x slower).
+    crop = to_float(crop) if crop.dtype == np.uint8 else np.ascontiguousarray(crop, np.float32)
+    both = resize(cv2.merge([np.ascontiguousarray(crop), np.ascontiguousarray(cm, np.float32)]), (t, t))
     crop, cmf = both[..., :3], both[..., 3]
     m = (cmf > 0.5).astype(np.float32)
     if not m.any():
