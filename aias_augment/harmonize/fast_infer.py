@@ -17,6 +17,7 @@ import functools
 import hashlib
 import json
 import os
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -137,6 +138,32 @@ def _masked_quantiles(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.concatenate(parts)
 
 
+#: Off: the convolutions run as NumPy matmuls (``AIAS_FAST_HARMONIZER_DNN=0``).
+USE_OPENCV_DNN = os.environ.get("AIAS_FAST_HARMONIZER_DNN", "1") != "0"
+
+
+def _darknet_convs(convs, shape: tuple):
+    """An OpenCV DNN net of the 3x3 stride-2 padding-1 ReLU convolutions ``convs`` for input ``shape`` (C, H, W),
+    written as a Darknet cfg and weights in memory (Darknet's weights file: a header, then per layer its biases and
+    its (Cout, C, 3, 3) weights, as torch orders them); None when OpenCV's DNN module is missing or refuses it."""
+    if not USE_OPENCV_DNN:
+        return None
+    try:
+        c, h, w = shape
+        cfg = [f"[net]\nwidth={w}\nheight={h}\nchannels={c}\n"]
+        weights = [np.array([0, 2, 0], np.int32).tobytes(), np.zeros(1, np.int64).tobytes()]
+        for wt, b in convs:
+            cfg.append(f"[convolutional]\nfilters={wt.shape[0]}\nsize=3\nstride=2\npad=1\nactivation=relu\n")
+            weights += [np.ascontiguousarray(b, np.float32).tobytes(), np.ascontiguousarray(wt, np.float32).tobytes()]
+        net = cv2.dnn.readNetFromDarknet(np.frombuffer("\n".join(cfg).encode(), np.uint8),
+                                         np.frombuffer(b"".join(weights), np.uint8))
+        net.setPreferableBackend(cv2.dnn.DNN_BACKEND_OPENCV)
+        net.setPreferableTarget(cv2.dnn.DNN_TARGET_CPU)
+        return net
+    except (AttributeError, cv2.error):
+        return None
+
+
 @dataclass(frozen=True, eq=False)
 class FastColorNetNP:
     """The fast harmonizer's weights for :meth:`forward` (see the module docstring)."""
@@ -155,6 +182,33 @@ class FastColorNetNP:
         mlp = tuple((arr(f"mlp.{i}.weight"), arr(f"mlp.{i}.bias")) for i in (0, 2))
         return cls(cfg, convs, mlp)
 
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k != "_dnn"}   # the OpenCV nets are made per process
+
+    def features(self, x: np.ndarray) -> np.ndarray:
+        """The convolution stack on (C, H, W) float32: OpenCV's DNN module (one call, ~2x faster than the im2col
+        matmuls at this size; the same weights, loaded as a Darknet stack of 3x3 stride-2 pad-1 ReLU convolutions;
+        values agree with :func:`conv3x3_s2_relu` to ~1e-7, tested), else :func:`conv3x3_s2_relu` per layer. One
+        net per thread (a net is not safe to run from two threads at once)."""
+        net = self._dnn_net(x.shape)
+        if net is None:
+            for w, b in self.convs:
+                x = conv3x3_s2_relu(x, w, b)
+            return x
+        net.setInput(x[None])
+        return net.forward()[0]
+
+    def _dnn_net(self, shape: tuple):
+        local = self.__dict__.get("_dnn")
+        if local is None:
+            local = self.__dict__.setdefault("_dnn", threading.local())
+        got = getattr(local, "nets", None)
+        if got is None:
+            got = local.nets = {}
+        if shape not in got:
+            got[shape] = _darknet_convs(self.convs, shape)
+        return got[shape]
+
     @classmethod
     def from_torch(cls, model) -> "FastColorNetNP":
         """From a torch :class:`~aias_augment.harmonize.fast.FastColorNet` (its current weights)."""
@@ -172,8 +226,7 @@ class FastColorNetNP:
             small = adaptive_avg_pool(img, (t, t))
             small_m = (adaptive_avg_pool(m[None], (t, t))[0] > 0.5).astype(np.float32)
         h = np.concatenate([small * (1.0 - small_m), small_m[None], small * small_m])   # network_inputs
-        for w, b in self.convs:
-            h = conv3x3_s2_relu(h, w, b)
+        h = self.features(np.ascontiguousarray(h, np.float32))
         f = [h.mean(axis=(1, 2), dtype=np.float32)]
         if self.cfg.masked_pooling:
             pm = adaptive_avg_pool(small_m[None], h.shape[1:])

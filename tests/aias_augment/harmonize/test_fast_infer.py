@@ -56,6 +56,46 @@ def test_numpy_forward_matches_torch(cfg):
         assert np.abs(ref - np.eye(3, 4)).max() > 0.01   # the check is not on an identity
 
 
+def test_opencv_dnn_features_equal_the_numpy_convolutions_across_threads_and_pickling():
+    """FastColorNetNP.features (OpenCV's DNN when present) against the NumPy conv chain and torch's conv2d, on
+    random weights and inputs of two sizes; four threads at once get the same values; a pickled copy (no nets)
+    rebuilds its own."""
+    import pickle
+    import threading
+    torch.manual_seed(3)
+    model = FastColorNet(FastConfig(quantile_stats=True, quantile_channels="rgb")).eval()
+    with torch.no_grad():
+        for p in model.parameters():
+            p.copy_(torch.randn_like(p) * 0.2)
+    npm = FastColorNetNP.from_torch(model)
+    rng = np.random.default_rng(4)
+    for size in (64, 37):
+        x = rng.random((7, size, size), dtype=np.float32)
+        ref = x
+        for w, b in npm.convs:
+            ref = conv3x3_s2_relu(ref, w, b)
+        with torch.no_grad():
+            tref = model.features(torch.from_numpy(x)[None])[0].numpy()
+        got = npm.features(x)
+        assert got.shape == ref.shape == tref.shape
+        np.testing.assert_allclose(got, ref, atol=1e-5, rtol=1e-5)   # float32 sums in another order
+        np.testing.assert_allclose(got, tref, atol=1e-5, rtol=1e-5)
+    x = rng.random((7, 64, 64), dtype=np.float32)
+    one = npm.features(x)
+    outs = [None] * 4
+
+    def run(i):
+        for _ in range(20):
+            outs[i] = npm.features(x)
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(np.array_equal(o, one) for o in outs)
+    assert np.array_equal(pickle.loads(pickle.dumps(npm)).features(x), one)
+
+
 def test_npz_export_round_trip_and_stale_npz_refused(tmp_path):
     model = FastColorNet(FastConfig(thumbnail_px=16, channels=4, quantile_stats=True, quantile_channels="rgb"))
     with torch.no_grad():
