@@ -150,6 +150,31 @@ class _Images:
         return torch.from_numpy(np.ascontiguousarray(img)).permute(2, 0, 1)
 
 
+class _AppendBoxes(A.DualTransform):
+    """The Compose's own cost of a transform that adds boxes, and nothing else: at ``p``, two fixed new boxes
+    (labelled "traffic_cone" through the Compose's label manager, as InsertObjects labels its boxes) appended, no
+    pixel changed. The ``boxes_only`` loader arm: the most any insertion transform inside an albumentations
+    Compose can reach (the Compose then filters, checks, converts and decodes the new boxes, as it does for any
+    transform's boxes)."""
+
+    _targets = (A.core.type_definitions.Targets.IMAGE, A.core.type_definitions.Targets.MASK,
+                A.core.type_definitions.Targets.BBOXES)
+    _ROWS = np.array([[0.1, 0.5, 0.2, 0.7], [0.4, 0.6, 0.45, 0.8]], np.float32)
+
+    def apply(self, img, **params):
+        return img
+
+    def apply_to_mask(self, mask, **params):
+        return mask
+
+    def apply_to_bboxes(self, bboxes, **params):
+        codes = self.get_processor("bboxes").label_manager.process_field("bboxes", "labels", ["traffic_cone"] * 2)
+        return np.hstack((self._ROWS, codes)).astype(np.float32)
+
+    def get_transform_init_args_names(self):
+        return ()
+
+
 def _decoded(paths) -> list[np.ndarray]:
     """The items' images as the dataset decodes them (what ``InsertObjects.warm`` must see to hit the same keys)."""
     return [cv2.resize(cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB), (320, 320), interpolation=cv2.INTER_AREA)
@@ -167,13 +192,15 @@ def _set_cv2_threads(n: int, worker_id: int) -> None:
 
 
 def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str, warm: dict | None = None,
-                 view_plans: int = 0, variants: int | None = None) -> list[float]:
+                 view_plans: int = 0, variants: int | None = None, boxes_only: bool = False) -> list[float]:
     """Images/s per epoch. ``warm``: a dict; the transform's ``warm`` (with ``view_plans``) is run on the items'
     images first (into the on-disk scene cache and views the workers read) and its seconds and counts are written
-    into it."""
+    into it. ``boxes_only``: instead of InsertObjects, :class:`_AppendBoxes` (p=0.5) in the same Compose."""
     import torch
     tf = None
-    if with_insertion:
+    if boxes_only:
+        tf = _compose(_AppendBoxes(p=0.5))
+    elif with_insertion:
         tf = _compose(InsertObjects(categories=["traffic_cone"], preset="fast", p=0.5, scene_cache=cache_dir,
                                     variants_per_image=variants))
         if warm is not None:
@@ -189,10 +216,24 @@ def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str, warm:
         t0 = time.perf_counter()
         n = sum(len(b) for b in dl)
         rates.append(n / (time.perf_counter() - t0))
-        print(f"loader {'with' if with_insertion else 'without'} insertion{' (warmed)' if warm else ''}"
+        print(f"loader {'boxes only' if boxes_only else ('with' if with_insertion else 'without') + ' insertion'}"
+              f"{' (warmed)' if warm else ''}"
               f"{f' (variants {variants})' if variants else ''}, epoch {e + 1}: {rates[-1]:.1f} img/s", flush=True)
     del dl
     return rates
+
+
+class _Same:
+    """A folder name as a context manager (a kept folder, not removed on exit)."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def __enter__(self) -> str:
+        return self.name
+
+    def __exit__(self, *exc) -> None:
+        return None
 
 
 def _view_cache_summary(out: Path) -> str:
@@ -208,8 +249,10 @@ def _view_cache_summary(out: Path) -> str:
 
 
 #: Loader arms: no insertion; a new insertion per call (fresh); fresh after ``warm(view_plans=...)``; at most K
-#: variants per image made when first drawn; the K variants made by ``warm(variants=True)`` before the loader.
-LOADER_ARMS = ("without", "fresh", "fresh_warmed", "variants", "variants_warmed")
+#: variants per image made when first drawn; the K variants made by ``warm(variants=True)`` before the loader;
+#: boxes_only: the same Compose with a transform that only appends two fixed boxes at p=0.5 (the Compose's own cost
+#: of new boxes: the ceiling for any insertion transform in it).
+LOADER_ARMS = ("without", "fresh", "fresh_warmed", "variants", "variants_warmed", "boxes_only")
 
 #: Stages of one loader item, by the function that does them (cProfile cumulative time).
 WORKER_STAGES = {
@@ -282,6 +325,9 @@ def main(argv=None) -> int:
     ap.add_argument("--cv2-threads", type=int, default=None,
                     help="cv2.setNumThreads in each loader worker (albumentations advises 0); default: OpenCV's")
     ap.add_argument("--repeats", type=int, default=1, help="loader arms run this many times (medians reported)")
+    ap.add_argument("--keep-warm-folder", action="store_true",
+                    help="the warmed arms keep their cache folder across repeats (warm() then finds it filled and "
+                         "only checks it; the workers read the same files as after a first warm-up)")
     ap.add_argument("--worker-profile", action="store_true", help="also profile a worker's stages (fresh arm)")
     ap.add_argument("--out", default="results/bench")
     a = ap.parse_args(argv)
@@ -299,19 +345,25 @@ def main(argv=None) -> int:
     if not a.skip_loader:
         small = sorted((data_root() / "tracon" / "images" / "train").glob("*.jpg"))[:a.loader_images]
         runs, warms = [], {}
+        kept = {}   # --keep-warm-folder: the warmed arms' folders, across repeats
         for rep in range(a.repeats):   # each arm a new loader and cache folder; "without" first and last
             arms = {}
             for arm in list(a.loader_arms) + ["without (again)"]:
                 warm = {} if arm in ("fresh_warmed", "variants_warmed") else None
-                with tempfile.TemporaryDirectory() as d:
+                if warm is not None and a.keep_warm_folder and arm not in kept:
+                    kept[arm] = tempfile.TemporaryDirectory()
+                with (tempfile.TemporaryDirectory() if arm not in kept else _Same(kept[arm].name)) as d:
                     arms[arm] = loader_rates(small, a.epochs, not arm.startswith("without"), d, warm,
                                              a.warm_view_plans if arm == "fresh_warmed" else 0,
-                                             a.variants if arm.startswith("variants") else None)
+                                             a.variants if arm.startswith("variants") else None,
+                                             boxes_only=arm == "boxes_only")
                 if warm is not None:
-                    warms[arm] = warm
+                    warms[arm if rep == 0 else f"{arm} (repeat {rep + 1})"] = warm
             base = [(x + y) / 2 for x, y in zip(arms["without"], arms["without (again)"])]
             runs.append({"img_s": arms, "ratio_per_epoch": {k: [w / b for w, b in zip(v, base)]
                                                             for k, v in arms.items() if not k.startswith("without")}})
+        for k in kept.values():
+            k.cleanup()
         names = list(runs[0]["img_s"])
         loader = {"images": a.loader_images, "variants_per_image": a.variants, "repeats": runs, "warm": warms,
                   # per arm and epoch: the median over repeats
@@ -362,7 +414,9 @@ def main(argv=None) -> int:
                   "on-disk scene cache (a new folder per arm). Arms: fresh = a new insertion per call; fresh_warmed = "
                   f"after `warm(images, view_plans={a.warm_view_plans})`; variants = `variants_per_image="
                   f"{a.variants}` (made when first drawn); variants_warmed = the same after `warm(images, "
-                  "variants=True)`. Ratios against the mean of the two runs without insertion (first and last) of the "
+                  "variants=True)`" + ("" if not a.keep_warm_folder else " (its folder kept across repeats)") +
+                  "; boxes_only = the same Compose with a transform that only appends two fixed boxes at p=0.5 "
+                  "(no pixel changed: the Compose's own cost of new boxes). Ratios against the mean of the two runs without insertion (first and last) of the "
                   f"same repeat; {a.repeats} repeat(s) of every arm, medians over repeats. OpenCV threads per worker: "
                   f"{'default' if a.cv2_threads is None else a.cv2_threads}.", "",
                   "| epoch | " + " | ".join(f"{k} img/s" for k in names) + " | "
