@@ -192,14 +192,18 @@ def _set_cv2_threads(n: int, worker_id: int) -> None:
 
 
 def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str, warm: dict | None = None,
-                 view_plans: int = 0, variants: int | None = None, boxes_only: bool = False) -> list[float]:
+                 view_plans: int = 0, variants: int | None = None, boxes_only: bool = False,
+                 compose_only: bool = False) -> list[float]:
     """Images/s per epoch. ``warm``: a dict; the transform's ``warm`` (with ``view_plans``) is run on the items'
     images first (into the on-disk scene cache and views the workers read) and its seconds and counts are written
-    into it. ``boxes_only``: instead of InsertObjects, :class:`_AppendBoxes` (p=0.5) in the same Compose."""
+    into it. ``boxes_only``: instead of InsertObjects, :class:`_AppendBoxes` (p=0.5) in the same Compose;
+    ``compose_only``: the same Compose (bbox params, label field) with ``NoOp(p=0.5)`` instead of InsertObjects."""
     import torch
     tf = None
     if boxes_only:
         tf = _compose(_AppendBoxes(p=0.5))
+    elif compose_only:
+        tf = _compose(A.NoOp(p=0.5))
     elif with_insertion:
         tf = _compose(InsertObjects(categories=["traffic_cone"], preset="fast", p=0.5, scene_cache=cache_dir,
                                     variants_per_image=variants))
@@ -216,7 +220,7 @@ def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str, warm:
         t0 = time.perf_counter()
         n = sum(len(b) for b in dl)
         rates.append(n / (time.perf_counter() - t0))
-        print(f"loader {'boxes only' if boxes_only else ('with' if with_insertion else 'without') + ' insertion'}"
+        print(f"loader {'boxes only' if boxes_only else 'compose only' if compose_only else ('with' if with_insertion else 'without') + ' insertion'}"
               f"{' (warmed)' if warm else ''}"
               f"{f' (variants {variants})' if variants else ''}, epoch {e + 1}: {rates[-1]:.1f} img/s", flush=True)
     del dl
@@ -251,8 +255,9 @@ def _view_cache_summary(out: Path) -> str:
 #: Loader arms: no insertion; a new insertion per call (fresh); fresh after ``warm(view_plans=...)``; at most K
 #: variants per image made when first drawn; the K variants made by ``warm(variants=True)`` before the loader;
 #: boxes_only: the same Compose with a transform that only appends two fixed boxes at p=0.5 (the Compose's own cost
-#: of new boxes: the ceiling for any insertion transform in it).
-LOADER_ARMS = ("without", "fresh", "fresh_warmed", "variants", "variants_warmed", "boxes_only")
+#: of new boxes: the ceiling for any insertion transform in it); compose_only: the same Compose with NoOp(p=0.5) in
+#: place of InsertObjects (a user's loader without the insertion: its Compose, box processing included, stays).
+LOADER_ARMS = ("without", "fresh", "fresh_warmed", "variants", "variants_warmed", "boxes_only", "compose_only")
 
 #: Stages of one loader item, by the function that does them (cProfile cumulative time).
 WORKER_STAGES = {
@@ -356,12 +361,17 @@ def main(argv=None) -> int:
                     arms[arm] = loader_rates(small, a.epochs, not arm.startswith("without"), d, warm,
                                              a.warm_view_plans if arm == "fresh_warmed" else 0,
                                              a.variants if arm.startswith("variants") else None,
-                                             boxes_only=arm == "boxes_only")
+                                             boxes_only=arm == "boxes_only", compose_only=arm == "compose_only")
                 if warm is not None:
                     warms[arm if rep == 0 else f"{arm} (repeat {rep + 1})"] = warm
             base = [(x + y) / 2 for x, y in zip(arms["without"], arms["without (again)"])]
-            runs.append({"img_s": arms, "ratio_per_epoch": {k: [w / b for w, b in zip(v, base)]
-                                                            for k, v in arms.items() if not k.startswith("without")}})
+            run = {"img_s": arms, "ratio_per_epoch": {k: [w / b for w, b in zip(v, base)]
+                                                      for k, v in arms.items() if not k.startswith("without")}}
+            if "compose_only" in arms:   # against the same Compose without the insertion transform
+                run["ratio_vs_compose_only"] = {k: [w / c for w, c in zip(v, arms["compose_only"])]
+                                                for k, v in arms.items()
+                                                if not k.startswith("without") and k != "compose_only"}
+            runs.append(run)
         for k in kept.values():
             k.cleanup()
         names = list(runs[0]["img_s"])
@@ -371,6 +381,10 @@ def main(argv=None) -> int:
                             for k in names},
                   "ratio_per_epoch": {k: [float(np.median([r["ratio_per_epoch"][k][e] for r in runs]))
                                           for e in range(a.epochs)] for k in runs[0]["ratio_per_epoch"]}}
+        if "ratio_vs_compose_only" in runs[0]:
+            loader["ratio_vs_compose_only"] = {
+                k: [float(np.median([r["ratio_vs_compose_only"][k][e] for r in runs])) for e in range(a.epochs)]
+                for k in runs[0]["ratio_vs_compose_only"]}
         if a.worker_profile:
             loader["worker_profile"] = worker_profile(small, a.epochs - 1, warm=True, view_plans=a.warm_view_plans)
     res = {"command": cmd, "machine": f"{os.cpu_count()} CPU cores, {platform.processor() or platform.machine()}",
@@ -416,7 +430,8 @@ def main(argv=None) -> int:
                   f"{a.variants}` (made when first drawn); variants_warmed = the same after `warm(images, "
                   "variants=True)`" + ("" if not a.keep_warm_folder else " (its folder kept across repeats)") +
                   "; boxes_only = the same Compose with a transform that only appends two fixed boxes at p=0.5 "
-                  "(no pixel changed: the Compose's own cost of new boxes). Ratios against the mean of the two runs without insertion (first and last) of the "
+                  "(no pixel changed: the Compose's own cost of new boxes); compose_only = the same Compose with "
+                  "NoOp(p=0.5) instead (the loader without insertion, its Compose kept). Ratios against the mean of the two runs without insertion (first and last) of the "
                   f"same repeat; {a.repeats} repeat(s) of every arm, medians over repeats. OpenCV threads per worker: "
                   f"{'default' if a.cv2_threads is None else a.cv2_threads}.", "",
                   "| epoch | " + " | ".join(f"{k} img/s" for k in names) + " | "
@@ -425,6 +440,14 @@ def main(argv=None) -> int:
         for e in range(a.epochs):
             lines.append(f"| {e + 1} | " + " | ".join(f"{loader['img_s'][k][e]:.1f}" for k in names) + " | "
                          + " | ".join(f"{r[e]:.2f}" for r in loader["ratio_per_epoch"].values()) + " |")
+        if loader.get("ratio_vs_compose_only"):
+            vc = loader["ratio_vs_compose_only"]
+            lines += ["", "Against the same Compose without the insertion transform (compose_only), per epoch, "
+                      "medians over repeats of the paired ratios:", "",
+                      "| epoch | " + " | ".join(f"{k} / compose_only" for k in vc) + " |",
+                      "|---:|" + "---:|" * len(vc)]
+            for e in range(a.epochs):
+                lines.append(f"| {e + 1} | " + " | ".join(f"{r[e]:.2f}" for r in vc.values()) + " |")
         for k, w in loader["warm"].items():
             lines.append(f"\nWarm-up of {k} (paid once, before the first epoch): " + ", ".join(
                 f"{n} {v:.1f}" if isinstance(v, float) else f"{n} {v}" for n, v in w.items()))
