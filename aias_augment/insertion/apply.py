@@ -76,19 +76,18 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
         if cfg.render_method == "view_cache":
             warped = warp_from_view_cache(obj.asset, obj.cam_from_object, intr, view_cache)
             n_cached += warped is not None
-        if warped is not None:   # shaded on its covered pixels only
+        if warped is not None:
             roi, alpha, odepth = warped.roi, warped.alpha, warped.depth
-            if alpha.size == 0 or alpha.max() <= 0.5:
-                dropped.append({"rejected": {"renders to no pixel": 1}})
-                continue
-            shaded = np.zeros(alpha.shape + (3,), np.float32)
-            shaded[warped.inside] = shade_pixels(warped.albedo, warped.normals, lighting)
         else:
             roi, rl = render_object_window(obj.asset, obj.cam_from_object, intr, ssaa=cfg.ssaa)
             alpha, odepth = rl.alpha, rl.depth
-            if alpha.size == 0 or alpha.max() <= 0.5:
-                dropped.append({"rejected": {"renders to no pixel": 1}})
-                continue
+        if alpha.size == 0 or alpha.max() <= 0.5:
+            dropped.append({"rejected": {"renders to no pixel": 1}})
+            continue
+        if warped is not None:   # shaded on its covered pixels only
+            shaded = np.zeros(alpha.shape + (3,), np.float32)
+            shaded[warped.inside] = shade_pixels(warped.albedo, warped.normals, lighting)
+        else:
             shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, alpha > 0, lighting)
         rendered.append((obj, roi, alpha, odepth, shaded))
     if cfg.render_method == "view_cache":
@@ -162,10 +161,8 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     cover_w = np.clip(np.maximum.reduce(vis_alphas), 0, 1).astype(np.float32, copy=False)
 
     if cfg.harmonize:
-        bx, by, bw, bh = cv2.boundingRect((cover_w > 0).view(np.uint8))
         result, mods["harmonize"] = _harmonize(result, cover_w, cfg, np.random.default_rng(plan.harmonize_seed),
-                                               within=win, mask_origin=(X0, Y0), in_place=True,
-                                               mask_box=(bx + X0, by + Y0, bx + X0 + bw, by + Y0 + bh) if bw else None)
+                                               within=win, mask_origin=(X0, Y0), in_place=True)
         if cfg.camera_match:
             result, mods["camera_match"] = _camera_match(result, _paste_window(full, win, cover_w), cfg, img,
                                                          plan.harmonize_seed)
@@ -247,10 +244,8 @@ def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intri
         ppm = np.where(gm, intr.fy / np.maximum(gdepth, 1e-3), 0.0)  # eps: no division by zero depth
         ratio = soften_shadow(ratio, dist, pixels_per_metre=ppm)
     # The real scene in front of the shadowed ground hides the shadow.
-    sd = None if scene_depth is None else scene_depth[y0:y1, x0:x1]
-    if sd is None:  # nothing in front of the ground
-        return sl.roi, (1.0 - (1.0 - ratio)).astype(np.float32)
-    unoccluded = comp.visible_fraction_against_depth(gdepth, sd)
+    unoccluded = 1.0 if scene_depth is None else comp.visible_fraction_against_depth(gdepth,
+                                                                                    scene_depth[y0:y1, x0:x1])
     return sl.roi, (1.0 - (1.0 - ratio) * unoccluded).astype(np.float32)
 
 
@@ -274,10 +269,8 @@ def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,
     except ImportError as e:  # the harmonization package is optional at this stage of the pipeline
         return image, f"skipped: harmonizer unavailable ({e})"
     try:
-        if mask_box is None:   # the box of the mask's non-zero pixels, scanned in ``within`` when given
-            sx0, sy0, sx1, sy1 = (0, 0, mw, mh) if windowed or within is None else within
-            x, y, bw, bh = cv2.boundingRect((mask[sy0:sy1, sx0:sx1] > 0).view(np.uint8))
-            mask_box = (x + sx0 + ox, y + sy0 + oy, x + sx0 + ox + bw, y + sy0 + oy + bh) if bw else None
+        if mask_box is None:
+            mask_box = _nonzero_box(mask, None if windowed else within, mask_origin)
         win, model = (None, None) if mask_box is None else _harmonize_window(mask, cfg, within, mask_box, (H, W))
         if win is None:
             return (harmonize(image, whole(), method=cfg.harmonize_method, rng=rng,
@@ -316,6 +309,18 @@ def _camera_match(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, sou
 #: process runs is read within this long.
 FAST_MODEL_RECHECK_S = 1.0
 _FAST_MODEL: dict = {}
+
+
+def _nonzero_box(mask: np.ndarray, within: tuple[int, int, int, int] | None = None,
+                 origin: tuple[int, int] = (0, 0)) -> tuple[int, int, int, int] | None:
+    """(x0, y0, x1, y1), x1/y1 exclusive, of ``mask``'s non-zero pixels, scanned in ``within`` (mask pixels; None:
+    all of it) and shifted by ``origin`` (where the mask lies in the image); None when none is non-zero."""
+    sx0, sy0, sx1, sy1 = (0, 0, mask.shape[1], mask.shape[0]) if within is None else within
+    x, y, bw, bh = cv2.boundingRect((mask[sy0:sy1, sx0:sx1] > 0).view(np.uint8))
+    if bw == 0:
+        return None
+    x0, y0 = x + sx0 + origin[0], y + sy0 + origin[1]
+    return x0, y0, x0 + bw, y0 + bh
 
 
 def _fast_model_and_context():
@@ -360,11 +365,9 @@ def _harmonize_window(mask: np.ndarray, cfg: InsertionConfig, within: tuple[int,
         return None, None
     model, ctx = got
     if mask_box is None:
-        ox, oy, ox1, oy1 = within if within is not None else (0, 0, mask.shape[1], mask.shape[0])
-        x, y, bw, bh = cv2.boundingRect((mask[oy:oy1, ox:ox1] > 0).view(np.uint8))
-        if bw == 0:
+        mask_box = _nonzero_box(mask, within)
+        if mask_box is None:
             return None, None
-        mask_box = (x + ox, y + oy, x + ox + bw, y + oy + bh)
     bx0, by0, bx1, by1 = mask_box
     grow = int(np.ceil(ctx / 2 * max(bx1 - bx0, by1 - by0))) + 2
     h, w = mask.shape if image_hw is None else image_hw
