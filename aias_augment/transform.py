@@ -23,7 +23,8 @@ from typing import Any
 
 import albumentations as A
 import numpy as np
-from albumentations.core.bbox_utils import convert_bboxes_from_albumentations, denormalize_bboxes
+from albumentations.core.bbox_utils import (convert_bboxes_from_albumentations, convert_bboxes_to_albumentations,
+                                            denormalize_bboxes)
 
 from .assets import PathAssets
 from .insertion.cache import SceneCache
@@ -144,7 +145,10 @@ class InsertObjects(A.DualTransform):
         are untouched: warming changes when the analysis (and a view) is computed, never what a call returns.
         ``variants``: with ``variants_per_image`` K, also compute each image's K variants (into this process's
         variant cache and, with ``scene_cache``, its folder), so that calls only paste them; ``bboxes``: per image,
-        the COCO xywh boxes the calls will carry (a variant is made for its image's boxes; None: no boxes).
+        the boxes the calls will carry, as they pass them: in the Compose's bbox format (COCO xywh for a transform
+        outside a Compose with ``bbox_params``). A variant is made for its image's boxes (None: no boxes), so they go
+        through the Compose's own conversion here as in a call (to albumentations' float32 boxes, clipped or
+        filtered as its ``BboxParams`` say, and back): warm's keys are the calls' keys bit for bit.
         Returns ``{"images", "analysed", "already_cached", "skipped", "views_rendered", "views_cached",
         "variants_computed", "variants_cached"}``."""
         if variants and not self.variants_per_image:
@@ -175,7 +179,7 @@ class InsertObjects(A.DualTransform):
             if view_plans and self.config.render_method == "view_cache" and h * w <= ANALYSIS_MAX_PIXELS:
                 self._warm_views(rgb, k, d, view_plans, i, out)
             if variants:
-                boxes = np.zeros((0, 4)) if bboxes is None else np.asarray(bboxes[i], np.float64).reshape(-1, 4)
+                boxes = np.zeros((0, 4)) if bboxes is None else self._boxes_as_called(bboxes[i], h, w)
                 for j in range(self.variants_per_image):
                     m0 = self._variants.misses
                     try:
@@ -290,10 +294,7 @@ class InsertObjects(A.DualTransform):
             self.counts.convert(conversion)
         boxes_internal = data.get("bboxes")
         n_existing = 0 if boxes_internal is None else len(boxes_internal)
-        existing_xywh = np.zeros((0, 4))
-        if n_existing:
-            xyxy = denormalize_bboxes(np.asarray(boxes_internal)[:, :4], {"height": h, "width": w})
-            existing_xywh = np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]]
+        existing_xywh = np.zeros((0, 4)) if not n_existing else _xywh_from_internal(boxes_internal, h, w)
         min_vis = 0.0
         proc = self._bbox_processor()
         if proc is not None:
@@ -331,6 +332,18 @@ class InsertObjects(A.DualTransform):
         state["_variant_prefix"] = None
         state["_last_record"] = None
         return state
+
+    def _boxes_as_called(self, boxes, h: int, w: int) -> np.ndarray:
+        """COCO xywh pixels of ``boxes`` (the Compose's bbox format; COCO xywh without a bbox processor) as a call
+        reads them: through the processor's own ``check_and_convert`` (float32 albumentations boxes, clip and
+        filter as configured; the Compose's preprocess) and :func:`_xywh_from_internal`."""
+        b = np.asarray(boxes, np.float64).reshape(-1, 4)
+        if len(b) == 0:
+            return np.zeros((0, 4))
+        proc, shape = self._bbox_processor(), {"height": h, "width": w}
+        internal = (proc.check_and_convert(b, shape, direction="to") if proc is not None
+                    else convert_bboxes_to_albumentations(b, "coco", shape))
+        return _xywh_from_internal(internal, h, w) if len(internal) else np.zeros((0, 4))
 
     def _bbox_processor(self):
         try:
@@ -422,6 +435,13 @@ class InsertObjects(A.DualTransform):
                 f"{{{category!r}: <id>}} so inserted boxes get numeric labels"
             )
         return category
+
+
+def _xywh_from_internal(boxes_internal, h: int, w: int) -> np.ndarray:
+    """COCO xywh pixels (float64) of albumentations' normalised x_min, y_min, x_max, y_max boxes (extra columns
+    ignored): what a call reads from the Compose, and what warm() makes of its boxes."""
+    xyxy = denormalize_bboxes(np.asarray(boxes_internal)[:, :4], {"height": h, "width": w})
+    return np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]]
 
 
 def _pad_columns(rows: np.ndarray, bboxes: np.ndarray) -> np.ndarray:

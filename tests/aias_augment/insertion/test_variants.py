@@ -108,6 +108,29 @@ def test_boxes_through_the_compose_round_trip_find_warms_variant():
     assert t.transforms[0]._variants.hits == 1 and t.transforms[0]._variants.misses == 1
 
 
+@pytest.mark.parametrize("fmt", ["coco", "pascal_voc", "yolo"])
+def test_warm_with_many_boxes_keys_as_every_call(fmt):
+    """40 boxes with arbitrary float coordinates, passed to warm() and to the calls in the Compose's own format:
+    the calls see them after albumentations' float32 conversion, which moves a coordinate by ~1e-5 px (enough to
+    cross a 1e-3 px rounding step somewhere among 160 coordinates); warm must key them as the calls do, so every
+    call finds the warmed variant."""
+    rng = np.random.default_rng(11)
+    img = _image()
+    h, w = img.shape[:2]
+    xy, wh = rng.uniform([0, 0], [w - 12, h - 12], (40, 2)), rng.uniform(2, 10, (40, 2))
+    boxes = {"coco": np.c_[xy, wh], "pascal_voc": np.c_[xy, xy + wh],
+             "yolo": np.c_[(xy + wh / 2) / [w, h], wh / [w, h]]}[fmt]
+    tf = A.Compose([InsertObjects(categories=["traffic_cone"], max_objects=1, p=1.0, preset="fast",
+                                  variants_per_image=1)],
+                   bbox_params=A.BboxParams(format=fmt, label_fields=["labels"]), seed=5)
+    t = tf.transforms[0]
+    assert t.warm([img], camera_ks=[K], variants=True, bboxes=[boxes])["variants_computed"] == 1
+    for b in (boxes, boxes.tolist()):   # an array or lists (the Compose makes lists float32 first)
+        out = tf(image=img, bboxes=b, labels=["real"] * len(boxes), camera_k=K)
+        assert len(out["bboxes"]) >= 1
+    assert t._variants.hits == 2 and t._variants.misses == 1   # warm's miss; both calls hit
+
+
 def test_min_visibility_decided_per_call_from_the_stored_visibility():
     img = _image()
     cfg = load_preset("fast", categories=("traffic_cone",), max_objects=2)
