@@ -13,11 +13,14 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from .config import data_root
+
+if TYPE_CHECKING:   # imported where used: trimesh (~0.16 s with networkx) only when meshes are read
+    import trimesh
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +66,7 @@ class _ScaledMeshes(Sequence):
         self._base, self._factor, self._built = base, factor, None
 
     def _meshes(self) -> tuple:
+        import trimesh
         if self._built is None:
             self._built = tuple(trimesh.Trimesh(vertices=np.asarray(m.vertices) * self._factor, faces=m.faces,
                                                 vertex_normals=m.vertex_normals, visual=copy.copy(m.visual),
@@ -150,6 +154,7 @@ class Asset:
 
 
 def axis_rotation_to_z_up(up_axis: str) -> np.ndarray:
+    import trimesh
     up_axis = up_axis.upper().replace("_UP", "")
     if up_axis == "Z":
         return np.eye(4)
@@ -182,6 +187,7 @@ def read_collada_unit(path: Path) -> tuple[float, str]:
 
 def scene_parts(loaded, path: Path) -> list[trimesh.Trimesh]:
     """Every triangle mesh of a loaded file, its scene-graph transform applied, materials kept (no checks)."""
+    import trimesh
     if isinstance(loaded, trimesh.Trimesh):
         return [loaded]
     if not isinstance(loaded, trimesh.Scene):
@@ -209,6 +215,7 @@ def _flatten(loaded, path: Path) -> list[trimesh.Trimesh]:
 
 def load_mesh_file(path: str | Path, *, scale: float | None = None, up_axis: str | None = None) -> list[trimesh.Trimesh]:
     """Load a mesh file into z-up metres (not yet recentred). Units from the file unless ``scale`` is given."""
+    import trimesh
     path = Path(path)
     if not path.is_file():
         raise AssetError(f"mesh file not found: {path}")
@@ -253,6 +260,7 @@ def crease_normals(mesh: trimesh.Trimesh, crease_deg: float = CREASE_ANGLE_DEG) 
     vertices, which UV seams break (the cone's side would stay faceted at every texture seam), hence this per-corner
     version. Degenerate faces get their vertices' previous normals.
     """
+    import trimesh
     v = np.asarray(mesh.vertices, dtype=np.float64)
     f = np.asarray(mesh.faces, dtype=np.int64)
     if len(f) == 0:

@@ -7,6 +7,10 @@ context inherited through fork.
 
 Outputs are in the OpenCV camera convention of :mod:`aias_augment.geometry` with pixel centres at integer
 coordinates: pyrender's window convention puts pixel centres at +0.5, which :func:`_pyrender_camera` compensates.
+
+pyrender (and trimesh) are imported by the functions that render, on first use: their import (~0.4 s with freetype,
+pyglet and networkx) is not paid by a process that never renders, such as a DataLoader worker that pastes
+insertion variants or finds its views cached (a non-persistent worker pays its imports every epoch).
 """
 from __future__ import annotations
 
@@ -17,12 +21,14 @@ import os
 import sys
 import weakref
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import numpy as np  # noqa: E402
-import pyrender  # noqa: E402
-import trimesh  # noqa: E402
+
+if TYPE_CHECKING:   # imported by the functions that render (see above)
+    import pyrender
 
 from .assets import Asset  # noqa: E402
 from .geometry import Intrinsics, check_rigid, invert_rigid, opengl_from_opencv  # noqa: E402
@@ -69,6 +75,7 @@ def _block_triton_under_llvmpipe() -> None:
 
 
 def _renderer(width: int, height: int) -> "pyrender.OffscreenRenderer":
+    import pyrender
     pid = os.getpid()
     if _STATE["renderer"] is not None and _STATE["pid"] != pid:
         raise RuntimeError(
@@ -100,6 +107,7 @@ def linear_to_srgb(x: np.ndarray) -> np.ndarray:
 def _pyrender_camera(intr: Intrinsics, ssaa: int, znear: float, zfar: float) -> "pyrender.IntrinsicsCamera":
     # OpenCV pixel centres are integers; OpenGL window pixel centres are at +0.5. With supersampling factor s, the
     # OpenCV coordinate u maps to s*(u + 0.5) in the big window.
+    import pyrender
     s = float(ssaa)
     return pyrender.IntrinsicsCamera(
         fx=intr.fx * s, fy=intr.fy * s, cx=(intr.cx + 0.5) * s, cy=(intr.cy + 0.5) * s, znear=znear, zfar=zfar
@@ -148,6 +156,8 @@ _MESH_CACHE: "weakref.WeakKeyDictionary[Asset, dict]" = weakref.WeakKeyDictionar
 def _to_pyrender_mesh(asset: Asset, normals: bool) -> tuple["pyrender.Mesh", np.ndarray]:
     """(mesh of the asset's unscaled root, 4x4 node pose that scales it to ``asset``). Built once per root asset
     and process (a forked child rebuilds: GL objects do not survive a fork)."""
+    import pyrender
+    import trimesh
     root = asset.render_root if asset.render_root is not None else asset
     entry = _MESH_CACHE.get(root)
     if entry is None or entry["pid"] != os.getpid():
@@ -186,6 +196,7 @@ def _render_flat(mesh: "pyrender.Mesh", mesh_pose: np.ndarray, cam_from_object: 
     their buffers and textures on the GPU (it deletes whatever the scene being rendered lacks, and uploads it again
     next time: the texture upload was the largest part of a small render). A flat render with explicit near/far
     planes does not depend on undrawn nodes: same bytes."""
+    import pyrender
     scene = pyrender.Scene(bg_color=np.zeros(4), ambient_light=np.ones(3))
     scene.add(mesh, pose=mesh_pose)
     hidden = [m for m in resident if m is not mesh]
@@ -322,6 +333,8 @@ class ShadowLayers:
 
 def _ground_patch(radius: float, node_origin: np.ndarray) -> "pyrender.Mesh":
     """The square z = 0, |x|, |y| <= radius, with vertices relative to ``node_origin`` (the node's translation)."""
+    import pyrender
+    import trimesh
     quad = trimesh.Trimesh(
         vertices=np.array([[-radius, -radius, 0], [radius, -radius, 0], [radius, radius, 0], [-radius, radius, 0]],
                           dtype=np.float64) - node_origin,
@@ -377,6 +390,7 @@ def render_ground_shadow(asset: Asset, cam_from_object: np.ndarray, intrinsics: 
     the scene toward the sun; a sun at or below the horizon (z <= 0.02) casts no shadow (visibility 1).
     ``window``: the layers cover only the rendered window ``roi`` (not the full frame).
     """
+    import pyrender
     cam_from_object = check_rigid(cam_from_object, "cam_from_object")
     sun = unit_sun(sun_direction_in_object)
     full = (intrinsics.height, intrinsics.width)

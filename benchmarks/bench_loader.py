@@ -100,7 +100,7 @@ class _LabelledImages(_Images):
         return torch.from_numpy(np.ascontiguousarray(img)).permute(2, 0, 1)
 
 
-def make_loader(arm: str, paths, variants: int, cache_dir: str, warm_info: dict):
+def make_loader(arm: str, paths, variants: int, cache_dir: str, warm_info: dict, persistent: bool = True):
     import functools
 
     import torch
@@ -122,7 +122,7 @@ def make_loader(arm: str, paths, variants: int, cache_dir: str, warm_info: dict)
     elif arm != "without":
         raise ValueError(arm)
     return torch.utils.data.DataLoader((_LabelledImages if labelled else _Images)(paths, tf), batch_size=8, shuffle=True, num_workers=2,
-                                       multiprocessing_context="spawn", persistent_workers=True,
+                                       multiprocessing_context="spawn", persistent_workers=persistent,
                                        generator=torch.Generator().manual_seed(0),
                                        worker_init_fn=functools.partial(_set_cv2_threads, 0))
 
@@ -191,6 +191,9 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup-epochs", type=int, default=1, help="untimed epochs of every arm first")
     ap.add_argument("--variants", type=int, default=4, help="variants_per_image of the variants arm")
     ap.add_argument("--arms", nargs="+", default=list(ARMS[:4]), choices=ARMS)
+    ap.add_argument("--non-persistent", action="store_true",
+                    help="DataLoader's default persistent_workers=False: every epoch starts its workers (imports, "
+                         "the transform unpickled, empty in-memory caches)")
     ap.add_argument("--out", default="results/bench/loader")
     a = ap.parse_args(argv)
     if "without" not in a.arms:
@@ -202,7 +205,8 @@ def main(argv=None) -> int:
     load_before = os.getloadavg()
     warm_info: dict = {}
     with tempfile.TemporaryDirectory() as d:
-        loaders = {arm: make_loader(arm, paths, a.variants, f"{d}/{arm}", warm_info) for arm in a.arms}
+        loaders = {arm: make_loader(arm, paths, a.variants, f"{d}/{arm}", warm_info, not a.non_persistent)
+                   for arm in a.arms}
         for _ in range(a.warmup_epochs):
             for arm, dl in loaders.items():
                 w, _, n = epoch(dl)
@@ -223,14 +227,15 @@ def main(argv=None) -> int:
     summary = summarise(rounds, a.arms, baselines)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    res = {"command": cmd, "loadavg_before": load_before, "loadavg_after": os.getloadavg(), "images": len(paths),
+    res = {"command": cmd, "persistent_workers": not a.non_persistent, "loadavg_before": load_before, "loadavg_after": os.getloadavg(), "images": len(paths),
            "variants_per_image": a.variants, "warm": warm_info, "rounds": rounds, "summary": summary}
     (out / "loader.json").write_text(json.dumps(res, indent=2))
     plot(summary, out / "loader_ratios.png")
     med = {arm: float(np.median([x[arm]["img_s"] for x in rounds])) for arm in a.arms}
     cpu = {arm: 1000 * float(np.median([x[arm]["cpu_per_img"] for x in rounds])) for arm in a.arms}
     lines = ["# DataLoader with and without InsertObjects: paired epochs", "", f"Command: `{cmd.strip()}`", "",
-             f"{len(paths)} TraCon images at 320x320, batch 8, 2 spawn workers per loader (persistent), "
+             f"{len(paths)} TraCon images at 320x320, batch 8, 2 spawn workers per loader "
+             f"({'started every epoch: persistent_workers=False' if a.non_persistent else 'persistent'}), "
              f"{a.warmup_epochs} warm-up epoch(s) per arm, then {a.rounds} rounds of one epoch per arm (rotating "
              f"order). Load average {load_before[0]:.2f} before, {res['loadavg_after'][0]:.2f} after.", "",
              "| arm | median img/s | median CPU ms per image (parent + workers) |", "|---|---:|---:|"]

@@ -198,6 +198,43 @@ def test_same_variants_across_processes_hash_seeds_and_histories():
     assert 1 < len(set(outs[0])) <= 3   # more than one variant drawn, never more than K
 
 
+_WORKER_SCRIPT = r"""
+import hashlib, pickle, sys
+import numpy as np
+tf = pickle.load(open(sys.argv[1], "rb"))          # as a spawned DataLoader worker receives the transform
+img = np.load(sys.argv[2])
+outs = [hashlib.sha256(tf(image=img, bboxes=np.zeros((0, 4)), l=[])["image"]).hexdigest()[:16] for _ in range(6)]
+print(*outs, "pyrender" in sys.modules, "trimesh" in sys.modules, tf.transforms[0]._variants.disk_hits)
+"""
+
+
+def test_a_worker_pasting_warmed_variants_never_imports_the_renderer(tmp_path):
+    """A fresh interpreter given the pickled Compose (as a spawned DataLoader worker) and warmed variants on disk:
+    its outputs are the parent's, byte for byte, and it never imports pyrender or trimesh (~0.4 s that a
+    non-persistent worker would pay every epoch)."""
+    import hashlib
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    img = _image()
+    tf = A.Compose([InsertObjects(categories=["traffic_cone"], max_objects=2, p=1.0, preset="fast",
+                                  variants_per_image=2, scene_cache=str(tmp_path / "cache"))],
+                   bbox_params=A.BboxParams(format="coco", label_fields=["l"]), seed=9)
+    assert tf.transforms[0].warm([img], variants=True)["variants_computed"] == 2
+    (tmp_path / "tf.pkl").write_bytes(pickle.dumps(tf))
+    np.save(tmp_path / "img.npy", img)
+    want = [hashlib.sha256(tf(image=img, bboxes=np.zeros((0, 4)), l=[])["image"]).hexdigest()[:16] for _ in range(6)]
+    r = subprocess.run([sys.executable, "-c", _WORKER_SCRIPT, str(tmp_path / "tf.pkl"), str(tmp_path / "img.npy")],
+                       env={**os.environ, "NO_ALBUMENTATIONS_UPDATE": "1"}, capture_output=True, text=True,
+                       timeout=300, cwd=Path(__file__).resolve().parents[3])
+    assert r.returncode == 0, r.stderr[-2000:]
+    *outs, has_pyrender, has_trimesh, disk_hits = r.stdout.split()
+    assert outs == want and len(set(outs)) == 2
+    assert (has_pyrender, has_trimesh) == ("False", "False")
+    assert disk_hits == "2"
+
+
 def test_plain_image_key_is_the_variant_key_of_the_documented_stream():
     import xxhash
     img = _image()
