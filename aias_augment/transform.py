@@ -150,11 +150,12 @@ class InsertObjects(A.DualTransform):
         through the Compose's own conversion here as in a call (to albumentations' float32 boxes, clipped or
         filtered as its ``BboxParams`` say, and back): warm's keys are the calls' keys bit for bit.
         Returns ``{"images", "analysed", "already_cached", "skipped", "views_rendered", "views_cached",
-        "variants_computed", "variants_cached"}``."""
+        "variants_computed", "variants_cached", "boxes_refused"}`` (boxes_refused: images whose boxes the Compose's
+        processor refuses, as it would in a call; logged, no variants made for them)."""
         if variants and not self.variants_per_image:
             raise ValueError("warm(variants=True) needs InsertObjects(variants_per_image=K)")
         out = {"images": 0, "analysed": 0, "already_cached": 0, "skipped": 0, "views_rendered": 0,
-               "views_cached": 0, "variants_computed": 0, "variants_cached": 0}
+               "views_cached": 0, "variants_computed": 0, "variants_cached": 0, "boxes_refused": 0}
         cache = self._scene_cache
         for i, image in enumerate(images):
             out["images"] += 1
@@ -179,7 +180,12 @@ class InsertObjects(A.DualTransform):
             if view_plans and self.config.render_method == "view_cache" and h * w <= ANALYSIS_MAX_PIXELS:
                 self._warm_views(rgb, k, d, view_plans, i, out)
             if variants:
-                boxes = np.zeros((0, 4)) if bboxes is None else self._boxes_as_called(bboxes[i], h, w)
+                try:
+                    boxes = np.zeros((0, 4)) if bboxes is None else self._boxes_as_called(bboxes[i], h, w)
+                except ValueError as e:   # boxes the Compose would refuse in a call too
+                    log.warning("warm: no variants for image %d: its boxes are refused (%s)", i, e)
+                    out["boxes_refused"] += 1
+                    continue
                 for j in range(self.variants_per_image):
                     m0 = self._variants.misses
                     try:

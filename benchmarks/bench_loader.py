@@ -53,10 +53,12 @@ BOUND = 0.9
 
 
 def _cpu_seconds_tree(pid: int) -> float:
-    """CPU seconds (all threads) of ``pid`` and its live children (the DataLoader workers), from the scheduler's
+    """CPU seconds (all threads) of ``pid`` and its children (the DataLoader workers): live ones from the scheduler's
     nanosecond counters in /proc (``task/*/schedstat``; the clock-tick counters of ``stat`` are too coarse for
-    sub-second epochs)."""
-    total_ns = 0
+    sub-second epochs), ended ones (non-persistent workers) from ``getrusage(RUSAGE_CHILDREN)``."""
+    import resource
+    ended = resource.getrusage(resource.RUSAGE_CHILDREN)
+    total_ns = int(1e9 * (ended.ru_utime + ended.ru_stime))
     for p in [d for d in os.listdir("/proc") if d.isdigit()]:
         try:
             if p != str(pid):
@@ -140,6 +142,17 @@ def median_ci(x, rng: np.random.Generator, n_boot: int = 10_000) -> tuple[float,
     return float(np.median(x)), float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))
 
 
+def pooled_ci(rounds: list[dict], arm: str, base: str, rng: np.random.Generator,
+              n_boot: int = 10_000) -> list[float]:
+    """Bootstrap 95 % interval (rounds resampled) of the pooled throughput ratio: all the arm's images over all
+    its seconds, against the baseline's."""
+    ai, aw = (np.array([x[arm][k] for x in rounds], float) for k in ("images", "wall_s"))
+    bi, bw = (np.array([x[base][k] for x in rounds], float) for k in ("images", "wall_s"))
+    idx = rng.integers(0, len(rounds), (n_boot, len(rounds)))
+    boot = (ai[idx].sum(1) / aw[idx].sum(1)) / (bi[idx].sum(1) / bw[idx].sum(1))
+    return [float(np.quantile(boot, 0.025)), float(np.quantile(boot, 0.975))]
+
+
 def summarise(rounds: list[dict], arms: list[str], baselines: list[str], seed: int = 0) -> dict:
     rng = np.random.default_rng(seed)
     out = {}
@@ -155,6 +168,7 @@ def summarise(rounds: list[dict], arms: list[str], baselines: list[str], seed: i
             m, lo, hi = median_ci(r, rng)
             cm, clo, chi = median_ci(c, rng)
             out[f"{arm} / {base}"] = {"median": m, "ci95": [lo, hi], "pooled_throughput_ratio": pooled,
+                                      "pooled_ci95": pooled_ci(rounds, arm, base, rng),
                                       "cpu_ratio_median": cm, "cpu_ratio_ci95": [clo, chi], "per_round": r,
                                       "bound_shown_met": lo >= BOUND}
     return out
@@ -184,6 +198,41 @@ def plot(summary: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def report(res: dict, out: Path) -> None:
+    """Summaries (per-round medians, pooled ratios, bootstrap intervals) of a run's rounds, written to
+    ``out/loader.{json,md}`` and ``out/loader_ratios.png``."""
+    rounds, arms = res["rounds"], res.get("arms") or list(res["rounds"][0])
+    baselines = [b for b in ("without", "compose_only", "compose_labels") if b in arms]
+    res["summary"] = summarise(rounds, arms, baselines)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "loader.json").write_text(json.dumps(res, indent=2))
+    plot(res["summary"], out / "loader_ratios.png")
+    med = {arm: float(np.median([x[arm]["img_s"] for x in rounds])) for arm in arms}
+    cpu = {arm: 1000 * float(np.median([x[arm]["cpu_per_img"] for x in rounds])) for arm in arms}
+    lines = ["# DataLoader with and without InsertObjects: paired epochs", "", f"Command: `{res['command'].strip()}`"]
+    if res.get("resummarised"):
+        lines += ["", f"Summary recomputed from the run's rounds: `{res['resummarised']}`"]
+    lines += ["", f"{res['images']} TraCon images at 320x320, batch 8, 2 spawn workers per loader "
+              f"({'persistent' if res.get('persistent_workers', True) else 'started every epoch: persistent_workers=False'}), "
+              f"{res.get('warmup_epochs', 1)} warm-up epoch(s) per arm, then {len(rounds)} rounds of one epoch per arm "
+              f"(rotating order). Load average {res['loadavg_before'][0]:.2f} before, {res['loadavg_after'][0]:.2f} "
+              "after.", "",
+              "| arm | median img/s | median CPU ms per image (parent + workers) |", "|---|---:|---:|"]
+    lines += [f"| {arm} | {med[arm]:.1f} | {cpu[arm]:.2f} |" for arm in arms]
+    lines += ["", "| ratio | median of per-round ratios [95 % CI] | pooled throughput ratio [95 % CI] | CPU-time ratio "
+              "[95 % CI] | bound 0.9 shown met (median's interval) |", "|---|---:|---:|---:|---|"]
+    for k, s in res["summary"].items():
+        lines.append(f"| {k} | {s['median']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] | "
+                     f"{s['pooled_throughput_ratio']:.3f} [{s['pooled_ci95'][0]:.3f}, {s['pooled_ci95'][1]:.3f}] | "
+                     f"{s['cpu_ratio_median']:.3f} [{s['cpu_ratio_ci95'][0]:.3f}, {s['cpu_ratio_ci95'][1]:.3f}] | "
+                     f"{'yes' if s['bound_shown_met'] else 'no'} |")
+    for k, w in res["warm"].items():
+        lines.append(f"\nWarm-up of {k} (once, before training): " + ", ".join(
+            f"{n} {v:.1f}" if isinstance(v, float) else f"{n} {v}" for n, v in w.items()))
+    (out / "loader.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--images", type=int, default=192, help="TraCon train images per epoch")
@@ -194,8 +243,15 @@ def main(argv=None) -> int:
     ap.add_argument("--non-persistent", action="store_true",
                     help="DataLoader's default persistent_workers=False: every epoch starts its workers (imports, "
                          "the transform unpickled, empty in-memory caches)")
+    ap.add_argument("--from-json", default=None,
+                    help="no run: recompute the summaries of a loader.json's rounds and rewrite its folder's files")
     ap.add_argument("--out", default="results/bench/loader")
     a = ap.parse_args(argv)
+    if a.from_json:
+        res = json.loads(Path(a.from_json).read_text())
+        res["resummarised"] = "python benchmarks/bench_loader.py --from-json " + a.from_json
+        report(res, Path(a.from_json).parent)
+        return 0
     if "without" not in a.arms:
         raise SystemExit("the arms must include 'without'")
     cmd = "python benchmarks/bench_loader.py " + " ".join(argv if argv is not None else sys.argv[1:])
@@ -223,34 +279,10 @@ def main(argv=None) -> int:
             print(f"round {r + 1}/{a.rounds} ({time.perf_counter() - t_start:.0f} s): " + ", ".join(
                 f"{k} {v['img_s']:.0f} img/s" for k, v in row.items()), flush=True)
         del loaders
-    baselines = [b for b in ("without", "compose_only", "compose_labels") if b in a.arms]
-    summary = summarise(rounds, a.arms, baselines)
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
-    res = {"command": cmd, "persistent_workers": not a.non_persistent, "loadavg_before": load_before, "loadavg_after": os.getloadavg(), "images": len(paths),
-           "variants_per_image": a.variants, "warm": warm_info, "rounds": rounds, "summary": summary}
-    (out / "loader.json").write_text(json.dumps(res, indent=2))
-    plot(summary, out / "loader_ratios.png")
-    med = {arm: float(np.median([x[arm]["img_s"] for x in rounds])) for arm in a.arms}
-    cpu = {arm: 1000 * float(np.median([x[arm]["cpu_per_img"] for x in rounds])) for arm in a.arms}
-    lines = ["# DataLoader with and without InsertObjects: paired epochs", "", f"Command: `{cmd.strip()}`", "",
-             f"{len(paths)} TraCon images at 320x320, batch 8, 2 spawn workers per loader "
-             f"({'started every epoch: persistent_workers=False' if a.non_persistent else 'persistent'}), "
-             f"{a.warmup_epochs} warm-up epoch(s) per arm, then {a.rounds} rounds of one epoch per arm (rotating "
-             f"order). Load average {load_before[0]:.2f} before, {res['loadavg_after'][0]:.2f} after.", "",
-             "| arm | median img/s | median CPU ms per image (parent + workers) |", "|---|---:|---:|"]
-    lines += [f"| {arm} | {med[arm]:.1f} | {cpu[arm]:.2f} |" for arm in a.arms]
-    lines += ["", "| ratio | median of per-round ratios [95 % CI] | pooled throughput ratio | CPU-time ratio "
-              "[95 % CI] | bound 0.9 shown met |", "|---|---:|---:|---:|---|"]
-    for k, s in summary.items():
-        lines.append(f"| {k} | {s['median']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] | "
-                     f"{s['pooled_throughput_ratio']:.3f} | {s['cpu_ratio_median']:.3f} [{s['cpu_ratio_ci95'][0]:.3f}, "
-                     f"{s['cpu_ratio_ci95'][1]:.3f}] | {'yes' if s['bound_shown_met'] else 'no'} |")
-    for k, w in warm_info.items():
-        lines.append(f"\nWarm-up of {k} (once, before training): " + ", ".join(
-            f"{n} {v:.1f}" if isinstance(v, float) else f"{n} {v}" for n, v in w.items()))
-    (out / "loader.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    res = {"command": cmd, "persistent_workers": not a.non_persistent, "loadavg_before": load_before,
+           "loadavg_after": os.getloadavg(), "images": len(paths), "variants_per_image": a.variants,
+           "arms": a.arms, "warmup_epochs": a.warmup_epochs, "warm": warm_info, "rounds": rounds}
+    report(res, Path(a.out))
     return 0
 
 

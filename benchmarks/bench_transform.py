@@ -13,6 +13,10 @@
    A third arm runs ``InsertObjects.warm(images, view_plans=8)`` first (analyses and views on disk, read by the
    workers): the cost paid once before training, reported with its seconds.
 
+The loader bound itself is measured by ``benchmarks/bench_loader.py`` (every arm's loader alive at once, epochs
+paired round by round: this script's loader arms run each arm's epochs in a block, minutes apart, and this VM's
+speed moves by tens of per cent over minutes).
+
 Writes ``<out>/transform.json`` and ``<out>/transform.md`` with the command. Timings on a loaded machine are noisy:
 compare the ratios measured within one run.
 """

@@ -120,7 +120,8 @@ def test_warm_analyses_beforehand_and_changes_no_output(tmp_path):
     ins = warmed.transforms[0]
     assert ins.warm([img, img], camera_ks=[K, K]) == {"images": 2, "analysed": 1, "already_cached": 1, "skipped": 0,
                                                       "views_rendered": 0, "views_cached": 0,
-                                                      "variants_computed": 0, "variants_cached": 0}
+                                                      "variants_computed": 0, "variants_cached": 0,
+                                                      "boxes_refused": 0}
     assert ins.counts.to_dict() == InsertObjects().counts.to_dict()  # no call counted
     a = warmed(image=img, bboxes=[], category_ids=[], camera_k=K)
     assert ins._scene_cache.misses == 1 and ins._scene_cache.hits >= 2  # the call found warm's analysis

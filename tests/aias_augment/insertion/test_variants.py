@@ -131,6 +131,19 @@ def test_warm_with_many_boxes_keys_as_every_call(fmt):
     assert t._variants.hits == 2 and t._variants.misses == 1   # warm's miss; both calls hit
 
 
+def test_warm_counts_boxes_the_compose_refuses_and_goes_on(caplog):
+    """An image whose boxes the Compose's processor refuses (x_max < x_min) gets no variants, is counted and logged;
+    the next image is warmed."""
+    img = _image()
+    t = _compose(k=1)
+    with caplog.at_level("WARNING"):
+        out = t.transforms[0].warm([img, img], camera_ks=[K, K], variants=True, bboxes=[[[50, 50, -5, 5]], BOXES])
+    assert out["boxes_refused"] == 1 and out["variants_computed"] == 1
+    assert "boxes are refused" in caplog.text
+    with pytest.raises(ValueError):   # the call refuses them too
+        _call(t, img, [[50, 50, -5, 5]])
+
+
 def test_min_visibility_decided_per_call_from_the_stored_visibility():
     img = _image()
     cfg = load_preset("fast", categories=("traffic_cone",), max_objects=2)
