@@ -402,7 +402,9 @@ def main(argv=None) -> int:
     }
     if loader:
         for k, r in loader["ratio_per_epoch"].items():
-            checks[f"loader >= 0.9x from epoch 2 ({k})"] = min(r[1:] or [0]) >= TARGETS["loader_ratio_from_epoch_2"]
+            # every epoch of a block design (not the bound's test: benchmarks/bench_loader.py pairs the epochs)
+            checks[f"loader >= 0.9x in every epoch from epoch 2 ({k}; the bound: bench_loader.py)"] = (
+                min(r[1:] or [0]) >= TARGETS["loader_ratio_from_epoch_2"])
     res["targets_met"] = checks
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
