@@ -224,12 +224,10 @@ class InsertObjects(A.DualTransform):
         # (or warm's raw boxes) must find the same variant, and the variant is made from exactly what its key says.
         if len(existing_xywh):
             existing_xywh = np.round(np.asarray(existing_xywh, np.float64).reshape(-1, 4), 3)
-        if self._variant_prefix is None:
-            self._variant_prefix = variant_key_prefix(self.config, self.assets, self.variants_seed)
         v = None
         if key is None:
             key = variant_key(rgb, camera_k=data.get("camera_k"), depth=data.get("depth"), scene=data.get("scene"),
-                              existing_xywh=existing_xywh, prefix=self._variant_prefix)
+                              existing_xywh=existing_xywh, prefix=self._key_prefix())
             v = self._variants.get(key, j)
         labels = list(range(len(existing_xywh)))
         if v is None:
@@ -243,6 +241,12 @@ class InsertObjects(A.DualTransform):
                 v.encoded[(h, w, fmt)] = _encode_boxes(v.inserted_bboxes, h, w, fmt)
             self._variants.put(key, j, v)
         return v.result(rgb, existing_xywh, labels, min_vis)
+
+    def _key_prefix(self):
+        """The variant keys' fixed part (config, assets, seed): :func:`variant_key_prefix`, made on first use."""
+        if self._variant_prefix is None:
+            self._variant_prefix = variant_key_prefix(self.config, self.assets, self.variants_seed)
+        return self._variant_prefix
 
     @property
     def skipped(self) -> int:
@@ -274,9 +278,7 @@ class InsertObjects(A.DualTransform):
         ``restore`` is the identity), in fewer steps: a draw, the key, a lookup, a copy with the window pasted."""
         j = int(self.random_generator.integers(self.variants_per_image))
         try:
-            if self._variant_prefix is None:
-                self._variant_prefix = variant_key_prefix(self.config, self.assets, self.variants_seed)
-            key = plain_image_key(rgb, self._variant_prefix)
+            key = plain_image_key(rgb, self._key_prefix())
             v = self._variants.get(key, j)
             res = (self._variant(rgb, _NO_BOXES, 0.0, _NO_TARGETS, j=j, key=key) if v is None
                    else v.result(rgb, _NO_BOXES, ()))
@@ -349,7 +351,7 @@ class InsertObjects(A.DualTransform):
         proc, shape = self._bbox_processor(), {"height": h, "width": w}
         internal = (proc.check_and_convert(b, shape, direction="to") if proc is not None
                     else convert_bboxes_to_albumentations(b, "coco", shape))
-        return _xywh_from_internal(internal, h, w) if len(internal) else np.zeros((0, 4))
+        return _xywh_from_internal(internal, h, w)
 
     def _bbox_processor(self):
         try:
@@ -408,18 +410,13 @@ class InsertObjects(A.DualTransform):
                     rows = np.hstack((geo, *_encoded_labels(proc.label_manager, label_fields, values)))
                     return _pad_columns(rows.astype(np.float32, copy=False), bboxes)
             return _pad_columns(self._preprocess_new_boxes(res, proc, values, label_fields, h, w), bboxes)
-        xywh = np.asarray(res.inserted_bboxes, np.float64)
-        xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
-        return (xyxy / np.array([w, h, w, h], np.float64)).astype(np.float32)   # albumentations' normalised xyxy
+        return _internal_from_xywh(res.inserted_bboxes, h, w)
 
     @staticmethod
     def _preprocess_new_boxes(res, proc, values: list, label_fields, h: int, w: int) -> np.ndarray:
         """The new boxes through ``proc.preprocess`` (the Compose's own conversion, checks and label encoding)."""
-        xywh = np.asarray(res.inserted_bboxes, np.float64)
-        xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
-        internal = xyxy / np.array([w, h, w, h], np.float64)  # albumentations' normalised x_min, y_min, x_max, y_max
-        user_fmt = convert_bboxes_from_albumentations(internal.astype(np.float32), proc.params.format,
-                                                      {"height": h, "width": w})
+        user_fmt = convert_bboxes_from_albumentations(_internal_from_xywh(res.inserted_bboxes, h, w),
+                                                      proc.params.format, {"height": h, "width": w})
         temp = {"image": np.zeros((h, w, 1), np.uint8), "bboxes": user_fmt}
         for f in label_fields:
             temp[f] = list(values)
@@ -450,6 +447,13 @@ def _xywh_from_internal(boxes_internal, h: int, w: int) -> np.ndarray:
     return np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]]
 
 
+def _internal_from_xywh(xywh, h: int, w: int) -> np.ndarray:
+    """(K, 4) float32 albumentations boxes (normalised x_min, y_min, x_max, y_max) of COCO xywh pixel boxes."""
+    xywh = np.asarray(xywh, np.float64).reshape(-1, 4)
+    xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
+    return (xyxy / np.array([w, h, w, h], np.float64)).astype(np.float32)
+
+
 def _pad_columns(rows: np.ndarray, bboxes: np.ndarray) -> np.ndarray:
     """``rows`` with zero columns added up to ``bboxes``' (extra columns, e.g. bbox ids)."""
     if len(bboxes) and rows.shape[1] < bboxes.shape[1]:
@@ -465,11 +469,7 @@ def _encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
     is not strictly inside [0, 1] with x_max > x_min and y_max > y_min: the processor's ``check_bboxes`` must
     then decide (its tolerance, its error)."""
     scale = np.array([w, h, w, h], np.float64)
-    xywh = np.asarray(xywh, np.float64)
-    xyxy = np.empty_like(xywh)
-    xyxy[:, :2] = xywh[:, :2]
-    xyxy[:, 2:] = xywh[:, :2] + xywh[:, 2:]
-    norm = (xyxy / scale).astype(np.float32)           # what the boxes are in albumentations' format
+    norm = _internal_from_xywh(xywh, h, w)             # what the boxes are in albumentations' format
     user = np.empty_like(norm)                         # convert_bboxes_from_albumentations(norm, fmt)
     if fmt == "yolo":
         user[:, :2] = (norm[:, :2] + norm[:, 2:]) / 2

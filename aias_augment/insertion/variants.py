@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 import pickle
 from collections import OrderedDict
-import os
 from pathlib import Path
 
 import numpy as np
@@ -254,8 +254,8 @@ class VariantCache:
     def __len__(self) -> int:
         return len(self._lru)
 
-    def _path(self, key: str, j: int) -> Path:
-        return self.directory / key[:2] / f"{key}_{j}.pkl"
+    def _file(self, key: str, j: int) -> str:
+        return f"{self._dirname}/{key[:2]}/{key}_{j}.pkl"
 
     def get(self, key: str, j: int) -> Variant | None:
         """The variant if this process or the folder holds it, else None (counted as a miss)."""
@@ -275,7 +275,7 @@ class VariantCache:
     def put(self, key: str, j: int, v: Variant) -> None:
         self._remember(key, j, v)
         if self.directory is not None:
-            _write_atomic(self._path(key, j), pickle.dumps((FILE_FORMAT, key, j, v), protocol=5))
+            _write_atomic(Path(self._file(key, j)), pickle.dumps((FILE_FORMAT, key, j, v), protocol=5))
 
     def _remember(self, key: str, j: int, v: Variant) -> None:
         if v.nbytes > self.max_bytes:
@@ -293,7 +293,7 @@ class VariantCache:
         if self._dirname is None:
             return None
         try:   # one open, fstat and read (no exists() first, no buffered file object: this is the call path)
-            fd = os.open(f"{self._dirname}/{key[:2]}/{key}_{j}.pkl", os.O_RDONLY)
+            fd = os.open(self._file(key, j), os.O_RDONLY)
         except OSError:
             return None
         try:
