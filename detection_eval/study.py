@@ -57,9 +57,16 @@ ARM_FLAGS: dict[str, dict | None] = {
     "inserted_scene_sizes": {"placement_cfg": {"sizes_from_existing": True}},
     "inserted_in_frame": {"placement_cfg": {"min_in_image_frac": 1.0}},
     "inserted_scene_sizes_in_frame": {"placement_cfg": {"sizes_from_existing": True, "min_in_image_frac": 1.0}},
+    # The seed's thinned subset's own real instances (aias_augment.bank.lift): pasted at random positions and sizes
+    # (Simple Copy-Paste, masks from the boxes by GrabCut), or lifted into 3D and inserted by the full pipeline
+    # (placed on the ground, lit, shadowed, harmonized: the pipeline with the data's own appearance).
+    "copy_paste": {"copy_paste": True},
+    "lifted": {"lifted": True},
 }
 # Flags the study applies itself (not insertion-config overrides).
-STUDY_FLAGS = ("closeup_crop",)
+STUDY_FLAGS = ("closeup_crop", "copy_paste", "lifted")
+# Arms whose pool is made per seed from that seed's thinned real subset (no other seed's real images leak in).
+PER_SEED_ARMS = ("copy_paste", "lifted")
 # Arms whose insertions happen inside the training loop (``InsertObjects`` on each sample, new draws every epoch)
 # instead of coming from the offline pool.
 ONLINE_ARMS = ("inserted_online",)
@@ -101,6 +108,11 @@ class StudyConfig:
     runs_dir: str = "runs/study"              # weights (not committed)
     results_dir: str = "results/study"        # metrics, table, plot (committed)
     reference_arm: str = "original"
+    # A development split carved out of train before anything else (fixed draw, seed ``dev_seed``): no arm trains on
+    # it, every run is scored on it beside val, and settings are chosen on it, never on val.
+    dev_cone_images: int = 0
+    dev_empty_images: int = 0
+    dev_seed: int = 0
     online_p: float = 0.5                     # inserted_online: probability that a training sample gets insertions
 
     def __post_init__(self):
@@ -126,6 +138,21 @@ def dataset_root(cfg: StudyConfig) -> Path:
 
 
 # ------------------------------------------------------------------ training sets
+
+def split_dev(train: DetectionSet, n_cone: int, n_empty: int, seed: int) -> tuple[DetectionSet, DetectionSet]:
+    """(rest, dev): ``n_cone`` images with objects and ``n_empty`` without, drawn once with ``default_rng([seed,
+    3])``, moved out of ``train`` into a development set that no arm trains on (its empty roads are no insertion
+    backgrounds either)."""
+    with_obj = [i for i, r in enumerate(train.records) if len(r.labels)]
+    empty = [i for i, r in enumerate(train.records) if not len(r.labels)]
+    if n_cone > len(with_obj) or n_empty > len(empty) or n_cone < 0 or n_empty < 0:
+        raise ValueError(f"dev split of {n_cone} + {n_empty} images asked of {len(with_obj)} + {len(empty)}")
+    rng = np.random.default_rng([seed, 3])
+    dev = set(int(i) for i in rng.choice(with_obj, n_cone, replace=False)) | \
+        set(int(i) for i in rng.choice(empty, n_empty, replace=False))
+    rest = [i for i in range(len(train)) if i not in dev]
+    return train.subset(rest), train.subset(sorted(dev))
+
 
 def thin_cone_images(train: DetectionSet, keep_fraction: float, seed: int) -> tuple[DetectionSet, list[int]]:
     """Keep ``round(keep_fraction * n)`` of the images with objects (seeded) and every image without; also return
@@ -213,18 +240,25 @@ def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
     return load_preset(ic.preset, **overrides)
 
 
-def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: list[int]) -> Path:
+def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: list[int], seed: int | None = None,
+                     base: DetectionSet | None = None) -> Path:
     """Render the arm's pool of ``insertion.pool_size`` inserted copies into a YOLO folder, once for all seeds.
     Resumable: finished copies are listed in ``progress.jsonl`` and kept when a run with the same parameters is
     restarted; ``done.json`` marks a complete pool and is reused while its parameters match."""
     if ARM_FLAGS[arm].get("closeup_crop"):
         return derive_closeup_pool(cfg, arm, train, empty)
     ic = cfg.insertion
-    out = _repo_path(cfg.cache_dir) / arm / "pool"
+    per_seed = arm in PER_SEED_ARMS
+    if per_seed and (seed is None or base is None):
+        raise ValueError(f"{arm}: its pool is made from the seed's own real instances: pass seed and base")
+    out = _repo_path(cfg.cache_dir) / arm / (f"seed{seed}/pool" if per_seed else "pool")
     done, progress = out / "done.json", out / "progress.jsonl"
     backgrounds = pool_backgrounds(empty, ic.pool_seed, ic.pool_size)
     wanted = {"arm": arm, "backgrounds": [Path(train.records[i].image_path).name for i in backgrounds],
               "insertion": dataclasses.asdict(ic), "flags": ARM_FLAGS[arm]}
+    if per_seed:   # the instances of this seed's thinned subset only: no real data of other seeds leaks in
+        wanted["seed"] = seed
+        wanted["sources"] = [Path(r.image_path).name for r in base.records if len(r.labels)]
     wanted = json.loads(json.dumps(wanted))   # as it reads back from json (tuples become lists)
     if done.exists():
         prev = json.loads(done.read_text())
@@ -248,7 +282,13 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
                 continue
             if (out / "images" / e["image"]).exists() or e.get("failed"):
                 finished[e["copy"]] = e
-    ins_cfg = insertion_config_for_arm(cfg, arm, train)
+    try:
+        make = _pool_maker(cfg, arm, train, base, out)
+    except RuntimeError as exc:   # no usable instance in the subset: every copy fails with that reason (counted)
+        log.warning("%s: %s", arm, exc)
+
+        def make(image, rng, _exc=exc):
+            raise _exc
     t0, n_new = time.perf_counter(), 0
     with progress.open("a") as plog:
         for j, i in enumerate(backgrounds):
@@ -263,21 +303,21 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
             rng = np.random.default_rng([ic.pool_seed, j])       # same draw stream for every arm: paired copies
             t_img = time.perf_counter()
             try:
-                res = _insert(image, rng, ins_cfg)
+                new_image, boxes_xyxy, modules = make(image, rng)
             except Exception as exc:  # logged and counted; the copy is left out, never written without its boxes
                 reason = f"{type(exc).__name__}: {exc}"[:200]
                 log.warning("%s: insertion failed on %s: %s", arm, rec.image_path, reason)
                 entry = {"copy": j, "background": Path(rec.image_path).name, "failed": reason}
             else:
-                boxes_xywh = np.asarray(res.bboxes, np.float64).reshape(-1, 4)
-                keep = (boxes_xywh[:, 2] >= 1) & (boxes_xywh[:, 3] >= 1)
-                boxes_xyxy = np.c_[boxes_xywh[keep, :2], boxes_xywh[keep, :2] + boxes_xywh[keep, 2:]]
+                keep = (boxes_xyxy[:, 2] - boxes_xyxy[:, 0] >= 1) & (boxes_xyxy[:, 3] - boxes_xyxy[:, 1] >= 1)
+                boxes_xyxy = boxes_xyxy[keep]
                 stem = f"{j:04d}_{Path(rec.image_path).stem}__{arm}"
-                write_yolo_sample(out, stem, res.image, boxes_xyxy, np.zeros(len(boxes_xyxy), np.int64))
+                write_yolo_sample(out, stem, new_image, boxes_xyxy, np.zeros(len(boxes_xyxy), np.int64))
                 entry = {"copy": j, "background": Path(rec.image_path).name, "image": f"{stem}.jpg",
                          "boxes": int(keep.sum()), "box_heights_frac": [float(x) for x in
-                                                                        boxes_xywh[keep, 3] / image.shape[0]],
-                         "seconds": time.perf_counter() - t_img, "modules": dict(res.record.modules)}
+                                                                        (boxes_xyxy[:, 3] - boxes_xyxy[:, 1])
+                                                                        / image.shape[0]],
+                         "seconds": time.perf_counter() - t_img, "modules": modules}
             plog.write(json.dumps(entry) + "\n")
             plog.flush()
             finished[j] = entry
@@ -355,9 +395,54 @@ def _git_head() -> str:
         return "unknown"
 
 
-def _insert(image, rng, ins_cfg):
+def _pool_maker(cfg: StudyConfig, arm: str, train: DetectionSet, base: DetectionSet | None, out: Path):
+    """``make(background, rng) -> (image, boxes_xyxy, modules)`` of the arm: the pipeline (with the lifted instances
+    of the seed's subset as its assets for ``lifted``), or copy-paste of the subset's real instances."""
     from aias_augment.pipeline import insert_into_image
-    return insert_into_image(image, np.zeros((0, 4)), [], rng, ins_cfg)
+
+    flags = ARM_FLAGS[arm]
+    if flags.get("copy_paste") or flags.get("lifted"):
+        from aias_augment.bank.lift import LiftedAssets, cut_out, lift_instances
+        items = [(r.image_path, read_image_rgb(r.image_path), r.boxes_xyxy) for r in base.records if len(r.labels)]
+        category = cfg.insertion.categories[0]
+        if flags.get("lifted"):
+            assets, report = lift_instances(items, category, out / "assets")
+            log.info("%s: lifted %d instances of %d images (rejected: %s)", arm, report.lifted, len(items),
+                     dict(report.rejected))
+            if not assets:
+                raise RuntimeError(f"no instance of the subset could be lifted: {dict(report.rejected)}")
+            bank = LiftedAssets({category: assets})
+        else:
+            from .copy_paste import paste_instances
+            cutouts, rejected = [], {}
+            for path, image, boxes in items:
+                for k, box in enumerate(boxes):
+                    cut, reason = cut_out(image, box, [b for i, b in enumerate(boxes) if i != k], source=path)
+                    if cut is None:
+                        rejected[reason] = rejected.get(reason, 0) + 1
+                    else:
+                        cutouts.append(cut)
+            (out / "cutouts.json").write_text(json.dumps({"cut": len(cutouts), "rejected": rejected}))
+            log.info("%s: %d instances cut out of %d images (rejected: %s)", arm, len(cutouts), len(items), rejected)
+            if not cutouts:
+                raise RuntimeError(f"no instance of the subset could be cut out: {rejected}")
+            fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
+            ic = cfg.insertion
+
+            def make_paste(image, rng):
+                n = int(rng.integers(ic.min_objects, ic.max_objects + 1))
+                new, boxes = paste_instances(image, cutouts, rng, fracs, n)
+                return new, boxes, {"mode": f"copy-paste of {len(cutouts)} real instances"}
+            return make_paste
+    else:
+        bank = None
+    ins_cfg = insertion_config_for_arm(cfg, "inserted" if flags.get("lifted") else arm, train)
+
+    def make_insert(image, rng):
+        res = insert_into_image(image, np.zeros((0, 4)), [], rng, ins_cfg, bank=bank)
+        b = np.asarray(res.bboxes, np.float64).reshape(-1, 4)
+        return res.image, np.c_[b[:, :2], b[:, :2] + b[:, 2:]], dict(res.record.modules)
+    return make_insert
 
 
 def training_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, amount: int | None = None,
@@ -368,7 +453,9 @@ def training_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, amo
             "real_boxes": base.num_boxes}
     if ARM_FLAGS[arm] is None or arm in ONLINE_ARMS:
         return base, info
-    folder = generate_arm_set(cfg, arm, train, empty) if generate else _repo_path(cfg.cache_dir) / arm / "pool"
+    per_seed = arm in PER_SEED_ARMS
+    folder = generate_arm_set(cfg, arm, train, empty, seed, base) if generate else \
+        _repo_path(cfg.cache_dir) / arm / (f"seed{seed}/pool" if per_seed else "pool")
     if not (folder / "done.json").exists():
         raise FileNotFoundError(f"{folder}: augmented pool not generated (run --stage generate)")
     gen = json.loads((folder / "done.json").read_text())
@@ -420,7 +507,7 @@ def online_transform(cfg: StudyConfig, train: DetectionSet, scene_cache_dir: Pat
 
 
 def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: DetectionSet, val_cache,
-            amount: int | None = None, force=False):
+            amount: int | None = None, force=False, dev: DetectionSet | None = None, dev_cache=None):
     amount = None if not uses_pool(arm) else (cfg.amounts[0] if amount is None else amount)
     name = run_name(arm, seed, amount)
     result_path = _repo_path(cfg.results_dir) / "run_metrics" / f"{name}.json"
@@ -432,7 +519,7 @@ def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: Det
         log.info("%s: being trained by another process, skipping", name)
         return None
     try:
-        return _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_cache)
+        return _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_cache, dev, dev_cache)
     finally:
         claim.unlink(missing_ok=True)
 
@@ -463,7 +550,7 @@ def claim_run(result_path: Path) -> Path | None:
     return None
 
 
-def _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_cache):
+def _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_cache, dev=None, dev_cache=None):
     from .inference import evaluate_dataset
     from .train import save_checkpoint, train_detector
 
@@ -480,18 +567,22 @@ def _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_
     t0 = time.perf_counter()
     metrics = evaluate_dataset(res.model, val, det_cfg.train.img_size, det_cfg.inference, cached=val_cache)
     eval_seconds = time.perf_counter() - t0
+    dev_metrics = None if dev is None or not len(dev) else \
+        evaluate_dataset(res.model, dev, det_cfg.train.img_size, det_cfg.inference, cached=dev_cache)
     weights = _repo_path(cfg.runs_dir) / name / "weights.pt"
     row = {"arm": arm, "seed": seed, "amount": amount, **info, "train_images": len(train_set),
            "iterations": res.iterations, "batch_size": det_cfg.train.batch_size, "img_size": det_cfg.train.img_size,
            "threads": det_cfg.train.num_threads, "train_seconds": res.train_seconds,
            "cache_seconds": res.cache_seconds, "train_images_per_second": res.images_per_second,
            "eval_seconds": eval_seconds, "final_losses": res.final_losses, "metrics": _nan_to_none(metrics),
+           "dev_metrics": _nan_to_none(dev_metrics),
            "weights": str(weights), "code_commit": _git_head(), "detector": dataclasses.asdict(det_cfg)}
     save_checkpoint(weights, res.model, train_set.category_names, {k: v for k, v in row.items() if k != "detector"})
     result_path.parent.mkdir(parents=True, exist_ok=True)
     result_path.write_text(json.dumps(row, indent=1))
-    log.info("%s: AP %.4f AP50 %.4f (%.0f s train, %.2f img/s)", name, metrics["AP"], metrics["AP50"],
-             res.train_seconds, res.images_per_second)
+    log.info("%s: AP %.4f AP50 %.4f%s (%.0f s train, %.2f img/s)", name, metrics["AP"], metrics["AP50"],
+             "" if dev_metrics is None else f" dev AP {dev_metrics['AP']:.4f}", res.train_seconds,
+             res.images_per_second)
     return row
 
 
@@ -525,10 +616,11 @@ def group_of(row: dict) -> str:
     return row["arm"] if row.get("amount") is None else f"{row['arm']} n={row['amount']}"
 
 
-def paired_deltas(rows: list[dict], group: str, other: str, key: str = "AP") -> list[float]:
-    """``group`` minus ``other`` per seed, over the seeds both have (same seed = same thinned real subset)."""
-    a = {r["seed"]: r["metrics"][key] for r in rows if group_of(r) == group}
-    b = {r["seed"]: r["metrics"][key] for r in rows if group_of(r) == other}
+def paired_deltas(rows: list[dict], group: str, other: str, key: str = "AP", split: str = "metrics") -> list[float]:
+    """``group`` minus ``other`` per seed, over the seeds both have (same seed = same thinned real subset);
+    ``split`` "metrics" (val) or "dev_metrics"."""
+    a = {r["seed"]: (r.get(split) or {}).get(key) for r in rows if group_of(r) == group}
+    b = {r["seed"]: (r.get(split) or {}).get(key) for r in rows if group_of(r) == other}
     return [a[s] - b[s] for s in sorted(a) if s in b and a[s] is not None and b[s] is not None]
 
 
@@ -539,7 +631,8 @@ def summarize(rows: list[dict], reference: str = "original") -> tuple[str, dict]
     summary = {}
     fmt = lambda m, h: "n/a" if math.isnan(m) else (f"{m:.3f}" if math.isnan(h) else f"{m:.3f} ± {h:.3f}")
     head = "| arm | seeds | train images (real + inserted) | " + " | ".join(c[1] for c in METRIC_COLUMNS) + \
-        f" | ΔAP50:95 vs {reference} (paired) | ΔAP50:95 vs naive_paste (paired) | train s/run | train img/s |"
+        f" | ΔAP50:95 vs {reference} (paired) | ΔAP50:95 vs naive_paste (paired) | dev AP50:95 | " \
+        f"dev ΔAP50:95 vs {reference} | train s/run | train img/s |"
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for g in groups:
         rs = sorted((r for r in rows if group_of(r) == g), key=lambda r: r["seed"])
@@ -552,6 +645,9 @@ def summarize(rows: list[dict], reference: str = "original") -> tuple[str, dict]
         naive = f"naive_paste n={amount}"
         s["delta_AP_vs_naive"] = mean_ci95(paired_deltas(rows, g, naive)) if arm not in (reference, "naive_paste") \
             and naive in groups else (float("nan"), float("nan"))
+        s["dev_AP"] = mean_ci95([(r.get("dev_metrics") or {}).get("AP") for r in rs])
+        s["dev_delta_AP"] = mean_ci95(paired_deltas(rows, g, reference, split="dev_metrics")) \
+            if arm != reference else (float("nan"), float("nan"))
         s["train_seconds"] = float(np.median([r["train_seconds"] for r in rs]))
         s["train_images_per_second"] = float(np.median([r["train_images_per_second"] for r in rs]))
         real = int(np.median([r["real_images"] for r in rs]))
@@ -560,7 +656,8 @@ def summarize(rows: list[dict], reference: str = "original") -> tuple[str, dict]
         dn = fmt(*s["delta_AP_vs_naive"]) if not math.isnan(s["delta_AP_vs_naive"][0]) else "—"
         lines.append(f"| {g} | {len(rs)} | {real} + {ins} | " +
                      " | ".join(fmt(*s[k]) for k, _ in METRIC_COLUMNS) +
-                     f" | {fmt(*s['delta_AP']) if arm != reference else '—'} | {dn} | {s['train_seconds']:.0f} | "
+                     f" | {fmt(*s['delta_AP']) if arm != reference else '—'} | {dn} | {fmt(*s['dev_AP'])} | "
+                     f"{fmt(*s['dev_delta_AP']) if arm != reference else '—'} | {s['train_seconds']:.0f} | "
                      f"{s['train_images_per_second']:.2f} |")
     return "\n".join(lines) + "\n", summary
 
@@ -752,21 +849,29 @@ def main(argv: list[str] | None = None) -> None:
     root = dataset_root(cfg)
     train = load_yolo_dir(root, cfg.train_split, cfg.class_names)
     val = load_yolo_dir(root, cfg.val_split, cfg.class_names)
-    log.info("train: %d images, %d boxes", len(train), train.num_boxes)
+    train, dev = split_dev(train, cfg.dev_cone_images, cfg.dev_empty_images, cfg.dev_seed)
+    log.info("train: %d images, %d boxes; dev: %d images, %d boxes", len(train), train.num_boxes, len(dev),
+             dev.num_boxes)
     if args.stage == "generate":
         _, empty = thin_cone_images(train, cfg.keep_fraction, seeds[0])
         for arm in arms:
-            if uses_pool(arm):
+            if uses_pool(arm) and arm not in PER_SEED_ARMS:
                 generate_arm_set(cfg, arm, train, empty)
+            elif uses_pool(arm):
+                for seed in seeds:
+                    base, empty = thin_cone_images(train, cfg.keep_fraction, seed)
+                    generate_arm_set(cfg, arm, train, empty, seed, base)
         return
     if args.stage in ("all", "train"):
         from .loader import cache_dataset
         det_cfg = load_detector_config(cfg.detector)
         val_cache = cache_dataset(val, det_cfg.train.img_size)
+        dev_cache = cache_dataset(dev, det_cfg.train.img_size) if len(dev) else None
         for seed in seeds:
             for arm in arms:
                 for amount in (amounts if uses_pool(arm) else [None]):
-                    run_one(cfg, arm, seed, train, val, val_cache, amount, force=args.force)
+                    run_one(cfg, arm, seed, train, val, val_cache, amount, force=args.force, dev=dev,
+                            dev_cache=dev_cache)
     print(write_summary(cfg, str(args.config), command, train, val))
 
 
