@@ -51,10 +51,19 @@ class LiftConfig:
     texture_height: int = 256
     edge_inset: float = 0.94          # texture samples at most this far out of the axis (the silhouette's own
                                       # pixels are mixed with the background)
+    # The photo's pixels are its light times the albedo; the pipeline lights the texture again. The texture is scaled
+    # (in linear light, one factor) so that the object's 95th-percentile luminance is this albedo: a photo's brightest
+    # surface (a cone's white band) taken as a bright paint, whatever the photo's exposure. None: the pixels as they are.
+    albedo_p95: float | None = 0.8
+    max_albedo_gain: float = 3.0      # the factor is kept within [1 / max, max]
+    min_profile_iou: float = 0.85     # the silhouette against its straight-axis surface of revolution below this:
+                                      # "not a surface of revolution" (a knocked-over or cut cone)
 
     def __post_init__(self):
         if self.min_box_px < 4 or self.segments < 8 or self.max_rings < 2 or self.texture_height < 8:
             raise ValueError(f"LiftConfig out of range: {self}")
+        if self.albedo_p95 is not None and not 0 < self.albedo_p95 <= 1 or self.max_albedo_gain < 1:
+            raise ValueError(f"LiftConfig albedo normalisation out of range: {self}")
         if not (0 < self.min_fill < 1 and 0 < self.min_box_iou <= 1 and 0 < self.edge_inset <= 1):
             raise ValueError(f"LiftConfig fractions out of range: {self}")
 
@@ -243,10 +252,44 @@ def lift_revolution(cut: Cutout, height_m: float, cfg: LiftConfig = LiftConfig()
     map_x = (cv_[:, None] + cfg.edge_inset * rv[:, None] * cphi[None] - 0.5).astype(np.float32)
     map_y = np.broadcast_to((rows[0] + tv)[:, None], (th, tw)).astype(np.float32)
     tex = cv2.remap(cut.rgb, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(tex))
+    tex = normalise_albedo(tex, cut.rgb[cut.mask], cfg)
+    visual = trimesh.visual.TextureVisuals(uv=uv, material=_material(Image.fromarray(tex)))
     mesh = trimesh.Trimesh(verts, faces, visual=visual, process=False)
     mesh.metadata["profile_m"] = {"z": z.tolist(), "r": r.tolist()}
     return mesh
+
+
+def _material(image):
+    """A matte material whose base colour is the texture itself (trimesh's default material would scale it by its
+    grey diffuse factor, 0.4)."""
+    import trimesh
+    return trimesh.visual.material.PBRMaterial(baseColorTexture=image, baseColorFactor=[255, 255, 255, 255],
+                                               metallicFactor=0.0, roughnessFactor=1.0, doubleSided=True)
+
+
+def normalise_albedo(tex: np.ndarray, object_pixels: np.ndarray, cfg: LiftConfig) -> np.ndarray:
+    """``tex`` (uint8 sRGB) times one factor in linear light that brings the object's 95th-percentile luminance to
+    ``cfg.albedo_p95`` (within ``cfg.max_albedo_gain``); unchanged when that is None."""
+    if cfg.albedo_p95 is None or not len(object_pixels):
+        return tex
+    from ..render import linear_to_srgb, srgb_to_linear
+    lum = srgb_to_linear(object_pixels.astype(np.float32) / 255.0) @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    p95 = float(np.percentile(lum, 95))
+    gain = float(np.clip(cfg.albedo_p95 / max(p95, 1e-6), 1.0 / cfg.max_albedo_gain, cfg.max_albedo_gain))
+    lin = np.clip(srgb_to_linear(tex.astype(np.float32) / 255.0) * gain, 0.0, 1.0)
+    return np.clip(np.round(linear_to_srgb(lin) * 255.0), 0, 255).astype(np.uint8)
+
+
+def profile_iou(mask: np.ndarray) -> float:
+    """IoU of the silhouette with the surface of revolution lifted from it seen from its source view (a straight
+    vertical axis at the mean centre column, each row's half-width its radius): how well the instance is a
+    surface of revolution standing upright."""
+    rows, centre, radius = silhouette_profile(mask)
+    c = float(np.mean(centre))
+    xs = np.arange(mask.shape[1]) + 0.5
+    model = np.zeros_like(mask, bool)
+    model[rows] = np.abs(xs[None] - c) <= radius[:, None]
+    return float((model & mask).sum() / max((model | mask).sum(), 1))
 
 
 def lift_card(cut: Cutout, height_m: float):
@@ -262,7 +305,7 @@ def lift_card(cut: Cutout, height_m: float):
     faces = np.array([[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]])      # both sides
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
     rgba = np.dstack([cut.rgb[y0:y1, x0:x1], np.round(cut.alpha[y0:y1, x0:x1] * 255).astype(np.uint8)])
-    visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(rgba, "RGBA"))
+    visual = trimesh.visual.TextureVisuals(uv=uv, material=_material(Image.fromarray(rgba, "RGBA")))
     return trimesh.Trimesh(verts, faces, visual=visual, process=False)
 
 
@@ -305,6 +348,8 @@ def lift_instances(items, category: str, out_dir: str | Path | None = None, cfg:
         for k, box in enumerate(boxes):
             others = [boxes[j] for j in range(len(boxes)) if j != k]
             cut, reason = cut_out(image, box, others, cfg, source=str(path))
+            if cut is not None and mode == "revolution" and profile_iou(cut.mask) < cfg.min_profile_iou:
+                cut, reason = None, "not a surface of revolution (tilted or cut)"
             if cut is None:
                 report.rejected[reason] += 1
                 log.info("%s box %d: not lifted: %s", path, k, reason)
