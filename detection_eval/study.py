@@ -558,6 +558,12 @@ def _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_
     if cfg.max_iters:
         det_cfg = replace_nested(det_cfg, **{"train.max_iters": cfg.max_iters})
     train_set, info = training_set(cfg, arm, seed, train, amount)
+    if uses_pool(arm) and info.get("inserted_images", 0) == 0:
+        # Nothing to add (e.g. no instance of the seed's subset could be lifted): the run would repeat the
+        # reference arm's; the skip and its reason are kept beside the results.
+        log.warning("%s: skipped, its pool holds no image (%s)", name, info.get("generation_failures"))
+        result_path.with_suffix(".skip").write_text(json.dumps(info, indent=1))
+        return None
     log.info("%s: training on %s", name, info)
     sample_transform = online_transform(cfg, train, _repo_path(cfg.cache_dir) / "scenes") \
         if arm in ONLINE_ARMS else None
