@@ -4,6 +4,8 @@
     aias-assets list [--category traffic_cone] [--status rejected]
     aias-assets show "sh3f:Scopia#cone"
     aias-assets thumbnails --out out/assets/contact_sheet.png [--category dog rock] [--per-category 2]
+    aias-assets from-labels --yolo DIR --class-names cone --category traffic_cone --out BANK   # your own instances
+    aias-assets from-labels --input train.json --images DIR --label cone --category traffic_cone --out BANK
 """
 from __future__ import annotations
 
@@ -102,6 +104,49 @@ def _cmd_thumbnails(a) -> int:
     return 0
 
 
+def _cmd_from_labels(a) -> int:
+    """Lift the labelled instances of one class into a bank folder (``aias_augment.bank.lift``)."""
+    from .bank.lift import LiftConfig, lift_instances
+    from .offline import items_from_coco, items_from_yolo, read_rgb, resolve_yolo_boxes
+    from .validate import InputError
+
+    try:
+        items = items_from_yolo(a.yolo, class_names=a.class_names) if a.yolo else \
+            items_from_coco(a.input, a.images)
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    label = a.label or (a.class_names[0] if a.class_names else a.category)
+    skipped = collections.Counter()
+
+    def labelled():
+        for it in items:
+            if it.invalid:
+                skipped[it.invalid.split(":")[0]] += 1
+                continue
+            try:
+                image = read_rgb(it.path)
+            except ValueError:
+                skipped["unreadable image"] += 1
+                continue
+            resolve_yolo_boxes(it, image, a.class_names)
+            boxes = [[x, y, x + w, y + h] for (x, y, w, h), lab in zip(it.bboxes_xywh, it.labels) if lab == label]
+            others = [[x, y, x + w, y + h] for (x, y, w, h), lab in zip(it.bboxes_xywh, it.labels) if lab != label]
+            if boxes:
+                yield it.path, image, np.array(boxes, float), np.array(others, float).reshape(-1, 4)
+
+    t0 = time.perf_counter()
+    cfg = LiftConfig(min_box_px=a.min_box_px)
+    _, report = lift_instances(labelled(), a.category, a.out, cfg, height_m=a.height_m, mode=a.mode)
+    summary = {"lifted": report.lifted, "rejected": dict(report.rejected), "images_skipped": dict(skipped),
+               "seconds": round(time.perf_counter() - t0, 1), "bank": str(a.out)}
+    print(json.dumps(summary, indent=1))
+    if not report.lifted:
+        print("error: no instance could be lifted (see 'rejected')", file=sys.stderr)
+        return 1
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="aias-assets", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--cache-dir", type=Path, default=None, help=f"default $AIAS_CACHE or {default_cache_dir()}")
@@ -128,9 +173,25 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--limit", type=int, default=120)
     s.add_argument("--size", type=int, default=160)
     s.add_argument("--columns", type=int, default=10)
+    s = sub.add_parser("from-labels", help="lift your own labelled instances of one class into insertable assets")
+    src = s.add_mutually_exclusive_group(required=True)
+    src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
+    src.add_argument("--input", help="COCO json (with --images)")
+    s.add_argument("--images", help="image folder for --input")
+    s.add_argument("--class-names", nargs="*", default=None, help="YOLO class names by index")
+    s.add_argument("--label", default=None, help="the label to lift (default: the first class name, or --category)")
+    s.add_argument("--category", required=True, help="the category the assets are inserted as (e.g. traffic_cone)")
+    s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json")
+    s.add_argument("--mode", choices=("revolution", "card"), default=None,
+                   help="default: revolution for cones, drums, bollards, posts, barrels; card otherwise")
+    s.add_argument("--height-m", type=float, default=None, help="default: the middle of the category's height range")
+    s.add_argument("--min-box-px", type=int, default=24)
     a = p.parse_args(argv)
+    if a.cmd == "from-labels" and a.input and not a.images:
+        p.error("--input needs --images")
     logging.basicConfig(level=logging.INFO if a.verbose else logging.ERROR, format="%(levelname)s %(message)s")
-    return {"import": _cmd_import, "list": _cmd_list, "show": _cmd_show, "thumbnails": _cmd_thumbnails}[a.cmd](a)
+    return {"import": _cmd_import, "list": _cmd_list, "show": _cmd_show, "thumbnails": _cmd_thumbnails,
+            "from-labels": _cmd_from_labels}[a.cmd](a)
 
 
 if __name__ == "__main__":

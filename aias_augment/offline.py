@@ -137,7 +137,7 @@ def items_from_yolo(images_dir: str, labels_dir: str | None = None, class_names:
     return items
 
 
-def _resolve_yolo(item: Item, image: np.ndarray, class_names) -> None:
+def resolve_yolo_boxes(item: Item, image: np.ndarray, class_names) -> None:
     rows = item.meta.pop("yolo_rows", None)
     if rows is None:
         return
@@ -225,7 +225,7 @@ def process_item(index: int, item: Item, cfg: InsertionConfig, seed: int, out_di
             raise ValueError(f"image size mismatch: the json says {size[0]}x{size[1]}, the file is "
                              f"{image.shape[1]}x{image.shape[0]}")
         item.meta.pop("label_file", None)
-        _resolve_yolo(item, image, class_names)
+        resolve_yolo_boxes(item, image, class_names)
         source_size = [int(image.shape[1]), int(image.shape[0])]
         image, scale = _bound_size(image, item, max_pixels)
         if scale != 1.0:

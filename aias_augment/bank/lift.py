@@ -328,8 +328,9 @@ class LiftReport:
 
 def lift_instances(items, category: str, out_dir: str | Path | None = None, cfg: LiftConfig = LiftConfig(),
                    height_m: float | None = None, mode: str | None = None):
-    """Lift every labelled instance of ``items`` (an iterable of ``(image_path, image_rgb, boxes_xyxy)``, all boxes
-    of the image, which all belong to ``category``) into assets. Returns ``(assets, report)``; with ``out_dir`` each
+    """Lift every labelled instance of ``items`` (an iterable of ``(image_path, image_rgb, boxes_xyxy[,
+    other_boxes_xyxy])``: every box of the class in the image, and optionally the boxes of other classes, which can
+    occlude it too) into assets of ``category``. Returns ``(assets, report)``; with ``out_dir`` each
     asset is also written as ``NNNN.glb`` and the bank as ``bank.json`` (category, source image and box, mode).
 
     ``mode``: "revolution" or "card" (default: revolution for :data:`REVOLUTION_CATEGORIES`)."""
@@ -343,10 +344,11 @@ def lift_instances(items, category: str, out_dir: str | Path | None = None, cfg:
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     report, assets = LiftReport(), []
-    for path, image, boxes in items:
+    for path, image, boxes, *rest in items:
         boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+        other_class = [np.asarray(b, np.float64) for b in (rest[0] if rest else ())]
         for k, box in enumerate(boxes):
-            others = [boxes[j] for j in range(len(boxes)) if j != k]
+            others = [boxes[j] for j in range(len(boxes)) if j != k] + other_class
             cut, reason = cut_out(image, box, others, cfg, source=str(path))
             if cut is not None and mode == "revolution" and profile_iou(cut.mask) < cfg.min_profile_iou:
                 cut, reason = None, "not a surface of revolution (tilted or cut)"
@@ -374,6 +376,20 @@ def lift_instances(items, category: str, out_dir: str | Path | None = None, cfg:
         (out / "bank.json").write_text(json.dumps({"category": category, "config": asdict(cfg),
                                                    "report": report.to_dict()}, indent=1))
     return assets, report
+
+
+def bank_paths(folder: str | Path) -> dict[str, list[str]]:
+    """``{category: [GLB paths]}`` of a bank folder written by :func:`lift_instances`: what
+    ``InsertObjects(assets=...)`` and the offline CLI's ``--assets`` take."""
+    folder = Path(folder)
+    if not (folder / "bank.json").is_file():
+        raise FileNotFoundError(f"{folder}: no bank.json (write one with `aias-assets from-labels`)")
+    out: dict[str, list[str]] = {}
+    for e in json.loads((folder / "bank.json").read_text())["report"]["assets"]:
+        out.setdefault(e["category"], []).append(str(folder / e["file"]))
+    if not out:
+        raise ValueError(f"{folder}: the bank holds no lifted asset")
+    return out
 
 
 class LiftedAssets:

@@ -18,7 +18,8 @@ def source_view(cut, asset, distance_m: float = 200.0) -> tuple[np.ndarray, Intr
     f = h_px * distance_m / asset.height_m
     hh, ww = cut.mask.shape
     intr = Intrinsics(f, f, ww / 2.0, hh / 2.0, ww, hh)
-    base_u, base_v = float(np.mean(centre)), float(rows[-1] + 1)
+    # The profile is in pixel-edge coordinates (pixel k spans [k, k + 1)); OpenCV's have pixel centres on integers.
+    base_u, base_v = float(np.mean(centre)) - 0.5, float(rows[-1] + 1) - 0.5
     # OpenCV camera: x right, y down, z forward; the object (z up) seen from its -y side.
     R = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
     t = np.array([(base_u - intr.cx) * distance_m / f, (base_v - intr.cy) * distance_m / f, distance_m])

@@ -124,3 +124,79 @@ def test_closeup_crop_is_a_slice_with_the_target_height_and_exact_boxes():
 def test_closeup_arm_is_a_study_flag_not_an_insertion_override():
     from detection_eval.study import STUDY_FLAGS
     assert ARM_FLAGS["inserted_closeup"] == {"closeup_crop": True} and "closeup_crop" in STUDY_FLAGS
+
+
+def test_dev_split_is_fixed_disjoint_and_of_the_asked_size():
+    from detection_eval.study import split_dev
+    ds = _set(200, 199)
+    rest, dev = split_dev(ds, 50, 50, seed=0)
+    dev_paths = {r.image_path for r in dev.records}
+    rest_paths = {r.image_path for r in rest.records}
+    assert not dev_paths & rest_paths and len(dev_paths | rest_paths) == 399
+    assert sum(p.startswith("c") for p in dev_paths) == 50 and sum(p.startswith("e") for p in dev_paths) == 50
+    assert {r.image_path for r in split_dev(ds, 50, 50, seed=0)[1].records} == dev_paths
+    thin, empty = thin_cone_images(rest, 0.01, seed=2)            # thinning never reaches into dev
+    assert not {r.image_path for r in thin.records} & dev_paths
+    assert sum(1 for r in thin.records if len(r.labels)) == 2      # the probe: 1 % of the 150 left
+    with pytest.raises(ValueError):
+        split_dev(ds, 201, 0, seed=0)
+
+
+def _yolo_cones(root, n_cone, n_empty):
+    """A tiny YOLO dataset: grey-green noise roads, orange triangle cones on the cone images."""
+    import cv2
+
+    from tests.aias_augment.bank.test_lift import _noise_background, draw_cone
+    (root / "images" / "train").mkdir(parents=True)
+    (root / "labels" / "train").mkdir(parents=True)
+    for i in range(n_cone + n_empty):
+        img = _noise_background(240, 320, i)
+        lines = []
+        if i < n_cone:
+            b = draw_cone(img, 100 + 20 * i, 200, 120, 32)
+            lines.append(f"0 {(b[0] + b[2]) / 640} {(b[1] + b[3]) / 480} {(b[2] - b[0]) / 320} {(b[3] - b[1]) / 240}")
+        cv2.imwrite(str(root / "images" / "train" / f"im{i}.png"), img[..., ::-1])
+        (root / "labels" / "train" / f"im{i}.txt").write_text("\n".join(lines))
+
+
+def test_copy_paste_pool_uses_only_the_seeds_own_instances(tmp_path):
+    import json
+
+    from detection_eval.data import load_yolo_dir
+    from detection_eval.study import generate_arm_set
+    _yolo_cones(tmp_path / "data", 4, 6)
+    train = load_yolo_dir(tmp_path / "data", "train", ("cone",))
+    cfg = StudyConfig(dataset=str(tmp_path / "data"), keep_fraction=0.5, arms=("original", "copy_paste"),
+                      amounts=(3,), insertion=InsertionStudyConfig(pool_size=3, max_objects=2),
+                      cache_dir=str(tmp_path / "cache"))
+    seen = {}
+    for seed in (0, 1):
+        base, empty = thin_cone_images(train, cfg.keep_fraction, seed)
+        out = generate_arm_set(cfg, "copy_paste", train, empty, seed, base)
+        done = json.loads((out / "done.json").read_text())
+        own = sorted(r.image_path.rsplit("/", 1)[1] for r in base.records if len(r.labels))
+        assert sorted(done["sources"]) == own and done["num_images"] == 3 and done["num_boxes"] >= 3
+        seen[seed] = own
+        pool = load_yolo_dir(out, names=("cone",))
+        for r in pool.records:
+            assert np.all(r.boxes_xyxy[:, :2] >= 0) and np.all(r.boxes_xyxy[:, 2] <= r.width)
+            assert np.all(r.boxes_xyxy[:, 3] <= r.height)
+    assert seen[0] != seen[1]
+
+
+def test_paste_instances_changes_only_the_pasted_boxes():
+    from aias_augment.bank.lift import cut_out
+    from detection_eval.copy_paste import paste_instances
+    from tests.aias_augment.bank.test_lift import _noise_background, draw_cone
+    src = _noise_background(240, 320)
+    cut, _ = cut_out(src, draw_cone(src, 160, 200, 120, 32))
+    bg = np.full((200, 300, 3), 77, np.uint8)
+    out, boxes = paste_instances(bg, [cut], np.random.default_rng(0), (0.3, 0.5), n_objects=3)
+    assert len(boxes) >= 2
+    inside = np.zeros(bg.shape[:2], bool)
+    for x0, y0, x1, y1 in boxes.astype(int):
+        assert 0 <= x0 < x1 <= 300 and 0 <= y0 < y1 <= 200
+        assert 0.25 * 200 <= y1 - y0 <= 0.55 * 200
+        inside[max(0, y0 - 2):y1 + 2, max(0, x0 - 2):x1 + 2] = True
+    assert np.all(out[~inside] == 77)                              # soft edges stay within 2 px of the box
+    assert np.any(out[inside] != 77)
