@@ -742,10 +742,14 @@ def plot_size_histograms(cfg: StudyConfig, train: DetectionSet, val: DetectionSe
     import matplotlib.pyplot as plt
 
     series = {"real train": real_box_height_fractions(train), "real val": real_box_height_fractions(val)}
-    for arm in ARM_FLAGS:   # every pool generated so far (the other study configs' arms too)
-        mf = _repo_path(cfg.cache_dir) / arm / "pool" / "manifest.json"
-        if uses_pool(arm) and mf.exists():
-            series[f"{arm} pool"] = [h for e in json.loads(mf.read_text()) for h in e.get("box_heights_frac", [])]
+    for arm in ARM_FLAGS:   # every pool generated so far (the other study configs' arms too; per-seed pools pooled)
+        arm_dir = _repo_path(cfg.cache_dir) / arm
+        files = sorted(arm_dir.glob("seed*/pool/manifest.json")) if arm in PER_SEED_ARMS else \
+            [arm_dir / "pool" / "manifest.json"]
+        heights = [h for mf in files if mf.exists() for e in json.loads(mf.read_text())
+                   for h in e.get("box_heights_frac", [])]
+        if uses_pool(arm) and heights:
+            series[f"{arm} pool"] = heights
     fig, ax = plt.subplots(figsize=(7, 4))
     bins = np.linspace(0, 1, 41)
     for k, (name, v) in enumerate(series.items()):

@@ -121,7 +121,10 @@ def main() -> None:
         "lifted": report.lifted, "lift_seconds_per_instance": lift_s / max(report.lifted, 1),
         "render_iou_median": float(np.median(r_iou)) if r_iou else None,
         "render_iou_min": float(np.min(r_iou)) if r_iou else None,
-        "render_iou_below_0.9": int(sum(i < 0.9 for i in r_iou)), "instances": ious}
+        "render_iou_below_0.9": int(sum(i < 0.9 for i in r_iou)),
+        "label_margins_frac_median": dict(zip(("left", "top", "right", "bottom"), np.median(
+            [a.meta["label_margins_frac"] for a in assets], axis=0).round(4).tolist())) if assets else None,
+        "instances": ious}
     (out / "report.json").write_text(json.dumps(summary, indent=1))
     print(json.dumps({k: v for k, v in summary.items() if k != "instances"}, indent=1))
 

@@ -159,8 +159,12 @@ def cut_out(image: np.ndarray, box_xyxy, other_boxes_xyxy=(), cfg: LiftConfig = 
     if fill < cfg.min_fill or iou < cfg.min_box_iou:
         return None, "badly segmented (mask does not fill the box)"
     alpha = _soft_alpha(crop, mask)
+    # The labeller's convention: how far the label box lies outside the object's mask on each side (left, top,
+    # right, bottom; fractions of the box's width or height; negative where the label cuts into the object).
+    margins = [(mbox[0] - b[0]) / bw, (mbox[1] - b[1]) / bh, (b[2] - mbox[2]) / bw, (b[3] - mbox[3]) / bh]
     return Cutout(source, tuple(map(float, b)), (cx0, cy0), crop, mask, alpha,
-                  {"fill": float(fill), "mask_box_iou": float(iou)}), "ok"
+                  {"fill": float(fill), "mask_box_iou": float(iou),
+                   "label_margins_frac": [round(float(m), 4) for m in margins]}), "ok"
 
 
 def _soft_alpha(crop: np.ndarray, mask: np.ndarray) -> np.ndarray:
