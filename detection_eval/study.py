@@ -233,7 +233,8 @@ def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
     if ic.match_real_sizes:
         fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
         overrides["placement_cfg"] = dataclasses.replace(base, box_height_frac_samples=fracs)
-        if ARM_FLAGS[arm].get("naive_paste"):   # naive paste draws its own random sizes from the same distribution
+        if ARM_FLAGS[arm].get("naive_paste") or ARM_FLAGS[arm].get("placement") is False:
+            # random 2D positions (naive paste, no placement) draw their sizes from the same distribution
             overrides["naive_height_frac_samples"] = fracs
     if placement_flags:
         overrides["placement_cfg"] = dataclasses.replace(overrides.get("placement_cfg", base), **placement_flags)
