@@ -62,6 +62,15 @@ class PlacementConfig:
     # image has any, target box heights are drawn from theirs (jittered as above) instead of the samples/range above,
     # so an inserted object is as large as the same scene's own objects (a close-up's cones are close-up sized).
     sizes_from_existing: bool = False
+    # A single photo's ground has no measured scale: its plane comes from a camera-height prior
+    # (``ASSUMED_SCALE_SOURCES``), and a level road camera 1.65 m up cannot see a cone on the ground taller than
+    # ~0.25 of the frame, while close-ups and product shots are full of them. With ``scene_scale_from_sizes`` and a
+    # size target, each image first draws a reference target and a ground pixel that can host it at a camera height
+    # inside ``camera_height_range_m``, and the whole scene is scaled about the camera centre to that height (the
+    # one unknown a single photo leaves; every object of the image shares it, so they stay consistent with each
+    # other, with the ground and with their shadows). Measured grounds (depth, LiDAR, poses) are never rescaled.
+    scene_scale_from_sizes: bool = False
+    camera_height_range_m: tuple[float, float] = (0.4, 4.0)
 
     def __post_init__(self):
         if self.box_height_frac_range is not None and not (
@@ -71,6 +80,9 @@ class PlacementConfig:
             raise ValueError("box_height_frac_samples must lie in (0, 1]")
         if self.box_height_tolerance <= 0 or self.box_height_jitter < 0:
             raise ValueError("box_height_tolerance must be > 0 and box_height_jitter >= 0")
+        lo, hi = self.camera_height_range_m
+        if not (0 < lo <= hi and np.isfinite(hi)):
+            raise ValueError(f"camera_height_range_m must satisfy 0 < lo <= hi < inf, got {self.camera_height_range_m}")
         if self.local_fallback not in ("global", "reject"):
             raise ValueError(f"local_fallback must be 'global' or 'reject', got {self.local_fallback!r}")
         if self.local_radius_m <= 0 or self.local_ground_band_m <= 0 or self.local_threshold_m <= 0:
@@ -273,15 +285,7 @@ def predicted_box_heights_px(uv: np.ndarray, object_height_m: float, ground: Gro
     """(N, 2) ground pixels -> (N,) image height in pixels of a vertical segment of ``object_height_m`` standing on
     the ground there (its base and top projected); nan where the ray misses the ground or the top is behind the
     camera. An object's box is about this high (a cone's box is its height; wide objects add a little)."""
-    base = ground.intersect_pixels(uv, intrinsics)
-    top = base + object_height_m * ground.normal[None, :]
-    out = np.full(len(uv), np.nan)
-    ok = np.all(np.isfinite(base), axis=1) & (base[:, 2] > 0.05) & (top[:, 2] > 0.05)
-    if ok.any():
-        ub, _ = project_points(base[ok], intrinsics.K)
-        ut, _ = project_points(top[ok], intrinsics.K)
-        out[ok] = np.abs(ub[:, 1] - ut[:, 1])
-    return out
+    return _pred_scaled(uv, np.full(len(uv), float(object_height_m)), ground, intrinsics)
 
 
 def candidates_for_box_height(cand: np.ndarray, target_frac: float, object_height_m: float, ground: GroundPlane,
@@ -305,6 +309,75 @@ def candidates_for_box_height(cand: np.ndarray, target_frac: float, object_heigh
     n = max(1, int(0.02 * finite.sum()))
     nearest = np.argsort(rel)[:n]
     return cand[nearest], f" (target {target:.0f} px not reachable in this scene: nearest sizes used)"
+
+
+# Ground sources whose metric scale is a prior (an assumed camera height), not a measurement.
+ASSUMED_SCALE_SOURCES = ("prior", "single_image")
+
+
+def has_assumed_scale(ground: GroundPlane) -> bool:
+    return ground.source.split(":")[0] in ASSUMED_SCALE_SOURCES
+
+
+def scene_scale_for_sizes(ground: GroundPlane, intrinsics: Intrinsics, rng: np.random.Generator,
+                          cfg: PlacementConfig, object_height_m: float, target_frac: float,
+                          region_mask: np.ndarray | None = None) -> tuple[float, str]:
+    """Factor ``k`` by which to scale an assumed-scale scene about the camera centre (the camera height becomes
+    ``k * ground.d``) so that an object of box height ``target_frac`` (of the image height) stands on a ground
+    pixel drawn uniformly among those that can host it with the camera height inside
+    ``cfg.camera_height_range_m``; ``(1.0, reason)`` when the scene is not rescaled. Given the largest target of
+    an image, its smaller ones fit farther away. Scaling the scene by ``k`` shows an object of height ``h`` as the
+    unscaled scene shows one of ``h / k``, which gives each pixel's ``k`` by a fixed-point iteration on the
+    predicted box heights."""
+    if not has_assumed_scale(ground):
+        return 1.0, f"measured ground ({ground.source}): its scale is kept"
+    cand = _GROUND_CANDIDATES.get(ground, intrinsics, region_mask, cfg.horizon_margin_px)["cand"]
+    if len(cand) == 0 or not (ground.d > 0):
+        return 1.0, "no ground in view: scale kept"
+    cand = cand[:: max(1, len(cand) // 4096)]
+    v, u = np.divmod(cand, intrinsics.width)
+    uv = np.c_[u, v].astype(np.float64)
+    target = target_frac * intrinsics.height
+    k = np.ones(len(cand))
+    for _ in range(4):   # pred(h / k) is nearly proportional to 1 / k: converges in a few steps
+        pred = _pred_scaled(uv, object_height_m / k, ground, intrinsics)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            k = k * pred / target
+        k[~(np.isfinite(k) & (k > 0))] = np.nan
+    if np.isnan(k).all():
+        return 1.0, f"target {target:.0f} px: no ground pixel predicts a size, scale kept"
+    heights = k * ground.d
+    lo, hi = cfg.camera_height_range_m
+    ok = np.flatnonzero((heights >= lo) & (heights <= hi))
+    if len(ok) == 0:
+        near = float(heights[np.nanargmin(np.abs(np.log(heights / np.sqrt(lo * hi))))])
+        kk = float(np.clip(near, lo, hi)) / ground.d   # the nearest plausible height: the target is not met
+        return kk, (f"target {target:.0f} px needs a camera height outside {lo}-{hi} m: "
+                    f"{kk * ground.d:.2f} m used")
+    i = ok[int(rng.integers(len(ok)))]
+    return float(k[i]), (f"camera {heights[i]:.2f} m above the ground (assumed {ground.d:.2f} m) so that a "
+                         f"{target:.0f} px target stands on visible ground")
+
+
+def _pred_scaled(uv: np.ndarray, heights_m: np.ndarray, ground: GroundPlane, intrinsics: Intrinsics) -> np.ndarray:
+    """:func:`predicted_box_heights_px` with one object height per pixel."""
+    base = ground.intersect_pixels(uv, intrinsics)
+    top = base + heights_m[:, None] * ground.normal[None, :]
+    out = np.full(len(uv), np.nan)
+    ok = np.all(np.isfinite(base), axis=1) & np.isfinite(heights_m) & (base[:, 2] > 0.05) & (top[:, 2] > 0.05)
+    if ok.any():
+        ub, _ = project_points(base[ok], intrinsics.K)
+        ut, _ = project_points(top[ok], intrinsics.K)
+        out[ok] = np.abs(ub[:, 1] - ut[:, 1])
+    return out
+
+
+def scaled_ground(ground: GroundPlane, k: float) -> GroundPlane:
+    """``ground`` with the scene scaled by ``k`` about the camera centre (same normal, camera height ``k * d``)."""
+    if k == 1.0:
+        return ground
+    return GroundPlane(ground.normal, ground.d * k, f"{ground.source}:scaled", ground.inlier_ratio, ground.rms_m,
+                       ground.num_inliers)
 
 
 class _GroundCandidates:

@@ -57,6 +57,10 @@ ARM_FLAGS: dict[str, dict | None] = {
     "inserted_scene_sizes": {"placement_cfg": {"sizes_from_existing": True}},
     "inserted_in_frame": {"placement_cfg": {"min_in_image_frac": 1.0}},
     "inserted_scene_sizes_in_frame": {"placement_cfg": {"sizes_from_existing": True, "min_in_image_frac": 1.0}},
+    # The photo's unknown metric scale (a single photo's camera height is a prior) drawn per image so that the real
+    # boxes' sizes stand on its visible ground (PlacementConfig.scene_scale_from_sizes): ground contact, perspective
+    # and shadows as in ``inserted``, sizes as in ``naive_paste``.
+    "inserted_scene_scale": {"placement_cfg": {"scene_scale_from_sizes": True}},
     # The seed's thinned subset's own real instances (aias_augment.bank.lift): pasted at random positions and sizes
     # (Simple Copy-Paste, masks from the boxes by GrabCut), or lifted into 3D and inserted by the full pipeline
     # (placed on the ground, lit, shadowed, harmonized: the pipeline with the data's own appearance).

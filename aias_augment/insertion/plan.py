@@ -13,7 +13,8 @@ import numpy as np
 from ..assets import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
 from ..collision import OrientedBox
 from ..geometry import Intrinsics, make_rigid, project_points, transform_points
-from ..placement import Placement, box_of_points, sample_placement
+from ..placement import (Placement, box_of_points, draw_box_height_target, sample_placement, scaled_ground,
+                         scene_scale_for_sizes)
 from .analyse import SceneAnalysis
 from .config import InsertionConfig
 
@@ -71,13 +72,28 @@ def plan_insertion(analysis: SceneAnalysis, cfg: InsertionConfig, rng: np.random
     pcfg = scene_sized_placement(cfg.placement_cfg, taken, analysis.image_shape[0])
     if pcfg is not cfg.placement_cfg:
         mods["sizes"] = f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes"
+    object_cfgs = [pcfg] * k
+    targets = None
+    if cfg.placement and pcfg.scene_scale_from_sizes and k:
+        # The image's targets drawn first; its scale is set by the largest (the smaller ones fit farther away).
+        targets = [draw_box_height_target(pcfg, rng) for _ in range(k)]
+        targets = None if targets[0] is None else targets
     objects, reports = [], []
-    for _ in range(k):
+    for i in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
         base = choose_asset(category, rng, cfg, bank)
         if cfg.placement:
+            if targets is not None and i == 0:
+                hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.height_m, base.height_m))
+                scale, mods["scene_scale"] = scene_scale_for_sizes(ground, intr, rng, pcfg, float(np.mean(hr)),
+                                                                   max(targets), region.mask)
+                if scale != 1.0:   # the scene scaled about the camera: its distance limits with it
+                    ground = scaled_ground(ground, scale)
+                    pcfg = replace(pcfg, min_distance_m=pcfg.min_distance_m * scale,
+                                   max_distance_m=pcfg.max_distance_m * scale)
+                object_cfgs = [replace(pcfg, box_height_frac_samples=(t,), box_height_jitter=0.0) for t in targets]
             placement, report = sample_placement(base, ground, intr, rng, existing_boxes_xyxy=np.array(taken),
-                                                 depth=depth, cfg=pcfg, region_mask=region.mask,
+                                                 depth=depth, cfg=object_cfgs[i], region_mask=region.mask,
                                                  height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
                                                  points_in_cam=scene_points,
                                                  existing_objects=boxes_3d if "collision" in mods else None)

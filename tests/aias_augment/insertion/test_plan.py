@@ -62,3 +62,56 @@ def test_sizes_from_existing_boxes_make_objects_the_scene_objects_size():
     assert scene_sized_placement(replace(pc, sizes_from_existing=False), list(existing), 480).box_height_frac_samples \
         == ()
     assert scene_sized_placement(pc, list(existing), 480).box_height_frac_samples == (80 / 480, 80 / 480)
+
+
+def _analytic_height_px(placement, height_m, intr):
+    """Image height of a vertical segment of ``height_m`` standing at the placement's contact point on its plane."""
+    base = np.asarray(placement.contact_point_in_cam)
+    top = base + height_m * np.asarray(placement.ground_normal_in_cam)
+    v = [intr.fy * p[1] / p[2] + intr.cy for p in (base, top)]
+    return abs(v[0] - v[1])
+
+
+def test_scene_scale_from_sizes_hosts_targets_the_assumed_camera_height_cannot():
+    """A level camera 1.65 m up with f = 500 px sees a 0.7 m object on the ground at most ~102 px tall (its nearest
+    visible ground, the bottom row, is 500 * 1.65 / 240 = 3.4 m away). A 216 px target (0.45 of the frame) needs
+    the assumed-scale scene scaled about the camera: every object then stands on the one scaled plane, at the
+    target size by the analytic projection of its contact point, and the camera height lies in the allowed range."""
+    from dataclasses import replace
+
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    assert an.ground.source.split(":")[0] in ("prior", "single_image")
+    bank = OneAsset(box_asset(extents=(0.3, 0.3, 0.7)))
+    sized = replace(CFG.placement_cfg, box_height_frac_samples=(0.45,), box_height_jitter=0.0,
+                    box_height_tolerance=0.1)
+    off = replace(CFG, placement_cfg=sized)
+    on = replace(CFG, placement_cfg=replace(sized, scene_scale_from_sizes=True))
+    for s in range(4):
+        p_off = plan_insertion(an, off, np.random.default_rng(s), bank=bank, n_objects=1)
+        assert all(_analytic_height_px(o.placement, 0.7, K) < 110 for o in p_off.objects)
+        p = plan_insertion(an, on, np.random.default_rng(s), bank=bank, n_objects=2)
+        assert p.objects and p.modules["scene_scale"].startswith("camera ")
+        d = {o.placement.ground_d for o in p.objects}
+        assert len(d) == 1 and 0.4 <= d.pop() < 1.65 * 0.8
+        for o in p.objects:
+            assert abs(_analytic_height_px(o.placement, 0.7, K) / 216 - 1) <= 0.1 + 1e-6
+            assert o.placement.ground_source.endswith(":scaled")
+
+
+def test_scene_scale_keeps_measured_grounds_and_the_camera_height_range():
+    from aias_augment.ground import GroundPlane
+    from aias_augment.placement import PlacementConfig, scene_scale_for_sizes
+    up = np.array([0.0, -1.0, 0.0])
+    cfg = PlacementConfig(scene_scale_from_sizes=True, camera_height_range_m=(1.2, 2.0))
+    k, why = scene_scale_for_sizes(GroundPlane(up, 1.65, "depth"), K, np.random.default_rng(0), cfg, 0.7, 0.45)
+    assert k == 1.0 and why.startswith("measured ground")
+    # 0.45 of the frame needs a camera ~0.6 m up: outside 1.2-2.0 m, the nearest allowed height is used and said
+    k, why = scene_scale_for_sizes(GroundPlane(up, 1.65, "prior"), K, np.random.default_rng(0), cfg, 0.7, 0.45)
+    assert abs(k * 1.65 - 1.2) < 1e-9 and "outside" in why
+    # a small target is hosted near the horizon at the assumed height or a higher one
+    k, why = scene_scale_for_sizes(GroundPlane(up, 1.65, "prior"), K, np.random.default_rng(0),
+                                   PlacementConfig(scene_scale_from_sizes=True), 0.7, 0.05)
+    assert 0.4 <= k * 1.65 <= 4.0 and why.startswith("camera ")
+    import pytest
+    with pytest.raises(ValueError, match="camera_height_range_m"):
+        PlacementConfig(camera_height_range_m=(2.0, 1.0))
