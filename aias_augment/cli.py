@@ -11,7 +11,7 @@ import sys
 from dataclasses import replace
 
 from .geometry import CAMERA_HEIGHT_PRIOR_M
-from .offline import IMAGE_SUFFIXES, items_from_coco, items_from_yolo, run
+from .offline import IMAGE_SUFFIXES, coco_categories, items_from_coco, items_from_yolo, run
 from .pipeline import PRESETS, load_preset
 
 
@@ -86,11 +86,16 @@ def main(argv=None) -> int:
         summary = run(items, cfg, a.seed, a.out, workers=a.workers, class_names=a.class_names,
                       scene_cache=a.scene_cache, preset=a.preset, overwrite=a.overwrite,
                       max_pixels=int(a.max_megapixels * 1e6) or None, options={"boxes": a.boxes},
-                      backend=a.backend, ray_address=a.address)
+                      backend=a.backend, ray_address=a.address,
+                      categories=coco_categories(a.input) if a.input else None)
     except (InputError, ManifestMismatch) as e:
         print(f"aias-augment: error: {e}", file=sys.stderr)
         return 2
     print(summary)
+    if not summary["written"]:   # an empty dataset is a failure, whatever the reasons
+        print(f"aias-augment: error: no image written: all {summary['images']} images were skipped; see "
+              f"{a.out}/report.json", file=sys.stderr)
+        return 1
     if summary["skipped"]:
         print(f"aias-augment: {summary['skipped']} of {summary['images']} images skipped; see "
               f"{a.out}/report.json", file=sys.stderr)

@@ -111,6 +111,33 @@ def items_from_coco(json_path: str, images_dir: str, box_policy: str = "clip") -
     return items
 
 
+def coco_categories(json_path: str) -> dict[str, int]:
+    """The input's category name -> id, so that output ids are the user's (a name listed twice keeps its first
+    id, as :func:`items_from_coco` labels boxes by name)."""
+    try:
+        with open(json_path) as f:
+            cats = json.load(f).get("categories", [])
+    except (OSError, ValueError) as e:
+        raise InputError(f"cannot read COCO json {json_path}: {e}") from None
+    out: dict[str, int] = {}
+    for c in cats:
+        out.setdefault(c["name"], int(c["id"]))
+    return out
+
+
+def output_categories(input_categories: dict[str, int] | None, class_names, inserted: tuple[str, ...]) -> dict:
+    """Output category name -> id: the input's ids as they are (COCO), YOLO class ``i`` as id ``i + 1`` (its names
+    when given), then each inserted category the input lacks, in config order, after the largest id. Fixed before
+    any image is written, so ids never depend on which image comes first."""
+    cats = dict(input_categories or {})
+    if not cats and class_names:
+        cats = {name: i + 1 for i, name in enumerate(class_names)}
+    for name in inserted:
+        if name not in cats:
+            cats[name] = max(cats.values(), default=0) + 1
+    return cats
+
+
 def items_from_yolo(images_dir: str, labels_dir: str | None = None, class_names: list[str] | None = None,
                     box_policy: str = "clip") -> list[Item]:
     """YOLO txt: ``class cx cy w h`` normalised; labels in ``labels_dir`` (default: images/ -> labels/). Checked
@@ -274,7 +301,8 @@ def _worker(args):
 def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, workers: int = 1,
         class_names=None, sheet_size: int = 12, scene_cache: str | None = None, *, preset: str | None = None,
         overwrite: bool = False, max_pixels: int | None = None, options: dict | None = None,
-        backend: str = "local", ray_address: str | None = None) -> dict:
+        backend: str = "local", ray_address: str | None = None,
+        categories: dict[str, int] | None = None) -> dict:
     """Augment all items, then write ``annotations.json`` (COCO, validated), ``report.json`` and
     ``contact_sheet.png``.
 
@@ -282,13 +310,15 @@ def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, worker
     resumes (failed and changed inputs are redone), another run is refused (ManifestMismatch) unless ``overwrite``.
     No items: InputError. ``max_pixels``: larger images are augmented at a bounded size (recorded).
     ``backend``: "local" (this process or a spawn pool of ``workers``) or "ray" (Ray tasks on ``ray_address`` or a
-    local Ray instance of ``workers`` CPUs); outputs are the same bytes either way."""
+    local Ray instance of ``workers`` CPUs); outputs are the same bytes either way. ``categories``: the input's
+    category name -> id (:func:`coco_categories`), kept in the output (:func:`output_categories`)."""
     if not items:
         raise InputError("no input images")
     out = Path(out_dir)
     hashes = [item_hash(it) for it in items]
+    out_categories = output_categories(categories, class_names, tuple(cfg.categories))
     manifest = build_manifest(items, cfg, seed, preset, {**(options or {}), "class_names": class_names,
-                                                           "max_pixels": max_pixels})
+                                                           "max_pixels": max_pixels, "categories": out_categories})
     manifest["inputs"] = [{"path": it.path, "sha256": h} for it, h in zip(items, hashes)]
     prepare_output(out, manifest, overwrite)
     jobs = [(i, it, cfg, seed, str(out), class_names, None if scene_cache is None else str(scene_cache), h,
@@ -307,7 +337,7 @@ def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, worker
         with mp.get_context("spawn").Pool(workers) as pool:
             for r in tqdm(pool.imap(_worker, jobs), total=len(jobs), desc="aias-augment", unit="img"):
                 records.append(r)
-    coco = CocoBuilder()
+    coco = CocoBuilder(out_categories)
     sheet = []
     for rec in records:
         if "skipped" in rec:

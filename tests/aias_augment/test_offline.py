@@ -106,3 +106,43 @@ def test_kill_9_mid_run_then_rerun_gives_byte_identical_outputs(tmp_path):
         assert len(ids) == len(set(ids))
     assert len(coco["images"]) == 10
     assert not [p for p in killed.rglob("*") if ".tmp" in p.name]
+
+
+def test_cli_exits_1_when_every_image_is_skipped(tmp_path, capsys):
+    """A YOLO folder whose only label row names a class outside --class-names: 0 images written is an error."""
+    from aias_augment.cli import main
+    (tmp_path / "images").mkdir()
+    (tmp_path / "labels").mkdir()
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), _image()[..., ::-1])
+    (tmp_path / "labels" / "a.txt").write_text("3 0.5 0.5 0.1 0.2\n")
+    rc = main(["--yolo", str(tmp_path / "images"), "--class-names", "cone", "--preset", "fast",
+               "--out", str(tmp_path / "out")])
+    assert rc == 1 and "no image written" in capsys.readouterr().err
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["skipped"] == 1
+
+
+def test_coco_category_ids_come_out_as_they_went_in(tmp_path):
+    """Input ``cone`` has id 7 and ``sign`` id 3; the first image has no input boxes (only inserted objects):
+    the output keeps 7 and 3 and gives the inserted category the next id, whichever image comes first."""
+    from aias_augment.cli import main
+    (tmp_path / "im").mkdir()
+    for i in range(2):
+        cv2.imwrite(str(tmp_path / "im" / f"{i}.png"), _image()[..., ::-1])
+    h, w = _image().shape[:2]
+    coco_in = {"images": [{"id": 1, "file_name": "0.png", "width": w, "height": h},
+                          {"id": 2, "file_name": "1.png", "width": w, "height": h}],
+               "annotations": [{"id": 1, "image_id": 2, "category_id": 7, "bbox": [5, 5, 20, 20]},
+                               {"id": 2, "image_id": 2, "category_id": 3, "bbox": [50, 5, 20, 20]}],
+               "categories": [{"id": 3, "name": "sign"}, {"id": 7, "name": "cone"}]}
+    (tmp_path / "in.json").write_text(json.dumps(coco_in))
+    rc = main(["--input", str(tmp_path / "in.json"), "--images", str(tmp_path / "im"), "--preset", "fast",
+               "--categories", "traffic_cone", "--out", str(tmp_path / "out")])
+    assert rc == 0
+    out = json.loads((tmp_path / "out" / "annotations.json").read_text())
+    ids = {c["name"]: c["id"] for c in out["categories"]}
+    assert ids == {"sign": 3, "cone": 7, "traffic_cone": 8}
+    names = {c["id"]: c["name"] for c in out["categories"]}
+    inserted = [names[a["category_id"]] for a in out["annotations"] if a["inserted"]]
+    real = sorted(names[a["category_id"]] for a in out["annotations"] if not a["inserted"])
+    assert inserted and set(inserted) == {"traffic_cone"} and real == ["cone", "sign"]

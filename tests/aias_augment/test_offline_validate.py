@@ -194,10 +194,10 @@ def test_bad_corpus_report_resume_refuse_retry(tmp_path):
 def test_overwrite_replaces_a_different_run(tmp_path):
     images = _yolo(tmp_path, {"t": ("truncated", None)})   # nothing rendered: the manifest logic alone
     out = tmp_path / "out"
-    assert main(["--yolo", str(images), "--out", str(out), "--seed", "1"]) == 0
+    assert main(["--yolo", str(images), "--out", str(out), "--seed", "1"]) == 1   # ran; nothing written: exit 1
     (out / "records" / "999999.json").write_text("{}")     # stale output of the previous run
     assert main(["--yolo", str(images), "--out", str(out), "--seed", "2"]) == 2
-    assert main(["--yolo", str(images), "--out", str(out), "--seed", "2", "--overwrite"]) == 0
+    assert main(["--yolo", str(images), "--out", str(out), "--seed", "2", "--overwrite"]) == 1
     assert not (out / "records" / "999999.json").exists()
     assert json.loads((out / "manifest.json").read_text())["seed"] == 2
 
