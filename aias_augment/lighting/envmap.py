@@ -182,6 +182,26 @@ def render_perspective(radiance: np.ndarray, intrinsics: Intrinsics, cam_from_en
     return sample_envmap(np.asarray(radiance, dtype=np.float32), rays_in_env)
 
 
+# Above this pre-blur sigma (image pixels) the frame is area-averaged down first, so that the blur kernel stays
+# under ~2 * 4 * _MAX_BLUR_SIGMA_PX taps whatever the focal length says (fx = 1e7 would ask for millions).
+_MAX_BLUR_SIGMA_PX = 32.0
+
+
+def _area_reduced(img: np.ndarray, sigma_px: float) -> tuple[np.ndarray, float]:
+    """``img`` area-averaged by ``f = sigma_px / 8`` (INTER_AREA: every source pixel counted once) when
+    ``sigma_px`` exceeds ``_MAX_BLUR_SIGMA_PX``, and ``f`` (1.0 when unchanged). The remaining blur is
+    ``sigma_px / f`` = 8 reduced pixels; a frame smaller than one reduced pixel becomes its mean."""
+    if not sigma_px > _MAX_BLUR_SIGMA_PX:
+        return img, 1.0
+    f = sigma_px / 8.0
+    h, w = img.shape[:2]
+    size = (max(1, int(round(w / f))), max(1, int(round(h / f))))
+    if size == (1, 1):
+        return np.broadcast_to(img.reshape(-1, img.shape[2]).mean(axis=0, dtype=np.float64).astype(np.float32),
+                               (1, 1, img.shape[2])).copy(), f
+    return cv2.resize(img, size, interpolation=cv2.INTER_AREA), f
+
+
 def assemble_envmap(
     frames_linear: Sequence[np.ndarray],
     intrinsics: Sequence[Intrinsics],
@@ -214,6 +234,8 @@ def assemble_envmap(
         R = _check_rotation(R, "cam_from_env")
         # Pre-blur to the map's resolution: sigma ~ half a map pixel expressed in image pixels.
         sigma_px = 0.5 * map_pixel_rad * K.fx
+        img, reduced_by = _area_reduced(img, sigma_px)   # long focal lengths: area-average first (bounded cost)
+        sigma_px /= reduced_by
         if sigma_px > 0.7:
             # scipy's gaussian_filter(mode="nearest", truncate 4) as one OpenCV call (same kernel, replicated
             # border; ~10x faster on a full frame): half of the radius is int(4 sigma + 0.5)
@@ -230,7 +252,8 @@ def assemble_envmap(
         if not inside.any():
             continue
         ui, vi = u[inside], v[inside]
-        vals = ndimage.map_coordinates(img, [np.repeat(vi, 3), np.repeat(ui, 3), np.tile([0, 1, 2], ui.size)],
+        ur, vr = (ui + 0.5) * img.shape[1] / K.width - 0.5, (vi + 0.5) * img.shape[0] / K.height - 0.5
+        vals = ndimage.map_coordinates(img, [np.repeat(vr, 3), np.repeat(ur, 3), np.tile([0, 1, 2], ui.size)],
                                        order=1, mode="nearest").reshape(-1, 3)
         border = np.minimum.reduce([ui, vi, K.width - 1 - ui, K.height - 1 - vi])
         w = np.clip((border + 1.0) / edge_weight_px, 1e-3, 1.0)

@@ -61,3 +61,25 @@ def test_environment_map_validation():
         em.EnvironmentMap(np.full((4, 8, 3), np.nan))
     with pytest.raises(ValueError, match=">= 0"):
         em.EnvironmentMap(-np.ones((4, 8, 3)))
+
+
+@pytest.mark.parametrize("fx", [5e3, 1e5, 1e7])
+def test_assemble_envmap_long_focal_lengths_average_what_the_frame_sees(fx):
+    """A frame whose whole field of view is smaller than a map pixel (fx = 1e5, 1e7: the pre-blur would need
+    kernels of 10^4-10^6 taps) contributes the area mean of its pixels to the map pixel it looks through: a
+    two-tone frame (left quarter 1, the rest 3) gives 2.5 there (a blur that long over replicated borders gives
+    the mean of the two border tones, 2). At fx = 5e3 the values stay between the tones."""
+    h = 16
+    img = np.ones((120, 160, 3), np.float32)
+    img[:, 40:] = 3.0
+    K = Intrinsics(fx, fx, 79.5, 59.5, 160, 120)
+    d = em.pixel_directions(h)[h // 2 - 3, h + 2]            # look through a map pixel's centre
+    az, el = np.arctan2(d[1], d[0]), np.arcsin(d[2])
+    assert np.allclose(em.azimuth_elevation_to_direction(az, el), d)
+    out, seen = em.assemble_envmap([img], [K], [em.cam_from_env_look(az, el)], height=h)
+    assert seen[h // 2 - 3, h + 2] and np.isfinite(out).all()
+    vals = out[seen][:, 0]
+    if fx >= 1e5:
+        assert np.allclose(vals, 2.5, atol=0.05), vals
+    else:
+        assert 1.0 <= vals.min() and vals.max() <= 3.0
