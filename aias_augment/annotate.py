@@ -24,6 +24,13 @@ class ObjectAnnotation:
                 "amodal_box_xywh": self.amodal_box_xywh, "visibility": self.visibility, "area": self.area,
                 "rle": self.rle}
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "ObjectAnnotation":
+        """The annotation :meth:`to_dict` wrote (its boxes as tuples again)."""
+        vis = d["visible_box_xywh"]
+        return cls(d["category"], None if vis is None else tuple(vis), tuple(d["amodal_box_xywh"]), d["visibility"],
+                   d["area"], d["rle"])
+
 
 def mask_box_xywh(mask: np.ndarray) -> tuple[float, float, float, float] | None:
     """Tight COCO box [x, y, w, h] of a boolean mask in pixel-edge coordinates (pixel i spans [i, i+1])."""

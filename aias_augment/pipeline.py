@@ -19,6 +19,7 @@ from .insertion.apply import _harmonize, apply_plan, object_shadow_ratio  # noqa
 from .insertion.cache import SceneCache
 from .insertion.config import PRESETS, InsertionConfig, load_preset  # noqa: F401
 from .insertion.plan import choose_asset as _choose_asset, naive_pose as _naive_pose, plan_insertion  # noqa: F401
+from .insertion.replay import placement_from_dict
 from .lighting.estimate import LightingEstimate
 from .placement import Placement
 from .scene import Frame
@@ -51,6 +52,15 @@ class InsertionRecord:
             "placement_reports": self.placement_reports,
             "existing_visibility": self.existing_visibility,
         }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "InsertionRecord":
+        """The record :meth:`to_dict` wrote (e.g. read back from JSON): ``from_dict(r.to_dict()).to_dict()`` equals
+        ``r.to_dict()``."""
+        return cls([placement_from_dict(p) for p in d["placements"]],
+                   [ObjectAnnotation.from_dict(a) for a in d["annotations"]],
+                   None if d["lighting"] is None else LightingEstimate.from_dict(d["lighting"]), dict(d["modules"]),
+                   list(d["placement_reports"]), list(d["existing_visibility"]), d["harmonize_seed"])
 
 
 @dataclass

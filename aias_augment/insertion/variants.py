@@ -24,9 +24,9 @@ which to keep) and the existing boxes' labels (the insertion does not read them)
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import os
-import pickle
 from collections import OrderedDict
 from pathlib import Path
 
@@ -42,7 +42,10 @@ log = logging.getLogger(__name__)
 #: changes which insertions the variants are).
 VARIANT_FORMAT = 1
 #: Bump when how a variant is stored in its file changes: files of another version are not read (computed again).
-FILE_FORMAT = 2
+FILE_FORMAT = 3
+#: A variant file's first bytes; then the header's length (4 bytes, little-endian), the header (JSON) and the
+#: bytes it lists, in its order (see :func:`variant_to_bytes`).
+FILE_MAGIC = b"aias-variant\n"
 
 
 def variant_key_prefix(cfg=None, assets=None, seed: int = 0):
@@ -120,13 +123,13 @@ class Variant:
     :class:`~aias_augment.transform.InsertObjects` when it makes the variant (for its image's size and each
     format) and when a call needs another. Stored with the variant (as bytes, made arrays when first used).
 
-    Pickled compactly (raw bytes, no NumPy reconstruction), with the record as its own pickle that is only
-    unpickled when ``record`` is read: a hit from the folder reads one file and rebuilds three arrays on its
-    bytes, and never the record's objects unless someone asks for it. A variant read back is immutable (its arrays
-    are read-only views of the file's bytes)."""
+    Stored as plain data (:func:`variant_to_bytes`: raw array bytes, the record as JSON that is only parsed when
+    ``record`` is read): a hit from the folder reads one file and rebuilds three arrays on its bytes, and never the
+    record's objects unless someone asks for it. A variant read back is immutable (its arrays are read-only views
+    of the file's bytes). Pickled (between processes) as the same bytes."""
 
     __slots__ = ("window", "pixels", "inserted_bboxes", "inserted_labels", "existing_visibility", "_record",
-                 "_record_pickle", "encoded")
+                 "_record_json", "encoded")
 
     def __init__(self, window, pixels: np.ndarray, inserted_bboxes: np.ndarray, inserted_labels,
                  existing_visibility: np.ndarray, record):
@@ -136,7 +139,7 @@ class Variant:
         self.inserted_labels = tuple(inserted_labels)
         self.existing_visibility = np.asarray(existing_visibility, np.float64).reshape(-1)
         self._record = record
-        self._record_pickle = None
+        self._record_json = None
         self.encoded = {}
 
     @classmethod
@@ -154,18 +157,21 @@ class Variant:
 
     @property
     def record(self):
-        """The insertion's record (unpickled on first read for a variant read from a file)."""
-        if self._record is None and self._record_pickle is not None:
-            self._record = pickle.loads(self._record_pickle)
+        """The insertion's record (rebuilt from its JSON on first read for a variant read from a file)."""
+        if self._record is None and self._record_json is not None:
+            from ..pipeline import InsertionRecord
+            d = json.loads(self._record_json)
+            self._record = None if d is None else InsertionRecord.from_dict(d)
         return self._record
 
+    def record_json(self) -> bytes:
+        """The record as stored: the JSON of ``InsertionRecord.to_dict`` (``null`` for none)."""
+        if self._record_json is None:
+            self._record_json = json.dumps(None if self._record is None else self._record.to_dict()).encode()
+        return self._record_json
+
     def __reduce__(self):
-        rec = self._record_pickle if self._record_pickle is not None else pickle.dumps(self._record, protocol=5)
-        encoded = {k: (g if g is False or isinstance(g, bytes) else np.asarray(g, np.float32).tobytes())
-                   for k, g in self.encoded.items()}
-        return (_variant_from_state, (self.window, self.pixels.shape, self.pixels.tobytes(),
-                                      self.inserted_bboxes.tobytes(), self.inserted_labels,
-                                      self.existing_visibility.tobytes(), rec, encoded))
+        return (variant_from_bytes, (variant_to_bytes(self),))
 
     @property
     def nbytes(self) -> int:
@@ -195,17 +201,88 @@ _NO_KEEP = np.zeros(0, bool)
 _NO_KEEP.flags.writeable = False
 
 
-def _variant_from_state(window, shape, pixels, boxes, labels, visibility, record_pickle, encoded) -> Variant:
-    """A :class:`Variant` from what :meth:`Variant.__reduce__` wrote (arrays as read-only views of the bytes)."""
+def variant_to_bytes(v: Variant, key: str = "", j: int = -1) -> bytes:
+    """``v`` as plain data: :data:`FILE_MAGIC`, the header's length (u32 little-endian), a JSON header, then the
+    bytes it lists, in order: pixels (uint8), inserted boxes (float64), existing visibility (float64), each stored
+    encoding that is not False (float32, K x 4) and the record's JSON. The header holds the xxh3-64 of those bytes
+    (a damaged file is found, not pasted). ``key`` and ``j`` name the variant the bytes are for (a file read under
+    another name is not used)."""
+    encoded, parts = [], [v.pixels.tobytes(), v.inserted_bboxes.tobytes(), v.existing_visibility.tobytes()]
+    for (h, w, fmt), g in v.encoded.items():
+        encoded.append([int(h), int(w), str(fmt), g is not False])
+        if g is not False:
+            parts.append(g if isinstance(g, bytes) else np.asarray(g, np.float32).tobytes())
+    rec = v.record_json()
+    parts.append(rec)
+    payload = b"".join(parts)
+    header = json.dumps({"format": FILE_FORMAT, "key": key, "j": int(j), "window": list(v.window),
+                         "pixels": list(v.pixels.shape), "boxes": len(v.inserted_bboxes),
+                         "existing": len(v.existing_visibility), "labels": list(v.inserted_labels),
+                         "encoded": encoded, "record": len(rec),
+                         "xxh3_64": xxhash.xxh3_64_hexdigest(payload)}).encode()
+    return b"".join([FILE_MAGIC, len(header).to_bytes(4, "little"), header, payload])
+
+
+def _count(x, name: str) -> int:
+    if type(x) is not int or x < 0:
+        raise ValueError(f"{name}: {str(x)[:40]} is not a count")
+    return x
+
+
+def variant_from_bytes(data: bytes, key: str | None = None, j: int | None = None) -> Variant:
+    """The :class:`Variant` of :func:`variant_to_bytes` (arrays as read-only views of ``data``, the record kept as
+    JSON until read). Only data is parsed, nothing is executed; anything but such bytes (another format version,
+    another ``key``/``j`` when given, a size or a type that does not add up) raises ValueError."""
+    m = len(FILE_MAGIC)
+    if data[:m] != FILE_MAGIC or len(data) < m + 4:
+        raise ValueError("not a variant file")
+    n = int.from_bytes(data[m:m + 4], "little")
+    try:
+        h = json.loads(data[m + 4:m + 4 + n])
+    except (ValueError, RecursionError) as e:   # not UTF-8, not JSON, nested too deep
+        raise ValueError(f"header: {type(e).__name__}: {e}") from None
+    if not isinstance(h, dict):
+        raise ValueError(f"header is a {type(h).__name__}")
+    if h.get("format") != FILE_FORMAT:
+        raise ValueError(f"format {str(h.get('format'))[:10]}, not {FILE_FORMAT}")
+    if (key is not None and h.get("key") != key) or (j is not None and h.get("j") != j):
+        raise ValueError(f"holds {str(h.get('key'))[:40]}_{str(h.get('j'))[:10]}")
+    window = h.get("window")
+    if not isinstance(window, list) or len(window) != 4:
+        raise ValueError("window is not 4 numbers")
+    y0, y1, x0, x1 = (_count(x, "window") for x in window)
+    shape = h.get("pixels")
+    if y1 < y0 or x1 < x0 or shape != [y1 - y0, x1 - x0, 3]:
+        raise ValueError(f"pixels {str(shape)[:40]} for window {window}")
+    k, e = _count(h.get("boxes"), "boxes"), _count(h.get("existing"), "existing")
+    labels, encoded = h.get("labels"), h.get("encoded")
+    if not isinstance(labels, list) or len(labels) != k or not all(isinstance(x, str) for x in labels):
+        raise ValueError(f"labels are not {k} names")
+    if not isinstance(encoded, list) or not all(
+            isinstance(g, list) and len(g) == 4 and type(g[0]) is int and type(g[1]) is int
+            and isinstance(g[2], str) and isinstance(g[3], bool) for g in encoded):
+        raise ValueError("encoded is not a list of [height, width, format, stored]")
+    sizes = [(y1 - y0) * (x1 - x0) * 3, 32 * k, 8 * e] + [16 * k for g in encoded if g[3]]
+    sizes.append(_count(h.get("record"), "record"))
+    offsets = [m + 4 + n]
+    for size in sizes:
+        offsets.append(offsets[-1] + size)
+    if offsets[-1] != len(data):
+        raise ValueError(f"{len(data)} bytes, the header lists {offsets[-1]}")
+    if xxhash.xxh3_64_hexdigest(memoryview(data)[offsets[0]:]) != h.get("xxh3_64"):
+        raise ValueError("checksum differs")
     v = Variant.__new__(Variant)
-    v.window = window
-    v.pixels = np.frombuffer(pixels, np.uint8).reshape(shape)
-    v.inserted_bboxes = np.frombuffer(boxes, np.float64).reshape(-1, 4)
-    v.inserted_labels = labels
-    v.existing_visibility = np.frombuffer(visibility, np.float64)
+    v.window = (y0, y1, x0, x1)
+    v.pixels = np.frombuffer(data, np.uint8, sizes[0], offsets[0]).reshape(shape)
+    v.inserted_bboxes = np.frombuffer(data, np.float64, 4 * k, offsets[1]).reshape(k, 4)
+    v.inserted_labels = tuple(labels)
+    v.existing_visibility = np.frombuffer(data, np.float64, e, offsets[2])
     v._record = None
-    v._record_pickle = record_pickle
-    v.encoded = encoded
+    v._record_json = data[offsets[-2]:offsets[-1]]
+    v.encoded, i = {}, 3
+    for hh, ww, fmt, stored in encoded:
+        v.encoded[(hh, ww, fmt)] = data[offsets[i]:offsets[i + 1]] if stored else False
+        i += stored
     return v
 
 
@@ -213,7 +290,7 @@ class VariantResult:
     """A variant applied to its image: the fields of an :class:`~aias_augment.pipeline.InsertionResult`
     (``image``, ``bboxes``, ``labels``, ``inserted_bboxes``, ``inserted_labels``, ``keep_existing``, ``record``)
     and the ``variant`` itself. The boxes are the variant's own read-only arrays (not copies); ``record`` is
-    the variant's (unpickled when read)."""
+    the variant's (rebuilt when read)."""
 
     __slots__ = ("image", "bboxes", "labels", "inserted_bboxes", "inserted_labels", "keep_existing", "variant")
 
@@ -231,9 +308,11 @@ class VariantResult:
 
 class VariantCache:
     """Variants by ``(key, j)``: an LRU in memory of at most ``max_bytes`` and, with a ``directory``, one file per
-    variant (``<dir>/<key[:2]>/<key>_<j>.pkl``, written atomically) shared by processes and runs. The folder is
-    trusted like any cache of your own (its files are pickles). Pickles empty (each DataLoader worker fills its own
-    LRU; the folder is shared)."""
+    variant (``<dir>/<key[:2]>/<key>_<j>.variant``, :func:`variant_to_bytes`, written atomically) shared by
+    processes and runs. The files are plain data, so a folder on a shared disk runs nothing whoever wrote into it;
+    a file that is not a variant of this version and name (damaged, planted, older) is logged, counted in
+    ``unreadable`` and computed again (then overwritten). Pickles empty (each DataLoader worker fills its own LRU;
+    the folder is shared)."""
 
     def __init__(self, max_bytes: int = 128 * 2**20, directory: str | Path | None = None):
         if max_bytes < 0:
@@ -243,19 +322,19 @@ class VariantCache:
         self._dirname = None if directory is None else str(directory)
         self._lru: OrderedDict[tuple[str, int], Variant] = OrderedDict()
         self.nbytes = 0
-        self.hits = self.disk_hits = self.misses = 0
+        self.hits = self.disk_hits = self.misses = self.unreadable = 0
 
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_lru"] = OrderedDict()
-        state["nbytes"] = state["hits"] = state["disk_hits"] = state["misses"] = 0
+        state["nbytes"] = state["hits"] = state["disk_hits"] = state["misses"] = state["unreadable"] = 0
         return state
 
     def __len__(self) -> int:
         return len(self._lru)
 
     def _file(self, key: str, j: int) -> str:
-        return f"{self._dirname}/{key[:2]}/{key}_{j}.pkl"
+        return f"{self._dirname}/{key[:2]}/{key}_{j}.variant"
 
     def get(self, key: str, j: int) -> Variant | None:
         """The variant if this process or the folder holds it, else None (counted as a miss)."""
@@ -275,7 +354,7 @@ class VariantCache:
     def put(self, key: str, j: int, v: Variant) -> None:
         self._remember(key, j, v)
         if self.directory is not None:
-            _write_atomic(Path(self._file(key, j)), pickle.dumps((FILE_FORMAT, key, j, v), protocol=5))
+            _write_atomic(Path(self._file(key, j)), variant_to_bytes(v, key, j))
 
     def _remember(self, key: str, j: int, v: Variant) -> None:
         if v.nbytes > self.max_bytes:
@@ -303,10 +382,8 @@ class VariantCache:
         finally:
             os.close(fd)
         try:
-            fmt, k, jj, v = pickle.loads(data)
-        except Exception as e:  # a damaged file or another version's: computed again (and overwritten)
-            log.info("variant cache: %s_%d not used (%s)", key, j, e)
+            return variant_from_bytes(data, key, j)
+        except ValueError as e:  # damaged, planted or another version's: computed again (and overwritten)
+            self.unreadable += 1
+            log.warning("variant cache: %s not used (%s)", self._file(key, j), e)
             return None
-        if fmt != FILE_FORMAT or k != key or jj != j or not isinstance(v, Variant):
-            return None
-        return v

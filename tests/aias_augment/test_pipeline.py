@@ -94,6 +94,23 @@ def test_same_seed_same_output_and_inputs_untouched():
     assert not np.array_equal(r1.image, img)
 
 
+def test_record_from_its_json_is_the_record():
+    """``InsertionRecord.from_dict`` of a record's JSON writes the same JSON (floats to the last bit), with a sun."""
+    import json
+    from dataclasses import replace
+    from aias_augment.lighting.estimate import LightingEstimate
+    from aias_augment.pipeline import InsertionRecord
+    r = insert_into_image(_image(), rng=np.random.default_rng(7), cfg=CFG, intrinsics=K,
+                          bank=OneAsset(box_asset())).record
+    assert r.placements and r.annotations
+    r = replace(r, lighting=LightingEstimate(np.array([0.3, -0.7, 0.2]), np.ones(3), np.full((9, 3), 0.1), 3.0, True,
+                                             0.8, "image_cues"))
+    text = json.dumps(r.to_dict())
+    back = InsertionRecord.from_dict(json.loads(text))
+    assert json.dumps(back.to_dict()) == text and back.placements == r.placements
+    assert back.annotations == r.annotations
+
+
 def test_naive_paste_skips_modules_and_records_why():
     res = insert_into_image(_image(), rng=np.random.default_rng(1), cfg=InsertionConfig(categories=("box",),
                             naive_paste=True, ssaa=1), bank=OneAsset(box_asset()), n_objects=1)

@@ -2,6 +2,8 @@
 pipeline's output for its own generator (the pasted window reproduces it byte for byte), a cached variant and a
 computed one give the same bytes (memory, disk, a fresh transform, warm), an image shows at most K insertions, and
 the key follows what the insertion reads."""
+import json
+import os
 import pickle
 
 import albumentations as A
@@ -173,7 +175,7 @@ def test_bad_arguments_pickling_and_cache_bounds(tmp_path):
         c.put("ab" * 16, j, small)
     assert len(c) == 5000 // small.nbytes and c.nbytes <= 5000
     (tmp_path / "ab").mkdir()
-    (tmp_path / "ab" / f"{'ab' * 16}_0.pkl").write_bytes(b"not a pickle")
+    (tmp_path / "ab" / f"{'ab' * 16}_0.variant").write_bytes(b"not a variant")
     assert VariantCache(directory=tmp_path).get("ab" * 16, 0) is None   # damaged file: recomputed, not fatal
 
 
@@ -310,5 +312,72 @@ def test_variant_file_round_trip_keeps_everything_and_reads_the_record_when_aske
     assert back.encoded[(480, 640, "yolo")] is False
     assert back.encoded[(480, 640, "coco")] == np.ones((len(v.inserted_labels), 4), np.float32).tobytes()
     assert back.record.to_dict() == full.record.to_dict()
+    assert json.dumps(back.record.to_dict()) == json.dumps(full.record.to_dict())   # floats to the last bit
     assert np.array_equal(back.result(img, np.asarray(BOXES), ["real"]).image, full.image)
     assert VariantCache(directory=tmp_path).get("cd" * 16, 1) is None   # another index: not there
+    again = pickle.loads(pickle.dumps(v))   # between processes: the same plain bytes
+    assert np.array_equal(again.pixels, v.pixels) and again.record.to_dict() == full.record.to_dict()
+
+
+class _Planted:
+    """A pickle that creates ``marker`` when unpickled (what a planted cache file could run)."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (os.system, (f"touch '{self.marker}'",))
+
+
+def _plain_call(tf, img):
+    return tf(image=img, bboxes=np.zeros((0, 4)), labels=[])
+
+
+def test_a_planted_pickle_in_the_variant_folder_runs_nothing_and_the_variant_is_computed(tmp_path):
+    """A pickle that would run a command, planted where a lookup reads (and at the older ``.pkl`` name): the call
+    unpickles nothing, counts the file, computes the variant (the bytes of a transform without a folder) and
+    writes it over the planted file."""
+    img = _image()
+    tf = _compose(k=1, scene_cache=str(tmp_path))
+    t = tf.transforms[0]
+    key = plain_image_key(img, t._key_prefix())
+    folder = tmp_path / "variants" / key[:2]
+    folder.mkdir(parents=True)
+    markers = [tmp_path / "ran_variant", tmp_path / "ran_pkl"]
+    (folder / f"{key}_0.variant").write_bytes(pickle.dumps(_Planted(markers[0])))
+    (folder / f"{key}_0.pkl").write_bytes(pickle.dumps(_Planted(markers[1])))
+    got = _plain_call(tf, img)
+    assert not any(m.exists() for m in markers)
+    assert t._variants.unreadable == 1 and t._variants.misses == 1 and t._variants.disk_hits == 0
+    want = _plain_call(_compose(k=1), img)
+    assert np.array_equal(got["image"], want["image"]) and got["labels"] == want["labels"]
+    assert np.asarray(got["bboxes"]).tobytes() == np.asarray(want["bboxes"]).tobytes()
+    assert VariantCache(directory=tmp_path / "variants").get(key, 0) is not None   # overwritten with the variant
+
+
+@pytest.mark.parametrize("damage", ["truncated", "pixel flipped", "header garbled", "empty"])
+def test_a_damaged_variant_file_is_counted_and_computed_again(tmp_path, damage, caplog):
+    """A variant file cut short, with one pixel byte flipped, with a header that is not JSON, or empty: never
+    pasted; the reader logs and counts it and computes the variant (the same bytes as a transform without a
+    folder)."""
+    img = _image()
+    _plain_call(_compose(k=1, scene_cache=str(tmp_path)), img)
+    [path] = (tmp_path / "variants").glob("*/*.variant")
+    data = bytearray(path.read_bytes())
+    if damage == "truncated":
+        data = data[:-100]
+    elif damage == "pixel flipped":
+        n = int.from_bytes(data[13:17], "little")   # after the magic: the header's length, then the pixels
+        data[17 + n] ^= 1
+    elif damage == "header garbled":
+        data[20:24] = b"\xff\xfe{["
+    else:
+        data = b""
+    path.write_bytes(bytes(data))
+    reader = _compose(k=1, scene_cache=str(tmp_path))
+    with caplog.at_level("WARNING"):
+        got = _plain_call(reader, img)
+    vc = reader.transforms[0]._variants
+    assert vc.unreadable == 1 and vc.misses == 1 and vc.disk_hits == 0
+    assert "not used" in caplog.text
+    assert np.array_equal(got["image"], _plain_call(_compose(k=1), img)["image"])
