@@ -63,22 +63,32 @@ def _read_json(path: Path) -> dict:
         raise StudyError(f"{path}: cannot read ({e})") from e
 
 
+def _inside_arm(root: Path, f: Path, where: str, name) -> Path:
+    """``f`` if it resolves inside the arm's folder ``root``; a ``file_name`` that leads out of it (``..``, an
+    absolute path, a link) would copy a file that is no output of the arm: StudyError naming ``where``."""
+    if root.resolve() not in f.resolve().parents:
+        raise StudyError(f"{where}: file_name {name!r} is outside the arm's folder {root}")
+    return f
+
+
 def _image_arm(root: Path) -> list[Entry]:
     recs = []
     if (root / "records").is_dir():
         for p in sorted((root / "records").glob("*.json")):
             if ".tmp" in p.name:
                 continue
-            recs.append(_read_json(p))
+            recs.append((str(p), _read_json(p)))
     elif (root / "annotations.json").is_file():
-        recs = _read_json(root / "annotations.json").get("images", [])
+        recs = [(f"{root / 'annotations.json'} image {im.get('id')}", im)
+                for im in _read_json(root / "annotations.json").get("images", [])]
     out = []
-    for rec in recs:
+    for where, rec in recs:
         if "skipped" in rec or "file_name" not in rec or "source" not in rec:
             continue
         f = root / "images" / rec["file_name"]
         if not f.is_file():
             f = root / rec["file_name"]
+        _inside_arm(root, f, where, rec["file_name"])
         if not f.is_file() or f.suffix.lower() not in IMAGE_SUFFIXES:
             log.warning("%s: %s listed but missing or not an image, left out", root, rec["file_name"])
             continue
@@ -96,9 +106,11 @@ def _clip_entry(root: Path) -> Entry:
     if (root / "annotations.json").is_file():
         ims = _read_json(root / "annotations.json").get("images", [])
         ims = sorted(ims, key=lambda im: (im.get("frame_index", 0), im.get("id", 0)))
-        frames = [root / im["file_name"] for im in ims]
+        frames = [_inside_arm(root, root / im["file_name"], f"{root}/annotations.json image {im.get('id')}",
+                              im["file_name"]) for im in ims]
     if not frames:
-        frames = sorted(p for p in (root / "frames").glob("*") if p.suffix.lower() in IMAGE_SUFFIXES)
+        frames = sorted(_inside_arm(root, p, f"{root}/frames", p.name) for p in (root / "frames").glob("*")
+                        if p.suffix.lower() in IMAGE_SUFFIXES)
     missing = [str(f) for f in frames if not f.is_file()]
     if not frames or missing:
         raise StudyError(f"{root}: clip frames missing ({missing[:3] or 'none found'})")

@@ -10,7 +10,8 @@ Routes (all errors are JSON ``{"detail": ...}``):
     POST /api/rater  {name}         sets the rater cookie    GET  /api/me             rater, votes done, total
     GET  /api/next                  the rater's next pair (each rater gets the pairs in their own shuffled order)
     POST /api/vote   {pair_id, choice: left|right|tie, rater?, ms?}
-                     201 stored; 400 no rater; 404 unknown pair; 409 already voted; 422 malformed
+                     201 stored; 400 no rater; 404 unknown pair; 409 already voted; 422 malformed;
+                     503 not stored, ``"recorded": false`` (the vote store cannot be written: disk full, I/O error)
     GET  /api/results               the report (JSON)        GET  /api/results.csv, /api/votes.csv   CSV exports
     GET  /healthz
 
@@ -24,6 +25,7 @@ import logging
 import random
 import re
 import socket
+import sqlite3
 import sys
 from pathlib import Path
 from typing import Literal
@@ -43,6 +45,7 @@ log = logging.getLogger(__name__)
 STATIC_DIR = Path(__file__).parent / "static"
 COOKIE = "abstudy_rater"
 RATER_RE = re.compile(r"^[\w][\w .@+'-]{0,63}$")
+INDEX_RE = re.compile(r"[0-9]{1,6}")   # ASCII digits: str.isdigit() is also true of '²', which int() refuses
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self'; media-src 'self'; "
        "connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'; form-action 'self'")
 
@@ -178,13 +181,18 @@ def create_app(study_dir: str | Path) -> FastAPI:
             return JSONResponse({"detail": f"{rater!r} has already voted on pair {body.pair_id} "
                                            f"({e.stored_choice}); one vote per rater and pair",
                                  "stored_choice": e.stored_choice}, status_code=409)
+        except (OSError, sqlite3.OperationalError) as e:   # disk full, I/O error, locked past the timeout
+            log.error("vote of %r on %s not stored: %s", rater, body.pair_id, e)
+            reason = getattr(e, "strerror", None) or str(e)
+            return JSONResponse({"detail": f"the server cannot write its vote store ({reason}); try again later",
+                                 "recorded": False}, status_code=503)
         return progress(rater)
 
     @app.get("/media/{pair_id}/{side}/{index}")
     def media(pair_id: str, side: str, index: str):
         if not PAIR_ID_RE.match(pair_id) or pair_id not in study.pairs:
             raise HTTPException(404, "unknown pair id")
-        if side not in ("L", "R") or not index.isdigit() or len(index) > 6:
+        if side not in ("L", "R") or not INDEX_RE.fullmatch(index):
             raise HTTPException(404, "no such file: side must be L or R and index a frame number")
         path = study.media_path(pair_id, side, int(index))
         if path is None:

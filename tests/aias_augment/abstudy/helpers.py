@@ -113,6 +113,37 @@ class Server:
         self.stop()
 
 
+class InProcessServer:
+    """An app from ``create_app`` served by uvicorn in a thread of this process, so a test can patch its parts (the
+    vote store); ``host`` and ``port`` as :class:`Server`."""
+
+    def __init__(self, app):
+        import socket
+        import threading
+
+        import uvicorn
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(16)
+        self.host, self.port = self.sock.getsockname()
+        self.server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False))
+        self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.sock]}, daemon=True)
+        self.thread.start()
+        deadline = time.monotonic() + 30
+        while not self.server.started:
+            if time.monotonic() > deadline or not self.thread.is_alive():
+                raise RuntimeError("the in-process server did not start")
+            time.sleep(0.01)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.server.should_exit = True
+        self.thread.join(15)
+        self.sock.close()
+
+
 def request(server: Server, method: str, path: str, body=None, headers: dict | None = None, raw: bytes | None = None,
             timeout: float = 30.0):
     """One HTTP request with the path sent exactly as given (no normalisation of ``..``); returns

@@ -1,4 +1,6 @@
 import json
+import re
+import shutil
 from collections import Counter
 from pathlib import Path
 
@@ -137,6 +139,42 @@ def test_build_errors(tmp_path, case):
         kw["design"] = "tournament"
     with pytest.raises(StudyError):
         build_study(arms, tmp_path / "s", **kw)
+
+
+@pytest.mark.parametrize("layout", ["records", "annotations", "clip"])
+@pytest.mark.parametrize("name", ["../outside.jpg", "images/../../outside.jpg", "absolute"])
+def test_a_file_name_outside_its_arm_is_refused(tmp_path, layout, name):
+    """A record whose ``file_name`` leads out of its arm's folder (``..``, an absolute path) would put a file that
+    is no output of the arm into the study: the build refuses it, naming the record, and copies nothing."""
+    (tmp_path / "arms").mkdir()
+    outside = tmp_path / "arms" / "outside.jpg"   # beside the arms' folders
+    outside.write_bytes(b"\xff\xd8 not an output of the arm")
+    if name == "absolute":
+        name = str(outside)
+    if layout == "clip":
+        a = make_clip(tmp_path / "arms" / "a", "/clips/x.mp4", seed=1)
+        b = make_clip(tmp_path / "arms" / "b", "/clips/x.mp4", seed=2)
+        ann = json.loads((b / "annotations.json").read_text())
+        ann["images"][0]["file_name"] = name.replace("images/", "frames/")
+        (b / "annotations.json").write_text(json.dumps(ann))
+        where = "annotations.json image 1"
+    else:
+        a = make_image_arm(tmp_path / "arms" / "a", SOURCES, seed=1)
+        b = make_image_arm(tmp_path / "arms" / "b", SOURCES, seed=2)
+        if layout == "records":
+            rec = json.loads((b / "records" / "000000.json").read_text())
+            rec["file_name"] = name
+            (b / "records" / "000000.json").write_text(json.dumps(rec))
+            where = "000000.json"
+        else:
+            shutil.rmtree(b / "records")
+            ann = json.loads((b / "annotations.json").read_text())
+            ann["images"][0]["file_name"] = name
+            (b / "annotations.json").write_text(json.dumps(ann))
+            where = "annotations.json image 1"
+    with pytest.raises(StudyError, match=re.escape(where) + ".*outside the arm"):
+        build_study([a, b], tmp_path / "s")
+    assert not (tmp_path / "s" / "study.json").exists()
 
 
 def test_rebuild_needs_force_and_never_over_votes(tmp_path):

@@ -1,5 +1,6 @@
 """The server as raters and attackers meet it: a real uvicorn process, raw HTTP requests."""
 import csv
+import errno
 import io
 import json
 import re
@@ -9,10 +10,10 @@ import threading
 import pytest
 
 from aias_augment.abstudy.build import build_study, load_study
-from aias_augment.abstudy.server import STATIC_DIR
+from aias_augment.abstudy.server import STATIC_DIR, create_app
 from aias_augment.abstudy.store import VoteStore
 
-from .helpers import Server, image_arms, request
+from .helpers import InProcessServer, Server, image_arms, request
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +76,9 @@ def test_media_bytes_and_unknown_files(served):
         assert st == 200 and h["content-type"] == "image/png"
         assert body == (study.root / pair[key][0]).read_bytes()
     for path in (f"/media/{pid}/X/0", f"/media/{pid}/L/1", f"/media/{pid}/L/-1", f"/media/{pid}/L/abc",
-                 "/media/ffffffffffff/L/0", "/media/nothex/L/0", f"/media/{pid}/L/0/extra", "/static/nope.js"):
+                 "/media/ffffffffffff/L/0", "/media/nothex/L/0", f"/media/{pid}/L/0/extra", "/static/nope.js",
+                 f"/media/{pid}/L/%C2%B2", f"/media/{pid}/L/%EF%BC%90", f"/media/{pid}/L/%D9%A0",   # '²', '０', '٠'
+                 f"/media/{pid}/L/0000000", f"/media/{pid}/L/%200", f"/media/{pid}/L/+0"):
         st, body, _ = request(srv, "GET", path)
         assert st == 404, path
         assert "detail" in body if isinstance(body, dict) else True
@@ -184,3 +187,26 @@ def test_votes_survive_a_killed_server(tmp_path):
         assert _vote(srv, "ann", pids[3], "tie")[0] == 201
         srv.stop()                 # SIGTERM: a graceful stop
     assert VoteStore(tmp_path / "study" / "votes.sqlite").count() == 4
+
+
+@pytest.mark.parametrize("error", [OSError(errno.ENOSPC, "No space left on device"),
+                                   sqlite3.OperationalError("database or disk is full")])
+def test_a_vote_the_store_cannot_write_is_a_json_503_and_not_recorded(tmp_path, monkeypatch, error):
+    """The disk is full when a vote is written: the rater gets the documented JSON error (503, ``recorded``
+    false, the reason), nothing is stored, and the same vote is taken once the store can be written again."""
+    build_study(image_arms(tmp_path, 2), tmp_path / "study")
+    app = create_app(tmp_path / "study")
+    pid = sorted(app.state.study.pairs)[0]
+
+    def disk_full(*args, **kwargs):
+        raise error
+
+    with InProcessServer(app) as srv:
+        monkeypatch.setattr(app.state.store, "add_vote", disk_full)
+        st, body, h = _vote(srv, "ann", pid)
+        assert st == 503 and h["content-type"] == "application/json"
+        assert body["recorded"] is False and "cannot write its vote store" in body["detail"]
+        assert ("No space left on device" if isinstance(error, OSError) else "disk is full") in body["detail"]
+        monkeypatch.undo()
+        assert request(srv, "GET", "/api/me?rater=ann")[1]["done"] == 0
+        assert _vote(srv, "ann", pid)[0] == 201
