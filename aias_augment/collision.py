@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .config import checked_config
 from .geometry import Intrinsics, check_rigid, check_shape, project_points, transform_points
 from .ground import GroundPlane
 
@@ -55,6 +56,13 @@ class OrientedBox:
         return OrientedBox(np.asarray(new_from_cam) @ self.cam_from_box, self.size_xyz_m, self.label)
 
 
+@checked_config({   # every field checked at construction (type hint and these bounds)
+    "margin_m": "[0, inf)",
+    "ground_clearance_m": "[0, inf)",
+    "min_points_inside": "[1, inf)",
+    "depth_margin_m": "[0, inf)",
+    "max_occluded_frac": "[0, 1]",
+})
 @dataclass(frozen=True)
 class CollisionConfig:
     margin_m: float = 0.05               # inflate the inserted box by this much on every side

@@ -9,15 +9,44 @@ import hashlib
 import math
 from collections import Counter, OrderedDict
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
 from .assets import CATEGORY_HEIGHT_RANGE_M, Asset
 from .collision import CollisionConfig, OrientedBox, check_candidate
+from .config import checked_config
 from .geometry import MIN_DEPTH, Intrinsics, project_points, transform_points
 from .ground import RAY_PARALLEL_EPS, GroundFitError, GroundPlane, depth_to_points, fit_ground_plane
 
 
+# Every field is checked at construction against its type hint and these bounds (config.checked_config).
+@checked_config({
+    "max_tries": "[1, inf)",
+    "min_box_height_px": "[0, inf)",
+    "max_box_height_frac": "(0, inf)",
+    "max_distance_m": "(0, inf]",
+    "min_distance_m": "[0, inf)",
+    "max_overlap_existing": "[0, 1]",
+    "min_in_image_frac": "[0, 1]",
+    "depth_tolerance_rel": "(0, inf)",
+    "horizon_margin_px": "[0, inf)",
+    "local_radius_m": "(0, inf)",
+    "local_ground_band_m": "(0, inf)",
+    "local_threshold_m": "(0, inf)",
+    "local_max_tilt_deg": "[0, 90]",
+    "local_min_inliers": "[3, inf)",
+    "local_max_depth_m": "(0, inf]",
+    "local_max_points": "[3, inf)",
+    "local_support_radius_m": "(0, inf)",
+    "local_support_min_points": "[0, inf)",
+    "local_support_max_residual_m": "(0, inf)",
+    "box_height_frac_range": "(0, 1] lo<=hi",
+    "box_height_frac_samples": "(0, 1]",
+    "box_height_jitter": "[0, inf)",
+    "box_height_tolerance": "(0, inf)",
+    "camera_height_range_m": "(0, inf) lo<=hi",
+}, orders=["min_distance_m <= max_distance_m"])
 @dataclass(frozen=True)
 class PlacementConfig:
     max_tries: int = 60
@@ -39,7 +68,7 @@ class PlacementConfig:
     local_min_inliers: int = 10
     local_max_depth_m: float = 40.0         # depth pixels farther than this are not used (stereo noise ~ z^2)
     local_max_points: int = 200_000         # random subset of the band points (speed)
-    local_fallback: str = "global"          # too few points for a refit: "global" (coarse plane) | "reject"
+    local_fallback: Literal["global", "reject"] = "global"  # too few points for a refit: coarse plane | reject
     # The local plane must agree with the measured points right under the object: median |residual| of the band
     # points within local_support_radius_m of the new contact <= local_support_max_residual_m. Otherwise (a kerb or a ramp
     # inside the 3 m window, where the bigger surface wins the RANSAC vote) the refit is retried with half the
@@ -71,22 +100,6 @@ class PlacementConfig:
     # other, with the ground and with their shadows). Measured grounds (depth, LiDAR, poses) are never rescaled.
     scene_scale_from_sizes: bool = False
     camera_height_range_m: tuple[float, float] = (0.4, 4.0)
-
-    def __post_init__(self):
-        if self.box_height_frac_range is not None and not (
-                0 < self.box_height_frac_range[0] <= self.box_height_frac_range[1] <= 1):
-            raise ValueError(f"box_height_frac_range must satisfy 0 < lo <= hi <= 1, got {self.box_height_frac_range}")
-        if any(not (0 < f <= 1) for f in self.box_height_frac_samples):
-            raise ValueError("box_height_frac_samples must lie in (0, 1]")
-        if self.box_height_tolerance <= 0 or self.box_height_jitter < 0:
-            raise ValueError("box_height_tolerance must be > 0 and box_height_jitter >= 0")
-        lo, hi = self.camera_height_range_m
-        if not (0 < lo <= hi and np.isfinite(hi)):
-            raise ValueError(f"camera_height_range_m must satisfy 0 < lo <= hi < inf, got {self.camera_height_range_m}")
-        if self.local_fallback not in ("global", "reject"):
-            raise ValueError(f"local_fallback must be 'global' or 'reject', got {self.local_fallback!r}")
-        if self.local_radius_m <= 0 or self.local_ground_band_m <= 0 or self.local_threshold_m <= 0:
-            raise ValueError("local_radius_m, local_ground_band_m and local_threshold_m must be positive")
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from .config import checked_config
 from .geometry import Intrinsics, check_rigid
 from .ground import GroundPlane, depth_to_points
 
@@ -34,6 +35,30 @@ __all__ = ["RegionConfig", "PlaceableRegion", "placeable_region", "below_horizon
            "multi_frame_plane_consistency", "image_ground_region"]
 
 
+@checked_config({   # every field checked at construction (type hint and these bounds)
+    "semantic_classes": "[0, inf)",
+    "ground_tolerance_m": "[0, inf)",
+    "ground_tolerance_rel": "[0, inf)",
+    "obstacle_height_m": "(0, inf)",
+    "horizon_margin_px": "[0, inf)",
+    "sparse_radius_px": "[0, inf)",
+    "sparse_fraction": "[0, 1]",
+    "photometric_tolerance": "[0, inf)",
+    "max_depth_m": "(0, inf]",
+    "image_width_px": "[16, inf)",
+    "image_seed_rows": "[0, 1] lo<hi",
+    "image_seed_cols": "[0, 1] lo<hi",
+    "image_luma_tol": "[0, inf)",
+    "image_chroma_tol": "[0, inf)",
+    "image_texture_tol": "[0, inf)",
+    "image_texture_floor": "[0, inf)",
+    "image_open_px": "[0, inf)",
+    "image_erode_px": "[0, inf)",
+    "image_min_fraction": "[0, 1]",
+    "image_road_luma": "[0, 255] lo<=hi",
+    "image_road_chroma": "[0, inf)",
+    "image_max_distance_m": "(0, inf]",
+})
 @dataclass(frozen=True)
 class RegionConfig:
     semantic_classes: tuple[int, ...] = ()     # placeable label ids; empty = ignore the semantic map

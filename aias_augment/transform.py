@@ -58,7 +58,9 @@ class InsertObjects(A.DualTransform):
         preset: "fast" | "balanced" | "accurate" (configs/presets/*.yaml).
         category_ids: label written for each category (e.g. {"traffic_cone": 3}); default: the category name.
         assets: your own meshes, {"category": ["path.obj", ...]}.
-        config_overrides: any :class:`InsertionConfig` field (e.g. {"shadow": False}).
+        config_overrides: any :class:`InsertionConfig` field (e.g. {"shadow": False}); a nested config as a mapping
+            of some of its fields updates the preset's (e.g. {"placement_cfg": {"max_tries": 30}}). Every value is
+            checked here: a wrong type or a value out of range raises, naming the field.
         scene_cache: a folder for scene analyses (camera, ground, region, lighting) shared by all workers and runs;
             None: only the in-process cache. Either way an image seen again (same bytes, K, depth) is not analysed
             again: the analysis is cached by content in an LRU of ``scene_cache_items`` entries in each process.
@@ -109,7 +111,8 @@ class InsertObjects(A.DualTransform):
         self.category_ids = dict(category_ids) if category_ids else None
         self.assets = assets
         self.config_overrides = dict(config_overrides or {})
-        # Validates everything now (unknown override keys raise TypeError, bad counts ValueError).
+        # Validates everything now: unknown override keys and wrong types raise TypeError, values out of range
+        # ValueError, each naming the field (config.checked_config).
         self.config: InsertionConfig = load_preset(preset, categories=self.categories, max_objects=self.max_objects,
                                                    min_objects=self.min_objects, **self.config_overrides)
         if self.category_ids is not None:

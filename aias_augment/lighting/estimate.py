@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Literal, Sequence
 
 import numpy as np
 
+from ..config import checked_config
 from ..geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from .envmap import EnvironmentMap, assemble_envmap, camera_ray_directions
 from .hdr import InverseToneMapParams, inverse_tone_map, luminance, srgb_to_linear
@@ -107,6 +108,40 @@ class LightingEstimate:
         return est
 
 
+# Every field is checked at construction against its type hint and these bounds (config.checked_config).
+@checked_config({
+    "max_sun_solid_angle_sr": "(0, inf)",
+    "min_dominant_sun_sky_ratio": "[0, inf)",
+    "default_sun_sky_ratio": "[0, inf)",
+    "min_sky_fraction_for_sun": "[0, 1]",
+    "min_cue_confidence": "[0, 1]",
+    "prior_hfov_deg": "(0, 180)",
+    "ambient_map_height": "[4, inf)",
+    "min_sun_cos": "(0, 1]",
+    "min_sun_cos_image_cues": "(0, 1]",
+    "camera_height_m": "(0, inf)",
+    "ground_lateral_range_m": "(-inf, inf) lo<hi",
+    "ground_forward_range_m": "[0, inf) lo<hi",
+    "fallback_ground_boxes_m": "(-inf, inf) lo<hi",
+    "fallback_min_separation": "(0, inf)",
+    "fallback_max_shadow_fraction": "(0, 1]",
+    "turbidity": "[1, 20]",                       # sky.perez_coefficients' range
+    "elevation_prior_deg": ("[-90, 90]", "(0, inf)"),   # (mean, standard deviation)
+    "shadow_axis_kappa": "[0, inf)",
+    "analysis_width": "[16, inf)",
+    "min_input_width": "[0, inf)",
+    "sky_out_of_view_side_prob": "[0.5, 1)",
+    "sky_colour_weight": "[0, inf)",
+    "max_direct_to_diffuse_ratio": "(0, inf)",
+    "facade_albedo_sigma": "(0, inf)",
+    "shadow_end_kappa": "[0, inf)",
+    "side_analysis_width": "[64, inf)",
+    "ground_albedo_range": "(0, inf) lo<=hi",
+    "sun_full_confidence": "[0, inf)",
+    "cap_white_to_scene_percentile": "[50, 100]",
+    "white_cap_linear": "(0, 1]",
+    "ground_white_balance": "[0, 1]",
+})
 @dataclass(frozen=True)
 class LightingConfig:
     """Thresholds and priors of :func:`estimate_lighting` (loadable from YAML with ``config.load_config``)."""
@@ -141,7 +176,8 @@ class LightingConfig:
     #: sun and its strength (not the shadow axis: see ``_sun_evidence``); the road region keeps the white balance and
     #: the anchor.
     #: () turns it off.
-    fallback_ground_boxes_m: tuple = (((-6.0, -1.5), (4.0, 20.0)), ((1.5, 6.0), (4.0, 20.0)))
+    fallback_ground_boxes_m: tuple[tuple[tuple[float, float], tuple[float, float]], ...] = (
+        ((-6.0, -1.5), (4.0, 20.0)), ((1.5, 6.0), (4.0, 20.0)))
     #: A side box mixes materials (grass, kerb, paving, parked cars) more often than the lane, so its lit/shadow
     #: split must be clearer than the main region's (Ashman D >= 2): D >= this, a shadowed share in
     #: [0.02, ``fallback_max_shadow_fraction``] (a bright blob on dark ground is not lit ground with shadows), and a
@@ -217,28 +253,7 @@ class LightingConfig:
     #: model's absolute daylight colour did not, and gave the light a colour the scene does not show: in grey copies
     #: of 7 TraCon roads a white band's B/R was 0.68-1.7 (median |log| 0.14) after the road balance, now 1.00,
     #: tests/aias_augment/lighting/test_white_stays_white.py). "preetham": the model's colour (before).
-    sky_fill_colour: str = "seen"
-
-    def __post_init__(self):
-        if (self.ambient_map_height < 4 or not 0 < self.min_sun_cos <= 1 or not 0 < self.min_sun_cos_image_cues <= 1
-                or self.default_sun_sky_ratio < 0 or not 0.5 <= self.sky_out_of_view_side_prob < 1.0
-                or self.sky_colour_weight < 0 or self.min_input_width < 0 or self.facade_albedo_sigma <= 0 or self.max_direct_to_diffuse_ratio <= 0 or self.shadow_end_kappa < 0 or self.side_analysis_width < 64):
-            raise ValueError("LightingConfig: invalid values")
-        if self.fallback_min_separation <= 0 or not 0 < self.fallback_max_shadow_fraction <= 1 or any(
-                len(b) != 2 or len(b[0]) != 2 or len(b[1]) != 2 or b[0][0] >= b[0][1] or b[1][0] >= b[1][1]
-                for b in self.fallback_ground_boxes_m):
-            raise ValueError("LightingConfig: fallback boxes must be ((lat_lo, lat_hi), (fwd_lo, fwd_hi)) with lo < "
-                             "hi, fallback_min_separation > 0 and fallback_max_shadow_fraction in (0, 1]")
-        if self.sky_fill_colour not in ("seen", "preetham"):
-            raise ValueError(f"LightingConfig: sky_fill_colour must be 'seen' or 'preetham', "
-                             f"got {self.sky_fill_colour!r}")
-        if self.ground_albedo_range is not None and not 0 < self.ground_albedo_range[0] <= self.ground_albedo_range[1]:
-            raise ValueError(f"LightingConfig: ground_albedo_range must be 0 < lo <= hi, got {self.ground_albedo_range}")
-        if self.sun_full_confidence < 0 or not 0 < self.white_cap_linear <= 1 or not 0 <= self.ground_white_balance <= 1 or (
-                self.cap_white_to_scene_percentile is not None
-                                            and not 50 <= self.cap_white_to_scene_percentile <= 100):
-            raise ValueError("LightingConfig: sun_full_confidence must be >= 0 and cap_white_to_scene_percentile in "
-                             "[50, 100]")
+    sky_fill_colour: Literal["seen", "preetham"] = "seen"
 
 
 def _downsample_map(radiance: np.ndarray, max_height: int = 128) -> np.ndarray:
