@@ -91,6 +91,11 @@ def main(argv=None) -> int:
     except (InputError, ManifestMismatch) as e:
         print(f"aias-augment: error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:   # an unwritable or full --out, a path through a file: one line that says what to do
+        where = f" ({e.filename})" if e.filename else ""
+        print(f"aias-augment: error: {e.strerror or e}{where}: check that --out is a writable folder with free "
+              "space; a rerun of the same command resumes", file=sys.stderr)
+        return 2
     print(summary)
     if not summary["written"]:   # an empty dataset is a failure, whatever the reasons
         print(f"aias-augment: error: no image written: all {summary['images']} images were skipped; see "

@@ -9,9 +9,13 @@ from ``default_rng([seed, index])``).
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import json
+import os
 import shutil
+import socket
 from dataclasses import asdict
 from pathlib import Path
 
@@ -80,6 +84,37 @@ def _describe(old: dict, new: dict) -> str:
                      min(len(a["inputs"]), len(b["inputs"])))
         diffs.append(f"inputs: {len(a['inputs'])} -> {len(b['inputs'])} images, first difference at #{first}")
     return "; ".join(diffs)
+
+
+LOCK_NAME = ".aias-augment.lock"
+
+
+class OutputBusy(ManifestMismatch):
+    """Another run holds the output folder."""
+
+
+@contextlib.contextmanager
+def output_lock(out: Path):
+    """Hold ``out``'s run lock (an advisory ``flock`` on ``out/.aias-augment.lock``, released by the kernel when the
+    holder exits or is killed, so a killed run never leaves a stale lock). A second run into the same folder is
+    refused at start (:class:`OutputBusy`), before it touches anything."""
+    out.mkdir(parents=True, exist_ok=True)
+    f = open(out / LOCK_NAME, "a+")
+    try:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            f.seek(0)
+            holder = f.read().strip() or "another process"
+            raise OutputBusy(f"{out} is being written by another aias-augment run ({holder}); wait for it to "
+                             "finish or use another --out") from None
+        f.seek(0)
+        f.truncate()
+        f.write(f"pid {os.getpid()} on {socket.gethostname()}")
+        f.flush()
+        yield
+    finally:
+        f.close()
 
 
 def prepare_output(out: Path, manifest: dict, overwrite: bool = False) -> dict[int, str]:

@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from .coco_io import CocoBuilder, atomic_write_json
 from .geometry import Intrinsics
-from .manifest import build_manifest, item_hash, prepare_output
+from .manifest import build_manifest, item_hash, output_lock, prepare_output
 from .validate import (BOX_POLICIES, IMAGE_SKIP_KINDS, InputError, check_box, check_coco, check_coco_file, check_output_record,
                        format_problem, nothing_inserted_reason, parse_yolo_labels, problem, read_image_checked)
 from .pipeline import InsertionConfig
@@ -311,9 +311,21 @@ def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, worker
     No items: InputError. ``max_pixels``: larger images are augmented at a bounded size (recorded).
     ``backend``: "local" (this process or a spawn pool of ``workers``) or "ray" (Ray tasks on ``ray_address`` or a
     local Ray instance of ``workers`` CPUs); outputs are the same bytes either way. ``categories``: the input's
-    category name -> id (:func:`coco_categories`), kept in the output (:func:`output_categories`)."""
+    category name -> id (:func:`coco_categories`), kept in the output (:func:`output_categories`).
+    A second run into an ``out_dir`` that a run is writing is refused at start (OutputBusy)."""
     if not items:
         raise InputError("no input images")
+    with output_lock(Path(out_dir)):
+        return _run(items, cfg, seed, out_dir, workers, class_names, sheet_size, scene_cache, preset=preset,
+                    overwrite=overwrite, max_pixels=max_pixels, options=options, backend=backend,
+                    ray_address=ray_address, categories=categories)
+
+
+def _run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, workers: int = 1,
+         class_names=None, sheet_size: int = 12, scene_cache: str | None = None, *, preset: str | None = None,
+         overwrite: bool = False, max_pixels: int | None = None, options: dict | None = None,
+         backend: str = "local", ray_address: str | None = None,
+         categories: dict[str, int] | None = None) -> dict:
     out = Path(out_dir)
     hashes = [item_hash(it) for it in items]
     out_categories = output_categories(categories, class_names, tuple(cfg.categories))

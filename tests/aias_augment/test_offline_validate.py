@@ -213,3 +213,35 @@ def test_huge_image_is_bounded(tmp_path):
     assert rec["width"] * rec["height"] <= 100_000 and rec["source_size"] == [1600, 1200]
     assert math.isclose(rec["scale"], math.sqrt(0.1e6 / (1600 * 1200)), rel_tol=0.01)
     assert json.loads((out / "report.json").read_text())["notes"] == {"downscaled": 1}
+
+
+def test_a_second_run_into_a_busy_out_is_refused_and_a_killed_holder_frees_it(tmp_path, capsys):
+    """A run holds --out (another process, here one that only takes the lock): a second run is refused at start
+    with exit 2 and a message, touching nothing; once the holder is killed (SIGKILL, no cleanup) the folder is free."""
+    import signal
+    import subprocess
+    import sys
+    images = _yolo(tmp_path, {"t": ("truncated", None)})
+    out = tmp_path / "out"
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time; from pathlib import Path; from aias_augment.manifest import output_lock\n"
+        f"with output_lock(Path({str(out)!r})):\n    print('held', flush=True); time.sleep(60)")],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        assert main(["--yolo", str(images), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "being written by another aias-augment run (pid" in err and not (out / "manifest.json").exists()
+    finally:
+        holder.send_signal(signal.SIGKILL)
+        holder.wait()
+    assert main(["--yolo", str(images), "--out", str(out)]) == 1   # runs (its one image is truncated: exit 1)
+    assert (out / "manifest.json").exists()
+
+
+def test_an_out_that_cannot_be_a_folder_is_one_line(tmp_path, capsys):
+    images = _yolo(tmp_path, {"t": ("truncated", None)})
+    (tmp_path / "file").write_text("x")
+    assert main(["--yolo", str(images), "--out", str(tmp_path / "file" / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("aias-augment: error:") and "writable folder" in err and "Traceback" not in err
