@@ -97,8 +97,10 @@ class PlacementConfig:
     # size target, each image first draws a reference target and a ground pixel that can host it at a camera height
     # inside ``camera_height_range_m``, and the whole scene is scaled about the camera centre to that height (the
     # one unknown a single photo leaves; every object of the image shares it, so they stay consistent with each
-    # other, with the ground and with their shadows). Measured grounds (depth, LiDAR, poses) are never rescaled.
-    scene_scale_from_sizes: bool = False
+    # other, with the ground and with their shadows). Measured grounds (depth, LiDAR, poses) are never rescaled, and
+    # without a size target nothing changes. On by default: on TraCon's dev split (2 real cone images + 60 inserted,
+    # seeds 0 and 1) it raised AP50:95 from 0.191/0.089 to 0.207/0.130 (results/study_probe).
+    scene_scale_from_sizes: bool = True
     camera_height_range_m: tuple[float, float] = (0.4, 4.0)
 
 

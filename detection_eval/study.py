@@ -61,6 +61,8 @@ ARM_FLAGS: dict[str, dict | None] = {
     # boxes' sizes stand on its visible ground (PlacementConfig.scene_scale_from_sizes): ground contact, perspective
     # and shadows as in ``inserted``, sizes as in ``naive_paste``.
     "inserted_scene_scale": {"placement_cfg": {"scene_scale_from_sizes": True}},
+    # Its ablation: the assumed camera height kept, so sizes are what that height lets the visible ground host.
+    "inserted_fixed_scale": {"placement_cfg": {"scene_scale_from_sizes": False}},
     # The seed's thinned subset's own real instances (aias_augment.bank.lift): pasted at random positions and sizes
     # (Simple Copy-Paste, masks from the boxes by GrabCut), or lifted into 3D and inserted by the full pipeline
     # (placed on the ground, lit, shadowed, harmonized: the pipeline with the data's own appearance).

@@ -44,8 +44,9 @@ def test_sizes_from_existing_boxes_make_objects_the_scene_objects_size():
     an = analyse_scene(Frame(road_image(), K), CFG)
     bank = OneAsset(box_asset(extents=(0.3, 0.3, 0.7)))
     existing = np.array([[600.0, 300.0, 630.0, 380.0], [10.0, 320.0, 40.0, 400.0]])   # two 80 px tall objects
+    # at the assumed camera height (a scaled scene sees the box from lower, its top face differently)
     cfg = replace(CFG, placement_cfg=replace(CFG.placement_cfg, sizes_from_existing=True, box_height_tolerance=0.1,
-                                             box_height_jitter=0.0))
+                                             box_height_jitter=0.0, scene_scale_from_sizes=False))
     heights = []
     for s in range(6):
         p = plan_insertion(an, cfg, np.random.default_rng(s), bank=bank, n_objects=2, existing_boxes_xyxy=existing)
@@ -84,8 +85,8 @@ def test_scene_scale_from_sizes_hosts_targets_the_assumed_camera_height_cannot()
     bank = OneAsset(box_asset(extents=(0.3, 0.3, 0.7)))
     sized = replace(CFG.placement_cfg, box_height_frac_samples=(0.45,), box_height_jitter=0.0,
                     box_height_tolerance=0.1)
-    off = replace(CFG, placement_cfg=sized)
-    on = replace(CFG, placement_cfg=replace(sized, scene_scale_from_sizes=True))
+    off = replace(CFG, placement_cfg=replace(sized, scene_scale_from_sizes=False))
+    on = replace(CFG, placement_cfg=sized)   # the default
     for s in range(4):
         p_off = plan_insertion(an, off, np.random.default_rng(s), bank=bank, n_objects=1)
         assert all(_analytic_height_px(o.placement, 0.7, K) < 110 for o in p_off.objects)
