@@ -138,6 +138,20 @@ def output_categories(input_categories: dict[str, int] | None, class_names, inse
     return cats
 
 
+def image_files(images_dir) -> list[Path]:
+    """The images (:data:`IMAGE_SUFFIXES`) directly in ``images_dir``, sorted by name; not a folder: InputError."""
+    images_dir = Path(images_dir)
+    if not images_dir.is_dir():
+        raise InputError(f"{images_dir} is not a folder")
+    return [p for p in sorted(images_dir.iterdir()) if p.suffix.lower() in IMAGE_SUFFIXES]
+
+
+def items_from_images(images_dir: str) -> list[Item]:
+    """A folder of unlabelled background images (``aias-augment --images DIR`` alone): items without boxes, so the
+    output holds only the inserted objects."""
+    return [Item(str(p)) for p in image_files(images_dir)]
+
+
 def items_from_yolo(images_dir: str, labels_dir: str | None = None, class_names: list[str] | None = None,
                     box_policy: str = "clip") -> list[Item]:
     """YOLO txt: ``class cx cy w h`` normalised; labels in ``labels_dir`` (default: images/ -> labels/). Checked
@@ -145,13 +159,9 @@ def items_from_yolo(images_dir: str, labels_dir: str | None = None, class_names:
     that image a named skip (file and line); boxes of zero size are dropped, boxes outside the image clipped or
     dropped (``box_policy``), each counted. A missing label file means no objects (YOLO's convention)."""
     images_dir = Path(images_dir)
-    if not images_dir.is_dir():
-        raise InputError(f"{images_dir} is not a folder")
     labels_dir = Path(labels_dir) if labels_dir else Path(str(images_dir).replace("images", "labels"))
     items = []
-    for p in sorted(images_dir.iterdir()):
-        if p.suffix.lower() not in IMAGE_SUFFIXES:
-            continue
+    for p in image_files(images_dir):
         lab = labels_dir / (p.stem + ".txt")
         item = Item(str(p), meta={"yolo_rows": []})
         if lab.exists():
@@ -223,11 +233,12 @@ def _load_record(rec_path: Path, item: Item, input_hash: str | None) -> dict | N
 
 def process_item(index: int, item: Item, cfg: InsertionConfig, seed: int, out_dir: str,
                  class_names=None, scene_cache: str | None = None, input_hash: str | None = None,
-                 max_pixels: int | None = None) -> dict:
+                 max_pixels: int | None = None, bank=None) -> dict:
     """Augment one image; returns its record (also written to ``records/<index>.json``). ``scene_cache``: a folder
     of scene analyses shared by workers and runs (an image augmented again is not analysed again). A previous
     record is reused only when it is not a skip and its ``input_hash`` matches (failed and changed inputs are
-    redone)."""
+    redone). ``bank``: the asset source of the insertion (e.g. :class:`aias_augment.assets.PathAssets` of the
+    user's meshes; picklable, it goes to every worker); None: the default assets."""
     import copy
     item = copy.deepcopy(item)   # resolving labels and bounding the size change it
     out = Path(out_dir)
@@ -267,7 +278,7 @@ def process_item(index: int, item: Item, cfg: InsertionConfig, seed: int, out_di
             depth = stereo_depth(image, read_rgb(item.stereo_right), intr, item.baseline_m)
         # above 2 MP: analysed and planned at 2 MP, rendered at the (bounded) output size
         res = insert_bounded(image, item.bboxes_xywh, item.labels, rng, cfg, intrinsics=intr, depth=depth,
-                             meta=item.meta, scene_cache=_scene_cache(scene_cache))
+                             meta=item.meta, scene_cache=_scene_cache(scene_cache), bank=bank)
     except Exception as e:  # counted, logged skip: one bad image never stops the run
         msg = str(e)
         kind = msg.split(":", 1)[0] if isinstance(e, ValueError) and ":" in msg else None
@@ -302,7 +313,7 @@ def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, worker
         class_names=None, sheet_size: int = 12, scene_cache: str | None = None, *, preset: str | None = None,
         overwrite: bool = False, max_pixels: int | None = None, options: dict | None = None,
         backend: str = "local", ray_address: str | None = None,
-        categories: dict[str, int] | None = None) -> dict:
+        categories: dict[str, int] | None = None, bank=None) -> dict:
     """Augment all items, then write ``annotations.json`` (COCO, validated), ``report.json`` and
     ``contact_sheet.png``.
 
@@ -312,20 +323,22 @@ def run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, worker
     ``backend``: "local" (this process or a spawn pool of ``workers``) or "ray" (Ray tasks on ``ray_address`` or a
     local Ray instance of ``workers`` CPUs); outputs are the same bytes either way. ``categories``: the input's
     category name -> id (:func:`coco_categories`), kept in the output (:func:`output_categories`).
+    ``bank``: the asset source passed to every insertion (:func:`process_item`); what it holds belongs in
+    ``options`` (the manifest), so that a run with other assets is not resumed from this one's records.
     A second run into an ``out_dir`` that a run is writing is refused at start (OutputBusy)."""
     if not items:
         raise InputError("no input images")
     with output_lock(Path(out_dir)):
         return _run(items, cfg, seed, out_dir, workers, class_names, sheet_size, scene_cache, preset=preset,
                     overwrite=overwrite, max_pixels=max_pixels, options=options, backend=backend,
-                    ray_address=ray_address, categories=categories)
+                    ray_address=ray_address, categories=categories, bank=bank)
 
 
 def _run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, workers: int = 1,
          class_names=None, sheet_size: int = 12, scene_cache: str | None = None, *, preset: str | None = None,
          overwrite: bool = False, max_pixels: int | None = None, options: dict | None = None,
          backend: str = "local", ray_address: str | None = None,
-         categories: dict[str, int] | None = None) -> dict:
+         categories: dict[str, int] | None = None, bank=None) -> dict:
     out = Path(out_dir)
     hashes = [item_hash(it) for it in items]
     out_categories = output_categories(categories, class_names, tuple(cfg.categories))
@@ -334,7 +347,7 @@ def _run(items: list[Item], cfg: InsertionConfig, seed: int, out_dir: str, worke
     manifest["inputs"] = [{"path": it.path, "sha256": h} for it, h in zip(items, hashes)]
     prepare_output(out, manifest, overwrite)
     jobs = [(i, it, cfg, seed, str(out), class_names, None if scene_cache is None else str(scene_cache), h,
-             max_pixels) for i, (it, h) in enumerate(zip(items, hashes))]
+             max_pixels, bank) for i, (it, h) in enumerate(zip(items, hashes))]
     records = []
     if backend == "ray":   # Ray tasks (aias_augment.offline_ray): the same process_item, the same bytes
         from .offline_ray import run_jobs

@@ -130,6 +130,8 @@ class SceneInputs:
             raise ValueError(f"scene input 'lon' must lie in [-180, 360] degrees, got {self.lon}")
         if self.utc is not None and not isinstance(self.utc, (str, datetime)):
             raise ValueError(f"scene input 'utc' must be an ISO time string or a datetime, got {self.utc!r}")
+        if isinstance(self.utc, str):
+            _utc("utc", self.utc)
         for name in ("heading_deg", "pitch_deg", "roll_deg"):
             if getattr(self, name) is not None:
                 _finite(name, getattr(self, name))
@@ -166,6 +168,18 @@ def _finite(name: str, v) -> float:
     if not np.isfinite(f):
         raise ValueError(f"scene input {name!r} must be finite, got {v!r}")
     return f
+
+
+def _utc(name: str, s: str) -> None:
+    """``s`` parses as the solar position parses it (:func:`aias_augment.lighting.sun.solar_direction_enu`)."""
+    import pandas as pd
+    try:
+        ts = pd.Timestamp(s)
+    except (ValueError, TypeError, OverflowError) as e:
+        raise ValueError(f"scene input {name!r} must be an ISO time string (e.g. 2024-06-01T12:00:00Z), got {s!r} "
+                         f"({e})") from None
+    if pd.isna(ts):
+        raise ValueError(f"scene input {name!r} must be an ISO time string (e.g. 2024-06-01T12:00:00Z), got {s!r}")
 
 
 def _rotation(name: str, r) -> np.ndarray:
