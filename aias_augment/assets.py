@@ -229,12 +229,47 @@ def load_mesh_file(path: str | Path, *, scale: float | None = None, up_axis: str
     except Exception as e:  # trimesh raises many types for broken files
         raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
     meshes = _flatten(loaded, path)
+    for m in meshes:
+        _renderable_textures(m.visual, path)
     s = file_scale * (1.0 if scale is None else scale)
     R = axis_rotation_to_z_up(up_axis or file_up)
     for m in meshes:
         m.apply_transform(R)
         m.apply_scale(s)
     return meshes
+
+
+#: The texture slots of trimesh's materials (SimpleMaterial, PBRMaterial) that the renderer uploads.
+_TEXTURE_SLOTS = ("image", "baseColorTexture", "metallicRoughnessTexture", "normalTexture", "occlusionTexture",
+                  "emissiveTexture")
+
+
+def _renderable_textures(visual, path: Path) -> None:
+    """Convert the material's textures in place to 8-bit RGB or RGBA, the layouts the renderer takes for every
+    slot: grey+alpha (``LA``, e.g. MetaDrive's ``vehicle/130``), palette, greyscale, CMYK and 16-bit/float images
+    would otherwise be accepted here and fail at every render. An image that cannot be converted is an
+    :class:`AssetError` naming the file."""
+    material = getattr(visual, "material", None)
+    if material is None:
+        return
+    from PIL import Image
+    for slot in _TEXTURE_SLOTS:
+        img = getattr(material, slot, None)
+        if not isinstance(img, Image.Image) or img.mode in ("RGB", "RGBA"):
+            continue
+        try:
+            if img.mode in ("I", "I;16", "I;16B", "I;16L", "F"):   # high bit depth: scaled to its own 8-bit range
+                a = np.asarray(img, dtype=np.float64)
+                lo, hi = (float(a.min()), float(a.max())) if a.size else (0.0, 1.0)
+                a = np.round(255.0 * (a - lo) / (hi - lo)) if hi > lo else np.zeros_like(a)
+                img = Image.fromarray(a.astype(np.uint8)).convert("RGB")
+            else:
+                alpha = img.mode in ("LA", "La", "PA", "RGBa") or "transparency" in img.info
+                img = img.convert("RGBA" if alpha else "RGB")
+        except (OSError, ValueError) as e:
+            raise AssetError(f"{path}: texture {slot!r} of mode {img.mode!r} cannot be converted to RGB(A) "
+                             f"({e})") from e
+        setattr(material, slot, img)
 
 
 #: Crease angle (deg) of the vertex normals made at asset load (:func:`crease_normals`): faces meeting at a vertex
@@ -384,9 +419,12 @@ def default_asset(category: str, index: int = 0) -> Asset:
 
 
 class PathAssets:
-    """A small asset source from user paths: ``{"stroller": ["my/stroller.obj", ...]}`` (loaded lazily, cached).
+    """A small asset source from user paths: ``{"stroller": ["my/stroller.obj", ...]}``.
 
     ``scales``/``up_axes`` optionally give the unit scale and up axis per path for files that do not declare them.
+    Every file is loaded once at construction, so a file that cannot be read, converted or sized for its category is
+    an :class:`AssetError` naming it here rather than a skip at every later call; a copy sent to another process
+    reloads its files on first use.
     """
 
     def __init__(self, paths: dict[str, list[str]], scales: dict[str, float] | None = None,
@@ -403,14 +441,17 @@ class PathAssets:
         self.scales = scales or {}
         self.up_axes = up_axes or {}
         self._loaded: dict[str, Asset] = {}
+        for c, ps in self.paths.items():
+            for p in ps:
+                try:
+                    self._load(c, p)
+                except AssetError as e:
+                    raise AssetError(f"PathAssets: category {c!r}: {e}") from e
 
     def categories(self) -> list[str]:
         return sorted(self.paths)
 
-    def sample(self, category: str, rng: np.random.Generator) -> Asset:
-        if category not in self.paths:
-            return default_asset(category)
-        p = self.paths[category][int(rng.integers(len(self.paths[category])))]
+    def _load(self, category: str, p: str) -> Asset:
         if p not in self._loaded:
             asset = load_asset(p, category=category, scale=self.scales.get(p), up_axis=self.up_axes.get(p))
             if p not in self.scales:   # units unknown: an implausible height is rescaled with a warning, or refused
@@ -422,6 +463,11 @@ class PathAssets:
                     asset.meta["unit_guess"] = warning
             self._loaded[p] = asset
         return self._loaded[p]
+
+    def sample(self, category: str, rng: np.random.Generator) -> Asset:
+        if category not in self.paths:
+            return default_asset(category)
+        return self._load(category, self.paths[category][int(rng.integers(len(self.paths[category])))])
 
     def __getstate__(self):  # pickles without loaded meshes (reloaded lazily in each worker)
         return {"paths": self.paths, "scales": self.scales, "up_axes": self.up_axes, "_loaded": {}}

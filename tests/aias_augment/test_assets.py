@@ -169,3 +169,59 @@ def test_gazebo_cone_side_is_smooth_after_load():
     assert np.median(corner) > 3.0                  # corners carry the smooth normal, not the face's (24 sides: 7.5)
     assert corner.max() < 30.0                      # never averaged across the base rim
     assert np.allclose(cone.scaled(0.5).meshes[0].vertex_normals, n)   # scaling keeps them
+
+
+def _grey_alpha_cone(path, mode="LA"):
+    """A 0.7 m cone whose texture is a grey ramp (u) in a 2-channel grey+alpha image (MetaDrive's ``vehicle/130``
+    ships one), or another non-RGB mode."""
+    import trimesh
+    from PIL import Image
+    m = trimesh.creation.cone(radius=0.2, height=0.7, sections=24)
+    uv = np.c_[(m.vertices[:, 0] + 0.2) / 0.4, m.vertices[:, 2] / 0.7]
+    grey = np.tile(np.linspace(0, 255, 64).astype(np.uint8), (64, 1))
+    tex = Image.fromarray(np.dstack([grey, np.full_like(grey, 200)])).convert(mode) if mode == "LA" else \
+        Image.fromarray(grey).convert(mode)
+    m.visual = trimesh.visual.TextureVisuals(uv=uv, material=trimesh.visual.material.SimpleMaterial(image=tex))
+    m.export(path)
+    return grey
+
+
+@pytest.mark.parametrize("mode", ["LA", "L", "P"])
+def test_textures_the_renderer_cannot_take_are_converted_at_load(tmp_path, mode):
+    """A grey+alpha, grey or palette texture loads as RGB(A) whose colour channels are the grey values (and alpha
+    kept), and such a mesh is inserted; before, the renderer refused every call ('Cannot reformat 2-channel
+    texture')."""
+    from aias_augment.insertion.config import load_preset
+    from aias_augment.pipeline import insert_into_image
+    path = tmp_path / f"cone_{mode}.glb"
+    grey = _grey_alpha_cone(path, mode)
+    a = load_asset(path, category="traffic_cone", scale=1.0)
+    mat = a.meshes[0].visual.material   # a GLB loads as PBR: its base colour texture
+    img = getattr(mat, "baseColorTexture", None) or mat.image
+    rgba = np.asarray(img)
+    assert img.mode == ("RGBA" if mode == "LA" else "RGB")
+    assert rgba.shape[:2] == grey.shape
+    assert np.array_equal(rgba[..., 0], rgba[..., 1]) and np.array_equal(rgba[..., 1], rgba[..., 2])
+    assert np.abs(rgba[..., 0].astype(int) - grey).max() <= (0 if mode != "P" else 8)
+    if mode == "LA":
+        assert np.all(rgba[..., 3] == 200)
+    road = np.full((240, 320, 3), 170, np.uint8)
+    road[120:] = 90
+    res = insert_into_image(road, None, None, np.random.default_rng(0), load_preset("fast"),
+                            bank=PathAssets({"traffic_cone": [str(path)]}, scales={str(path): 1.0}), n_objects=1)
+    assert res.inserted_labels == ["traffic_cone"]
+
+
+def test_path_assets_refuse_unreadable_or_unsizeable_files_at_construction(tmp_path):
+    """What can be checked before the first image is: a file that does not parse as a mesh, and a mesh whose height
+    no unit makes plausible for its category, are errors naming the file when PathAssets is built (before, each
+    was a skip at every later call)."""
+    import trimesh
+    from aias_augment.validate import InputError
+    bad = tmp_path / "broken.glb"
+    bad.write_bytes(b"glTF\x02\x00\x00\x00garbage")
+    with pytest.raises(AssetError, match="broken.glb"):
+        PathAssets({"traffic_cone": [str(bad)]})
+    trimesh.creation.box(extents=(1, 1e7, 1)).export(tmp_path / "tower.obj")
+    with pytest.raises(InputError, match="traffic_cone"):
+        PathAssets({"traffic_cone": [str(tmp_path / "tower.obj")]})
