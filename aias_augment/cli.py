@@ -41,6 +41,9 @@ def main(argv=None) -> int:
     ap.add_argument("--sun-from", metavar="LAT,LON,UTC,HEADING", default=None,
                     help="the sun from position and time for every image: degrees, ISO UTC time, camera heading "
                          "in degrees clockwise from north (e.g. 48.1,11.6,2024-06-01T12:00:00Z,90)")
+    ap.add_argument("--envmap", metavar="FILE", default=None,
+                    help="an equirectangular HDR/EXR of the scene's light for every image (the camera looks level at "
+                         "its centre column): its brightest compact light is the sun, the rest the ambient")
     ap.add_argument("--out", required=True)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0)
@@ -80,7 +83,7 @@ def main(argv=None) -> int:
         if not (a.camera and a.poses):
             ap.error("a clip needs both --camera and --poses")
         given = [f for f, v in (("--config", a.config), ("--assets", a.assets), ("--assets-bank", a.assets_bank),
-                                ("--sun-from", a.sun_from)) if v]
+                                ("--sun-from", a.sun_from), ("--envmap", a.envmap)) if v]
         if given:
             ap.error(f"{', '.join(given)}: for image datasets, not clips")
         from .offline_video import ClipJob, augment_clip
@@ -114,6 +117,10 @@ def main(argv=None) -> int:
         facts = sun_facts(a.sun_from) if a.sun_from else {}
         if facts:
             options["sun_from"] = {k: str(v) for k, v in facts.items()}
+        if a.envmap:
+            from .manifest import file_hash
+            facts["envmap"] = envmap_fact(a.envmap)
+            options["envmap"] = [a.envmap, file_hash(a.envmap)]
         cfg = insertion_config(a.preset, a.config, a.categories, a.per_image, paths)
         # Categories your --assets give need not be built-in ones (as InsertObjects(assets=...)).
         unknown = [c for c in cfg.categories if c not in (paths or {})]
@@ -238,6 +245,19 @@ def sun_facts(spec: str) -> dict:
     except ValueError as e:
         raise InputError(f"--sun-from {spec!r}: {e}") from None
     return facts.as_meta()
+
+
+def envmap_fact(path: str):
+    """``--envmap FILE`` as the scene fact ``envmap``: an :class:`EnvironmentMap` placed for a single image (whose
+    world is the camera frame): the camera looks level at the map's centre column (env +x), env z up."""
+    from .lighting.envmap import EnvironmentMap, cam_from_env_look
+    from .scene_inputs import SceneInputs
+    from .validate import InputError
+    try:
+        env = EnvironmentMap.from_file(path, world_from_env=cam_from_env_look(0.0))
+        return SceneInputs(envmap=env).checked((1, 1)).envmap
+    except (OSError, ValueError) as e:
+        raise InputError(f"--envmap {path}: {' '.join(str(e).split())}") from None
 
 
 def insertion_config(preset: str, config_file: str | None, categories, per_image: int | None, asset_paths=None):

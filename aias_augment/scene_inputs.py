@@ -33,6 +33,10 @@ class SceneInputs:
     enu_from_cam, enu_from_world, world_from_env: 3x3 rotations (camera / world frame to East-North-Up; an HDR
         environment map's frame to the world).
     up_in_world: (3,) the world's up direction.
+    envmap: the scene's HDR environment map: an :class:`aias_augment.lighting.envmap.EnvironmentMap` (its own
+        ``world_from_env`` places it; for a single image the world is the camera frame) or an (H, 2H, 3) linear
+        radiance array (placed by ``world_from_env``, default identity). The lighting is read from it (source
+        'envmap': its brightest compact light as the sun, the rest as ambient) instead of estimated from the image.
     """
 
     placeable_mask: np.ndarray | None = None
@@ -51,6 +55,7 @@ class SceneInputs:
     enu_from_world: np.ndarray | None = None
     world_from_env: np.ndarray | None = None
     up_in_world: np.ndarray | None = None
+    envmap: Any = None
 
     # ------------------------------------------------------------------------------------------------ conversion
 
@@ -144,6 +149,8 @@ class SceneInputs:
             if u.shape != (3,) or not np.all(np.isfinite(u)) or np.linalg.norm(u) < 1e-9:
                 raise ValueError(f"scene input 'up_in_world' must be a finite non-zero 3-vector, got {u!r}")
             new["up_in_world"] = u
+        if self.envmap is not None:
+            new["envmap"] = _envmap(self.envmap, new.get("world_from_env"))
         return SceneInputs(**{**{f.name: getattr(self, f.name) for f in fields(self)}, **new})
 
 
@@ -180,6 +187,22 @@ def _utc(name: str, s: str) -> None:
                          f"({e})") from None
     if pd.isna(ts):
         raise ValueError(f"scene input {name!r} must be an ISO time string (e.g. 2024-06-01T12:00:00Z), got {s!r}")
+
+
+def _envmap(v, world_from_env):
+    """An EnvironmentMap as it is, or one made of an (H, 2H, 3) radiance array and ``world_from_env``."""
+    from .lighting.envmap import EnvironmentMap
+    if isinstance(v, EnvironmentMap):
+        return v
+    if not isinstance(v, np.ndarray):
+        raise ValueError(f"scene input 'envmap' must be an EnvironmentMap or an (H, 2H, 3) radiance array, got "
+                         f"{type(v).__name__}")
+    if v.ndim != 3 or v.shape[2] != 3 or v.shape[1] != 2 * v.shape[0]:
+        raise ValueError(f"scene input 'envmap' must be (H, 2H, 3) equirectangular radiance, got {v.shape}")
+    try:
+        return EnvironmentMap(v, np.eye(3) if world_from_env is None else world_from_env)
+    except ValueError as e:
+        raise ValueError(f"scene input 'envmap': {e}") from None
 
 
 def _rotation(name: str, r) -> np.ndarray:

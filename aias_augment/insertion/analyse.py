@@ -19,6 +19,7 @@ import xxhash
 from .. import composite as comp
 from ..geometry import Intrinsics
 from ..ground import GroundFitError, GroundPlane, ground_plane_from_depth, prior_ground_plane
+from ..lighting.envmap import EnvironmentMap
 from ..lighting.estimate import LightingEstimate, estimate_lighting
 from ..region import PlaceableRegion, below_horizon_mask, placeable_region
 from ..scene import Frame
@@ -109,6 +110,10 @@ def _hash_value(h, v) -> None:
             h.update(a.tobytes())
     elif isinstance(v, Intrinsics):
         h.update(repr((v.fx, v.fy, v.cx, v.cy, v.width, v.height)).encode())
+    elif isinstance(v, EnvironmentMap):   # a scene fact: by its pixels and orientation (its repr elides them)
+        h.update(b"EnvironmentMap")
+        _hash_value(h, v.radiance)
+        _hash_value(h, np.asarray(v.world_from_env, np.float64))
     else:
         h.update(repr(v).encode())
 
@@ -302,7 +307,9 @@ def _scene_lighting(image, intr: Intrinsics, ground: GroundPlane, rng, cfg: Inse
     lcfg = cfg.lighting_cfg
     if np.isfinite(ground.camera_height_m) and ground.camera_height_m > 0:
         lcfg = dataclasses.replace(lcfg, camera_height_m=float(ground.camera_height_m))
-    est = estimate_lighting(image, intr, None, {**meta, "up_in_world": ground.normal}, rng=rng, config=lcfg)
+    # A given environment map (scene fact 'envmap') is the lighting: its sun and ambient, not the image's cues.
+    est = estimate_lighting(image, intr, None, {**meta, "up_in_world": ground.normal}, envmap=meta.get("envmap"),
+                            rng=rng, config=lcfg)
     if est.dominant_sun:
         modules["lighting"] = (f"sun from {est.source} (confidence {est.confidence:.2f}), sun/sky ratio "
                                f"{est.sun_sky_ratio:.2f}, SH ambient")

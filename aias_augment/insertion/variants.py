@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import xxhash
 
+from ..lighting.envmap import EnvironmentMap
 from .analyse import _hash_value
 from .view_cache import _write_atomic
 
@@ -89,7 +90,7 @@ def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, exi
         for f in dataclasses.fields(scene):
             v = getattr(scene, f.name)
             h.update(f"scene:{f.name}".encode())
-            _hash_value(h, v if isinstance(v, np.ndarray) or v is None else repr(v))
+            _hash_value(h, v if isinstance(v, (np.ndarray, EnvironmentMap)) or v is None else repr(v))
     return h.hexdigest()
 
 

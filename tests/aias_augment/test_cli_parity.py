@@ -1,5 +1,6 @@
 """Issue 28 item 9: the offline CLI takes what the Python API takes: unlabelled ``--images``, the user's meshes
-(``--assets``, ``--assets-bank``), the sun from position and time (``--sun-from``) and a config file (``--config``);
+(``--assets``, ``--assets-bank``), the sun from position and time (``--sun-from``), an HDR environment map
+(``--envmap``, the scene fact ``envmap``) and a config file (``--config``);
 a bad value is one line on stderr and exit 2 before any image is processed; other meshes are another run.
 
 Real runs of ``aias_augment.cli.main`` on 160x120 road-like images with meshes written by trimesh (fast preset)."""
@@ -101,6 +102,8 @@ BAD = [
     (["--config", "{tmp}/unknown.yaml"], "unknown.yaml: InsertionConfig: unknown config keys ['shadows']"),
     (["--config", "{tmp}/missing.yaml"], "missing.yaml"),
     (["--categories", "unicorn"], "unknown categories ['unicorn']"),
+    (["--envmap", "{tmp}/missing.hdr"], "missing.hdr"),
+    (["--envmap", "{tmp}/bad.yaml"], "unsupported HDR file type"),
 ]
 
 
@@ -161,3 +164,65 @@ def test_sun_from_and_config_file(tmp_path):
     assert s[0] > 0.3 and s[1] < -0.3, s
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["options"]["sun_from"]["utc"] == "2024-06-01T10:00:00Z"
+
+
+# ------------------------------------------------------------------------------- --envmap (scene fact 'envmap')
+def _sun_envmap(azimuth_deg, elevation_deg, h=64):
+    """A dim sky over a darker ground with a small very bright sun at (azimuth, elevation) of the env frame."""
+    from aias_augment.lighting.envmap import azimuth_elevation_to_direction, pixel_directions
+    d = azimuth_elevation_to_direction(np.radians(azimuth_deg), np.radians(elevation_deg))
+    dirs = pixel_directions(h, 2 * h)
+    rad = np.full((h, 2 * h, 3), 0.3, np.float32)
+    rad[dirs[..., 2] < 0] = 0.1
+    rad[dirs @ d > np.cos(np.radians(3.0))] = 2000.0
+    return rad, d
+
+
+def test_envmap_fact_is_the_scene_lighting_and_part_of_the_cache_key():
+    from aias_augment.insertion.analyse import scene_key
+    from aias_augment.insertion.cache import SceneCache
+    from aias_augment.lighting.envmap import EnvironmentMap, cam_from_env_look
+    from aias_augment.pipeline import load_preset
+    from aias_augment.scene import Frame
+    from aias_augment.scene_inputs import SceneInputs
+    from aias_augment.working_resolution import insert_bounded
+    cam_from_env = cam_from_env_look(0.0)        # a level camera looking at the map's centre column
+    rad, d = _sun_envmap(-40.0, 35.0)            # ahead-right of the camera, 35 deg up
+    env = EnvironmentMap(rad, cam_from_env)
+    image = _road()[..., ::-1].copy()
+    cfg = load_preset("fast", categories=("traffic_cone",), max_objects=1)
+    cache = SceneCache()
+    for scene in (SceneInputs(envmap=env), SceneInputs(envmap=rad, world_from_env=cam_from_env)):
+        res = insert_bounded(image, None, None, np.random.default_rng(0), cfg, scene=scene, scene_cache=cache,
+                             n_objects=0)
+        light = res.record.to_dict()["lighting"]
+        assert light["source"] == "envmap" and light["dominant_sun"]
+        want = cam_from_env @ d
+        assert np.degrees(np.arccos(np.clip(np.dot(light["sun_direction_in_cam"], want), -1, 1))) < 3.0
+    insert_bounded(image, None, None, np.random.default_rng(1), cfg, scene=SceneInputs(envmap=env),
+                   scene_cache=cache, n_objects=0)
+    assert cache.misses == 2 and cache.hits == 1                  # the same map again: the cached analysis
+    # The key holds the map's pixels: another sun (same shape, same repr) is another analysis.
+    rad2, _ = _sun_envmap(60.0, 20.0)
+    keys = {scene_key(Frame(image, None, meta=m), cfg) for m in (
+        {}, {"envmap": env}, {"envmap": EnvironmentMap(rad2, cam_from_env)}, {"envmap": EnvironmentMap(rad)})}
+    assert len(keys) == 4
+    with pytest.raises(ValueError, match="'envmap'"):
+        SceneInputs(envmap=np.ones((4, 4, 3))).checked((1, 1))
+
+
+def test_envmap_option(tmp_path):
+    from aias_augment.lighting.envmap import cam_from_env_look
+    from aias_augment.lighting.hdr import write_hdr_image
+    images = _backgrounds(tmp_path, n=1)
+    mesh = _box_mesh(tmp_path / "crate.glb")
+    rad, d = _sun_envmap(30.0, 40.0)             # ahead-left
+    write_hdr_image(tmp_path / "sky.hdr", rad)
+    out = tmp_path / "out"
+    assert main(["--images", str(images), "--assets", f"crate={mesh}", "--envmap", str(tmp_path / "sky.hdr"), *FAST,
+                 "--out", str(out)]) == 0
+    light = _records(out)[0]["lighting"]
+    assert light["source"] == "envmap"
+    s = np.asarray(light["sun_direction_in_cam"])
+    assert np.degrees(np.arccos(np.clip(s @ (cam_from_env_look(0.0) @ d), -1, 1))) < 3.0 and s[0] < 0
+    assert json.loads((out / "manifest.json").read_text())["options"]["envmap"][0] == str(tmp_path / "sky.hdr")
