@@ -16,12 +16,13 @@ from .pipeline import PRESETS, load_preset
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="aias-augment", description=__doc__)
+    ap = argparse.ArgumentParser(prog="aias-augment", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group()
     src.add_argument("--input", help="COCO json of the dataset (with --images), or a clip: a video file or a folder "
                                      "of frames (with --camera and --poses)")
     src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
-    ap.add_argument("--images", help="image folder for --input; alone: a folder of unlabelled background images "
+    ap.add_argument("--images", metavar="DIR", help="image folder for --input; alone: a folder of unlabelled background images "
                                      "(the output holds only the inserted objects)")
     ap.add_argument("--class-names", nargs="*", default=None, help="YOLO class names by index")
     ap.add_argument("--categories", nargs="+", default=None,
