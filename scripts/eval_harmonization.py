@@ -147,8 +147,8 @@ def main(argv=None) -> int:
     per_method, outputs = {}, {}
     views = not args.single_view
     for m in methods:
-        harmonize(pairs[0]["composite"], pairs[0]["mask"].astype(np.float32), m, checkpoint=ckpt.get(m),
-                  test_time_views=views)  # warm-up/load
+        harmonize(pairs[0]["composite"], pairs[0]["mask"].astype(np.float32), m, np.random.default_rng(0),
+                  checkpoint=ckpt.get(m), test_time_views=views)  # warm-up/load
         rows, outs = [], []
         for i, pr in enumerate(pairs):
             t = time.perf_counter()

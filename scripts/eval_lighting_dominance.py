@@ -74,7 +74,7 @@ def main(argv=None) -> int:
                     sx, sy = width / K.width, h / K.height
                     Kw = Intrinsics(K.fx * sx, K.fy * sy, (K.cx + 0.5) * sx - 0.5, (K.cy + 0.5) * sy - 0.5, width, h)
             t = time.perf_counter()
-            e = estimate_lighting(im, Kw)
+            e = estimate_lighting(im, Kw, rng=np.random.default_rng(0))
             dt = time.perf_counter() - t
             rows.append({"group": group, "frame": name, "width": width, "expected_sun": expected,
                          "dominant_sun": e.dominant_sun, "sun_sky_ratio": e.sun_sky_ratio,

@@ -65,7 +65,7 @@ def road_mask(K: Intrinsics) -> np.ndarray:
 
 
 def real_shadow(img: np.ndarray, road: np.ndarray) -> ratio.LitShadowMeasurement:
-    m = ratio.measure_lit_shadow(hdr.srgb_to_linear(img), road)
+    m = ratio.measure_lit_shadow(hdr.srgb_to_linear(img), road, rng=np.random.default_rng(0))
     if m is None:
         raise RuntimeError("too few road pixels")
     return m
@@ -194,7 +194,7 @@ def main(argv=None) -> int:
         from aias_augment.lighting.shading import shade_object
         from aias_augment.render import render_object
 
-        lighting_road = estimate_lighting(img, K, meta={"ground_mask": road})
+        lighting_road = estimate_lighting(img, K, meta={"ground_mask": road}, rng=np.random.default_rng(0))
         report["frames"][idx]["estimate"] = lighting_road.to_dict()
         for cat in args.categories:
             for seed in args.seeds:

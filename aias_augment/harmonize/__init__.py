@@ -4,7 +4,7 @@ Public API::
 
     from aias_augment.harmonize import harmonize
     out_uint8 = harmonize(composite_rgb_uint8, fg_mask, method="camera" | "reinhard" | "fast" | "network" | "none",
-                          rng=None, checkpoint=None)
+                          rng=np.random.default_rng(seed), checkpoint=None)   # rng required
 
 - ``composite_rgb_uint8``: (H, W, 3) uint8 RGB; ``fg_mask``: (H, W) float in [0, 1] (bool accepted), 1 = object.
 - Only pixels under the mask change (soft mask edges blended); a new array is returned, inputs are never mutated.

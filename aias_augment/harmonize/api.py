@@ -11,7 +11,7 @@ method:
   "camera"   - camera-pipeline matching: exposure/WB, blur, noise, JPEG (``camera_pipeline.py``); uses ``rng``;
   "fast"     - predicted affine colour transform from a thumbnail (``fast.py``, checkpoints/harmonizer_fast.pt);
   "network"  - the paper's coarse-to-fine dilated-conv generator (``network.py``, checkpoints/harmonizer_small.pt).
-rng: numpy Generator for the stochastic stages (camera noise); None -> ``np.random.default_rng(0)`` (deterministic).
+rng: numpy Generator for the stochastic stages (camera noise); required for every method (None raises TypeError).
 checkpoint: path of the "fast" / "network" checkpoint; None -> the shipped default. A missing checkpoint raises
   FileNotFoundError naming the training command. Loaded models are cached per process (path + mtime).
 
@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import CHECKPOINT_DIR
+from ..rng import require_rng
 from .camera_pipeline import (CameraMatchParams, camera_match, chroma_subsampled, estimate_jpeg_quality,
                               stage_window)
 from .color import to_float, to_uint8
@@ -82,11 +83,11 @@ def harmonize(composite_rgb_uint8: np.ndarray, fg_mask: np.ndarray, method: str 
 
     ``test_time_views``: the learnt methods average their prediction over 6 views (3 context sizes x flip); False
     uses one view, about 2x (fast) to 6x (network) quicker for under 1 point of fMSE (``results/harmonization``)."""
+    rng = require_rng(rng, "harmonize")
     soft = _validate(composite_rgb_uint8, fg_mask, method)
     hard = soft > 0.0
     if method == "none" or not hard.any():
         return composite_rgb_uint8.copy()
-    rng = rng if rng is not None else np.random.default_rng(0)
     image = to_float(composite_rgb_uint8)
     if method == "reinhard":
         result = reinhard_transfer(image, hard)
@@ -172,9 +173,9 @@ def harmonize_clip(frames: list[np.ndarray], fg_masks: list[np.ndarray | None], 
     median is applied to all of them (one camera, one object: one transform; per-frame predictions would flicker).
     Other methods run frame by frame (``rng`` seeds each frame's stream in order).
     """
+    rng = require_rng(rng, "harmonize_clip")
     if len(frames) != len(fg_masks):
         raise ValueError(f"harmonize_clip: {len(frames)} frames but {len(fg_masks)} masks")
-    rng = rng if rng is not None else np.random.default_rng(0)
     softs = [None if m is None else _validate(f, m, method) for f, m in zip(frames, fg_masks)]
     visible = [i for i, m in enumerate(softs) if m is not None and (m > 0).any()]
     out = [np.asarray(f).copy() for f in frames]

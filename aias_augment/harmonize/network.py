@@ -212,12 +212,16 @@ class Critic(nn.Module):
 
 
 def masked_gradient_penalty(critic, real: torch.Tensor, fake: torch.Tensor, mask: torch.Tensor,
-                            generator: torch.Generator | None = None) -> torch.Tensor:
+                            generator: torch.Generator) -> torch.Tensor:
     """WGAN-GP with the gradient norm taken over the masked pixels only (DeepFill v1's ``gradients_penalty``).
 
     ``critic(image, mask) -> (B,)``; the penalty is ``mean_b (sqrt(sum(grad^2 * mask) + GP_EPS) - 1)^2`` at random
-    interpolates of ``real`` and ``fake``; gradients w.r.t. pixels where ``mask == 0`` do not enter it.
+    interpolates of ``real`` and ``fake`` (drawn from ``generator``, a required ``torch.Generator``); gradients
+    w.r.t. pixels where ``mask == 0`` do not enter it.
     """
+    if not isinstance(generator, torch.Generator):
+        raise TypeError(f"masked_gradient_penalty: generator is required: pass a torch.Generator, "
+                        f"got {type(generator).__name__}")
     alpha = torch.rand(real.shape[0], 1, 1, 1, generator=generator, dtype=real.dtype)
     x = (alpha * real.detach() + (1 - alpha) * fake.detach()).requires_grad_(True)
     (grad,) = torch.autograd.grad(critic(x, mask).sum(), x, create_graph=True)

@@ -242,8 +242,9 @@ def _fixed_holdout(pool, hold_idx, cfg: TrainConfig):
 
 # -------------------------------------------------------------------------------------------------------- the network
 def train_step(gen: Generator, critic: Critic, opt_g, opt_d, comp, target, mask, cfg: TrainConfig,
-               tgen: torch.Generator | None = None) -> dict[str, float]:
-    """One critic update (WGAN loss + mask-weighted GP) then one generator update (L1 coarse + L1 refined + adv)."""
+               tgen: torch.Generator) -> dict[str, float]:
+    """One critic update (WGAN loss + mask-weighted GP, its interpolates drawn from ``tgen``) then one generator
+    update (L1 coarse + L1 refined + adv)."""
     out = gen(comp, mask)
     opt_d.zero_grad()
     d_real, d_fake = critic(target, mask), critic(out["output"].detach(), mask)
@@ -292,13 +293,14 @@ def train_network(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None 
     checkpoint whose weights start the generator's global stage (``network.global_stage``).
     """
     torch.set_num_threads(cfg.threads)
-    torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     tgen = torch.Generator().manual_seed(cfg.seed)
     pool = pool or cached_pool(cfg.data, cfg.network.resolution_px, cfg.seed)
     train_idx, hold_idx = split_pool(pool, cfg.data.holdout_fraction, np.random.default_rng(cfg.seed))
     hold = _fixed_holdout(pool, hold_idx, cfg)
-    gen, critic = Generator(cfg.network), Critic(cfg.network.critic_channels)
+    with torch.random.fork_rng(devices=[]):   # weight init seeded by cfg.seed; the process' torch state untouched
+        torch.manual_seed(cfg.seed)
+        gen, critic = Generator(cfg.network), Critic(cfg.network.critic_channels)
     prior = {"steps": 0, "train_time_s": 0.0, "history": []}
     if init_from is not None:
         ckpt = load_checkpoint_dict(init_from, "network")
@@ -391,12 +393,13 @@ def train_fast(cfg: TrainConfig, out_path: str | Path, pool: PairPool | None = N
     """Train the fast harmonizer; ``out_path`` holds the model that scored best on the holdout (as the network).
     ``init_from``: start from a saved fast checkpoint (same config)."""
     torch.set_num_threads(cfg.threads)
-    torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed + 7)
     pool = pool or cached_pool(cfg.data, cfg.network.resolution_px, cfg.seed)
     train_idx, hold_idx = split_pool(pool, cfg.data.holdout_fraction, np.random.default_rng(cfg.seed))
     hold = _fixed_holdout(pool, hold_idx, cfg)
-    model = FastColorNet(cfg.fast)
+    with torch.random.fork_rng(devices=[]):   # weight init seeded by cfg.seed; the process' torch state untouched
+        torch.manual_seed(cfg.seed)
+        model = FastColorNet(cfg.fast)
     if init_from is not None:
         ckpt = load_checkpoint_dict(init_from, "fast")
         if from_dict(FastConfig, ckpt["config"]) != cfg.fast:

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..config import checked_config
 from ..geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
+from ..rng import require_rng
 from .envmap import EnvironmentMap, assemble_envmap, camera_ray_directions
 from .hdr import InverseToneMapParams, inverse_tone_map, luminance, srgb_to_linear
 from .ratio import (LitShadowMeasurement, ground_coordinates, ground_region_mask, measure_lit_shadow,
@@ -772,7 +773,7 @@ def estimate_sun_direction(
     that decide dominance themselves). ``meta``: 'up_in_world', 'ground_mask', 'lat'/'lon'/'utc' (elevation only)."""
     img = _check_image(image_rgb_uint8)
     meta = dict(meta or {})
-    rng = np.random.default_rng(0) if rng is None else rng
+    rng = require_rng(rng, "estimate_sun_direction")
     R_cw = np.eye(3) if cam_from_world is None else _rot3(cam_from_world)
     ctx = _prepare(img, intrinsics, R_cw, meta, config, rng)
     return _image_cue_sun([ctx], ctx.up_in_world, config, rng)
@@ -788,7 +789,7 @@ def estimate_sun_direction_clip(
 ) -> SunDirectionEstimate:
     """The image-cue sun of a clip with known poses, fused in world coordinates as :func:`estimate_lighting_clip` does
     (the world's up: ``metas[0]['up_in_world']`` or the first camera's -y)."""
-    rng = np.random.default_rng(0) if rng is None else rng
+    rng = require_rng(rng, "estimate_sun_direction_clip")
     ctxs, up_in_world = _prepare_clip(images, intrinsics, cams_from_world, metas, config, rng)
     return _image_cue_sun([c for c in ctxs if not c.indoor] or ctxs, up_in_world, config, rng)
 
@@ -825,11 +826,12 @@ def estimate_lighting(
     ``meta`` keys used: 'lat', 'lon', 'utc' (ISO string) with an orientation ('enu_from_cam', 'enu_from_world' or
     'heading_deg' [+ 'pitch_deg', 'roll_deg']); 'up_in_world' (3,); 'indoor' (bool); 'ground_mask' ((H, W) bool: the
     ground region used for lit/shadow); 'world_from_env' (3x3, orientation of ``envmap`` given as an array).
-    ``rng`` only subsamples pixels (None -> a fixed seed). The result is always finite.
+    ``rng`` (required; its None default only keeps the argument order) subsamples pixels. The result is always
+    finite.
     """
     img = _check_image(image_rgb_uint8)
     meta = dict(meta or {})
-    rng = np.random.default_rng(0) if rng is None else rng
+    rng = require_rng(rng, "estimate_lighting")
     R_cw = np.eye(3) if cam_from_world is None else _rot3(cam_from_world)
     if envmap is not None:
         up_in_world, _ = _up_vectors(R_cw, meta)
@@ -866,7 +868,7 @@ def estimate_lighting_clip(
     fused direction rotated into its camera. Metadata (GPS + UTC + orientation) on every frame overrides fusion. Sun
     strength and ambient stay per frame. The world's up is ``metas[0]['up_in_world']`` or the first camera's -y.
     """
-    rng = np.random.default_rng(0) if rng is None else rng
+    rng = require_rng(rng, "estimate_lighting_clip")
     ctxs, up_in_world = _prepare_clip(images, intrinsics, cams_from_world, metas, config, rng)
     meta_suns = [None if c.indoor else _metadata_sun(c, True) for c in ctxs]
     if all(s is not None for s in meta_suns):

@@ -19,6 +19,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
+from ..rng import require_rng
 from .envmap import camera_ray_directions
 from .hdr import luminance
 
@@ -141,7 +142,7 @@ def measure_lit_shadow(
     region = np.asarray(region_mask, bool)
     if img.ndim != 3 or img.shape[2] != 3 or region.shape != img.shape[:2]:
         raise ValueError(f"measure_lit_shadow: image {img.shape} and mask {region.shape} do not match")
-    rng = np.random.default_rng(0) if rng is None else rng
+    rng = require_rng(rng, "measure_lit_shadow")
     Y = luminance(img).astype(np.float64)
     usable = region & np.isfinite(Y) & (Y > 1e-4) & (img.max(axis=2) < 0.97)
     if usable.sum() < 200:

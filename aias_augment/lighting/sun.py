@@ -18,6 +18,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..geometry import Intrinsics
+from ..rng import require_rng
 from .envmap import (azimuth_elevation_to_direction, camera_ray_directions, direction_to_azimuth_elevation,
                      pixel_directions, pixel_solid_angles)
 from .hdr import luminance, srgb_to_linear
@@ -360,7 +361,7 @@ def sun_cue_from_image(
         raise ValueError(f"sun_cue_from_image: expected (H, W, 3) uint8, got {img.shape} {img.dtype}")
     if (intrinsics.height, intrinsics.width) != img.shape[:2]:
         raise ValueError("sun_cue_from_image: intrinsics do not match the image size")
-    rng = np.random.default_rng(0) if rng is None else rng
+    rng = require_rng(rng, "sun_cue_from_image")
     cam_from_world = np.eye(3) if cam_from_world is None else _rot3(cam_from_world)
     if up_in_world is None:
         up_in_world = cam_from_world.T @ np.array([0.0, -1.0, 0.0])  # level camera: up is -y

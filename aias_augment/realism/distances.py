@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..rng import require_rng
+
 __all__ = ["frechet_distance", "fid_from_features", "polynomial_mmd2_unbiased", "kid_from_features"]
 
 
@@ -60,7 +62,7 @@ def kid_from_features(feats_a: np.ndarray, feats_b: np.ndarray, n_subsets: int =
     ``min(subset_size, len(a), len(b))`` samples drawn without replacement from each set. When both sets are no
     larger than the subset size every subset is the whole set (one exact value, std 0)."""
     a, b = np.asarray(feats_a, np.float64), np.asarray(feats_b, np.float64)
-    rng = np.random.default_rng(0) if rng is None else rng
+    rng = require_rng(rng, "kid_from_features")
     k = min(subset_size, len(a), len(b))
     if k == len(a) == len(b):
         return polynomial_mmd2_unbiased(a, b), 0.0

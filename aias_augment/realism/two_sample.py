@@ -146,27 +146,29 @@ def cnn_two_sample(crops: np.ndarray, labels, groups, rng: np.random.Generator, 
     X, y, g = np.asarray(crops), np.asarray(labels).astype(bool), np.asarray(groups)
     folds = grouped_folds(g, n_splits, rng, y)
     scores = np.zeros(len(y))
-    torch.manual_seed(int(rng.integers(2 ** 31)))
-    for k in range(n_splits):
-        tr = np.flatnonzero(folds != k)
-        pos, neg = tr[y[tr]], tr[~y[tr]]
-        net = _small_cnn()
-        opt = torch.optim.Adam(net.parameters(), lr=lr, weight_decay=1e-4)
-        steps = max(1, epochs * len(tr) // batch_size)
-        sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=lr, total_steps=steps)
-        net.train()
-        for _ in range(steps):
-            idx = np.r_[rng.choice(pos, batch_size // 2), rng.choice(neg, batch_size // 2)]
-            xb = _to_tensor([_augment(X[i], rng) for i in idx])
-            yb = torch.from_numpy(y[idx].astype(np.float32))
-            loss = torch.nn.functional.binary_cross_entropy_with_logits(net(xb).squeeze(1), yb)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sched.step()
-        net.eval()
-        te = np.flatnonzero(folds == k)
-        with torch.inference_mode():
-            for i in range(0, len(te), 256):
-                scores[te[i:i + 256]] = net(_to_tensor([X[j] for j in te[i:i + 256]])).squeeze(1).numpy()
+    # weight init and dropout drawn from a torch seed taken from rng; the process' torch state is left as it was
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(int(rng.integers(2 ** 31)))
+        for k in range(n_splits):
+            tr = np.flatnonzero(folds != k)
+            pos, neg = tr[y[tr]], tr[~y[tr]]
+            net = _small_cnn()
+            opt = torch.optim.Adam(net.parameters(), lr=lr, weight_decay=1e-4)
+            steps = max(1, epochs * len(tr) // batch_size)
+            sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=lr, total_steps=steps)
+            net.train()
+            for _ in range(steps):
+                idx = np.r_[rng.choice(pos, batch_size // 2), rng.choice(neg, batch_size // 2)]
+                xb = _to_tensor([_augment(X[i], rng) for i in idx])
+                yb = torch.from_numpy(y[idx].astype(np.float32))
+                loss = torch.nn.functional.binary_cross_entropy_with_logits(net(xb).squeeze(1), yb)
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                sched.step()
+            net.eval()
+            te = np.flatnonzero(folds == k)
+            with torch.inference_mode():
+                for i in range(0, len(te), 256):
+                    scores[te[i:i + 256]] = net(_to_tensor([X[j] for j in te[i:i + 256]])).squeeze(1).numpy()
     return _result(scores, y, g, folds, rng)

@@ -39,7 +39,8 @@ def test_masked_gp_only_sees_gradients_inside_the_mask(seed, fill):
 def test_masked_gp_gradient_reaches_the_critic():
     critic, mask = Critic(4), torch.zeros(2, 1, 32, 32)
     mask[:, :, 8:24, 8:24] = 1
-    gp = masked_gradient_penalty(critic, torch.rand(2, 3, 32, 32), torch.rand(2, 3, 32, 32), mask)
+    gp = masked_gradient_penalty(critic, torch.rand(2, 3, 32, 32), torch.rand(2, 3, 32, 32), mask,
+                                 torch.Generator().manual_seed(0))
     gp.backward()
     # The score's bias does not change the critic's input gradient, so only it receives no gradient.
     for name, p in critic.named_parameters():

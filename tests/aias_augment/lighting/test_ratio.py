@@ -21,23 +21,24 @@ def _ground(r_true, with_shadow=True, seed=0):
 @pytest.mark.parametrize("r_true", [1.5, 4.0, 8.0])
 def test_ratio_recovered_on_synthetic_ground(r_true):
     img = _ground(r_true)
-    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool))
+    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool), rng=np.random.default_rng(0))
     assert m.dominant_sun
     assert m.sun_sky_ratio == pytest.approx(r_true, rel=0.1)
 
 
 def test_overcast_ground_has_no_dominant_sun():
     img = _ground(0.0, with_shadow=False)
-    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool))
+    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool), rng=np.random.default_rng(0))
     assert not m.dominant_sun
 
 
 def test_too_few_pixels_and_black():
     img = _ground(3.0)
-    assert ratio.measure_lit_shadow(img, np.zeros(img.shape[:2], bool)) is None
-    assert ratio.measure_lit_shadow(np.zeros_like(img), np.ones(img.shape[:2], bool)) is None
+    assert ratio.measure_lit_shadow(img, np.zeros(img.shape[:2], bool), rng=np.random.default_rng(0)) is None
+    assert ratio.measure_lit_shadow(np.zeros_like(img), np.ones(img.shape[:2], bool),
+                                    rng=np.random.default_rng(0)) is None
     with pytest.raises(ValueError):
-        ratio.measure_lit_shadow(img, np.ones((3, 3), bool))
+        ratio.measure_lit_shadow(img, np.ones((3, 3), bool), rng=np.random.default_rng(0))
 
 
 def test_ground_region_is_below_horizon_and_in_front():

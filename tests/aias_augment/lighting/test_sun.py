@@ -93,7 +93,7 @@ def test_image_cue_on_synthetic_clear_sky(offset_deg):
     K = Intrinsics.from_fov(200, 120, 80.0)
     R = em.cam_from_env_look(np.deg2rad(20.0 + offset_deg), np.deg2rad(10.0))
     cue = sun.sun_cue_from_image(_ldr(em.render_perspective(rad, K, R)), K, cam_from_world=R,
-                                 up_in_world=np.array([0.0, 0, 1]))
+                                 up_in_world=np.array([0.0, 0, 1]), rng=np.random.default_rng(0))
     az, _ = em.direction_to_azimuth_elevation(cue.direction_in_world)
     err = abs((np.rad2deg(az) - 20.0 + 180) % 360 - 180)
     assert err < (5.0 if offset_deg == 0 else 25.0)
@@ -108,7 +108,8 @@ def test_fusion_of_frames_in_world_coordinates():
     cues = []
     for yaw in (-10.0, -120.0):  # neither view contains the sun
         R = em.cam_from_env_look(np.deg2rad(yaw), np.deg2rad(5.0))
-        cues.append(sun.sun_cue_from_image(_ldr(em.render_perspective(rad, K, R)), K, R, np.array([0, 0, 1.0]), grid))
+        cues.append(sun.sun_cue_from_image(_ldr(em.render_perspective(rad, K, R)), K, R, np.array([0, 0, 1.0]), grid,
+                                           rng=np.random.default_rng(0)))
     fused = sun.fuse_sun_cues(cues)
     az, _ = em.direction_to_azimuth_elevation(fused.direction_in_world)
     assert abs((np.rad2deg(az) + 60.0 + 180) % 360 - 180) < 25.0
@@ -119,7 +120,7 @@ def test_fusion_of_frames_in_world_coordinates():
 @pytest.mark.parametrize("value", [0, 255])
 def test_image_cue_uniform_images_have_no_confidence(value):
     K = Intrinsics.from_fov(64, 48, 60.0)
-    cue = sun.sun_cue_from_image(np.full((48, 64, 3), value, np.uint8), K)
+    cue = sun.sun_cue_from_image(np.full((48, 64, 3), value, np.uint8), K, rng=np.random.default_rng(0))
     assert cue.confidence < 0.05
     assert np.all(np.isfinite(cue.log_likelihood)) and np.all(np.isfinite(cue.direction_in_world))
 
@@ -195,7 +196,8 @@ def test_image_cue_colour_resolves_sun_behind_camera(offset_deg):
     img = _ldr(em.render_perspective(rad, K, R))
     errs = []
     for w in (3.0, 0.0):
-        cue = sun.sun_cue_from_image(img, K, cam_from_world=R, up_in_world=np.array([0.0, 0, 1]), whiteness_weight=w)
+        cue = sun.sun_cue_from_image(img, K, cam_from_world=R, up_in_world=np.array([0.0, 0, 1]), whiteness_weight=w,
+                                     rng=np.random.default_rng(0))
         az, _ = em.direction_to_azimuth_elevation(cue.direction_in_world)
         errs.append(abs((np.rad2deg(az) - 20.0 + 180) % 360 - 180))
         assert not cue.sun_visible and 0 <= cue.confidence <= 1
@@ -225,7 +227,7 @@ def test_kitti_sky_fraction_does_not_collapse_on_a_small_copy(width):
     small = cv2.resize(img, (width, int(round(img.shape[0] * s))), interpolation=cv2.INTER_AREA)
     K = Intrinsics(707.0912 * s, 707.0912 * s, (601.8873 + 0.5) * s - 0.5, (183.1104 + 0.5) * s - 0.5,
                    small.shape[1], small.shape[0])
-    cue = sun.sun_cue_from_image(small, K)
+    cue = sun.sun_cue_from_image(small, K, rng=np.random.default_rng(0))
     above = int(np.sum(em.camera_ray_directions(K) @ np.array([0.0, -1.0, 0.0]) > np.sin(np.deg2rad(2.0))))
     assert cue.n_sky_pixels / above > 0.15
 
