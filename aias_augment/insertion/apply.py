@@ -161,8 +161,12 @@ def apply_plan(frame: Frame, analysis: SceneAnalysis, plan: InsertionPlan,
     cover_w = np.clip(np.maximum.reduce(vis_alphas), 0, 1).astype(np.float32, copy=False)
 
     if cfg.harmonize:
+        before = result[Y0:Y1, X0:X1].copy() if cfg.harmonize_colour == "luminance" else None
         result, mods["harmonize"] = _harmonize(result, cover_w, cfg, np.random.default_rng(plan.harmonize_seed),
                                                within=win, mask_origin=(X0, Y0), in_place=True)
+        if before is not None:
+            result[Y0:Y1, X0:X1] = keep_chromaticity(before, result[Y0:Y1, X0:X1])
+            mods["harmonize"] += "; its luminance only (the lit object's chromaticity kept)"
         if cfg.camera_match:
             result, mods["camera_match"] = _camera_match(result, _paste_window(full, win, cover_w), cfg, img,
                                                          plan.harmonize_seed)
@@ -247,6 +251,23 @@ def _object_shadow_window(asset: Asset, cam_from_object: np.ndarray, intr: Intri
     unoccluded = 1.0 if scene_depth is None else comp.visible_fraction_against_depth(gdepth,
                                                                                     scene_depth[y0:y1, x0:x1])
     return sl.roi, (1.0 - (1.0 - ratio) * unoccluded).astype(np.float32)
+
+
+def keep_chromaticity(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """uint8 sRGB: each pixel of ``before`` scaled in linear light to the luminance of ``after`` (chromaticity of
+    ``before``, brightness of ``after``); pixels ``after`` left unchanged stay byte-identical. A channel the scaling
+    would push past white is clipped there."""
+    changed = np.any(before != after, axis=-1)
+    out = after.copy()
+    if not changed.any():
+        return out
+    b, a = comp.to_linear(before[changed]), comp.to_linear(after[changed])
+    w = np.array([0.2126, 0.7152, 0.0722], np.float32)
+    lb, la = b @ w, a @ w
+    scaled = b * (la / np.maximum(lb, 1e-6))[:, None]
+    scaled = np.where((lb > 1e-6)[:, None], scaled, a)   # black before: nothing to scale, the harmonizer's pixel
+    out[changed] = comp.to_uint8(scaled)
+    return out
 
 
 def _harmonize(image: np.ndarray, mask: np.ndarray, cfg: InsertionConfig, rng,

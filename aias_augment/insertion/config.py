@@ -44,6 +44,11 @@ class InsertionConfig:
     naive_paste: bool = False
     harmonize_method: HarmonizeMethod = "camera"
     harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~2-6x faster)
+    # What the harmonizer may change on the objects: "full" (its output as is) or "luminance" (its brightness and
+    # contrast, per pixel, with the chromaticity the lighting gave the object kept): a learnt harmonizer pulls an
+    # object toward its context's colour, and among orange cones or beside a red truck that turns white bands pink
+    # (scripts/eval_neutral_whites.py, results/lighting/neutral_whites).
+    harmonize_colour: Literal["full", "luminance"] = "full"
     # After the colour harmonizer: camera-pipeline matching of blur, noise and JPEG (quality and chroma subsampling
     # read from the source image) against the object's surroundings (harmonize.api.match_camera; its noise drawn
     # from a generator seeded by the plan's harmonize_seed, so a replay gives the same bytes). Part of the

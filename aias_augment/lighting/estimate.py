@@ -255,6 +255,13 @@ class LightingConfig:
     #: of 7 TraCon roads a white band's B/R was 0.68-1.7 (median |log| 0.14) after the road balance, now 1.00,
     #: tests/aias_augment/lighting/test_white_stays_white.py). "preetham": the model's colour (before).
     sky_fill_colour: Literal["seen", "preetham"] = "seen"
+    #: Colour of the ambient light. "scene": each SH coefficient keeps the colour the photo gave it, so a red truck or
+    #: sign filling the view tints the whole ambient (DC R/G 2.0-2.4 measured) and white parts come out pink.
+    #: "neutral": the light's brightness distribution is kept and every coefficient takes one colour, the light's as
+    #: the photo's near-grey surfaces show it (``achromatic_light_colour``; without any, the colour of the
+    #: irradiance on the ground), not that of the largest object (scripts/eval_neutral_whites.py,
+    #: results/lighting/neutral_whites).
+    ambient_colour: Literal["scene", "neutral"] = "scene"
 
 
 def _downsample_map(radiance: np.ndarray, max_height: int = 128) -> np.ndarray:
@@ -332,7 +339,41 @@ def _ambient_from_image(linear: np.ndarray, K: Intrinsics, up_in_cam: np.ndarray
         return np.where(dirs_env[:, 2:3] > 0, sky, ground_rgb[None, :])
 
     radiance, _ = assemble_envmap([linear], [K], [cam_from_env], height=config.ambient_map_height, fill=fill)
-    return project_envmap_to_sh(radiance, cam_from_env)
+    sh = project_envmap_to_sh(radiance, cam_from_env)
+    if config.ambient_colour == "neutral":
+        return neutral_ambient(sh, up_in_cam, achromatic_light_colour(linear))
+    return sh
+
+
+def achromatic_light_colour(linear: np.ndarray, max_chroma: float = 0.05, min_share: float = 0.01
+                            ) -> np.ndarray | None:
+    """The light's colour (3,) at unit luminance as the photo's near-grey surfaces show it: the median colour of
+    the unclipped, not dark pixels whose rg chromaticity lies within ``max_chroma`` of grey (roads, concrete,
+    white paint, overcast sky), so a large coloured object (a red truck, an orange cone) has no say. None when
+    fewer than ``min_share`` of the pixels qualify (a scene without grey surfaces: no evidence)."""
+    px = np.asarray(linear, np.float64).reshape(-1, 3)
+    s = px.sum(1)
+    ok = (px.max(1) < 0.98) & (s > 3 * 0.02)
+    rg = px[ok, :2] / s[ok, None]
+    grey = np.abs(rg - 1.0 / 3.0).max(1) < max_chroma
+    if grey.sum() < max(min_share * len(px), 20):
+        return None
+    c = np.median(px[ok][grey], axis=0)
+    lum = float(luminance(c))
+    return c / lum if lum > 0 and c.min() > 0 else None
+
+
+def neutral_ambient(sh: np.ndarray, up_in_cam: np.ndarray, colour: np.ndarray | None = None) -> np.ndarray:
+    """SH (9, 3) whose every coefficient has one chromaticity, ``colour`` (the light's, e.g. from
+    :func:`achromatic_light_colour`; None: that of the irradiance on an upward-facing surface), and its own
+    luminance: the light's directional brightness kept, its colour one, so a white surface has the same colour
+    whichever way it faces. Unchanged when that colour is not positive in every channel."""
+    sh = np.asarray(sh, np.float64)
+    c = sh_irradiance(sh, np.asarray(up_in_cam, np.float64)) if colour is None else np.asarray(colour, np.float64)
+    lum = float(luminance(c))
+    if not np.all(np.isfinite(c)) or c.min() <= 0 or lum <= 0:
+        return sh
+    return luminance(sh)[:, None] * (c / lum)[None, :]
 
 
 @dataclass

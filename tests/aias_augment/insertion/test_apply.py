@@ -163,3 +163,53 @@ def test_a_monochrome_camera_gets_grey_objects_and_a_colour_one_keeps_colour():
         else:
             px = out.image[obj].astype(int)
             assert np.mean(px[:, 0] - px[:, 2] > 30) > 0.2     # the orange body stays orange (base black, bands white)
+
+
+def test_keep_chromaticity_takes_the_brightness_and_keeps_the_colour():
+    """Per pixel, in linear light: the result's chromaticity is ``before``'s and its luminance ``after``'s (to the
+    8-bit rounding); pixels ``after`` left as they were stay byte-identical."""
+    from aias_augment.composite import to_linear
+    from aias_augment.insertion.apply import keep_chromaticity
+    rng = np.random.default_rng(0)
+    before = rng.integers(40, 200, (30, 40, 3)).astype(np.uint8)
+    after = before.copy()
+    after[5:25, 5:35] = np.clip(before[5:25, 5:35] * np.array([1.3, 0.9, 0.8]) + 10, 0, 255).astype(np.uint8)
+    out = keep_chromaticity(before, after)
+    same = np.all(before == after, axis=-1)
+    assert np.array_equal(out[same], after[same])
+    w = np.array([0.2126, 0.7152, 0.0722])
+    b, a, o = (to_linear(x[~same]).astype(np.float64) for x in (before, after, out))
+    assert np.allclose(o @ w, a @ w, rtol=0.03, atol=2e-3)
+    chroma = lambda x: x / x.sum(-1, keepdims=True)
+    assert np.abs(chroma(o) - chroma(b)).max() < 0.01
+    assert np.abs(chroma(a) - chroma(b)).max() > 0.03   # the harmonizer did change the colour
+
+
+def test_harmonize_colour_luminance_keeps_white_white_on_a_red_context():
+    """A white box inserted into a scene dominated by red: the learnt harmonizer ('full') pulls its colour toward
+    the red context; with harmonize_colour='luminance' the object's pixels keep the chromaticity they had before
+    harmonization (the same plan with harmonize off)."""
+    import pytest
+    from dataclasses import replace
+
+    from aias_augment.composite import to_linear
+    from aias_augment.harmonize.api import DEFAULT_CHECKPOINTS
+    if not DEFAULT_CHECKPOINTS["fast"].is_file():
+        pytest.skip("fast harmonizer checkpoint not present")
+    img = road_image(2)
+    img[: img.shape[0] // 2] = (190, 40, 35)   # red above the horizon
+    f = Frame(img, K)
+    an = analyse_scene(f, CFG)
+    plan = plan_insertion(an, CFG, np.random.default_rng(1), bank=OneAsset(box_asset(color=(230, 230, 230))),
+                          n_objects=1)
+    assert plan.objects
+    cfg = replace(CFG, harmonize=True, harmonize_method="fast", harmonize_test_time_views=False)
+    raw = apply_plan(f, an, plan, CFG)
+    full = apply_plan(f, an, plan, cfg)
+    lum = apply_plan(f, an, plan, replace(cfg, harmonize_colour="luminance"))
+    obj = (raw.cover > 0.99) & (raw.image.max(-1) < 250) & (raw.image.min(-1) > 10)
+    assert obj.sum() > 50
+    rg = lambda x: float(np.median(to_linear(x[obj])[:, 0] / np.maximum(to_linear(x[obj])[:, 1], 1e-4)))
+    assert abs(rg(lum.image) / rg(raw.image) - 1) < 0.02
+    assert abs(rg(full.image) / rg(raw.image) - 1) > 0.05   # not vacuous: the harmonizer does tint it
+    assert "luminance only" in lum.modules["harmonize"]

@@ -62,3 +62,43 @@ def test_white_stays_white_in_a_grey_synthetic_road(sunny):
 def test_white_stays_white_in_a_grey_road_photo(name):
     img = tracon_train_photo(name, 480)
     _check_neutral(estimate_lighting(_grey(img), None, None, {}, rng=np.random.default_rng(0)))
+
+
+@pytest.mark.parametrize("name", ["imh_179_00000000.jpg", "img_814_00000000.jpg"])
+def test_a_red_object_filling_the_view_does_not_colour_the_light(name):
+    """A grey road photo with a saturated red rectangle over a quarter of the frame (a truck or sign): the scene's
+    light is still colourless (every other pixel is grey), so with ``ambient_colour="neutral"`` a white surface stays
+    white in every orientation; with "scene" the ambient takes the red and tints it (not vacuous)."""
+    img = _grey(tracon_train_photo(name, 480))
+    h, w = img.shape[:2]
+    img[h // 8: h // 2, w // 4: 3 * w // 4] = (200, 30, 25)
+    cfg = replace(LightingConfig(), ambient_colour="neutral")
+    _check_neutral(estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=cfg))
+    scene = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0),
+                              config=replace(cfg, ambient_colour="scene"))
+    normals, _ = _white_sphere(scene)
+    E = irradiance_at_normals(normals[:, 0], scene)
+    lit = E.max(1) > 1e-4
+    assert np.abs(np.log(E[lit, 0] / E[lit, 1])).max() > 0.05
+
+
+def test_neutral_ambient_keeps_the_brightness_in_every_direction_and_has_one_colour():
+    """The SH of a map lit red from one side and blue-white from the other: after neutral_ambient the irradiance
+    luminance is the same in every direction (luminance is linear in the coefficients) and its chromaticity is
+    everywhere that of the upward irradiance."""
+    from aias_augment.lighting.estimate import neutral_ambient
+    from aias_augment.lighting.hdr import luminance
+    from aias_augment.lighting.sh import fibonacci_sphere, project_envmap_to_sh, sh_irradiance
+    env = np.zeros((32, 64, 3), np.float32)
+    env[:, :32] = (2.0, 0.2, 0.1)
+    env[:, 32:] = (0.8, 0.9, 1.2)
+    sh = project_envmap_to_sh(env)
+    up = np.array([0.0, 0.0, 1.0])
+    n = fibonacci_sphere(200)
+    new = neutral_ambient(sh, up)
+    e_old, e_new = sh_irradiance(sh, n), sh_irradiance(new, n)
+    assert np.allclose(luminance(e_new), luminance(e_old), rtol=1e-5)   # luminance() is float32
+    pos = e_new.min(1) > 1e-6
+    chroma_up = sh_irradiance(sh, up[None])[0] / luminance(sh_irradiance(sh, up[None]))[0]
+    assert np.allclose(e_new[pos] / luminance(e_new[pos])[:, None], chroma_up, rtol=1e-5)
+    assert np.ptp(e_old[pos, 0] / e_old[pos, 1]) > 1.0   # the input did vary in colour

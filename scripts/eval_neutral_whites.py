@@ -1,0 +1,155 @@
+#!/usr/bin/env python
+"""Do an inserted cone's white bands have the colour of the photo's own white cone sleeves?
+
+TraCon photos that hold labelled cones: 1-3 cones are inserted beside them (the real boxes passed as existing
+boxes), and the white parts of each inserted cone (pixels whose rendered albedo is white, eroded, unclipped) are
+compared with the white sleeves of the photo's real cones (bright, unsaturated, unclipped pixels in the central
+strip of each labelled box: a measurement from the labels, independent of the lighting estimate). Reported per
+photo: (R/G, B/G) of the inserted whites divided by the real ones' (1.0 = the same colour; the issue's band is
+0.94-1.06), for each lighting arm, harmonization off and on.
+
+    python scripts/eval_neutral_whites.py --photos 40 --out results/lighting/neutral_whites
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from aias_augment.config import data_root  # noqa: E402
+from aias_augment.insertion import analyse_scene, apply_plan, plan_insertion  # noqa: E402
+from aias_augment.insertion.config import load_preset  # noqa: E402
+from aias_augment.render import render_object, srgb_to_linear  # noqa: E402
+from aias_augment.scene import Frame  # noqa: E402
+
+#: arm -> (LightingConfig overrides, InsertionConfig overrides)
+ARMS = {"scene": ({}, {}), "neutral": ({"ambient_colour": "neutral"}, {}),
+        "neutral_lum": ({"ambient_colour": "neutral"}, {"harmonize_colour": "luminance"}),
+        "scene_lum": ({}, {"harmonize_colour": "luminance"})}
+
+
+def real_white_rgb(img: np.ndarray, boxes_xyxy: np.ndarray) -> np.ndarray | None:
+    """Median linear RGB of the labelled cones' white sleeves: HSV S < 0.25, V in [0.55, 0.97], in the middle half of
+    each box's width and its upper 85 % (the base excluded)."""
+    hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV).astype(np.float32)
+    s, v = hsv[..., 1] / 255.0, hsv[..., 2] / 255.0
+    px = []
+    for x0, y0, x1, y1 in boxes_xyxy.astype(int):
+        w, h = x1 - x0, y1 - y0
+        if w < 6 or h < 12:
+            continue
+        sl = (slice(max(y0, 0), max(y0 + int(0.85 * h), 0)), slice(max(x0 + w // 4, 0), max(x1 - w // 4, 0)))
+        m = (s[sl] < 0.25) & (v[sl] > 0.55) & (v[sl] < 0.97)
+        px.append(img[sl][m])
+    px = np.concatenate(px) if px else np.zeros((0, 3), np.uint8)
+    if len(px) < 20:
+        return None
+    return np.median(srgb_to_linear(px.astype(np.float32) / 255.0), axis=0)
+
+
+def inserted_white_rgb(out: np.ndarray, plan, analysis) -> np.ndarray | None:
+    wh = np.zeros(out.shape[:2], bool)
+    for obj in plan.objects:
+        L = render_object(obj.asset, obj.placement.cam_from_object_matrix, analysis.intrinsics, ssaa=1)
+        a = L.albedo_linear
+        w = (L.alpha > 0.99) & (a.min(-1) > 0.5) & ((a.max(-1) - a.min(-1)) / np.maximum(a.max(-1), 1e-6) < 0.15)
+        wh |= cv2.erode(w.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    wh &= out.max(-1) < 250
+    if wh.sum() < 10:
+        return None
+    return srgb_to_linear(out[wh].astype(np.float32) / 255.0).mean(0)
+
+
+def chroma(rgb: np.ndarray) -> np.ndarray:
+    return np.array([rgb[0] / max(rgb[1], 1e-6), rgb[2] / max(rgb[1], 1e-6)])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--photos", type=int, default=40)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--preset", default="balanced")
+    ap.add_argument("--out", default="results/lighting/neutral_whites")
+    a = ap.parse_args(argv)
+    root = data_root() / "tracon"
+    stems = sorted(p.stem for p in (root / "labels/train").glob("*.txt") if p.stat().st_size > 0)
+    rng = np.random.default_rng(a.seed)
+    stems = [stems[i] for i in rng.permutation(len(stems))]
+    base = load_preset(a.preset)
+    rows, t0 = [], time.perf_counter()
+    for stem in stems:
+        if len(rows) >= a.photos:
+            break
+        path = next((root / "images/train").glob(stem + ".*"), None)
+        if path is None:
+            continue
+        img = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
+        s = min(1.0, 640 / max(img.shape[:2]))
+        if s < 1:
+            img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
+        H, W = img.shape[:2]
+        lab = np.loadtxt(root / "labels/train" / f"{stem}.txt", ndmin=2)
+        cx, cy, bw, bh = lab[:, 1] * W, lab[:, 2] * H, lab[:, 3] * W, lab[:, 4] * H
+        boxes = np.c_[cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2]
+        real = real_white_rgb(img, boxes)
+        if real is None:
+            continue
+        frame = Frame(img, None)
+        row = {"photo": stem, "real_rg_bg": chroma(real).round(4).tolist()}
+        plan = None
+        for arm, (light, over) in ARMS.items():
+            cfg = replace(base, lighting_cfg=replace(base.lighting_cfg, **light), **over)
+            an = analyse_scene(frame, cfg)
+            if an.region is None:
+                break
+            if plan is None:
+                plan = plan_insertion(an, cfg, np.random.default_rng([a.seed, len(rows)]), n_objects=3,
+                                      existing_boxes_xyxy=boxes)
+                if not plan.objects:
+                    break
+            row[f"{arm}_sh_dc_rg_bg"] = chroma(np.asarray(an.lighting.ambient_sh)[0]).round(4).tolist()
+            for harm in ((False, True) if not over else (True,)):
+                out = apply_plan(frame, an, plan, replace(cfg, harmonize=harm)).image
+                ins = inserted_white_rgb(out, plan, an)
+                if ins is not None:
+                    row[f"{arm}_{'harm' if harm else 'raw'}"] = (chroma(ins) / chroma(real)).round(4).tolist()
+        if len(row) > 2:
+            rows.append(row)
+            print(f"[{len(rows)}/{a.photos} {time.perf_counter() - t0:.0f}s] {stem} " +
+                  " ".join(f"{k} {v}" for k, v in row.items() if k.endswith(("raw", "harm"))), flush=True)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "rows.json").write_text(json.dumps(rows, indent=1))
+    lines = [f"# Inserted whites vs the photo's own white cone sleeves\n",
+             f"`python scripts/eval_neutral_whites.py --photos {a.photos} --seed {a.seed} --preset {a.preset} "
+             f"--out {a.out}`: {len(rows)} TraCon train photos with labelled cones ({a.preset} preset, up to 3 "
+             f"cones inserted per photo). Ratios are inserted / real; 1.0 is the real sleeves' colour.\n",
+             "| arm | harmonized | photos | median R/G | median B/G | within 0.94-1.06 (both) |", "|---|---|---|---|---|---|"]
+    summary = {}
+    for arm in ARMS:
+        for h in ("raw", "harm"):
+            v = np.array([r[f"{arm}_{h}"] for r in rows if f"{arm}_{h}" in r])
+            if not len(v):
+                continue
+            ok = float(np.mean(np.all((v > 0.94) & (v < 1.06), axis=1)))
+            summary[f"{arm}_{h}"] = {"n": len(v), "median_rg": float(np.median(v[:, 0])),
+                                     "median_bg": float(np.median(v[:, 1])), "within": ok}
+            lines.append(f"| {arm} | {'yes' if h == 'harm' else 'no'} | {len(v)} | {np.median(v[:, 0]):.3f} | "
+                         f"{np.median(v[:, 1]):.3f} | {100 * ok:.0f} % |")
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    (out / "README.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
