@@ -79,7 +79,11 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--preset", default="balanced")
     ap.add_argument("--out", default="results/lighting/neutral_whites")
+    ap.add_argument("--from-rows", action="store_true", help="only summarize OUT/rows.json again")
     a = ap.parse_args(argv)
+    if a.from_rows:
+        rows = json.loads((Path(a.out) / "rows.json").read_text())
+        return write_report(rows, a)
     root = data_root() / "tracon"
     stems = sorted(p.stem for p in (root / "labels/train").glob("*.txt") if p.stat().st_size > 0)
     rng = np.random.default_rng(a.seed)
@@ -129,10 +133,18 @@ def main(argv=None) -> int:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "rows.json").write_text(json.dumps(rows, indent=1))
+    return write_report(rows, a)
+
+
+def write_report(rows: list[dict], a) -> int:
+    out = Path(a.out)
     lines = [f"# Inserted whites vs the photo's own white cone sleeves\n",
              f"`python scripts/eval_neutral_whites.py --photos {a.photos} --seed {a.seed} --preset {a.preset} "
              f"--out {a.out}`: {len(rows)} TraCon train photos with labelled cones ({a.preset} preset, up to 3 "
-             f"cones inserted per photo). Ratios are inserted / real; 1.0 is the real sleeves' colour.\n",
+             f"cones inserted per photo). Ratios are inserted / real; 1.0 is the real sleeves' colour. Arms: `scene` / "
+             f"`neutral` = LightingConfig.ambient_colour; `_lum` = InsertionConfig.harmonize_colour 'luminance'. A "
+             f"photo counts in an arm when its inserted cones show >= 10 unclipped white pixels; TraCon train only "
+             f"(val was not looked at).\n",
              "| arm | harmonized | photos | median R/G | median B/G | within 0.94-1.06 (both) |", "|---|---|---|---|---|---|"]
     summary = {}
     for arm in ARMS:
@@ -145,6 +157,22 @@ def main(argv=None) -> int:
                                      "median_bg": float(np.median(v[:, 1])), "within": ok}
             lines.append(f"| {arm} | {'yes' if h == 'harm' else 'no'} | {len(v)} | {np.median(v[:, 0]):.3f} | "
                          f"{np.median(v[:, 1]):.3f} | {100 * ok:.0f} % |")
+    lines += ["", "Paired by photo (the same plan in every arm): the deviation max(|log R/G|, |log B/G|) of the inserted "
+              "whites from the real sleeves, mean of the paired difference with a 95 % photo-bootstrap interval.", "",
+              "| from | to | photos | median deviation (from -> to) | mean paired difference [95 %] |",
+              "|---|---|---|---|---|"]
+    boot = np.random.default_rng(0)
+    for x, y in (("scene_harm", "neutral_lum_harm"), ("scene_harm", "scene_lum_harm"),
+                 ("scene_lum_harm", "neutral_lum_harm"), ("scene_raw", "neutral_raw")):
+        p = np.array([[np.abs(np.log(r[k])).max() for k in (x, y)] for r in rows if x in r and y in r])
+        if len(p) < 2:
+            continue
+        d = p[:, 1] - p[:, 0]
+        bs = [d[boot.integers(0, len(d), len(d))].mean() for _ in range(4000)]
+        lo, hi = np.percentile(bs, [2.5, 97.5])
+        summary[f"{x}->{y}"] = {"n": len(d), "mean_diff": float(d.mean()), "ci95": [float(lo), float(hi)]}
+        lines.append(f"| {x} | {y} | {len(d)} | {np.median(p[:, 0]):.3f} -> {np.median(p[:, 1]):.3f} | "
+                     f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}] |")
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     (out / "README.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
