@@ -2,7 +2,7 @@
 
 The top-level names are imported lazily: ``import aias_augment.bank`` must not pay for albumentations and torch.
 """
-__version__ = "0.1.0"
+from .version import __version__ as __version__
 
 __all__ = ["InsertObjects", "InsertionConfig", "SceneInputs", "insert_into_image", "load_preset"]
 

@@ -7,6 +7,7 @@ Units are read from the file, never guessed: COLLADA ``<unit meter=...>`` and ``
 from __future__ import annotations
 
 import copy
+import math
 import logging
 import re
 import xml.etree.ElementTree as ET
@@ -18,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .config import data_root
+from .errors import InputError
 
 if TYPE_CHECKING:   # imported where used: trimesh (~0.16 s with networkx) only when meshes are read
     import trimesh
@@ -52,6 +54,33 @@ DEFAULT_ASSETS: dict[str, list[str]] = {
 
 class AssetError(ValueError):
     """A mesh could not be loaded or is unusable (reason in the message)."""
+
+
+#: Plausible heights (metres) of categories that have no sampling range in :data:`CATEGORY_HEIGHT_RANGE_M`.
+PLAUSIBLE_HEIGHT_M = {"person": (1.0, 2.1), "pedestrian": (1.0, 2.1), "child": (0.7, 1.6), "bicycle": (0.8, 1.3),
+                      "motorcycle": (0.9, 1.6), "truck": (2.5, 4.5), "bus": (2.7, 4.3), "dog": (0.3, 0.9),
+                      "stroller": (0.8, 1.2), "traffic_light": (0.6, 6.0), "sign": (0.3, 3.5)}
+
+
+def plausible_scale(height_m: float, category: str) -> tuple[float, str | None]:
+    """A mesh ``height_m`` tall for ``category`` (units unknown): (scale to apply, warning or None). Metres when the
+    height is in the category's plausible range (3x margin); else the unit (cm, mm, in, dm, km) whose height lands
+    closest to the middle of the range; none: InputError."""
+    if not math.isfinite(height_m) or height_m <= 0:
+        raise InputError(f"mesh for {category!r} has height {height_m}")
+    lo, hi = CATEGORY_HEIGHT_RANGE_M.get(category) or PLAUSIBLE_HEIGHT_M.get(category) or (0.05, 30.0)
+    mid, lo, hi = math.sqrt(lo * hi), lo / 3, hi * 3
+    if lo <= height_m <= hi:
+        return 1.0, None
+    fits = [(abs(math.log(height_m * s / mid)), unit, s) for unit, s in (
+        ("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254), ("decimetres", 0.1), ("kilometres", 1e3))
+        if lo <= height_m * s <= hi]
+    if not fits:
+        raise InputError(f"mesh for {category!r} is {height_m:g} units tall; no unit (m, cm, mm, in, dm, km) gives a "
+                         f"height in [{lo:.3g}, {hi:.3g}] m (give its scale explicitly)")
+    _, unit, s = min(fits)
+    return s, (f"mesh for {category!r} is {height_m:g} units tall: implausible in metres; guessed {unit}, "
+               f"rescaled by {s:g} to {height_m * s:.3g} m")
 
 
 class _ScaledMeshes(Sequence):
@@ -455,7 +484,6 @@ class PathAssets:
         if p not in self._loaded:
             asset = load_asset(p, category=category, scale=self.scales.get(p), up_axis=self.up_axes.get(p))
             if p not in self.scales:   # units unknown: an implausible height is rescaled with a warning, or refused
-                from .validate import plausible_scale
                 s, warning = plausible_scale(asset.height_m, category)
                 if warning:
                     log.warning("%s: %s", p, warning)

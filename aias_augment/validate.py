@@ -20,13 +20,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .errors import InputError
+
 IMAGE_SKIP_KINDS = ("unreadable image", "corrupt image", "unsupported image", "garbage label line",
                     "class id out of range", "non-finite box", "unknown category id", "image size mismatch")
 BOX_POLICIES = ("clip", "drop")
 
 
-class InputError(ValueError):
-    """A problem with the whole input (or the arguments): nothing sensible can be produced."""
 
 
 def problem(kind: str, file, reason: str, line: int | None = None) -> dict:
@@ -204,34 +204,6 @@ def check_categories(categories) -> None:
     unknown = [c for c in categories if c not in known]
     if unknown:
         raise InputError(f"unknown categories {unknown}; known: {sorted(known)}")
-
-
-#: Plausible heights (metres) of categories that have no sampling range in :mod:`aias_augment.assets`.
-PLAUSIBLE_HEIGHT_M = {"person": (1.0, 2.1), "pedestrian": (1.0, 2.1), "child": (0.7, 1.6), "bicycle": (0.8, 1.3),
-                      "motorcycle": (0.9, 1.6), "truck": (2.5, 4.5), "bus": (2.7, 4.3), "dog": (0.3, 0.9),
-                      "stroller": (0.8, 1.2), "traffic_light": (0.6, 6.0), "sign": (0.3, 3.5)}
-
-
-def plausible_scale(height_m: float, category: str) -> tuple[float, str | None]:
-    """A mesh ``height_m`` tall for ``category`` (units unknown): (scale to apply, warning or None). Metres when the
-    height is in the category's plausible range (3x margin); else the unit (cm, mm, in, dm, km) whose height lands
-    closest to the middle of the range; none: InputError."""
-    from .assets import CATEGORY_HEIGHT_RANGE_M
-    if not math.isfinite(height_m) or height_m <= 0:
-        raise InputError(f"mesh for {category!r} has height {height_m}")
-    lo, hi = CATEGORY_HEIGHT_RANGE_M.get(category) or PLAUSIBLE_HEIGHT_M.get(category) or (0.05, 30.0)
-    mid, lo, hi = math.sqrt(lo * hi), lo / 3, hi * 3
-    if lo <= height_m <= hi:
-        return 1.0, None
-    fits = [(abs(math.log(height_m * s / mid)), unit, s) for unit, s in (
-        ("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254), ("decimetres", 0.1), ("kilometres", 1e3))
-        if lo <= height_m * s <= hi]
-    if not fits:
-        raise InputError(f"mesh for {category!r} is {height_m:g} units tall; no unit (m, cm, mm, in, dm, km) gives a "
-                         f"height in [{lo:.3g}, {hi:.3g}] m (give its scale explicitly)")
-    _, unit, s = min(fits)
-    return s, (f"mesh for {category!r} is {height_m:g} units tall: implausible in metres; guessed {unit}, "
-               f"rescaled by {s:g} to {height_m * s:.3g} m")
 
 
 # ----------------------------------------------------------------------------------------------------- outputs

@@ -10,16 +10,35 @@ the frozen global stage of the shipped network.
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .checkpoint import CHECKPOINT_FORMAT, load_model
 # Inference (NumPy, no torch at run time) and the config live in fast_infer; re-exported here.
-from .fast_infer import (QUANTILES, TTA_CONTEXTS, FastConfig, apply_affine_np, harmonize_fast_masked,  # noqa: F401
-                         predict_affine, predict_affine_tta, run_fast)
-from .network import CHECKPOINT_FORMAT, POOL_EPS, load_model, masked_stats, network_inputs
+from .fast_infer import (NPZ_FORMAT, POOL_EPS, QUANTILES, TTA_CONTEXTS, FastConfig, apply_affine_np,  # noqa: F401
+                         file_sha256, harmonize_fast_masked, npz_path, predict_affine, predict_affine_tta, run_fast)
+
+
+def masked_stats(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(B,3,H,W), (B,1,H,W) -> (B,12): mean and std of the foreground colours, then of the background's."""
+    out = []
+    for m in (mask, 1 - mask):
+        n = m.sum(dim=(2, 3)) + POOL_EPS
+        mean = (image * m).sum(dim=(2, 3)) / n
+        var = ((image - mean[..., None, None]) ** 2 * m).sum(dim=(2, 3)) / n
+        out += [mean, torch.sqrt(var + 1e-8)]
+    return torch.cat(out, dim=1)
+
+
+def network_inputs(composite: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(B,3,H,W) composite and (B,1,H,W) binary mask -> the 7-channel input of the fast harmonizer's features and of
+    the network's coarse stage (:mod:`aias_augment.harmonize.network` builds on this module)."""
+    return torch.cat([composite * (1 - mask), mask, composite * mask], dim=1)
 
 
 def masked_luma_quantiles(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
@@ -102,10 +121,29 @@ def save_fast_checkpoint(path: str | Path, model: FastColorNet, meta: dict) -> N
     torch.save({"format": CHECKPOINT_FORMAT, "kind": "fast", "config": dataclasses.asdict(model.cfg),
                 "state_dict": {k: v.detach().clone() for k, v in model.state_dict().items()}, "meta": meta}, tmp)
     tmp.replace(path)
-    from .fast_infer import export_npz
     export_npz(path)   # the NumPy weights inference reads (checked against this file's sha256)
 
 
 def load_fast(path: str | Path) -> FastColorNet:
     """Load (once per process and file version) the fast harmonizer."""
     return load_model(path, "fast", FastColorNet, FastConfig)
+
+
+def export_npz(checkpoint: str | Path, out: str | Path | None = None) -> Path:
+    """Write the NumPy weights of a torch fast-harmonizer checkpoint (imports torch) beside it (or to ``out``)."""
+    checkpoint = Path(checkpoint)
+    model = load_fast(checkpoint)
+    out = npz_path(checkpoint) if out is None else Path(out)
+    state = {k: v.detach().cpu().numpy() for k, v in model.state_dict().items()}
+    meta = {"format": NPZ_FORMAT, "config": dataclasses.asdict(model.cfg), "source_sha256": file_sha256(checkpoint),
+            "source": checkpoint.name}
+    tmp = out.with_name(out.name + ".tmp.npz")
+    np.savez(tmp, meta=np.array(json.dumps(meta)), **{f"w:{k}": v for k, v in state.items()})
+    tmp.replace(out)
+    return out
+
+
+if __name__ == "__main__":
+    import sys
+    for ck in sys.argv[1:] or ["checkpoints/harmonizer_fast.pt"]:
+        print(export_npz(ck))

@@ -6,13 +6,13 @@ layer in float32 (the same operations in the same order of layers; sums in anoth
 torch to ~1e-6, tested), ~0.3 ms per view against ~2 ms through torch's per-op overhead, and a worker that never
 imports torch saves its ~700 MB (this wheel's CUDA build) of resident memory.
 
-Weights come from ``<checkpoint>.npz``, exported from the torch checkpoint by :func:`export_npz` (``python -m
-aias_augment.harmonize.fast_infer checkpoints/harmonizer_fast.pt``); the npz records the sha256 of the checkpoint it
-was made from and :func:`load_fast_np` refuses a stale one (with the command to export it again).
+Weights come from ``<checkpoint>.npz``, exported from the torch checkpoint by
+:func:`aias_augment.harmonize.fast.export_npz` (``python -m aias_augment.harmonize.fast
+checkpoints/harmonizer_fast.pt``); the npz records the sha256 of the checkpoint it was made from and
+:func:`load_fast_np` refuses a stale one (with the command to export it again).
 """
 from __future__ import annotations
 
-import dataclasses
 import functools
 import hashlib
 import json
@@ -28,7 +28,7 @@ from ..config import from_dict
 from .color import to_float, to_uint8
 from .regions import components, context_box, mask_box, resize
 
-#: Feature pooling's denominator floor, as in :mod:`aias_augment.harmonize.network` (``POOL_EPS``).
+#: Feature pooling's denominator floor (in bottleneck pixels): an empty foreground or background pools to 0.
 POOL_EPS = 1e-3
 QUANTILES = (0.02, 0.1, 0.25, 0.5, 0.75, 0.9, 0.98)
 # Test-time views: context factors x horizontal flip. The colour transform is predicted from each view and the
@@ -251,23 +251,8 @@ def npz_path(checkpoint: str | Path) -> Path:
     return Path(checkpoint).with_suffix(".npz")
 
 
-def _sha256(path: Path) -> str:
+def file_sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def export_npz(checkpoint: str | Path, out: str | Path | None = None) -> Path:
-    """Write the NumPy weights of a torch fast-harmonizer checkpoint (imports torch) beside it (or to ``out``)."""
-    from .fast import load_fast
-    checkpoint = Path(checkpoint)
-    model = load_fast(checkpoint)
-    out = npz_path(checkpoint) if out is None else Path(out)
-    state = {k: v.detach().cpu().numpy() for k, v in model.state_dict().items()}
-    meta = {"format": NPZ_FORMAT, "config": dataclasses.asdict(model.cfg), "source_sha256": _sha256(checkpoint),
-            "source": checkpoint.name}
-    tmp = out.with_name(out.name + ".tmp.npz")
-    np.savez(tmp, meta=np.array(json.dumps(meta)), **{f"w:{k}": v for k, v in state.items()})
-    tmp.replace(out)
-    return out
 
 
 @functools.lru_cache(maxsize=8)
@@ -277,9 +262,9 @@ def _load_np_cached(path: str, mtime_ns: int, checkpoint: str | None, checkpoint
         if meta.get("format") != NPZ_FORMAT:
             raise ValueError(f"{path} is not an {NPZ_FORMAT} file")
         state = {k[2:]: z[k] for k in z.files if k.startswith("w:")}
-    if checkpoint is not None and _sha256(Path(checkpoint)) != meta["source_sha256"]:
+    if checkpoint is not None and file_sha256(Path(checkpoint)) != meta["source_sha256"]:
         raise ValueError(f"{path} was exported from another version of {checkpoint}: run `python -m "
-                         f"aias_augment.harmonize.fast_infer {checkpoint}` to export it again")
+                         f"aias_augment.harmonize.fast {checkpoint}` to export it again")
     return FastColorNetNP.from_state_dict(from_dict(FastConfig, meta["config"]), state)
 
 
@@ -297,7 +282,7 @@ def load_fast_np(checkpoint: str | Path) -> FastColorNetNP:
     try:
         npz_mtime = os.stat(p).st_mtime_ns
     except FileNotFoundError:
-        raise FileNotFoundError(f"{p} (export it: python -m aias_augment.harmonize.fast_infer {pt})") from None
+        raise FileNotFoundError(f"{p} (export it: python -m aias_augment.harmonize.fast {pt})") from None
     try:
         pt_mtime = os.stat(pt).st_mtime_ns if pt.suffix != ".npz" else None
     except FileNotFoundError:
@@ -398,8 +383,3 @@ def harmonize_fast_masked(model, composite_uint8: np.ndarray, soft_mask: np.ndar
     out[by0:by1, bx0:bx1][hard] = to_uint8(pixels * (1.0 - m) + result * m)
     return out
 
-
-if __name__ == "__main__":
-    import sys
-    for ck in sys.argv[1:] or ["checkpoints/harmonizer_fast.pt"]:
-        print(export_npz(ck))

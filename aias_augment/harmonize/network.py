@@ -23,7 +23,6 @@ constrained (``masked_gradient_penalty``).
 from __future__ import annotations
 
 import dataclasses
-import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,14 +32,13 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from ..config import from_dict
+from .checkpoint import CHECKPOINT_FORMAT, load_model
+from .fast import POOL_EPS, FastColorNet, FastConfig, apply_affine, masked_stats, network_inputs, thumbnail
+from .fast_infer import apply_affine_np
 from .regions import components, context_box, mask_box, resize
 
-CHECKPOINT_FORMAT = "aias-harmonizer-v1"
 # Added under the square root of the masked gradient norm so its gradient stays finite at zero gradient.
 GP_EPS = 1e-12
-# Added to mask-pooling denominators (in bottleneck pixels) so an empty foreground or background pools to 0.
-POOL_EPS = 1e-3
 
 
 @dataclass(frozen=True)
@@ -132,22 +130,6 @@ def apply_pixel_affine(image: torch.Tensor, coeffs: torch.Tensor) -> torch.Tenso
     return (image + torch.einsum("bijhw,bjhw->bihw", dm, image) + coeffs[:, 9:12]).clamp(0, 1)
 
 
-def masked_stats(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """(B,3,H,W), (B,1,H,W) -> (B,12): mean and std of the foreground colours, then of the background's."""
-    out = []
-    for m in (mask, 1 - mask):
-        n = m.sum(dim=(2, 3)) + POOL_EPS
-        mean = (image * m).sum(dim=(2, 3)) / n
-        var = ((image - mean[..., None, None]) ** 2 * m).sum(dim=(2, 3)) / n
-        out += [mean, torch.sqrt(var + 1e-8)]
-    return torch.cat(out, dim=1)
-
-
-def network_inputs(composite: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """(B,3,H,W) composite and (B,1,H,W) binary mask -> the 7-channel coarse input."""
-    return torch.cat([composite * (1 - mask), mask, composite * mask], dim=1)
-
-
 class Generator(nn.Module):
     def __init__(self, cfg: NetworkConfig):
         super().__init__()
@@ -158,8 +140,6 @@ class Generator(nn.Module):
         self.refine = StageNet(10, *args)
         self.global_stage = None
         if cfg.global_stage:
-            from .fast import FastColorNet, FastConfig  # fast.py imports this module at load time
-
             self.global_stage = FastColorNet(FastConfig(cfg.global_thumbnail_px, cfg.global_channels,
                                                         masked_pooling=cfg.global_masked_pooling,
                                                         hidden=cfg.global_hidden,
@@ -180,8 +160,6 @@ class Generator(nn.Module):
             raise ValueError(f"Generator: H and W must be multiples of {k}, got {tuple(composite.shape[-2:])}")
         out = {}
         if self.global_stage is not None:
-            from .fast import apply_affine, thumbnail
-
             thumb, tmask = thumbnail(composite, mask, self.global_stage.cfg.in_px)
             affine = self.global_stage(thumb, tmask)
             composite = mask * apply_affine(composite, affine) + (1 - mask) * composite
@@ -238,32 +216,6 @@ def save_checkpoint(path: str | Path, generator: Generator, meta: dict) -> None:
     torch.save({"format": CHECKPOINT_FORMAT, "kind": "network", "config": dataclasses.asdict(generator.cfg),
                 "state_dict": state, "meta": meta}, tmp)
     tmp.replace(path)
-
-
-def load_checkpoint_dict(path: str | Path, kind: str) -> dict:
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(path)
-    ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT or ckpt.get("kind") != kind:
-        raise ValueError(f"{path} is not an {CHECKPOINT_FORMAT} '{kind}' checkpoint")
-    return ckpt
-
-
-@functools.lru_cache(maxsize=8)
-def _load_model_cached(path: str, mtime_ns: int, kind: str, model_cls: type, config_cls: type) -> nn.Module:
-    ckpt = load_checkpoint_dict(path, kind)
-    model = model_cls(from_dict(config_cls, ckpt["config"]))
-    model.load_state_dict(ckpt["state_dict"])
-    return model.eval()
-
-
-def load_model(path: str | Path, kind: str, model_cls: type, config_cls: type) -> nn.Module:
-    """Load (once per process and file version) a checkpoint of ``kind`` into ``model_cls(config_cls(...))``."""
-    p = Path(path).resolve()
-    if not p.is_file():
-        raise FileNotFoundError(p)
-    return _load_model_cached(str(p), p.stat().st_mtime_ns, kind, model_cls, config_cls)
 
 
 def load_generator(path: str | Path) -> "Generator":
@@ -342,8 +294,6 @@ def _network_delta(generator: Generator, image_float: np.ndarray, comp: np.ndarr
     if generator.cfg.output_mode == "affine":
         full = crop
         if "global_affine" in out:
-            from .fast import apply_affine_np  # fast.py imports this module at load time
-
             full = apply_affine_np(full, out["global_affine"][0].numpy())
         for key in ("coarse_maps", "refine_maps"):
             maps = out[key][0].numpy().transpose(1, 2, 0)

@@ -19,9 +19,9 @@ import numpy as np
 import torch
 
 from ..config import REPO_ROOT, data_root, from_dict
+from .checkpoint import load_checkpoint_dict
 from .fast import FastColorNet, FastConfig, apply_affine, save_fast_checkpoint, thumbnail
-from .network import (Critic, Generator, NetworkConfig, load_checkpoint_dict, masked_gradient_penalty,
-                      save_checkpoint)
+from .network import Critic, Generator, NetworkConfig, masked_gradient_penalty, save_checkpoint
 from .pairs import (PerturbRanges, apply_perturbation, grabcut_mask, labelled_images, load_boxes, object_crop,
                     random_region_mask, read_image_rgb, sample_perturbation)
 from .regions import mask_box

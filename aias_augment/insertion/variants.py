@@ -55,7 +55,7 @@ def variant_key_prefix(cfg=None, assets=None, seed: int = 0):
     no arrays in it); ``assets``: ``{category: [paths]}`` or None. xxh3-128, not sha256: the key is computed at
     every call and hashes the image (0.01 ms for 320x320x3 against 0.16 for sha256); 128 bits make an accidental
     collision negligible (a cache of your own data, not a defence against crafted inputs)."""
-    from .. import __version__
+    from ..version import __version__
     h = xxhash.xxh3_128(f"aias-variant v{VARIANT_FORMAT} package {__version__} seed {int(seed)}".encode())
     for name, v in (("cfg", repr(cfg)), ("assets", repr(sorted((assets or {}).items())))):
         h.update(name.encode())

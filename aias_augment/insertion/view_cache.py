@@ -236,7 +236,7 @@ def asset_digest(asset: Asset, binning: ViewBinning = DEFAULT_BINNING) -> str:
     """A content digest of what a view of ``asset`` depends on: every mesh's vertices, triangles, vertex normals,
     UVs and visual (texture pixels, material colours, vertex/face colours), the binning, :data:`VIEW_FORMAT` and the
     package version. Two assets with the same digest render the same views."""
-    from .. import __version__
+    from ..version import __version__
     h = hashlib.sha256(f"{VIEW_FORMAT}|{__version__}|{binning}".encode())
     for m in asset.meshes:
         for arr in (m.vertices, m.faces, m.vertex_normals):

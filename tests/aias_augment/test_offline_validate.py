@@ -9,14 +9,13 @@ import cv2
 import numpy as np
 import pytest
 
-from aias_augment.assets import DEFAULT_ASSETS
+from aias_augment.assets import DEFAULT_ASSETS, plausible_scale
 from aias_augment.cli import main
 from aias_augment.config import data_root
 from aias_augment.manifest import ManifestMismatch
 from aias_augment.offline import items_from_coco, items_from_yolo, run
 from aias_augment.pipeline import load_preset
-from aias_augment.validate import (InputError, check_float_image, parse_yolo_labels, plausible_scale,
-                                   read_image_checked)
+from aias_augment.validate import InputError, check_float_image, parse_yolo_labels, read_image_checked
 
 needs_data = pytest.mark.skipif(not (data_root() / DEFAULT_ASSETS["traffic_cone"][0]).exists(),
                                 reason="shared data not present")

@@ -1,9 +1,8 @@
 import numpy as np
 import torch
 
-from aias_augment.harmonize.fast import (FastColorNet, FastConfig, apply_affine, load_fast, run_fast,
+from aias_augment.harmonize.fast import (FastColorNet, FastConfig, apply_affine, load_fast, masked_stats, run_fast,
                                          save_fast_checkpoint)
-from aias_augment.harmonize.network import masked_stats
 
 
 def test_affine_identity_and_known_gain():

@@ -99,7 +99,7 @@ def test_global_stage_is_the_fast_harmonizer_it_was_started_from(tmp_path):
     cfg = NetworkConfig(resolution_px=32, base_channels=4, levels=2, dilations=(2,), critic_channels=4,
                         global_stage=True, global_thumbnail_px=16, global_channels=4)
     gen = Generator(cfg)
-    from aias_augment.harmonize.network import load_checkpoint_dict
+    from aias_augment.harmonize.checkpoint import load_checkpoint_dict
 
     gen.global_stage.load_state_dict(load_checkpoint_dict(tmp_path / "fast.pt", "fast")["state_dict"])
     comp = torch.rand(2, 3, 32, 32)
