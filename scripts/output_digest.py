@@ -7,7 +7,9 @@ Each case runs real images from the shared data (``$AIAS_DATA``, default ``../sh
 * ``insert_bounded``: a 1920x1080 frame (DGP CAMERA_01, cropped to 16:9 and resized with INTER_AREA; 2.07 MP, so the
   analysis and plan run on a <= 2 MP copy) and the TraCon image (at or below the bound: the unbounded path);
 * each of them with the presets ``fast`` and ``balanced`` and the seeds 0 and 1 (``np.random.default_rng(seed)``);
-* the albumentations ``InsertObjects`` transform (fast preset, Compose seed 3) on the TraCon image, called twice.
+* the albumentations ``InsertObjects`` transform (fast preset, Compose seed 3) on the TraCon image, called twice;
+* the clip door ``video.insert_into_clip``: 8 frames of KITTI 06 (ground-truth poses, calibration K), the default
+  traffic cone, the clip lighting of ``estimate_lighting_clip``, seeds 0 and 1 (digest of all frames and boxes).
 
 Per case it records the sha256 of the output image bytes (uint8, C order, with the shape) and of the boxes and labels
 (boxes formatted to 1e-6). ``--write`` writes ``results/architecture/digests.json`` and its table
@@ -36,6 +38,7 @@ PRESETS = ("fast", "balanced")
 SEEDS = (0, 1)
 TRACON_NAME = "cone (100)"
 DGP_IMAGE = "dgp_scene/scene_01/rgb/CAMERA_01/15569195938415230.jpg"
+CLIP_FRAMES = 8
 
 
 def data_dir() -> Path:
@@ -145,6 +148,31 @@ def cases():
     for i in range(2):
         yield f"InsertObjects/tracon/fast/compose-seed3/call{i}", call(i)
 
+    for seed in SEEDS:
+        yield f"insert_into_clip/kitti06-seq-8/seed{seed}", clip(seed)
+
+
+def clip(seed: int):
+    def run():
+        from aias_augment.assets import default_asset
+        from aias_augment.ground import prior_ground_plane
+        from aias_augment.lighting.estimate import estimate_lighting_clip
+        from aias_augment.scenes.kitti import open_kitti_sequence
+        from aias_augment.video import VideoInsertionConfig, insert_into_clip
+
+        seq = open_kitti_sequence(data_dir() / "kitti06_seq")
+        frames = [seq.frame(i).image for i in range(CLIP_FRAMES)]
+        poses = np.stack([seq.cam_from_world(i) for i in range(CLIP_FRAMES)])
+        rng = np.random.default_rng(seed)
+        lighting = estimate_lighting_clip(frames, seq.intrinsics, poses, rng=rng)
+        res = insert_into_clip(frames, seq.intrinsics, poses, rng, VideoInsertionConfig(lookahead_frames=6),
+                               asset=default_asset("traffic_cone"), ground_in_cam0=prior_ground_plane(1.65),
+                               lighting=lighting)
+        boxes = [b for b in res.boxes_xywh if b is not None]
+        visible = [str(i) for i, b in enumerate(res.boxes_xywh) if b is not None]
+        return np.stack(res.frames), boxes, visible, len(boxes)
+    return run
+
 
 def compute(verbose: bool = True) -> dict:
     out = {}
@@ -178,15 +206,38 @@ def write_table(digests: dict) -> None:
         "```",
         "",
         "Digests depend on the library versions (OpenCV, numpy, torch, the GL renderer): compare on one machine.",
+        "The clip cases were also computed with the code of the commit that wrote the image baseline (8053f24): same",
+        "digests.",
+        "",
+        "Replay: `insertion.replay.replay` of an `insert_bounded` record on the 1920x1080 frame is not byte-identical",
+        "today (fast, seed 0: 29 204 pixels differ, at most 8 levels; balanced: 46 250, at most 81): replay analyses the",
+        "full frame while the bounded door analysed and planned on its <= 2 MP copy, and the record does not carry the",
+        "working resolution. `tests/aias_augment/test_replay_bounded.py` holds it as `xfail(strict=True)` beside a",
+        "control (an image under the bound replays byte for byte).",
         "",
         "| case | output | boxes | inserted | image sha256 | boxes sha256 |",
         "|---|---|---|---|---|---|",
     ]
     for name, d in digests.items():
-        shape = "x".join(str(v) for v in d["shape"][1::-1])
+        sh = d["shape"]
+        shape = f"{sh[-2]}x{sh[-3]}" + (f" x {sh[0]} frames" if len(sh) == 4 else "")
         lines.append(f"| `{name}` | {shape} | {d['n_boxes']} | {d['n_inserted']} | `{d['image_sha256'][:16]}` | "
                      f"`{d['boxes_sha256'][:16]}` |")
     (OUT_DIR / "README.md").write_text("\n".join(lines) + "\n")
+
+
+def compare(expected: dict, got: dict) -> list[str]:
+    """One line per case whose digests differ, or that is only in one of the two."""
+    differ = []
+    for name in sorted(set(expected) | set(got)):
+        e, g = expected.get(name), got.get(name)
+        if e is None or g is None:
+            differ.append(f"{name}: {'new case' if e is None else 'missing case'}")
+            continue
+        what = [k for k in ("image_sha256", "boxes_sha256") if e[k] != g[k]]
+        if what:
+            differ.append(f"{name}: {', '.join(what)} differ")
+    return differ
 
 
 def main(argv=None) -> int:
@@ -207,15 +258,7 @@ def main(argv=None) -> int:
         write_table(digests)
         print(f"wrote {DIGESTS.relative_to(ROOT)} ({len(digests)} cases)")
         return 0
-    differ = []
-    for name in sorted(set(expected) | set(digests)):
-        e, g = expected.get(name), digests.get(name)
-        if e is None or g is None:
-            differ.append(f"{name}: {'new case' if e is None else 'missing case'}")
-            continue
-        what = [k for k in ("image_sha256", "boxes_sha256") if e[k] != g[k]]
-        if what:
-            differ.append(f"{name}: {', '.join(what)} differ")
+    differ = compare(expected, digests)
     if differ:
         print(f"{len(differ)} of {len(expected)} cases differ:")
         for line in differ:
