@@ -806,7 +806,8 @@ def estimate_sun_direction(
     intrinsics: Intrinsics | None = None,
     cam_from_world: np.ndarray | None = None,
     meta: dict | None = None,
-    rng: np.random.Generator | None = None,
+    *,
+    rng: np.random.Generator,
     config: LightingConfig = LightingConfig(),
 ) -> SunDirectionEstimate:
     """The image-cue sun direction of one frame (sky or sun disc, cast-shadow axis, walls, shadow ends), as
@@ -825,7 +826,8 @@ def estimate_sun_direction_clip(
     intrinsics: Sequence[Intrinsics | None] | Intrinsics | None,
     cams_from_world: Sequence[np.ndarray],
     metas: Sequence[dict] | dict | None = None,
-    rng: np.random.Generator | None = None,
+    *,
+    rng: np.random.Generator,
     config: LightingConfig = LightingConfig(),
 ) -> SunDirectionEstimate:
     """The image-cue sun of a clip with known poses, fused in world coordinates as :func:`estimate_lighting_clip` does
@@ -859,7 +861,8 @@ def estimate_lighting(
     cam_from_world: np.ndarray | None = None,
     meta: dict | None = None,
     envmap: EnvironmentMap | np.ndarray | None = None,
-    rng: np.random.Generator | None = None,
+    *,
+    rng: np.random.Generator,
     config: LightingConfig = LightingConfig(),
 ) -> LightingEstimate:
     """Estimate the lighting of one RGB uint8 frame (see the module docstring for frames, units and sources).
@@ -867,8 +870,7 @@ def estimate_lighting(
     ``meta`` keys used: 'lat', 'lon', 'utc' (ISO string) with an orientation ('enu_from_cam', 'enu_from_world' or
     'heading_deg' [+ 'pitch_deg', 'roll_deg']); 'up_in_world' (3,); 'indoor' (bool); 'ground_mask' ((H, W) bool: the
     ground region used for lit/shadow); 'world_from_env' (3x3, orientation of ``envmap`` given as an array).
-    ``rng`` (required; its None default only keeps the argument order) subsamples pixels. The result is always
-    finite.
+    ``rng`` (required) subsamples pixels. The result is always finite.
     """
     img = _check_image(image_rgb_uint8)
     meta = dict(meta or {})
@@ -898,7 +900,8 @@ def estimate_lighting_clip(
     intrinsics: Sequence[Intrinsics | None] | Intrinsics | None,
     cams_from_world: Sequence[np.ndarray],
     metas: Sequence[dict] | dict | None = None,
-    rng: np.random.Generator | None = None,
+    *,
+    rng: np.random.Generator,
     config: LightingConfig = LightingConfig(),
 ) -> list[LightingEstimate]:
     """Lighting of the frames of one clip with known poses: one sun, fused in world coordinates.

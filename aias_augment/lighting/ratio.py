@@ -130,7 +130,7 @@ def measure_lit_shadow(
     min_fraction: float = 0.01,
     min_lit_to_shadow: float = 1.5,
     max_samples: int = 8000,
-    rng: np.random.Generator | None = None,
+    rng: np.random.Generator,
 ) -> LitShadowMeasurement | None:
     """Measure lit and shadowed luminance of the ground in ``region_mask``; None if fewer than 200 usable pixels.
 

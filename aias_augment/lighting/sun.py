@@ -334,7 +334,8 @@ def sun_cue_from_image(
     exclusion_kappa: float = 40.0,
     exclusion_min_elevation_deg: float = 10.0,
     whiteness_weight: float = 0.0,
-    rng: np.random.Generator | None = None,
+    *,
+    rng: np.random.Generator,
 ) -> SunCue:
     """Score candidate sun directions from one image with a known camera.
 

@@ -57,7 +57,7 @@ def polynomial_mmd2_unbiased(x: np.ndarray, y: np.ndarray, degree: int = 3, gamm
 
 
 def kid_from_features(feats_a: np.ndarray, feats_b: np.ndarray, n_subsets: int = 100, subset_size: int = 1000,
-                      rng: np.random.Generator | None = None) -> tuple[float, float]:
+                      *, rng: np.random.Generator) -> tuple[float, float]:
     """KID: mean and standard deviation of the unbiased polynomial MMD^2 over ``n_subsets`` random subsets of
     ``min(subset_size, len(a), len(b))`` samples drawn without replacement from each set. When both sets are no
     larger than the subset size every subset is the whole set (one exact value, std 0)."""
