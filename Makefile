@@ -14,6 +14,7 @@ demo: setup
 	$(PY) -m aias_augment.demo --out out/demo
 
 test: setup
+	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -q tests
 
 clean-out:

@@ -22,8 +22,8 @@ from tqdm import tqdm
 from .coco_io import CocoBuilder, atomic_write_json
 from .geometry import Intrinsics
 from .manifest import build_manifest, item_hash, output_lock, prepare_output
-from .validate import (BOX_POLICIES, IMAGE_SKIP_KINDS, InputError, check_box, check_coco, check_coco_file, check_output_record,
-                       format_problem, nothing_inserted_reason, parse_yolo_labels, problem, read_image_checked)
+from .validate import (IMAGE_SKIP_KINDS, InputError, check_box, check_coco, check_coco_file, check_output_record,
+                       nothing_inserted_reason, parse_yolo_labels, problem, read_image_checked)
 from .pipeline import InsertionConfig
 from .working_resolution import insert_bounded
 from .viz import contact_sheet, draw_boxes
@@ -294,7 +294,7 @@ def process_item(index: int, item: Item, cfg: InsertionConfig, seed: int, out_di
     rec = {
         "index": index, "source": item.path, "file_name": name, "seed": [seed, index],
         "width": int(res.image.shape[1]), "height": int(res.image.shape[0]),
-        "boxes": [list(map(float, b)) for b in res.bboxes], "labels": [str(l) for l in res.labels],
+        "boxes": [list(map(float, b)) for b in res.bboxes], "labels": [str(lab) for lab in res.labels],
         "inserted": [False] * n_keep + [True] * len(res.inserted_labels),
         "seconds": time.perf_counter() - t0, "config": asdict(cfg), **res.record.to_dict(),
         "input_hash": input_hash, "input_notes": notes, "scale": scale, "source_size": source_size,

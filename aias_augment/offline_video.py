@@ -166,7 +166,6 @@ def _job_dict(job: ClipJob) -> dict:
 
 def augment_clip(job: ClipJob) -> dict:
     """Insert one object of ``job.categories[0..]`` (drawn with the seed) into the clip; returns the record."""
-    from .bank import get_bank
     from .lighting.estimate import estimate_lighting_clip
     from .pipeline import InsertionConfig, _choose_asset
     from .video import VideoInsertionConfig, insert_into_clip

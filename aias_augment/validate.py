@@ -63,7 +63,7 @@ def read_image_checked(path) -> tuple[np.ndarray, list[dict]]:
                 im.verify()
             with Image.open(io.BytesIO(data)) as im:
                 im.load()
-                mode, size = im.mode, im.size
+                mode = im.mode
     except Exception as e:  # PIL raises OSError, SyntaxError, ValueError, UserWarning... for broken files
         # PIL names an in-memory file by its address ("<_io.BytesIO object at 0x7f...>"): not part of a reproducible
         # report, so the address is dropped

@@ -22,7 +22,8 @@ for im in imgs:
     ref.append(analyse_scene(Frame(im, None), load_preset("fast", analysis_max_width=0)))
     ref_ts.append(time.process_time() - t0)
 def ang(a, b):
-    if a is None or b is None: return np.nan
+    if a is None or b is None:
+        return np.nan
     return np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
 print("# Cheap scene analysis vs the full-resolution analysis\n\nCommand: `python benchmarks/bench_cheap_analysis.py`"
       f" (load average {os.getloadavg()[0]:.1f})\n\n16 TraCon images at 640x480, fast preset; differences from the same "
@@ -34,7 +35,9 @@ for mw in (160, 240, 320):
     cfg = load_preset("fast", analysis_max_width=mw)
     rows, ts = [], []
     for im, r in zip(imgs, ref):
-        t0 = time.process_time(); a = analyse_scene(Frame(im, None), cfg); ts.append(time.process_time() - t0)
+        t0 = time.process_time()
+        a = analyse_scene(Frame(im, None), cfg)
+        ts.append(time.process_time() - t0)
         rows.append((ang(a.ground.normal, r.ground.normal), ang(a.lighting.sun_direction_in_cam, r.lighting.sun_direction_in_cam),
                      a.lighting.dominant_sun == r.lighting.dominant_sun,
                      np.abs(a.lighting.ambient_sh[0] - r.lighting.ambient_sh[0]).max() / max(np.abs(r.lighting.ambient_sh[0]).max(), 1e-6),

@@ -23,7 +23,6 @@ os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from aias_augment.assets import default_asset  # noqa: E402
 from aias_augment.config import data_root  # noqa: E402
 from aias_augment.insertion import SceneCache, load_preset, plan_insertion  # noqa: E402
 from aias_augment.insertion.view_cache import ViewBinning, ViewCache, render_from_view_cache  # noqa: E402

@@ -228,7 +228,6 @@ def closeup_crop(image: np.ndarray, boxes_xyxy: np.ndarray, target_fracs, rng: n
 
 def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
     from aias_augment.pipeline import load_preset
-    from aias_augment.placement import PlacementConfig
 
     ic = cfg.insertion
     flags = {k: v for k, v in ARM_FLAGS[arm].items() if k not in STUDY_FLAGS}

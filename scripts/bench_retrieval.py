@@ -192,7 +192,7 @@ def main(argv=None) -> int:
     }
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "bench.json").write_text(json.dumps(summary, indent=1))
-    md = [f"# Scene retrieval benchmark", "", f"Command: `{summary['command']}`", "",
+    md = ["# Scene retrieval benchmark", "", f"Command: `{summary['command']}`", "",
           f"- database: {len(frames)} real frames ({', '.join(summary['by_clip'])}); "
           f"{timings['features']} RootSIFT features, {timings['words']} words",
           f"- queries: {len(rows)} (each frame x {', '.join(PERTURBATIONS)})",

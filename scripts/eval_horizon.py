@@ -19,7 +19,7 @@ import numpy as np
 
 from aias_augment.ground import GroundFitError, ground_plane_from_depth
 from aias_augment.scenes.kitti import open_kitti_sequence
-from aias_augment.scenes.single_image import SingleImageConfig, estimate_camera_from_image, horizon_row_error_px
+from aias_augment.scenes.single_image import estimate_camera_from_image, horizon_row_error_px
 
 
 def world_up_from_stereo(seq, indices, rng) -> tuple[np.ndarray, list[float]]:

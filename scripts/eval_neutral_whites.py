@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from dataclasses import replace
@@ -138,7 +137,7 @@ def main(argv=None) -> int:
 
 def write_report(rows: list[dict], a) -> int:
     out = Path(a.out)
-    lines = [f"# Inserted whites vs the photo's own white cone sleeves\n",
+    lines = ["# Inserted whites vs the photo's own white cone sleeves\n",
              f"`python scripts/eval_neutral_whites.py --photos {a.photos} --seed {a.seed} --preset {a.preset} "
              f"--out {a.out}`: {len(rows)} TraCon train photos with labelled cones ({a.preset} preset, up to 3 "
              f"cones inserted per photo). Ratios are inserted / real; 1.0 is the real sleeves' colour. Arms: `scene` / "

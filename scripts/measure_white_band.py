@@ -2,15 +2,20 @@
 """Paired white-band chroma: the same images, placements and analysis, lighting with sky_fill_colour preetham (old)
 vs seen (new). Usage: python scripts/measure_white_band.py N [grey]. Metric: log(B/R) of the white band's mean linear colour minus the
 road's (the placeable region's median), and minus the texture white's own log(B/R) (-0.077)."""
-import sys, os, glob, numpy as np, cv2
+import sys
+import os
+import glob
+import numpy as np
+import cv2
 from dataclasses import replace
 from aias_augment.insertion import analyse_scene, plan_insertion, apply_plan
 from aias_augment.insertion.config import load_preset
 from aias_augment.scene import Frame
 from aias_augment.render import render_object, srgb_to_linear
-
-n = int(sys.argv[1]); grey = len(sys.argv) > 2
 from aias_augment.config import data_root
+
+n = int(sys.argv[1])
+grey = len(sys.argv) > 2
 lab = str(data_root() / 'tracon/labels/train')
 empties = sorted(os.path.basename(p)[:-4] for p in glob.glob(lab + '/*.txt') if os.path.getsize(p) == 0)
 pick = [empties[i] for i in np.random.default_rng(5).choice(len(empties), n, replace=False)]
@@ -22,10 +27,13 @@ for stem in pick:
     img = cv2.cvtColor(cv2.imread(str(data_root() / f'tracon/images/train/{stem}.jpg')), cv2.COLOR_BGR2RGB)
     if grey:
         img = np.repeat(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2)
-    s = 640 / max(img.shape[:2]); img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else img
+    s = 640 / max(img.shape[:2])
+    img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else img
     frame = Frame(img, None)
-    an_new = analyse_scene(frame, new); an_old = analyse_scene(frame, old)
-    if an_new.region is None: continue
+    an_new = analyse_scene(frame, new)
+    an_old = analyse_scene(frame, old)
+    if an_new.region is None:
+        continue
     road = lbr(np.median(srgb_to_linear(img.astype(np.float32) / 255)[an_new.region.mask], axis=0))
     plan = plan_insertion(an_new, new, np.random.default_rng(1), n_objects=3)
     outs = {"old": apply_plan(frame, an_old, plan, new).image, "new": apply_plan(frame, an_new, plan, new).image}
@@ -37,7 +45,8 @@ for stem in pick:
         wh |= cv2.erode(w.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     for k in outs:   # drop clipped pixels
         wh &= outs[k].max(-1) < 250
-    if wh.sum() < 10: continue
+    if wh.sum() < 10:
+        continue
     r = {k: lbr(srgb_to_linear(o[wh].astype(np.float64) / 255).mean(0)) - road for k, o in outs.items()}
     rows.append((r["old"], r["new"]))
     print(f"{stem} px {int(wh.sum())} road {road:+.3f} white-road excess old {r['old']:+.3f} new {r['new']:+.3f}", flush=True)

@@ -222,7 +222,6 @@ def lift_revolution(cut: Cutout, height_m: float, cfg: LiftConfig = LiftConfig()
     # row); its radius is the profile's at that edge (the rows' values interpolated, the end rows held).
     t = np.linspace(0.0, n_px, n_r)
     r_edge = np.interp(t - 0.5, np.arange(len(rows), dtype=float), radius)
-    c_edge = np.interp(t - 0.5, np.arange(len(rows), dtype=float), centre)
     z = (n_px - t) * s
     r = np.maximum(r_edge, 0.0) * s
     seg = cfg.segments

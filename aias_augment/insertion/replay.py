@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import Callable
 
-import numpy as np
 
 from ..assets import DEFAULT_ASSETS, Asset, default_asset
 from ..config import data_root

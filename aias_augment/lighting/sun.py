@@ -19,8 +19,7 @@ from scipy import ndimage
 
 from ..geometry import Intrinsics
 from ..rng import require_rng
-from .envmap import (azimuth_elevation_to_direction, camera_ray_directions, direction_to_azimuth_elevation,
-                     pixel_directions, pixel_solid_angles)
+from .envmap import (azimuth_elevation_to_direction, camera_ray_directions, pixel_directions, pixel_solid_angles)
 from .hdr import luminance, srgb_to_linear
 from .sky import preetham_exposure_fit_cost
 

@@ -108,10 +108,14 @@ def _faceted_frustum(n_seg: int, r0: float, r1: float, h: float):
             truth.append(nn / np.linalg.norm(nn))
         faces += [[b, b + 1, b + 2], [b, b + 2, b + 3]]
     c = len(verts)                                  # base disk: centre + its own rim vertices, facing down
-    verts.append([0, 0, 0]); uv.append([0.5, 0.5]); truth.append([0, 0, -1])
+    verts.append([0, 0, 0])
+    uv.append([0.5, 0.5])
+    truth.append([0, 0, -1])
     for k in range(n_seg):
         a = 2 * np.pi * k / n_seg
-        verts.append([r0 * np.cos(a), r0 * np.sin(a), 0]); uv.append([0.5, 0.5]); truth.append([0, 0, -1])
+        verts.append([r0 * np.cos(a), r0 * np.sin(a), 0])
+        uv.append([0.5, 0.5])
+        truth.append([0, 0, -1])
     for k in range(n_seg):
         faces.append([c, c + 1 + (k + 1) % n_seg, c + 1 + k])
     mesh = trimesh.Trimesh(np.array(verts, float), np.array(faces), process=False,

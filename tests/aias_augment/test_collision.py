@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from aias_augment.collision import (CollisionConfig, OrientedBox, boxes_intersect, check_candidate, depth_occlusion,
+from aias_augment.collision import (OrientedBox, boxes_intersect, check_candidate, depth_occlusion,
                                     points_inside_box, scene_points_collision)
 from aias_augment.geometry import Intrinsics, make_rigid, rotation_about_axis
 from aias_augment.ground import prior_ground_plane

@@ -7,7 +7,6 @@ import logging
 import subprocess
 import sys
 import textwrap
-from dataclasses import replace
 
 import albumentations as A
 import numpy as np

@@ -8,7 +8,6 @@ Small ``max_examples`` and no deadline keep ``make test`` quick; the GL stages u
 import json
 import math
 import os
-from dataclasses import replace
 
 import numpy as np
 import pytest

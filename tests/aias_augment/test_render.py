@@ -65,11 +65,13 @@ def test_shadow_falls_where_planar_projection_says():
     # Camera 3 m above the ground looking down 30 deg: build cam_from_obj from a look-at.
     eye = np.array([0.0, -6.0, 3.0])
     fwd = -eye / np.linalg.norm(eye)
-    right = np.cross(fwd, [0, 0, 1.0]); right /= np.linalg.norm(right)
+    right = np.cross(fwd, [0, 0, 1.0])
+    right /= np.linalg.norm(right)
     down = np.cross(fwd, right)
     R = np.stack([right, down, fwd])  # rows: camera axes in object coordinates
     cam_from_obj = make_rigid(R, -R @ eye)
-    sun = np.array([0.6, 0.3, 0.74]); sun /= np.linalg.norm(sun)
+    sun = np.array([0.6, 0.3, 0.74])
+    sun /= np.linalg.norm(sun)
     s = render_ground_shadow(a, cam_from_obj, K, sun)
     verts = a.meshes[0].vertices
     flat = verts - (verts[:, 2:3] / sun[2]) * sun

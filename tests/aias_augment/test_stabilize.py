@@ -3,7 +3,7 @@ the world point (known exactly on a synthetic drive over a textured ground), whi
 import numpy as np
 import pytest
 
-from aias_augment.geometry import Intrinsics, invert_rigid, make_rigid, project_points, rotation_about_axis
+from aias_augment.geometry import Intrinsics, make_rigid, project_points, rotation_about_axis
 from aias_augment.ground import prior_ground_plane
 from aias_augment.stabilize import FlowRefineConfig, refined_cam_from_object, track_contact_with_flow
 from tests.aias_augment.fixtures import synthetic_ground_drive

@@ -24,8 +24,8 @@ def test_build_then_report(tmp_path, capsys):
     assert main(["report", str(out), "--csv", str(tmp_path / "r.csv"), "--votes-csv", str(tmp_path / "v.csv")]) == 0
     text = capsys.readouterr().out
     assert "Cones: 15 pairs (images), 1 raters, 10 votes; baseline naive" in text
-    lines = [l for l in text.splitlines() if l.startswith(("full ", "noshadow "))]
-    assert [l.split()[:2] for l in lines] == [["full", "naive"], ["noshadow", "naive"], ["full", "noshadow"]]
+    lines = [ln for ln in text.splitlines() if ln.startswith(("full ", "noshadow "))]
+    assert [ln.split()[:2] for ln in lines] == [["full", "naive"], ["noshadow", "naive"], ["full", "noshadow"]]
     assert "100.0 %" in lines[0] and "56.6 - 100.0 %" in lines[0]           # Wilson for 5 of 5
     rows = list(csv.DictReader(open(tmp_path / "r.csv")))
     assert [(r["method"], r["opponent"], r["wins"]) for r in rows] == [

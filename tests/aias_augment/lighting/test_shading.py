@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from aias_augment.lighting import envmap as em, sh
+from aias_augment.lighting import sh
 from aias_augment.lighting.estimate import LightingEstimate
 from aias_augment.lighting.shading import shade_object
 
