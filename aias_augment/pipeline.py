@@ -20,6 +20,7 @@ from .insertion.cache import SceneCache
 from .insertion.config import PRESETS, InsertionConfig, load_preset  # noqa: F401
 from .insertion.plan import choose_asset as _choose_asset, naive_pose as _naive_pose, plan_insertion  # noqa: F401
 from .insertion.replay import placement_from_dict
+from .insertion.working import WorkingResolution
 from .lighting.estimate import LightingEstimate
 from .placement import Placement
 from .scene import Frame
@@ -41,10 +42,13 @@ class InsertionRecord:
     placement_reports: list[dict] = field(default_factory=list)
     existing_visibility: list[float] = field(default_factory=list)
     harmonize_seed: int | None = None   # the plan's harmonizer seed (with the placements: enough to replay)
+    # the analysis and plan ran on a smaller copy of the image (the bounded door); None: on the image itself
+    working_resolution: WorkingResolution | None = None
 
     def to_dict(self) -> dict:
         return {
             "harmonize_seed": self.harmonize_seed,
+            "working_resolution": None if self.working_resolution is None else self.working_resolution.to_dict(),
             "placements": [asdict(p) for p in self.placements],
             "annotations": [a.to_dict() for a in self.annotations],
             "lighting": self.lighting.to_dict() if self.lighting else None,
@@ -56,11 +60,14 @@ class InsertionRecord:
     @classmethod
     def from_dict(cls, d: dict) -> "InsertionRecord":
         """The record :meth:`to_dict` wrote (e.g. read back from JSON): ``from_dict(r.to_dict()).to_dict()`` equals
-        ``r.to_dict()``."""
+        ``r.to_dict()``. A record without ``working_resolution`` (written before it was recorded) was analysed on
+        the image itself."""
+        wr = d.get("working_resolution")
         return cls([placement_from_dict(p) for p in d["placements"]],
                    [ObjectAnnotation.from_dict(a) for a in d["annotations"]],
                    None if d["lighting"] is None else LightingEstimate.from_dict(d["lighting"]), dict(d["modules"]),
-                   list(d["placement_reports"]), list(d["existing_visibility"]), d["harmonize_seed"])
+                   list(d["placement_reports"]), list(d["existing_visibility"]), d["harmonize_seed"],
+                   None if wr is None else WorkingResolution.from_dict(wr))
 
 
 @dataclass
@@ -121,14 +128,15 @@ def insert_into_image(image: np.ndarray, bboxes_xywh=None, labels=None, rng: np.
     return assemble_result(analysis, plan, applied, boxes, labels, min_visibility)
 
 
-def assemble_result(analysis, plan, applied, boxes: np.ndarray, labels: list, min_visibility: float
-                    ) -> InsertionResult:
+def assemble_result(analysis, plan, applied, boxes: np.ndarray, labels: list, min_visibility: float, *,
+                    working_resolution: WorkingResolution | None = None) -> InsertionResult:
     """The result of one insertion from its three steps' records: the inserted objects' visible boxes appended to the
-    input boxes that stay visible enough under what was drawn over them (``boxes`` xywh, in the output's pixels)."""
+    input boxes that stay visible enough under what was drawn over them (``boxes`` xywh, in the output's pixels).
+    ``working_resolution``: the smaller copy the analysis and plan ran on (recorded for replay), None: the image."""
     record = InsertionRecord(list(applied.placements), list(applied.annotations), analysis.lighting,
                              {**analysis.modules, **plan.modules, **applied.modules},
                              list(plan.placement_reports) + list(applied.dropped),
-                             harmonize_seed=plan.harmonize_seed)
+                             harmonize_seed=plan.harmonize_seed, working_resolution=working_resolution)
     inserted_boxes, inserted_labels = [], []
     for placement, ann in zip(applied.placements, applied.annotations):
         if ann.visible_box_xywh is not None:

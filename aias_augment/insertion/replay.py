@@ -1,12 +1,13 @@
 """Replay an insertion from its record: the same image bytes, without drawing anything.
 
 The record's placements are frozen (pose, scale, asset name and source) and its harmonizer seed is kept; the scene
-analysis is recomputed (it is a pure function of the frame) or taken from a cache; :func:`apply_plan` does the rest.
+analysis is recomputed (it is a pure function of the frame) or taken from a cache, on the working copy the record
+names (``working_resolution``: the bounded door's smaller copy) or on the frame itself; :func:`apply_plan` does the
+rest.
 """
 from __future__ import annotations
 
 from typing import Callable
-
 
 from ..assets import DEFAULT_ASSETS, Asset, default_asset
 from ..config import data_root
@@ -16,6 +17,7 @@ from .apply import AppliedPlan, apply_plan
 from .cache import SceneCache
 from .config import InsertionConfig
 from .plan import InsertionPlan, PlannedObject
+from .working import WorkingResolution
 
 
 def _tuples(x):
@@ -39,10 +41,15 @@ def replay(record: dict, frame: Frame, cfg: InsertionConfig, *,
            assets: Callable[[Placement], Asset] = default_asset_for,
            scene_cache: SceneCache | None = None) -> AppliedPlan:
     """Re-apply ``record`` (:meth:`InsertionRecord.to_dict`, e.g. an offline ``records/NNNNNN.json``) to ``frame``
-    with ``cfg`` (the run's config). ``assets(placement)`` returns the unscaled asset a placement was made from."""
+    with ``cfg`` (the run's config). ``assets(placement)`` returns the unscaled asset a placement was made from.
+    ``frame``: the image the record was made from, with the intrinsics, depth and scene facts it was given."""
     if record.get("harmonize_seed") is None:
         raise ValueError("record has no harmonize_seed (written before plans were recorded): cannot replay")
-    analysis = (scene_cache or SceneCache(max_items=0)).get(frame, cfg)
+    wr = record.get("working_resolution")
+    if wr is None:   # analysed on the image itself (also every record written before the field existed)
+        analysis = (scene_cache or SceneCache(max_items=0)).get(frame, cfg)
+    else:            # the bounded door's route: the analysis of its working copy, lifted to full size
+        _, _, analysis = WorkingResolution.from_dict(wr).analyse(frame, cfg, scene_cache)
     objects = []
     for d in record["placements"]:
         p = placement_from_dict(d)

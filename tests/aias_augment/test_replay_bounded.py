@@ -1,10 +1,10 @@
 """Replay of the bounded door (working_resolution.insert_bounded) on a real 1920x1080 frame.
 
-``insert_bounded`` analyses and plans on a <= 2 MP copy of a larger frame, while ``insertion.replay.replay``
-re-analyses the full frame it is given: the intrinsics estimated without K, the region mask and the lighting differ,
-so the replayed image is not the bounded door's output. The record does not carry the working resolution (issue 27:
-"Variety parameters and the working resolution recorded in the plan, so that replay reproduces every output byte for
-byte, bounded frames included"). The control (an unbounded image) replays byte for byte.
+``insert_bounded`` analyses and plans on a <= 2 MP copy of a larger frame; the record keeps that working resolution
+(``working_resolution``: full size, analysis size, bound), and ``insertion.replay.replay`` analyses the same copy the
+same way, so the replayed image is the bounded door's output byte for byte. Without the field (a record written
+before it existed) replay analyses the full frame it is given: the intrinsics estimated without K, the region mask
+and the lighting differ, and so does the image. The control (an unbounded image) replays byte for byte.
 """
 import json
 import os
@@ -16,6 +16,7 @@ import pytest
 
 from aias_augment import load_preset
 from aias_augment.insertion.replay import replay
+from aias_augment.pipeline import InsertionRecord
 from aias_augment.scene import Frame
 from aias_augment.working_resolution import ANALYSIS_MAX_PIXELS, insert_bounded
 
@@ -43,16 +44,42 @@ def _replayed(result, image, cfg) -> np.ndarray:
     return replay(record, Frame(image, None), cfg).image
 
 
-@pytest.mark.xfail(strict=True, reason="replay analyses the full 1920x1080 frame; insert_bounded analysed and "
-                                       "planned on a <= 2 MP copy, and the record does not carry the working "
-                                       "resolution (issue 27)")
-def test_replay_reproduces_bounded_door_on_1920x1080():
+@pytest.mark.parametrize("preset", ["fast", "balanced"])
+def test_replay_reproduces_bounded_door_on_1920x1080(preset):
     big = frame_1920x1080()
     assert big.shape[0] * big.shape[1] > ANALYSIS_MAX_PIXELS   # the bounded path really runs
-    cfg = load_preset("fast")
+    cfg = load_preset(preset)
     result = insert_bounded(big, None, None, np.random.default_rng(0), cfg)
     assert result.inserted_labels   # something was drawn, so the comparison is not vacuous
+    wr = result.record.working_resolution
+    assert wr.image_size == (1920, 1080) and wr.analysis_size[0] * wr.analysis_size[1] <= ANALYSIS_MAX_PIXELS
     assert np.array_equal(_replayed(result, big, cfg), result.image)
+
+
+def test_replay_of_a_bounded_record_without_its_working_resolution_differs():
+    """The recorded working resolution is what makes the bounded replay exact: the same record with the field
+    removed (as a record written before it existed) replays the old way, analysing the full frame, and differs."""
+    big = frame_1920x1080()
+    cfg = load_preset("fast")
+    result = insert_bounded(big, None, None, np.random.default_rng(0), cfg)
+    record = json.loads(json.dumps(result.record.to_dict()))
+    del record["working_resolution"]
+    assert not np.array_equal(replay(record, Frame(big, None), cfg).image, result.image)
+
+
+def test_record_round_trips_with_and_without_working_resolution():
+    big = frame_1920x1080()
+    cfg = load_preset("fast")
+    bounded = insert_bounded(big, None, None, np.random.default_rng(0), cfg).record
+    d = json.loads(json.dumps(bounded.to_dict()))
+    assert d["working_resolution"]["image_size"] == [1920, 1080]
+    assert json.dumps(InsertionRecord.from_dict(d).to_dict()) == json.dumps(d)
+    assert InsertionRecord.from_dict(d).working_resolution == bounded.working_resolution
+    small = cv2.resize(big, (960, 540), interpolation=cv2.INTER_AREA)
+    unbounded = insert_bounded(small, None, None, np.random.default_rng(0), cfg).record.to_dict()
+    assert unbounded["working_resolution"] is None
+    old = {k: v for k, v in unbounded.items() if k != "working_resolution"}   # a record from before the field
+    assert InsertionRecord.from_dict(old).working_resolution is None
 
 
 def test_replay_reproduces_unbounded_door():
