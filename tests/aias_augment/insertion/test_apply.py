@@ -205,7 +205,7 @@ def test_harmonize_colour_luminance_keeps_white_white_on_a_red_context():
     assert plan.objects
     cfg = replace(CFG, harmonize=True, harmonize_method="fast", harmonize_test_time_views=False)
     raw = apply_plan(f, an, plan, CFG)
-    full = apply_plan(f, an, plan, cfg)
+    full = apply_plan(f, an, plan, replace(cfg, harmonize_colour="full"))
     lum = apply_plan(f, an, plan, replace(cfg, harmonize_colour="luminance"))
     obj = (raw.cover > 0.99) & (raw.image.max(-1) < 250) & (raw.image.min(-1) > 10)
     assert obj.sum() > 50
