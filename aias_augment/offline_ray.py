@@ -1,7 +1,7 @@
 """``--backend ray``: the offline jobs as Ray tasks (Ray's own scheduling), on a cluster (``address``) or on a local
 instance started here. Optional: ``pip install aias-augment[ray]``.
 
-Each task runs :func:`aias_augment.offline.process_item`, the same function as the local pool: per-image generator
+Each task runs :func:`aias_augment.offline_job.process_item`, the same function as the local pool: per-image generator
 ``default_rng([seed, index])``, records and images written atomically to the shared output folder, a previous record
 reused only when its input hash matches. So outputs are byte-identical to the local pool for the same seed, and
 resume works the same way. Ray keeps its worker processes, so the renderer (an EGL context, created lazily by the
@@ -10,6 +10,8 @@ first render in a process) is created once per worker, never inherited.
 from __future__ import annotations
 
 import os
+
+from .offline_job import process_item
 
 
 def _ray():
@@ -51,5 +53,4 @@ def run_jobs(jobs: list[tuple], workers: int, address: str | None = None, progre
 
 
 def _task(job: tuple) -> dict:
-    from .offline import process_item
     return process_item(*job)
