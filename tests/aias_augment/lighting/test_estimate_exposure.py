@@ -133,8 +133,11 @@ def test_white_balance_brings_the_light_colour_to_the_truth():
             e = e + est.sun_irradiance_rgb * max(float(est.sun_direction_in_cam @ est.up_in_cam), 0.26)
         return e[2] / e[0]
 
-    on = blue_over_red(LightingConfig())
-    off = blue_over_red(LightingConfig(ground_white_balance=0.0))
+    # the ground balance alone, on the ambient with the photo's colours (ambient_colour "scene")
+    on = blue_over_red(LightingConfig(ambient_colour="scene"))
+    off = blue_over_red(LightingConfig(ambient_colour="scene", ground_white_balance=0.0))
+    # the default neutral ambient takes the grey ground's colour: the truth within 5 %
+    assert abs(np.log(blue_over_red(LightingConfig()))) < 0.05
     assert abs(np.log(on)) < abs(np.log(off))
     # strength 0.75: three quarters of the way (in log) from the unbalanced estimate to the ground's colour (grey)
     assert off > 1.5                             # the unbalanced estimate is far too blue

@@ -51,7 +51,7 @@ def test_white_stays_white_in_a_grey_synthetic_road(sunny):
     _check_neutral(estimate_lighting(grey, None, None, {}, rng=np.random.default_rng(0)))
     # the model sky's own colour (the previous fill) gave the grey photo's light a colour: the check is not vacuous
     old = estimate_lighting(grey, None, None, {}, rng=np.random.default_rng(0),
-                            config=replace(LightingConfig(), sky_fill_colour="preetham"))
+                            config=replace(LightingConfig(), sky_fill_colour="preetham", ambient_colour="scene"))
     normals, _ = _white_sphere(old)
     E = irradiance_at_normals(normals[:, 0], old)
     lit = E.max(1) > 1e-4
