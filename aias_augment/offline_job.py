@@ -18,6 +18,7 @@ import numpy as np
 
 from .coco_io import atomic_write_json
 from .geometry import Intrinsics
+from .insertion.working import rescale_intrinsics
 from .manifest import item_hash
 from .pipeline import InsertionConfig
 from .validate import IMAGE_SKIP_KINDS, nothing_inserted_reason, problem, read_image_checked
@@ -91,11 +92,8 @@ def _bound_size(image: np.ndarray, item: Item, max_pixels: int | None) -> tuple[
     nw, nh = max(1, int(w * s)), max(1, int(h * s))
     sx, sy = nw / w, nh / h
     item.bboxes_xywh = [[b[0] * sx, b[1] * sy, b[2] * sx, b[3] * sy] for b in item.bboxes_xywh]
-    if item.K is not None:
-        K = np.asarray(item.K, float).copy()
-        K[0] *= sx
-        K[1] *= sy
-        item.K = K.tolist()
+    if item.K is not None:   # pixel centres move as the resize moves them: (u + 0.5) s - 0.5
+        item.K = rescale_intrinsics(Intrinsics.from_matrix(np.asarray(item.K, float), w, h), nw, nh).K.tolist()
     return cv2.resize(image, (nw, nh), interpolation=cv2.INTER_AREA), min(sx, sy)
 
 

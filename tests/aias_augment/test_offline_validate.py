@@ -244,3 +244,21 @@ def test_an_out_that_cannot_be_a_folder_is_one_line(tmp_path, capsys):
     assert main(["--yolo", str(images), "--out", str(tmp_path / "file" / "out")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("aias-augment: error:") and "writable folder" in err and "Traceback" not in err
+
+
+def test_a_bounded_image_keeps_its_camera_where_the_resize_puts_the_pixels():
+    """The camera of an image augmented at a bounded size is the one that sees the resized pixels: a point of the
+    scene that projects onto a bright 8x8 block of the original projects, through the rescaled K, onto that block's
+    centroid in the resized image (K scaled without the half-pixel shift misses it by ~(1 - s) / 2 px)."""
+    from aias_augment.offline_job import Item, _bound_size
+    K = np.array([[900.0, 0, 611.3], [0, 880.0, 355.7], [0, 0, 1]])
+    img = np.zeros((720, 1280, 3), np.uint8)
+    img[400:408, 900:908] = 255                           # pixel centres 900..907: the block's centre is 903.5, 403.5
+    point = np.linalg.inv(K) @ np.array([903.5, 403.5, 1.0]) * 7.0   # the scene point seen there, 7 m away
+    item = Item(path="x.png", K=K.tolist())
+    small, _ = _bound_size(img, item, max_pixels=160 * 90)
+    w = small[..., 0].astype(float)
+    ys, xs = np.mgrid[:w.shape[0], :w.shape[1]]
+    centroid = np.array([(w * xs).sum(), (w * ys).sum()]) / w.sum()
+    uvw = np.asarray(item.K) @ point
+    assert np.abs(uvw[:2] / uvw[2] - centroid).max() < 0.05, (uvw[:2] / uvw[2], centroid)
