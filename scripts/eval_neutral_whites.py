@@ -173,6 +173,10 @@ def write_report(rows: list[dict], a) -> int:
         lines.append(f"| {x} | {y} | {len(d)} | {np.median(p[:, 0]):.3f} -> {np.median(p[:, 1]):.3f} | "
                      f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}] |")
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    lines += ["", "Contact sheet (`python scripts/neutral_whites_sheet.py --photos 8`): a real cone of each photo, then the "
+              "same inserted cone with the scene-coloured ambient and full harmonizer, and with the current defaults. "
+              "Pink whites beside red cones (rows 1, 6) come out white; a yellow cast on a white studio background "
+              "(row 4) and on grass (row 2) remains in both, from a source not yet isolated.", "", "![sheet](sheet.jpg)"]
     (out / "README.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0
