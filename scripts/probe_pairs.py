@@ -1,0 +1,50 @@
+#!/usr/bin/env python
+"""Per-seed val AP50:95 and paired differences of chosen arm pairs from a study's run metrics (markdown).
+
+    python scripts/probe_pairs.py results/study_probe/run_metrics
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+ARMS = ["original", "naive_paste", "no_placement", "inserted_fixed_scale", "inserted_scene_scale"]
+PAIRS = [("inserted_scene_scale", "inserted_fixed_scale"), ("inserted_scene_scale", "naive_paste"),
+         ("inserted_scene_scale", "original"), ("no_placement", "naive_paste"),
+         ("inserted_fixed_scale", "naive_paste"), ("naive_paste", "original")]
+
+
+def main(folder: str) -> int:
+    ap: dict[tuple[str, int], dict[str, float]] = {}
+    for p in sorted(Path(folder).glob("*.json")):
+        r = json.loads(p.read_text())
+        ap[(r["arm"], r["seed"])] = {"val": r["metrics"]["AP"], "dev": (r.get("dev_metrics") or {}).get("AP")}
+    seeds = sorted({s for _, s in ap})
+    print("| arm | " + " | ".join(f"seed {s}" for s in seeds) + " | mean |")
+    print("|---|" + "---|" * (len(seeds) + 1))
+    for a in ARMS:
+        v = [ap.get((a, s), {}).get("val") for s in seeds]
+        got = [x for x in v if x is not None]
+        print(f"| {a} | " + " | ".join("—" if x is None else f"{x:.3f}" for x in v) +
+              f" | {np.mean(got):.3f} (n={len(got)}) |")
+    print()
+    print("| pair | seeds | val Δ per seed | val mean Δ [95 %] | dev mean Δ [95 %] |")
+    print("|---|---|---|---|---|")
+    for a, b in PAIRS:
+        both = [s for s in seeds if (a, s) in ap and (b, s) in ap]
+        cells = []
+        for split in ("val", "dev"):
+            d = np.array([ap[(a, s)][split] - ap[(b, s)][split] for s in both])
+            h = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else float("nan")
+            cells.append(f"{d.mean():+.3f} [{d.mean() - h:+.3f}, {d.mean() + h:+.3f}]")
+        per = " / ".join(f"{ap[(a, s)]['val'] - ap[(b, s)]['val']:+.3f}" for s in both)
+        print(f"| {a} − {b} | {len(both)} | {per} | {cells[0]} | {cells[1]} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1] if len(sys.argv) > 1 else "results/study_probe/run_metrics"))
