@@ -206,8 +206,8 @@ class LightingConfig:
     #: chosen half-plane) is kept. Calibration on the HDR crops (sky cue alone, 127 crops of city, forest, sunrise,
     #: sunset without a sun disc, scripts/eval_lighting.py protocol): by the cue's own side margin m (best
     #: log-likelihood on the chosen half-plane minus the best on the other) m < 2 nats: 18 % correct, 2-5: 57 %,
-    #: 5-10: 82 %, > 10: 87 %, where raw margins reach 5-300 nats. (Until stop 11 the antisymmetric part was scaled by
-    #: 0.25 instead, which also flattened the peak: a clear sunset sky's 9 deg became 28-60 deg.)
+    #: 5-10: 82 %, > 10: 87 %, where raw margins reach 5-300 nats. (Scaling the antisymmetric part by 0.25 instead also
+    #: flattens the peak: a clear sunset sky's 9 deg becomes 28-60 deg.)
     sky_out_of_view_side_prob: float = 0.85
     #: Weight of the sky colour cue (``sun.sun_whiteness_loglik``: the sky is less blue toward the sun) inside the
     #: production estimator. 0 (off): see results/lighting/README.md, "Stop 11", for its measured effect.
@@ -222,7 +222,7 @@ class LightingConfig:
     shadow_end_kappa: float = 20.0
     #: The side cues run on a copy at most this wide (their pixel tolerances are set for ~800 px).
     side_analysis_width: int = 800
-    #: Exposure anchor (issue 15): the estimated irradiance on the ground is rescaled so that the ground's albedo it
+    #: Exposure anchor: the estimated irradiance on the ground is rescaled so that the ground's albedo it
     #: implies, pi x ground luminance / irradiance (linear sRGB of the image), lies in this range (the ground box ahead
     #: of the camera is mostly road: asphalt 0.05 new to ~0.15 worn). The sky model is fitted to pixels that are often
     #: clipped or tone-mapped, so without it the implied ground albedo of TraCon road photos spans 0.01-5 (objects 8x
@@ -233,8 +233,8 @@ class LightingConfig:
     ground_albedo_range: tuple[float, float] | None = None
     #: Sun tempering: an image-cue sun of confidence c keeps the share min(1, c / this) of its irradiance as a
     #: directional light; the rest becomes the sun's own order-2 SH lobe with the same irradiance on the ground (an
-    #: uncertain direction gives a softer terminator around the sun that casts the shadow; until issue 15 section 2 the
-    #: rest was uniform ambient, which lit the side facing away from the sun: see ``temper_sun``). The shadow strength
+    #: uncertain direction gives a softer terminator around the sun that casts the shadow; a uniform ambient rest
+    #: would light the side facing away from the sun: see ``temper_sun``). The shadow strength
     #: (sun_sky_ratio) is kept. 0: off.
     sun_full_confidence: float = 0.6
     #: Saturation guard: when the frame itself does not clip (this percentile of its brightest channel is below 0.98
@@ -242,18 +242,18 @@ class LightingConfig:
     #: ``white_cap_linear`` (sRGB 250): no inserted pixel saturates where the scene does not. None: off.
     cap_white_to_scene_percentile: float | None = 99.5
     white_cap_linear: float = 0.95
-    #: White balance on the road (issue 15): the colour of the estimated irradiance on the ground is set to the colour
+    #: White balance on the road: the colour of the estimated irradiance on the ground is set to the colour
     #: of the ground pixels (roads are close to neutral grey, so their colour in the photo is the camera's view of
     #: the light). Without it the Preetham fill of the unseen sky makes the camera-facing side of an object 1.5-2.3x
     #: bluer in B than in R (white bands came out lavender, orange brown). The value is the strength (0: off; 0.75:
     #: three quarters of the way in log, since some roads are not grey); gains clamped to [1/2, 2], luminance kept.
     ground_white_balance: float = 0.75
-    #: Colour of the fill for the sky the camera did not see (issue 15, "white stays white"): "seen" keeps the
+    #: Colour of the fill for the sky the camera did not see ("white stays white"): "seen" keeps the
     #: Preetham model's brightness distribution but takes its chroma from the sky the camera saw above the horizon
     #: (its median; the ground's when too little is seen): the photo went through the camera's white balance, the
     #: model's absolute daylight colour did not, and gave the light a colour the scene does not show: in grey copies
-    #: of 7 TraCon roads a white band's B/R was 0.68-1.7 (median |log| 0.14) after the road balance, now 1.00,
-    #: tests/aias_augment/lighting/test_white_stays_white.py). "preetham": the model's colour (before).
+    #: of 7 TraCon roads a white band's B/R was 0.68-1.7 (median |log| 0.14) after the road balance with "preetham",
+    #: 1.00 with "seen": tests/aias_augment/lighting/test_white_stays_white.py). "preetham": the model's colour.
     sky_fill_colour: Literal["seen", "preetham"] = "seen"
     #: Colour of the ambient light. "scene": each SH coefficient keeps the colour the photo gave it, so a red truck or
     #: sign filling the view tints the whole ambient (DC R/G 2.0-2.4 measured) and white parts come out pink.

@@ -1,4 +1,4 @@
-"""Issue 28 item 9: the offline CLI takes what the Python API takes: unlabelled ``--images``, the user's meshes
+"""CLI parity: the offline CLI takes what the Python API takes: unlabelled ``--images``, the user's meshes
 (``--assets``, ``--assets-bank``), the sun from position and time (``--sun-from``), an HDR environment map
 (``--envmap``, the scene fact ``envmap``) and a config file (``--config``);
 a bad value is one line on stderr and exit 2 before any image is processed; other meshes are another run.

@@ -1,4 +1,4 @@
-"""config.checked_config: every field of every checked config is checked at construction (issue 28, item 2).
+"""config.checked_config: every field of every checked config is checked at construction.
 
 Property tests walk the fields of every checked class from its own type hints and bounds (``config_spec``), so a
 field added later is covered without touching this file: a value of the wrong type raises a TypeError, a value out of

@@ -1,5 +1,5 @@
 """Every function that draws takes its generator from the caller: a missing rng is a TypeError naming the function,
-never a silent fixed seed (issue 27)."""
+never a silent fixed seed."""
 import numpy as np
 import pytest
 import torch

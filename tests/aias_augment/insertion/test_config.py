@@ -1,4 +1,4 @@
-"""InsertionConfig: every value is checked at construction and a bad one names its field (issue 28, item 2).
+"""InsertionConfig: every value is checked at construction and a bad one names its field.
 
 Before, ``shadow: "false"`` kept the shadow on, ``ssaa: "2"`` failed later with a TypeError naming no field, and the
 other cases below passed construction and then every call of the transform was a counted skip.
