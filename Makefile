@@ -11,10 +11,11 @@ setup:
 	@bash scripts/setup.sh
 
 demo: setup
-	$(PY) -m aias_augment.demo --out out/demo
+	$(PY) -m aias_augment.cli.demo --out out/demo
 
 test: setup
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
 	$(PY) -m pytest -q tests
 
 clean-out:

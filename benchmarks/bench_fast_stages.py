@@ -6,6 +6,7 @@ wrapper, on one 640x480 TraCon image seen before (scene-cache and view-cache hit
 Medians per call in ms, with the command and the machine's load. Wrapping costs ~1 us per wrapped call; the total is
 timed around the whole Compose call. Run it on an idle core (``taskset -c 1``): the stages are ~0.1-1 ms each.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,17 +28,17 @@ from bench_transform import _compose, tracon_images  # noqa: E402
 
 #: (module, attribute, stage name, modules that imported the attribute by name and call it from there)
 STAGES = (
-    ("aias_augment.pipeline", "plan_insertion", "plan", ()),
-    ("aias_augment.pipeline", "apply_plan", "apply (all)", ()),
-    ("aias_augment.insertion.view_cache", "warp_from_view_cache", "view warp", ("aias_augment.insertion.apply",)),
-    ("aias_augment.lighting.shading", "shade_pixels", "shading", ("aias_augment.insertion.apply",)),
-    ("aias_augment.insertion.apply", "_object_shadow_window", "projected shadow", ()),
-    ("aias_augment.composite", "to_uint8", "to_uint8", ()),
-    ("aias_augment.insertion.apply", "_harmonize", "harmonizer", ()),
-    ("aias_augment.harmonize.fast_infer", "predict_affine", "harmonizer: model prediction", ()),
-    ("aias_augment.insertion.apply", "annotate_in_window", "annotation", ()),
-    ("aias_augment.pipeline", "assemble_result", "result assembly", ()),
-    ("aias_augment.working_resolution", "insert_into_image", "insertion (all)", ()),
+    ("aias_augment.pipeline.image", "plan_insertion", "plan", ()),
+    ("aias_augment.pipeline.image", "apply_plan", "apply (all)", ()),
+    ("aias_augment.apply.view_cache", "warp_from_view_cache", "view warp", ("aias_augment.apply.stages",)),
+    ("aias_augment.apply.shading", "shade_pixels", "shading", ("aias_augment.apply.stages",)),
+    ("aias_augment.apply.stages", "_object_shadow_window", "projected shadow", ()),
+    ("aias_augment.apply.composite", "to_uint8", "to_uint8", ()),
+    ("aias_augment.apply.stages", "_harmonize", "harmonizer", ()),
+    ("aias_augment.apply.harmonize.fast_infer", "predict_affine", "harmonizer: model prediction", ()),
+    ("aias_augment.apply.stages", "annotate_in_window", "annotation", ()),
+    ("aias_augment.pipeline.image", "assemble_result", "result assembly", ()),
+    ("aias_augment.pipeline.bounded", "insert_into_image", "insertion (all)", ()),
 )
 
 
@@ -67,6 +68,7 @@ def main(argv=None) -> int:
     for spec in STAGES:
         _wrap(times, *spec)
     from aias_augment import InsertObjects
+
     img = tracon_images(1, (640, 480))[0]
     tf = _compose(InsertObjects(categories=["traffic_cone"], min_objects=1, max_objects=1, preset="fast", p=1.0))
     load_before = os.getloadavg()
@@ -78,11 +80,18 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         tf(image=img, bboxes=np.zeros((0, 4)), labels=[])
         total.append(time.perf_counter() - t0)
-    out = {"command": "python benchmarks/bench_fast_stages.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-           "loadavg_before": load_before, "loadavg_after": os.getloadavg(), "calls": a.calls, "warmup": a.warmup,
-           "median_ms": {"call (Compose)": 1e3 * float(np.median(total)),
-                         **{k: 1e3 * float(np.median(v)) for k, v in times.items()}},
-           "calls_per_stage": {k: len(v) for k, v in times.items()}}
+    out = {
+        "command": "python benchmarks/bench_fast_stages.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "loadavg_before": load_before,
+        "loadavg_after": os.getloadavg(),
+        "calls": a.calls,
+        "warmup": a.warmup,
+        "median_ms": {
+            "call (Compose)": 1e3 * float(np.median(total)),
+            **{k: 1e3 * float(np.median(v)) for k, v in times.items()},
+        },
+        "calls_per_stage": {k: len(v) for k, v in times.items()},
+    }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=1))
     for k, v in out["median_ms"].items():

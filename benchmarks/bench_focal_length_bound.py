@@ -5,6 +5,7 @@ TraCon road with the fast preset; the wall time is the insertion call alone, aft
 
     python benchmarks/bench_focal_length_bound.py [--out results/bench/focal_length_bound.json]
 """
+
 import argparse
 import json
 import subprocess
@@ -13,9 +14,9 @@ import time
 
 CHILD = r"""
 import json, resource, sys, time, cv2, numpy as np
-from aias_augment.config import data_root
-from aias_augment.geometry import Intrinsics
-from aias_augment.pipeline import insert_into_image, load_preset
+from aias_augment.core.config import data_root
+from aias_augment.core.geometry import Intrinsics
+from aias_augment.pipeline.image import insert_into_image, load_preset
 fx = float(sys.argv[1])
 img = cv2.cvtColor(cv2.imread(str(data_root() / 'tracon/images/train/imh_237_00000000.jpg')), cv2.COLOR_BGR2RGB)
 img = cv2.resize(img, (640, 480), interpolation=cv2.INTER_AREA)
@@ -42,8 +43,9 @@ def main():
         rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
         print(rows[-1], flush=True)
     with open(a.out, "w") as f:
-        json.dump({"command": "python " + " ".join(sys.argv), "date": time.strftime("%Y-%m-%d"), "rows": rows}, f,
-                  indent=1)
+        json.dump(
+            {"command": "python " + " ".join(sys.argv), "date": time.strftime("%Y-%m-%d"), "rows": rows}, f, indent=1
+        )
 
 
 if __name__ == "__main__":

@@ -6,24 +6,25 @@ same placement (edge quality), and the harmonizer used.
 
     python benchmarks/bench_insertion.py --repeats 3 --out results/bench
 """
+
 from __future__ import annotations
 
 import argparse
-import sys
 import json
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from aias_augment.demo import demo_items
-from aias_augment.geometry import Intrinsics
-from aias_augment.offline import read_rgb
-from aias_augment.pipeline import PRESETS, insert_into_image, load_preset
-from aias_augment.render import render_object
-from aias_augment.assets import default_asset
-from aias_augment.stereo import stereo_depth
+from aias_augment.analyse.stereo import stereo_depth
+from aias_augment.apply.render import render_object
+from aias_augment.assets.asset import default_asset
+from aias_augment.cli.demo import demo_items
+from aias_augment.cli.offline import read_rgb
+from aias_augment.core.geometry import Intrinsics
+from aias_augment.pipeline.image import PRESETS, insert_into_image, load_preset
 
 
 def load_inputs(n_tracon: int):
@@ -73,21 +74,38 @@ def main(argv=None) -> int:
                 res = insert_into_image(img, rng=np.random.default_rng([r, i]), cfg=cfg, intrinsics=intr, depth=depth)
                 times.append(time.perf_counter() - t0)
                 modules.add(res.record.modules.get("harmonize", ""))
-        rows.append({"preset": preset, "ssaa": cfg.ssaa, "harmonize": cfg.harmonize_method,
-                     "median_s_per_image": float(np.median(times)), "p90_s": float(np.percentile(times, 90)),
-                     "n": len(times), "edge_alpha_mae_vs_ssaa4": edge_error(cfg.ssaa),
-                     "harmonize_outcomes": sorted(modules)})
+        rows.append(
+            {
+                "preset": preset,
+                "ssaa": cfg.ssaa,
+                "harmonize": cfg.harmonize_method,
+                "median_s_per_image": float(np.median(times)),
+                "p90_s": float(np.percentile(times, 90)),
+                "n": len(times),
+                "edge_alpha_mae_vs_ssaa4": edge_error(cfg.ssaa),
+                "harmonize_outcomes": sorted(modules),
+            }
+        )
         print(rows[-1])
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     cmd = "python benchmarks/bench_insertion.py " + " ".join(argv if argv is not None else sys.argv[1:])
     (out / "insertion.json").write_text(json.dumps({"command": cmd, "rows": rows}, indent=2))
-    lines = ["# Insertion presets: speed vs accuracy", "", f"Command: `{cmd.strip()}` (2 CPU cores, llvmpipe EGL)", "",
-             f"{len(inputs)} real images (KITTI with stereo depth, TraCon roads), 2 cones each, {a.repeats} repeats.", "",
-             "| preset | ssaa | harmonizer | median s/image | p90 s | edge alpha MAE vs 4x |", "|---|---|---|---|---|---|"]
+    lines = [
+        "# Insertion presets: speed vs accuracy",
+        "",
+        f"Command: `{cmd.strip()}` (2 CPU cores, llvmpipe EGL)",
+        "",
+        f"{len(inputs)} real images (KITTI with stereo depth, TraCon roads), 2 cones each, {a.repeats} repeats.",
+        "",
+        "| preset | ssaa | harmonizer | median s/image | p90 s | edge alpha MAE vs 4x |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in rows:
-        lines.append(f"| {r['preset']} | {r['ssaa']} | {r['harmonize']} | {r['median_s_per_image']:.2f} | "
-                     f"{r['p90_s']:.2f} | {r['edge_alpha_mae_vs_ssaa4']:.3f} |")
+        lines.append(
+            f"| {r['preset']} | {r['ssaa']} | {r['harmonize']} | {r['median_s_per_image']:.2f} | "
+            f"{r['p90_s']:.2f} | {r['edge_alpha_mae_vs_ssaa4']:.3f} |"
+        )
     (out / "insertion.md").write_text("\n".join(lines) + "\n")
     return 0
 

@@ -4,6 +4,7 @@ the labels, the manifest's content hashes, and the checked image decode (full PI
 
   python benchmarks/bench_offline_checks.py --out results/bench/offline_checks.json
 """
+
 from __future__ import annotations
 
 import argparse
@@ -15,10 +16,10 @@ from pathlib import Path
 
 import cv2
 
-from aias_augment.config import data_root
-from aias_augment.manifest import item_hash
-from aias_augment.offline import items_from_yolo
-from aias_augment.validate import read_image_checked
+from aias_augment.adapters.boundary import read_image_checked
+from aias_augment.cli.manifest import item_hash
+from aias_augment.cli.offline import items_from_yolo
+from aias_augment.core.config import data_root
 
 
 def main(argv=None) -> int:
@@ -50,7 +51,8 @@ def main(argv=None) -> int:
     notes = Counter(p["kind"] for it in items for p in it.problems)
     invalid = Counter(it.invalid.split(":", 1)[0] for it in items if it.invalid)
     res = {
-        "images": len(items), "decode_timed_images": len(sub),
+        "images": len(items),
+        "decode_timed_images": len(sub),
         "labels_parse_and_validate_cpu_ms_per_image": 1e3 * t_parse / len(items),
         "manifest_hash_cpu_ms_per_image": 1e3 * t_hash / len(items),
         "cv2_imread_cpu_ms_per_image": 1e3 * t_plain / len(sub),

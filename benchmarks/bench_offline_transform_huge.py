@@ -9,6 +9,7 @@ render at full size) and, with ``--unbounded``, without the bound (the issue-16 
 Also reported, after the calls: the process's private memory (its own heap and arrays) and its shared library pages
 (/proc/self/smaps_rollup): RSS counts both, and the shared ones are mapped once for every DataLoader worker.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,9 +23,9 @@ _ONE = textwrap.dedent("""
     import json, resource, sys, time
     import numpy as np
     from dataclasses import replace
-    from aias_augment.pipeline import load_preset
-    from aias_augment.working_resolution import insert_bounded
-    from aias_augment.insertion.cache import SceneCache
+    from aias_augment.pipeline.image import load_preset
+    from aias_augment.pipeline.bounded import insert_bounded
+    from aias_augment.analyse.cache import SceneCache
     w, h, preset, max_pixels, calls = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], int(sys.argv[4]) or None, \\
         int(sys.argv[5])
     rng = np.random.default_rng(0)
@@ -67,20 +68,29 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     rows = []
     for preset in a.presets:
-        for max_pixels in ([2_000_000, 0] if a.unbounded else [2_000_000]):
-            r = subprocess.run([sys.executable, "-c", _ONE, str(a.width), str(a.height), preset, str(max_pixels),
-                                str(a.calls)], capture_output=True, text=True)
-            row = {"preset": preset, "size": f"{a.width}x{a.height}",
-                   "working_resolution": "analysis and plan at <= 2 MP" if max_pixels else "unbounded"}
+        for max_pixels in [2_000_000, 0] if a.unbounded else [2_000_000]:
+            r = subprocess.run(
+                [sys.executable, "-c", _ONE, str(a.width), str(a.height), preset, str(max_pixels), str(a.calls)],
+                capture_output=True,
+                text=True,
+            )
+            row = {
+                "preset": preset,
+                "size": f"{a.width}x{a.height}",
+                "working_resolution": "analysis and plan at <= 2 MP" if max_pixels else "unbounded",
+            }
             if r.returncode:
                 row["error"] = r.stderr[-1500:]
             else:
                 row.update(json.loads(r.stdout.strip().splitlines()[-1]))
             rows.append(row)
             print(json.dumps(row), flush=True)
-    res = {"command": "python benchmarks/bench_offline_transform_huge.py " + " ".join(sys.argv[1:] if argv is None
-                                                                                       else argv),
-           "rows": rows, "note": a.note}
+    res = {
+        "command": "python benchmarks/bench_offline_transform_huge.py "
+        + " ".join(sys.argv[1:] if argv is None else argv),
+        "rows": rows,
+        "note": a.note,
+    }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=1))
     return 0

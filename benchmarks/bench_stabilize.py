@@ -8,6 +8,7 @@ for ``stabilize.track_contact_with_flow``, with the tracking time per frame.
 
   .venv/bin/python benchmarks/bench_stabilize.py --out results/stabilize
 """
+
 from __future__ import annotations
 
 import argparse
@@ -21,9 +22,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from aias_augment.geometry import make_rigid, rotation_about_axis  # noqa: E402
-from aias_augment.ground import prior_ground_plane  # noqa: E402
-from aias_augment.stabilize import track_contact_with_flow  # noqa: E402
+from aias_augment.analyse.ground import prior_ground_plane  # noqa: E402
+from aias_augment.core.geometry import make_rigid, rotation_about_axis  # noqa: E402
+from aias_augment.plan.stabilize import track_contact_with_flow  # noqa: E402
 from tests.aias_augment.fixtures import synthetic_ground_drive  # noqa: E402
 
 
@@ -42,8 +43,12 @@ def main(argv=None) -> int:
     contacts = [np.array([1.5, 1.5, 16.0]), np.array([-2.0, 1.5, 20.0]), np.array([3.0, 1.5, 25.0])]
     rows = []
     for yaw_deg, side_m in [(0.0, 0.0), (0.1, 0.02), (0.3, 0.05), (0.6, 0.10)]:
-        poses = np.stack([make_rigid(rotation_about_axis([0, 1, 0], np.radians(yaw_deg * i)), [side_m * i, 0, 0]) @ T
-                          for i, T in enumerate(gt)])
+        poses = np.stack(
+            [
+                make_rigid(rotation_about_axis([0, 1, 0], np.radians(yaw_deg * i)), [side_m * i, 0, 0]) @ T
+                for i, T in enumerate(gt)
+            ]
+        )
         e_pose, e_flow, times, flow_frames = [], [], [], 0
         for c in contacts:
             true_uv = np.stack([project(T, c, K) for T in gt])
@@ -51,8 +56,9 @@ def main(argv=None) -> int:
             ts = []
             for _ in range(args.repeats):
                 t0 = time.perf_counter()
-                tr = track_contact_with_flow(frames, pred_uv, [prior_ground_plane(1.5)] * len(frames), K,
-                                             np.random.default_rng(0), poses)
+                tr = track_contact_with_flow(
+                    frames, pred_uv, [prior_ground_plane(1.5)] * len(frames), K, np.random.default_rng(0), poses
+                )
                 ts.append((time.perf_counter() - t0) / (len(frames) - 1))
             times.append(np.median(ts))
             ok = np.all(np.isfinite(true_uv), axis=1)
@@ -60,23 +66,37 @@ def main(argv=None) -> int:
             e_pose += list(np.linalg.norm(pred_uv - true_uv, axis=1)[ok])
             e_flow += list(np.linalg.norm(tr.uv - true_uv, axis=1)[ok])
             flow_frames += sum(s == "flow" for s in tr.status)
-        rows.append({"drift_per_frame": f"{yaw_deg} deg yaw + {side_m * 100:.0f} cm sideways",
-                     "pose_median_px": float(np.median(e_pose)), "pose_max_px": float(np.max(e_pose)),
-                     "flow_median_px": float(np.median(e_flow)), "flow_max_px": float(np.max(e_flow)),
-                     "frames_tracked": f"{flow_frames}/{len(contacts) * (len(frames) - 1)}",
-                     "ms_per_frame": 1000 * float(np.median(times))})
+        rows.append(
+            {
+                "drift_per_frame": f"{yaw_deg} deg yaw + {side_m * 100:.0f} cm sideways",
+                "pose_median_px": float(np.median(e_pose)),
+                "pose_max_px": float(np.max(e_pose)),
+                "flow_median_px": float(np.median(e_flow)),
+                "flow_max_px": float(np.max(e_flow)),
+                "frames_tracked": f"{flow_frames}/{len(contacts) * (len(frames) - 1)}",
+                "ms_per_frame": 1000 * float(np.median(times)),
+            }
+        )
     args.out.mkdir(parents=True, exist_ok=True)
     cmd = " ".join(shlex.quote(a) for a in ["python", "benchmarks/bench_stabilize.py", *sys.argv[1:]])
     (args.out / "report.json").write_text(json.dumps({"command": cmd, "rows": rows}, indent=2))
-    lines = ["# Placement stabilisation under pose drift", "", f"Command: `{cmd}`", "",
-             f"Synthetic drive, {len(frames)} frames of {K.width}x{K.height}, 1 m/frame, 3 ground contacts 16-25 m "
-             "ahead; error = contact pixel vs its true projection, frames 1..N-1.", "",
-             "| drift per frame | pose only: median / max px | KLT-refined: median / max px | frames tracked | "
-             "ms / frame |", "|---|---:|---:|---:|---:|"]
+    lines = [
+        "# Placement stabilisation under pose drift",
+        "",
+        f"Command: `{cmd}`",
+        "",
+        f"Synthetic drive, {len(frames)} frames of {K.width}x{K.height}, 1 m/frame, 3 ground contacts 16-25 m "
+        "ahead; error = contact pixel vs its true projection, frames 1..N-1.",
+        "",
+        "| drift per frame | pose only: median / max px | KLT-refined: median / max px | frames tracked | ms / frame |",
+        "|---|---:|---:|---:|---:|",
+    ]
     for r in rows:
-        lines.append(f"| {r['drift_per_frame']} | {r['pose_median_px']:.2f} / {r['pose_max_px']:.2f} | "
-                     f"{r['flow_median_px']:.2f} / {r['flow_max_px']:.2f} | {r['frames_tracked']} | "
-                     f"{r['ms_per_frame']:.1f} |")
+        lines.append(
+            f"| {r['drift_per_frame']} | {r['pose_median_px']:.2f} / {r['pose_max_px']:.2f} | "
+            f"{r['flow_median_px']:.2f} / {r['flow_max_px']:.2f} | {r['frames_tracked']} | "
+            f"{r['ms_per_frame']:.1f} |"
+        )
     (args.out / "report.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

@@ -20,6 +20,7 @@ speed moves by tens of per cent over minutes).
 Writes ``<out>/transform.json`` and ``<out>/transform.md`` with the command. Timings on a loaded machine are noisy:
 compare the ratios measured within one run.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,25 +40,33 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from aias_augment import InsertObjects  # noqa: E402
-from aias_augment.config import data_root  # noqa: E402
+from aias_augment.core.config import data_root  # noqa: E402
 
-TARGETS = {"fast_warm_vs_overlay": 15.0, "fast_cold_ms": 250.0, "balanced_warm_ms": 150.0, "accurate_ms": 3000.0,
-           "loader_ratio_from_epoch_2": 0.9}
+TARGETS = {
+    "fast_warm_vs_overlay": 15.0,
+    "fast_cold_ms": 250.0,
+    "balanced_warm_ms": 150.0,
+    "accurate_ms": 3000.0,
+    "loader_ratio_from_epoch_2": 0.9,
+}
 
 
 def tracon_images(n: int, size: tuple[int, int]) -> list[np.ndarray]:
     files = sorted((data_root() / "tracon" / "images" / "train").glob("*.jpg"))
     if len(files) < n:
         raise SystemExit(f"need {n} TraCon images under {data_root()}/tracon/images/train, found {len(files)}")
-    return [cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), size, interpolation=cv2.INTER_AREA)
-            for f in files[:n]]
+    return [
+        cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), size, interpolation=cv2.INTER_AREA)
+        for f in files[:n]
+    ]
 
 
 def cone_sprite() -> tuple[np.ndarray, np.ndarray]:
     """A cone crop and its mask for OverlayElements: the cone rendered flat (albedo) at 120 px."""
-    from aias_augment.assets import default_asset
-    from aias_augment.geometry import Intrinsics
-    from aias_augment.render import linear_to_srgb, render_object
+    from aias_augment.apply.render import linear_to_srgb, render_object
+    from aias_augment.assets.asset import default_asset
+    from aias_augment.core.geometry import Intrinsics
+
     K = Intrinsics(300.0, 300.0, 63.5, 63.5, 128, 128)
     T = np.eye(4)
     T[:3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]
@@ -90,20 +99,29 @@ def per_call(rounds: int, images: list[np.ndarray], view_warmup: int = 0, varian
     transforms = {}
     for preset in ("fast", "balanced", "accurate"):
         for temp in ("cold", "warm"):
-            tf = _compose(InsertObjects(categories=["traffic_cone"], min_objects=1, max_objects=1, preset=preset,
-                                        p=1.0))
+            tf = _compose(
+                InsertObjects(categories=["traffic_cone"], min_objects=1, max_objects=1, preset=preset, p=1.0)
+            )
             transforms[f"{preset}_{temp}"] = tf
-    if variants:   # the variant path: the same image again, its variants made (a paste per call)
-        transforms["fast_variant_hit"] = _compose(InsertObjects(categories=["traffic_cone"], min_objects=1,
-                                                                max_objects=1, preset="fast", p=1.0,
-                                                                variants_per_image=variants))
+    if variants:  # the variant path: the same image again, its variants made (a paste per call)
+        transforms["fast_variant_hit"] = _compose(
+            InsertObjects(
+                categories=["traffic_cone"],
+                min_objects=1,
+                max_objects=1,
+                preset="fast",
+                p=1.0,
+                variants_per_image=variants,
+            )
+        )
     warm_img = images[0]
     for name, tf in transforms.items():  # warm-up: renderer, meshes, harmonizer weights; the warm arm's scene
         tf(image=warm_img, bboxes=np.zeros((0, 4)), labels=[])
         if name == "fast_variant_hit":
             tf.transforms[0].warm([warm_img], variants=True)
     overlay_call(warm_img)
-    from aias_augment.insertion.view_cache import default_view_cache
+    from aias_augment.apply.view_cache import default_view_cache
+
     vc = default_view_cache()
     for _ in range(view_warmup):  # a training loop's steady state: the views of earlier samples are cached
         transforms["fast_warm"](image=warm_img, bboxes=np.zeros((0, 4)), labels=[])
@@ -124,14 +142,26 @@ def per_call(rounds: int, images: list[np.ndarray], view_warmup: int = 0, varian
         print(f"round {r + 1}/{rounds}: " + ", ".join(f"{k} {v[-1]:.0f}" for k, v in times.items()), flush=True)
     # Wall time is what a training loop waits; process CPU time (all threads of this process, the EGL rasteriser's
     # included) is what the call costs, and is far less disturbed by other jobs on a shared machine.
-    stats = {k: {"median_ms": float(np.median(v)), "p90_ms": float(np.percentile(v, 90)),
-                 "median_cpu_ms": float(np.median(cpu[k])), "n": len(v)} for k, v in times.items()}
+    stats = {
+        k: {
+            "median_ms": float(np.median(v)),
+            "p90_ms": float(np.percentile(v, 90)),
+            "median_cpu_ms": float(np.median(cpu[k])),
+            "n": len(v),
+        }
+        for k, v in times.items()
+    }
     for k, tf in transforms.items():
         c = tf.transforms[0]._scene_cache
         stats[k]["scene_cache"] = {"hits": c.hits, "misses": c.misses}
-    stats["view_cache"] = {"warmup_calls": view_warmup, "entries_before": vc_before[2], "entries_after": len(vc),
-                           "MB": vc.nbytes / 2**20, "timed_hits": vc.hits - vc_before[0],
-                           "timed_misses": vc.misses - vc_before[1]}
+    stats["view_cache"] = {
+        "warmup_calls": view_warmup,
+        "entries_before": vc_before[2],
+        "entries_after": len(vc),
+        "MB": vc.nbytes / 2**20,
+        "timed_hits": vc.hits - vc_before[0],
+        "timed_misses": vc.misses - vc_before[1],
+    }
     return stats
 
 
@@ -147,8 +177,10 @@ class _Images:
 
     def __getitem__(self, i):
         import torch
-        img = cv2.resize(cv2.cvtColor(cv2.imread(self.paths[i]), cv2.COLOR_BGR2RGB), (320, 320),
-                         interpolation=cv2.INTER_AREA)
+
+        img = cv2.resize(
+            cv2.cvtColor(cv2.imread(self.paths[i]), cv2.COLOR_BGR2RGB), (320, 320), interpolation=cv2.INTER_AREA
+        )
         if self.transform is not None:
             img = self.transform(image=img, bboxes=np.zeros((0, 4)), labels=[])["image"]
         return torch.from_numpy(np.ascontiguousarray(img)).permute(2, 0, 1)
@@ -161,8 +193,11 @@ class _AppendBoxes(A.DualTransform):
     Compose can reach (the Compose then filters, checks, converts and decodes the new boxes, as it does for any
     transform's boxes)."""
 
-    _targets = (A.core.type_definitions.Targets.IMAGE, A.core.type_definitions.Targets.MASK,
-                A.core.type_definitions.Targets.BBOXES)
+    _targets = (
+        A.core.type_definitions.Targets.IMAGE,
+        A.core.type_definitions.Targets.MASK,
+        A.core.type_definitions.Targets.BBOXES,
+    )
     _ROWS = np.array([[0.1, 0.5, 0.2, 0.7], [0.4, 0.6, 0.45, 0.8]], np.float32)
 
     def apply(self, img, **params):
@@ -181,8 +216,10 @@ class _AppendBoxes(A.DualTransform):
 
 def _decoded(paths) -> list[np.ndarray]:
     """The items' images as the dataset decodes them (what ``InsertObjects.warm`` must see to hit the same keys)."""
-    return [cv2.resize(cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB), (320, 320), interpolation=cv2.INTER_AREA)
-            for p in paths]
+    return [
+        cv2.resize(cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB), (320, 320), interpolation=cv2.INTER_AREA)
+        for p in paths
+    ]
 
 
 #: OpenCV threads in each loader worker (None: OpenCV's default). albumentations' advice for DataLoader workers is
@@ -195,38 +232,60 @@ def _set_cv2_threads(n: int, worker_id: int) -> None:
     cv2.setNumThreads(n)
 
 
-def loader_rates(paths, epochs: int, with_insertion: bool, cache_dir: str, warm: dict | None = None,
-                 view_plans: int = 0, variants: int | None = None, boxes_only: bool = False,
-                 compose_only: bool = False) -> list[float]:
+def loader_rates(
+    paths,
+    epochs: int,
+    with_insertion: bool,
+    cache_dir: str,
+    warm: dict | None = None,
+    view_plans: int = 0,
+    variants: int | None = None,
+    boxes_only: bool = False,
+    compose_only: bool = False,
+) -> list[float]:
     """Images/s per epoch. ``warm``: a dict; the transform's ``warm`` (with ``view_plans``) is run on the items'
     images first (into the on-disk scene cache and views the workers read) and its seconds and counts are written
     into it. ``boxes_only``: instead of InsertObjects, :class:`_AppendBoxes` (p=0.5) in the same Compose;
     ``compose_only``: the same Compose (bbox params, label field) with ``NoOp(p=0.5)`` instead of InsertObjects."""
     import torch
+
     tf = None
     if boxes_only:
         tf = _compose(_AppendBoxes(p=0.5))
     elif compose_only:
         tf = _compose(A.NoOp(p=0.5))
     elif with_insertion:
-        tf = _compose(InsertObjects(categories=["traffic_cone"], preset="fast", p=0.5, scene_cache=cache_dir,
-                                    variants_per_image=variants))
+        tf = _compose(
+            InsertObjects(
+                categories=["traffic_cone"], preset="fast", p=0.5, scene_cache=cache_dir, variants_per_image=variants
+            )
+        )
         if warm is not None:
             t0, c0 = time.perf_counter(), time.process_time()
             warm.update(tf.transforms[0].warm(_decoded(paths), view_plans=view_plans, variants=bool(variants)))
             warm["wall_s"], warm["cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
     init = None if CV2_THREADS is None else functools.partial(_set_cv2_threads, CV2_THREADS)
-    dl = torch.utils.data.DataLoader(_Images(paths, tf), batch_size=8, shuffle=True, num_workers=2,
-                                     multiprocessing_context="spawn", persistent_workers=True,
-                                     generator=torch.Generator().manual_seed(0), worker_init_fn=init)
+    dl = torch.utils.data.DataLoader(
+        _Images(paths, tf),
+        batch_size=8,
+        shuffle=True,
+        num_workers=2,
+        multiprocessing_context="spawn",
+        persistent_workers=True,
+        generator=torch.Generator().manual_seed(0),
+        worker_init_fn=init,
+    )
     rates = []
     for e in range(epochs):
         t0 = time.perf_counter()
         n = sum(len(b) for b in dl)
         rates.append(n / (time.perf_counter() - t0))
-        print(f"loader {'boxes only' if boxes_only else 'compose only' if compose_only else ('with' if with_insertion else 'without') + ' insertion'}"
-              f"{' (warmed)' if warm else ''}"
-              f"{f' (variants {variants})' if variants else ''}, epoch {e + 1}: {rates[-1]:.1f} img/s", flush=True)
+        print(
+            f"loader {'boxes only' if boxes_only else 'compose only' if compose_only else ('with' if with_insertion else 'without') + ' insertion'}"
+            f"{' (warmed)' if warm else ''}"
+            f"{f' (variants {variants})' if variants else ''}, epoch {e + 1}: {rates[-1]:.1f} img/s",
+            flush=True,
+        )
     del dl
     return rates
 
@@ -252,8 +311,10 @@ def _view_cache_summary(out: Path) -> str:
     r = json.loads(p.read_text())["binnings"]
     name = next((k for k in r if k.endswith("(default)")), next(iter(r)))
     b = r[name]
-    return (f"view cache vs full render ({name.split(' (')[0]} bins, view_cache.md): box IoU median "
-            f"{b['box_iou_median']:.3f}, MAD median {b['mad_median']:.1f} sRGB levels")
+    return (
+        f"view cache vs full render ({name.split(' (')[0]} bins, view_cache.md): box IoU median "
+        f"{b['box_iou_median']:.3f}, MAD median {b['mad_median']:.1f} sRGB levels"
+    )
 
 
 #: Loader arms: no insertion; a new insertion per call (fresh); fresh after ``warm(view_plans=...)``; at most K
@@ -285,7 +346,8 @@ def worker_profile(paths, epochs: int, warm: bool = False, view_plans: int = 0) 
     import cProfile
     import pstats
 
-    from aias_augment.insertion.view_cache import default_view_cache
+    from aias_augment.apply.view_cache import default_view_cache
+
     tf = _compose(InsertObjects(categories=["traffic_cone"], preset="fast", p=0.5))
     ds, plain = _Images(paths, tf), _Images(paths, None)
     if warm:
@@ -311,9 +373,17 @@ def worker_profile(paths, epochs: int, warm: bool = False, view_plans: int = 0) 
     for name, (where, fn) in WORKER_STAGES.items():
         tot = sum(v[3] for (f, _, func), v in st.items() if func == fn and where in f)
         stages[name] = 1000 * tot / len(ds)
-    return {"items": len(ds), "warmup_epochs": epochs, "cpu_ms_per_item_without": without_ms,
-            "cpu_ms_per_item_with_profiled": with_ms, "stages_ms_per_item": stages,
-            "warmed": warm, "view_cache_hits": vc.hits - h0, "view_cache_misses": vc.misses - m0, "view_cache_entries": len(vc)}
+    return {
+        "items": len(ds),
+        "warmup_epochs": epochs,
+        "cpu_ms_per_item_without": without_ms,
+        "cpu_ms_per_item_with_profiled": with_ms,
+        "stages_ms_per_item": stages,
+        "warmed": warm,
+        "view_cache_hits": vc.hits - h0,
+        "view_cache_misses": vc.misses - m0,
+        "view_cache_entries": len(vc),
+    }
 
 
 def main(argv=None) -> int:
@@ -322,26 +392,51 @@ def main(argv=None) -> int:
     ap.add_argument("--loader-images", type=int, default=32)
     ap.add_argument("--epochs", type=int, default=3)
     ap.add_argument("--skip-loader", action="store_true")
-    ap.add_argument("--view-warmup", type=int, default=0,
-                    help="fast-preset calls before the timed rounds (fills the view cache as a training loop does)")
-    ap.add_argument("--torch-threads", type=int, default=1,
-                    help="torch intra-op threads for the per-call timings (1, as in a DataLoader worker)")
-    ap.add_argument("--warm-view-plans", type=int, default=8,
-                    help="the warmed loader arm: plans per image whose views InsertObjects.warm renders beforehand")
+    ap.add_argument(
+        "--view-warmup",
+        type=int,
+        default=0,
+        help="fast-preset calls before the timed rounds (fills the view cache as a training loop does)",
+    )
+    ap.add_argument(
+        "--torch-threads",
+        type=int,
+        default=1,
+        help="torch intra-op threads for the per-call timings (1, as in a DataLoader worker)",
+    )
+    ap.add_argument(
+        "--warm-view-plans",
+        type=int,
+        default=8,
+        help="the warmed loader arm: plans per image whose views InsertObjects.warm renders beforehand",
+    )
     ap.add_argument("--variants", type=int, default=4, help="variants_per_image of the variant arms")
-    ap.add_argument("--loader-arms", nargs="+", default=list(LOADER_ARMS), choices=LOADER_ARMS,
-                    help="loader arms, in this order ('without' is also run again at the end)")
-    ap.add_argument("--cv2-threads", type=int, default=None,
-                    help="cv2.setNumThreads in each loader worker (albumentations advises 0); default: OpenCV's")
+    ap.add_argument(
+        "--loader-arms",
+        nargs="+",
+        default=list(LOADER_ARMS),
+        choices=LOADER_ARMS,
+        help="loader arms, in this order ('without' is also run again at the end)",
+    )
+    ap.add_argument(
+        "--cv2-threads",
+        type=int,
+        default=None,
+        help="cv2.setNumThreads in each loader worker (albumentations advises 0); default: OpenCV's",
+    )
     ap.add_argument("--repeats", type=int, default=1, help="loader arms run this many times (medians reported)")
-    ap.add_argument("--keep-warm-folder", action="store_true",
-                    help="the warmed arms keep their cache folder across repeats (warm() then finds it filled and "
-                         "only checks it; the workers read the same files as after a first warm-up)")
+    ap.add_argument(
+        "--keep-warm-folder",
+        action="store_true",
+        help="the warmed arms keep their cache folder across repeats (warm() then finds it filled and "
+        "only checks it; the workers read the same files as after a first warm-up)",
+    )
     ap.add_argument("--worker-profile", action="store_true", help="also profile a worker's stages (fresh arm)")
     ap.add_argument("--out", default="results/bench")
     a = ap.parse_args(argv)
     cmd = "python benchmarks/bench_transform.py " + " ".join(argv if argv is not None else sys.argv[1:])
     import torch
+
     torch.set_num_threads(a.torch_threads)
     global CV2_THREADS
     CV2_THREADS = a.cv2_threads
@@ -352,48 +447,74 @@ def main(argv=None) -> int:
     ov = calls["overlay"]["median_ms"]
     loader = None
     if not a.skip_loader:
-        small = sorted((data_root() / "tracon" / "images" / "train").glob("*.jpg"))[:a.loader_images]
+        small = sorted((data_root() / "tracon" / "images" / "train").glob("*.jpg"))[: a.loader_images]
         runs, warms = [], {}
-        kept = {}   # --keep-warm-folder: the warmed arms' folders, across repeats
-        for rep in range(a.repeats):   # each arm a new loader and cache folder; "without" first and last
+        kept = {}  # --keep-warm-folder: the warmed arms' folders, across repeats
+        for rep in range(a.repeats):  # each arm a new loader and cache folder; "without" first and last
             arms = {}
             for arm in list(a.loader_arms) + ["without (again)"]:
                 warm = {} if arm in ("fresh_warmed", "variants_warmed") else None
                 if warm is not None and a.keep_warm_folder and arm not in kept:
                     kept[arm] = tempfile.TemporaryDirectory()
-                with (tempfile.TemporaryDirectory() if arm not in kept else _Same(kept[arm].name)) as d:
-                    arms[arm] = loader_rates(small, a.epochs, not arm.startswith("without"), d, warm,
-                                             a.warm_view_plans if arm == "fresh_warmed" else 0,
-                                             a.variants if arm.startswith("variants") else None,
-                                             boxes_only=arm == "boxes_only", compose_only=arm == "compose_only")
+                with tempfile.TemporaryDirectory() if arm not in kept else _Same(kept[arm].name) as d:
+                    arms[arm] = loader_rates(
+                        small,
+                        a.epochs,
+                        not arm.startswith("without"),
+                        d,
+                        warm,
+                        a.warm_view_plans if arm == "fresh_warmed" else 0,
+                        a.variants if arm.startswith("variants") else None,
+                        boxes_only=arm == "boxes_only",
+                        compose_only=arm == "compose_only",
+                    )
                 if warm is not None:
                     warms[arm if rep == 0 else f"{arm} (repeat {rep + 1})"] = warm
             base = [(x + y) / 2 for x, y in zip(arms["without"], arms["without (again)"])]
-            run = {"img_s": arms, "ratio_per_epoch": {k: [w / b for w, b in zip(v, base)]
-                                                      for k, v in arms.items() if not k.startswith("without")}}
-            if "compose_only" in arms:   # against the same Compose without the insertion transform
-                run["ratio_vs_compose_only"] = {k: [w / c for w, c in zip(v, arms["compose_only"])]
-                                                for k, v in arms.items()
-                                                if not k.startswith("without") and k != "compose_only"}
+            run = {
+                "img_s": arms,
+                "ratio_per_epoch": {
+                    k: [w / b for w, b in zip(v, base)] for k, v in arms.items() if not k.startswith("without")
+                },
+            }
+            if "compose_only" in arms:  # against the same Compose without the insertion transform
+                run["ratio_vs_compose_only"] = {
+                    k: [w / c for w, c in zip(v, arms["compose_only"])]
+                    for k, v in arms.items()
+                    if not k.startswith("without") and k != "compose_only"
+                }
             runs.append(run)
         for k in kept.values():
             k.cleanup()
         names = list(runs[0]["img_s"])
-        loader = {"images": a.loader_images, "variants_per_image": a.variants, "repeats": runs, "warm": warms,
-                  # per arm and epoch: the median over repeats
-                  "img_s": {k: [float(np.median([r["img_s"][k][e] for r in runs])) for e in range(a.epochs)]
-                            for k in names},
-                  "ratio_per_epoch": {k: [float(np.median([r["ratio_per_epoch"][k][e] for r in runs]))
-                                          for e in range(a.epochs)] for k in runs[0]["ratio_per_epoch"]}}
+        loader = {
+            "images": a.loader_images,
+            "variants_per_image": a.variants,
+            "repeats": runs,
+            "warm": warms,
+            # per arm and epoch: the median over repeats
+            "img_s": {k: [float(np.median([r["img_s"][k][e] for r in runs])) for e in range(a.epochs)] for k in names},
+            "ratio_per_epoch": {
+                k: [float(np.median([r["ratio_per_epoch"][k][e] for r in runs])) for e in range(a.epochs)]
+                for k in runs[0]["ratio_per_epoch"]
+            },
+        }
         if "ratio_vs_compose_only" in runs[0]:
             loader["ratio_vs_compose_only"] = {
                 k: [float(np.median([r["ratio_vs_compose_only"][k][e] for r in runs])) for e in range(a.epochs)]
-                for k in runs[0]["ratio_vs_compose_only"]}
+                for k in runs[0]["ratio_vs_compose_only"]
+            }
         if a.worker_profile:
             loader["worker_profile"] = worker_profile(small, a.epochs - 1, warm=True, view_plans=a.warm_view_plans)
-    res = {"command": cmd, "machine": f"{os.cpu_count()} CPU cores, {platform.processor() or platform.machine()}",
-           "loadavg_before": load_before, "loadavg_after": os.getloadavg(), "per_call": calls, "view_cache": view,
-           "loader": loader}
+    res = {
+        "command": cmd,
+        "machine": f"{os.cpu_count()} CPU cores, {platform.processor() or platform.machine()}",
+        "loadavg_before": load_before,
+        "loadavg_after": os.getloadavg(),
+        "per_call": calls,
+        "view_cache": view,
+        "loader": loader,
+    }
     checks = {
         "fast warm <= 15x OverlayElements": calls["fast_warm"]["median_ms"] / ov <= TARGETS["fast_warm_vs_overlay"],
         "fast cold <= 250 ms": calls["fast_cold"]["median_ms"] <= TARGETS["fast_cold_ms"],
@@ -404,87 +525,134 @@ def main(argv=None) -> int:
         for k, r in loader["ratio_per_epoch"].items():
             # every epoch of a block design (not the bound's test: benchmarks/bench_loader.py pairs the epochs)
             checks[f"loader >= 0.9x in every epoch from epoch 2 ({k}; the bound: bench_loader.py)"] = (
-                min(r[1:] or [0]) >= TARGETS["loader_ratio_from_epoch_2"])
+                min(r[1:] or [0]) >= TARGETS["loader_ratio_from_epoch_2"]
+            )
     res["targets_met"] = checks
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "transform.json").write_text(json.dumps(res, indent=2))
-    lines = ["# InsertObjects in a training loop: ms per call and DataLoader throughput", "",
-             f"Command: `{cmd.strip()}`", "",
-             f"Machine: {res['machine']}; load average {load_before[0]:.1f} before, {res['loadavg_after'][0]:.1f} "
-             "after (the CPUs are shared with detector trainings: absolute times are inflated and noisy; the ratios "
-             "are measured within one run, calls interleaved round by round).", "",
-             f"One traffic cone per call, 640x480 TraCon road images, {a.rounds} interleaved rounds per arm, torch "
-             f"threads {a.torch_threads}. Cold: an "
-             "image the transform has not seen (the scene analysis runs); warm: the same image again (scene-cache "
-             "hit).", "",
-             f"View cache (fast preset): {view['warmup_calls']} calls before the timed rounds left "
-             f"{view['entries_before']} views cached; in the timed rounds {view['timed_hits']} hits, "
-             f"{view['timed_misses']} misses (a miss renders the view: one GL call); {view['MB']:.0f} MB.", "",
-             "| transform | median wall ms | p90 wall ms | vs OverlayElements (wall) | median CPU ms | vs "
-             "OverlayElements (CPU) |", "|---|---:|---:|---:|---:|---:|"]
+    lines = [
+        "# InsertObjects in a training loop: ms per call and DataLoader throughput",
+        "",
+        f"Command: `{cmd.strip()}`",
+        "",
+        f"Machine: {res['machine']}; load average {load_before[0]:.1f} before, {res['loadavg_after'][0]:.1f} "
+        "after (the CPUs are shared with detector trainings: absolute times are inflated and noisy; the ratios "
+        "are measured within one run, calls interleaved round by round).",
+        "",
+        f"One traffic cone per call, 640x480 TraCon road images, {a.rounds} interleaved rounds per arm, torch "
+        f"threads {a.torch_threads}. Cold: an "
+        "image the transform has not seen (the scene analysis runs); warm: the same image again (scene-cache "
+        "hit).",
+        "",
+        f"View cache (fast preset): {view['warmup_calls']} calls before the timed rounds left "
+        f"{view['entries_before']} views cached; in the timed rounds {view['timed_hits']} hits, "
+        f"{view['timed_misses']} misses (a miss renders the view: one GL call); {view['MB']:.0f} MB.",
+        "",
+        "| transform | median wall ms | p90 wall ms | vs OverlayElements (wall) | median CPU ms | vs "
+        "OverlayElements (CPU) |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
     ov_cpu = max(calls["overlay"]["median_cpu_ms"], 1e-3)
     for k, v in calls.items():
-        lines.append(f"| {k} | {v['median_ms']:.1f} | {v['p90_ms']:.1f} | {v['median_ms'] / ov:.0f}x | "
-                     f"{v['median_cpu_ms']:.1f} | {v['median_cpu_ms'] / ov_cpu:.0f}x |")
+        lines.append(
+            f"| {k} | {v['median_ms']:.1f} | {v['p90_ms']:.1f} | {v['median_ms'] / ov:.0f}x | "
+            f"{v['median_cpu_ms']:.1f} | {v['median_cpu_ms'] / ov_cpu:.0f}x |"
+        )
     if loader:
         names = [k for k in loader["img_s"]]
-        lines += ["", f"DataLoader: {a.loader_images} TraCon JPEGs decoded and resized to 320x320 per item, batch 8, "
-                  "2 spawn workers (persistent), shuffled; insertion: `InsertObjects(p=0.5, preset='fast')` with an "
-                  "on-disk scene cache (a new folder per arm). Arms: fresh = a new insertion per call; fresh_warmed = "
-                  f"after `warm(images, view_plans={a.warm_view_plans})`; variants = `variants_per_image="
-                  f"{a.variants}` (made when first drawn); variants_warmed = the same after `warm(images, "
-                  "variants=True)`" + ("" if not a.keep_warm_folder else " (its folder kept across repeats)") +
-                  "; boxes_only = the same Compose with a transform that only appends two fixed boxes at p=0.5 "
-                  "(no pixel changed: the Compose's own cost of new boxes); compose_only = the same Compose with "
-                  "NoOp(p=0.5) instead (the loader without insertion, its Compose kept). Ratios against the mean of the two runs without insertion (first and last) of the "
-                  f"same repeat; {a.repeats} repeat(s) of every arm, medians over repeats. OpenCV threads per worker: "
-                  f"{'default' if a.cv2_threads is None else a.cv2_threads}.", "",
-                  "| epoch | " + " | ".join(f"{k} img/s" for k in names) + " | "
-                  + " | ".join(f"ratio {k}" for k in loader["ratio_per_epoch"]) + " |",
-                  "|---:|" + "---:|" * (len(names) + len(loader["ratio_per_epoch"]))]
+        lines += [
+            "",
+            f"DataLoader: {a.loader_images} TraCon JPEGs decoded and resized to 320x320 per item, batch 8, "
+            "2 spawn workers (persistent), shuffled; insertion: `InsertObjects(p=0.5, preset='fast')` with an "
+            "on-disk scene cache (a new folder per arm). Arms: fresh = a new insertion per call; fresh_warmed = "
+            f"after `warm(images, view_plans={a.warm_view_plans})`; variants = `variants_per_image="
+            f"{a.variants}` (made when first drawn); variants_warmed = the same after `warm(images, "
+            "variants=True)`"
+            + ("" if not a.keep_warm_folder else " (its folder kept across repeats)")
+            + "; boxes_only = the same Compose with a transform that only appends two fixed boxes at p=0.5 "
+            "(no pixel changed: the Compose's own cost of new boxes); compose_only = the same Compose with "
+            "NoOp(p=0.5) instead (the loader without insertion, its Compose kept). Ratios against the mean of the two runs without insertion (first and last) of the "
+            f"same repeat; {a.repeats} repeat(s) of every arm, medians over repeats. OpenCV threads per worker: "
+            f"{'default' if a.cv2_threads is None else a.cv2_threads}.",
+            "",
+            "| epoch | "
+            + " | ".join(f"{k} img/s" for k in names)
+            + " | "
+            + " | ".join(f"ratio {k}" for k in loader["ratio_per_epoch"])
+            + " |",
+            "|---:|" + "---:|" * (len(names) + len(loader["ratio_per_epoch"])),
+        ]
         for e in range(a.epochs):
-            lines.append(f"| {e + 1} | " + " | ".join(f"{loader['img_s'][k][e]:.1f}" for k in names) + " | "
-                         + " | ".join(f"{r[e]:.2f}" for r in loader["ratio_per_epoch"].values()) + " |")
+            lines.append(
+                f"| {e + 1} | "
+                + " | ".join(f"{loader['img_s'][k][e]:.1f}" for k in names)
+                + " | "
+                + " | ".join(f"{r[e]:.2f}" for r in loader["ratio_per_epoch"].values())
+                + " |"
+            )
         if loader.get("ratio_vs_compose_only"):
             vc = loader["ratio_vs_compose_only"]
-            lines += ["", "Against the same Compose without the insertion transform (compose_only), per epoch, "
-                      "medians over repeats of the paired ratios:", "",
-                      "| epoch | " + " | ".join(f"{k} / compose_only" for k in vc) + " |",
-                      "|---:|" + "---:|" * len(vc)]
+            lines += [
+                "",
+                "Against the same Compose without the insertion transform (compose_only), per epoch, "
+                "medians over repeats of the paired ratios:",
+                "",
+                "| epoch | " + " | ".join(f"{k} / compose_only" for k in vc) + " |",
+                "|---:|" + "---:|" * len(vc),
+            ]
             for e in range(a.epochs):
                 lines.append(f"| {e + 1} | " + " | ".join(f"{r[e]:.2f}" for r in vc.values()) + " |")
         for k, w in loader["warm"].items():
-            lines.append(f"\nWarm-up of {k} (paid once, before the first epoch): " + ", ".join(
-                f"{n} {v:.1f}" if isinstance(v, float) else f"{n} {v}" for n, v in w.items()))
+            lines.append(
+                f"\nWarm-up of {k} (paid once, before the first epoch): "
+                + ", ".join(f"{n} {v:.1f}" if isinstance(v, float) else f"{n} {v}" for n, v in w.items())
+            )
         wp = loader.get("worker_profile")
         if wp:
-            lines += ["", f"Where a worker's time goes (fresh arm, cProfile, in this process as a persistent "
-                      f"worker, warmed: {wp['warmup_epochs']} epochs, then one profiled epoch of {wp['items']} "
-                      f"items; view cache in it: {wp['view_cache_hits']} hits, {wp['view_cache_misses']} misses, "
-                      f"{wp['view_cache_entries']} views held). CPU per item: {wp['cpu_ms_per_item_without']:.1f} ms "
-                      f"without insertion, {wp['cpu_ms_per_item_with_profiled']:.1f} ms with it (profiled).", "",
-                      "| stage | CPU ms per item (cumulative, p=0.5 included) |", "|---|---:|"]
+            lines += [
+                "",
+                f"Where a worker's time goes (fresh arm, cProfile, in this process as a persistent "
+                f"worker, warmed: {wp['warmup_epochs']} epochs, then one profiled epoch of {wp['items']} "
+                f"items; view cache in it: {wp['view_cache_hits']} hits, {wp['view_cache_misses']} misses, "
+                f"{wp['view_cache_entries']} views held). CPU per item: {wp['cpu_ms_per_item_without']:.1f} ms "
+                f"without insertion, {wp['cpu_ms_per_item_with_profiled']:.1f} ms with it (profiled).",
+                "",
+                "| stage | CPU ms per item (cumulative, p=0.5 included) |",
+                "|---|---:|",
+            ]
             lines += [f"| {k} | {v:.1f} |" for k, v in wp["stages_ms_per_item"].items()]
-    lines += ["", "Speed and accuracy per preset (ms from the table above; accuracy from the benchmarks named):", "",
-              "| preset | cold ms (wall / CPU) | warm ms (wall / CPU) | object layers | edges | analysis | accuracy |",
-              "|---|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        "Speed and accuracy per preset (ms from the table above; accuracy from the benchmarks named):",
+        "",
+        "| preset | cold ms (wall / CPU) | warm ms (wall / CPU) | object layers | edges | analysis | accuracy |",
+        "|---|---|---|---|---|---|---|",
+    ]
     vc = _view_cache_summary(out)
     for preset in ("fast", "balanced", "accurate"):
-        from aias_augment.insertion import load_preset
-        from aias_augment.region import RegionConfig
+        from aias_augment.analyse.region import RegionConfig
+        from aias_augment.pipeline.config import load_preset
+
         c = load_preset(preset)
         cold, warm = calls[f"{preset}_cold"], calls[f"{preset}_warm"]
         layers = "view cache (warped + relit)" if c.render_method == "view_cache" else "full GL render"
         acc = vc if c.render_method == "view_cache" else "reference (full render)"
-        analysis = (f"cheap: camera on a {c.analysis_max_width} px copy, lighting on a "
-                    f"{max(c.analysis_max_width, c.lighting_cfg.min_input_width)} px copy, region at <= "
-                    f"{RegionConfig().image_width_px} px" if c.analysis_max_width else "full resolution")
-        lines.append(f"| {preset} | {cold['median_ms']:.0f} / {cold['median_cpu_ms']:.0f} | {warm['median_ms']:.0f} / "
-                     f"{warm['median_cpu_ms']:.0f} | {layers} | ssaa {c.ssaa}, shadow {c.shadow_method} | {analysis} | "
-                     f"{acc} |")
+        analysis = (
+            f"cheap: camera on a {c.analysis_max_width} px copy, lighting on a "
+            f"{max(c.analysis_max_width, c.lighting_cfg.min_input_width)} px copy, region at <= "
+            f"{RegionConfig().image_width_px} px"
+            if c.analysis_max_width
+            else "full resolution"
+        )
+        lines.append(
+            f"| {preset} | {cold['median_ms']:.0f} / {cold['median_cpu_ms']:.0f} | {warm['median_ms']:.0f} / "
+            f"{warm['median_cpu_ms']:.0f} | {layers} | ssaa {c.ssaa}, shadow {c.shadow_method} | {analysis} | "
+            f"{acc} |"
+        )
     lines += ["", "Targets (issue 14; judged on the wall-time medians above):", ""] + [
-        f"- {k}: {'met' if v else 'NOT met'}" for k, v in checks.items()]
+        f"- {k}: {'met' if v else 'NOT met'}" for k, v in checks.items()
+    ]
     (out / "transform.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

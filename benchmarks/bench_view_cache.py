@@ -9,6 +9,7 @@ object (sRGB levels); and the hit rate of a cache that has seen the previous pos
 
 Writes ``<out>/view_cache.md`` and ``.json`` with the command.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,17 +24,21 @@ os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from aias_augment.config import data_root  # noqa: E402
-from aias_augment.insertion import SceneCache, load_preset, plan_insertion  # noqa: E402
-from aias_augment.insertion.view_cache import ViewBinning, ViewCache, render_from_view_cache  # noqa: E402
-from aias_augment.lighting.estimate import LightingEstimate  # noqa: E402
-from aias_augment.lighting.shading import shade_object  # noqa: E402
-from aias_augment.render import linear_to_srgb, render_object_window  # noqa: E402
-from aias_augment.scene import Frame  # noqa: E402
+from aias_augment.analyse.cache import SceneCache  # noqa: E402
+from aias_augment.analyse.lighting.estimate import LightingEstimate  # noqa: E402
+from aias_augment.apply.render import linear_to_srgb, render_object_window  # noqa: E402
+from aias_augment.apply.shading import shade_object  # noqa: E402
+from aias_augment.apply.view_cache import ViewBinning, ViewCache, render_from_view_cache  # noqa: E402
+from aias_augment.core.config import data_root  # noqa: E402
+from aias_augment.core.frame import Frame  # noqa: E402
+from aias_augment.pipeline.config import load_preset  # noqa: E402
+from aias_augment.plan.insertion import plan_insertion  # noqa: E402
 
-BINNINGS = {"7.5 deg, 4 deg, 0.04 (default)": ViewBinning(7.5, 4.0, 0.04),
-            "15 deg, 5 deg, 0.05": ViewBinning(15.0, 5.0, 0.05),
-            "30 deg, 8 deg, 0.08": ViewBinning(30.0, 8.0, 0.08)}
+BINNINGS = {
+    "7.5 deg, 4 deg, 0.04 (default)": ViewBinning(7.5, 4.0, 0.04),
+    "15 deg, 5 deg, 0.05": ViewBinning(15.0, 5.0, 0.05),
+    "30 deg, 8 deg, 0.08": ViewBinning(30.0, 8.0, 0.08),
+}
 
 
 def _light():
@@ -45,7 +50,7 @@ def _light():
 
 def _in(win, roi, a):
     out = np.zeros((win[3] - win[1], win[2] - win[0]) + a.shape[2:], np.float32)
-    out[roi[1] - win[1]:roi[3] - win[1], roi[0] - win[0]:roi[2] - win[0]] = a
+    out[roi[1] - win[1] : roi[3] - win[1], roi[0] - win[0] : roi[2] - win[0]] = a
     return out
 
 
@@ -115,39 +120,60 @@ def main(argv=None) -> int:
             ca = linear_to_srgb(shade_object(sa[0], sa[1], sa[2] > 0, light)) * 255
             cb = linear_to_srgb(shade_object(sb[0], sb[1], sb[2] > 0, light)) * 255
             box_h = _box(ma)[3] - _box(ma)[1]
-            stats.append((box_h, _iou(_box(ma), _box(mb)), (ma & mb).sum() / (ma | mb).sum(),
-                          float(np.abs(ca - cb)[ma & mb].mean())))
+            stats.append(
+                (
+                    box_h,
+                    _iou(_box(ma), _box(mb)),
+                    (ma & mb).sum() / (ma | mb).sum(),
+                    float(np.abs(ca - cb)[ma & mb].mean()),
+                )
+            )
         st = np.array(stats)
         hits = np.array(hits)
         big = st[:, 0] >= 40
         q = len(hits) // 4
         res["binnings"][name] = {
-            "entries": len(cache), "MB": cache.nbytes / 2**20, "fallback_full_render": fallback,
-            "hit_rate_by_quarter": [float(hits[i * q:(i + 1) * q].mean()) for i in range(4)],
+            "entries": len(cache),
+            "MB": cache.nbytes / 2**20,
+            "fallback_full_render": fallback,
+            "hit_rate_by_quarter": [float(hits[i * q : (i + 1) * q].mean()) for i in range(4)],
             "hit_ms_median": 1000 * float(np.median(t_hit)) if t_hit else None,
-            "compared": len(st), "box_iou_min": float(st[:, 1].min()), "box_iou_median": float(np.median(st[:, 1])),
+            "compared": len(st),
+            "box_iou_min": float(st[:, 1].min()),
+            "box_iou_median": float(np.median(st[:, 1])),
             "box_iou_min_40px": float(st[big, 1].min()) if big.any() else None,
-            "mask_iou_median": float(np.median(st[:, 2])), "mad_median": float(np.median(st[:, 3])),
-            "mad_p90": float(np.percentile(st[:, 3], 90)), "box_height_px_median": float(np.median(st[:, 0]))}
+            "mask_iou_median": float(np.median(st[:, 2])),
+            "mad_median": float(np.median(st[:, 3])),
+            "mad_p90": float(np.percentile(st[:, 3], 90)),
+            "box_height_px_median": float(np.median(st[:, 0])),
+        }
         print(name, json.dumps(res["binnings"][name]), flush=True)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "view_cache.json").write_text(json.dumps(res, indent=2))
-    lines = ["# View cache: binning error vs warm-up", "", f"Command: `{cmd.strip()}`", "",
-             f"{a.objects} cones placed by the fast preset's planner on TraCon images at {a.size}; "
-             f"every {a.compare_every}th pose compared with a full 4x-supersampled render, both shaded by "
-             "`shade_object` (one sun + SH ambient). MAD: mean absolute difference over the pixels both masks "
-             f"hold, sRGB levels. Load average {res['loadavg'][0]:.1f}.", "",
-             "| binning (azimuth, elevation, nearness) | entries | MB | hit rate by quarter of the poses | "
-             "hit ms | box IoU min / median (min for boxes >= 40 px) | mask IoU median | MAD median / p90 |",
-             "|---|---:|---:|---|---:|---|---:|---|"]
+    lines = [
+        "# View cache: binning error vs warm-up",
+        "",
+        f"Command: `{cmd.strip()}`",
+        "",
+        f"{a.objects} cones placed by the fast preset's planner on TraCon images at {a.size}; "
+        f"every {a.compare_every}th pose compared with a full 4x-supersampled render, both shaded by "
+        "`shade_object` (one sun + SH ambient). MAD: mean absolute difference over the pixels both masks "
+        f"hold, sRGB levels. Load average {res['loadavg'][0]:.1f}.",
+        "",
+        "| binning (azimuth, elevation, nearness) | entries | MB | hit rate by quarter of the poses | "
+        "hit ms | box IoU min / median (min for boxes >= 40 px) | mask IoU median | MAD median / p90 |",
+        "|---|---:|---:|---|---:|---|---:|---|",
+    ]
     for name, r in res["binnings"].items():
         hr = " / ".join(f"{x:.2f}" for x in r["hit_rate_by_quarter"])
         b40 = "-" if r["box_iou_min_40px"] is None else f"{r['box_iou_min_40px']:.3f}"
         hms = "-" if r["hit_ms_median"] is None else f"{r['hit_ms_median']:.2f}"
-        lines.append(f"| {name} | {r['entries']} | {r['MB']:.1f} | {hr} | {hms} | {r['box_iou_min']:.3f} / "
-                     f"{r['box_iou_median']:.3f} ({b40}) | {r['mask_iou_median']:.3f} | {r['mad_median']:.1f} / "
-                     f"{r['mad_p90']:.1f} |")
+        lines.append(
+            f"| {name} | {r['entries']} | {r['MB']:.1f} | {hr} | {hms} | {r['box_iou_min']:.3f} / "
+            f"{r['box_iou_median']:.3f} ({b40}) | {r['mask_iou_median']:.3f} | {r['mad_median']:.1f} / "
+            f"{r['mad_p90']:.1f} |"
+        )
     (out / "view_cache.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

@@ -11,6 +11,7 @@ accurate = a full render at their ``ssaa``; the realism of the pipeline's cones 
 two-sample AUC of ``scripts/eval_realism.py``, where a preset was measured) and the study's cone AP gain (where a
 preset was trained with). Writes ``presets.md`` and ``presets_pareto.png``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,21 +24,28 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 
 #: Where each preset's realism and study numbers come from (what has been measured; None: not measured).
-REALISM = {"fast": ("results/realism/stop20/report.json",
-                    "inserted, stop 20 (crease normals, seen-sky fill, 320 px lighting, tempered-sun shading)"),
-           "balanced": ("results/realism/report.json", "inserted, balanced preset"),
-           "accurate": None}
-STUDY = {"fast": ("results/study/summary.json", ("inserted n=60", "inserted_online")), "balanced": None,
-         "accurate": None}
+REALISM = {
+    "fast": (
+        "results/realism/stop20/report.json",
+        "inserted, stop 20 (crease normals, seen-sky fill, 320 px lighting, tempered-sun shading)",
+    ),
+    "balanced": ("results/realism/report.json", "inserted, balanced preset"),
+    "accurate": None,
+}
+STUDY = {
+    "fast": ("results/study/summary.json", ("inserted n=60", "inserted_online")),
+    "balanced": None,
+    "accurate": None,
+}
 POSES = ((6.0, 0.2), (12.0, -1.0), (25.0, 1.5), (40.0, -2.0))
 
 
 def edge_errors() -> dict:
-    from aias_augment.assets import default_asset
-    from aias_augment.geometry import Intrinsics
-    from aias_augment.insertion.view_cache import ViewCache, render_from_view_cache
-    from aias_augment.pipeline import load_preset
-    from aias_augment.render import render_object
+    from aias_augment.apply.render import render_object
+    from aias_augment.apply.view_cache import ViewCache, render_from_view_cache
+    from aias_augment.assets.asset import default_asset
+    from aias_augment.core.geometry import Intrinsics
+    from aias_augment.pipeline.image import load_preset
 
     K = Intrinsics(700.0, 700.0, 319.5, 239.5, 640, 480)
     cone = default_asset("traffic_cone")
@@ -61,9 +69,13 @@ def edge_errors() -> dict:
                 a = render_object(cone, T, K, ssaa=cfg.ssaa, with_normals=False).alpha
             touched = (a > 0) | (ref > 0)
             errs.append(float(np.abs(a - ref)[touched].mean()))
-        out[preset] = {"edge_alpha_mae": float(np.mean(errs)), "per_pose": errs,
-                       "layers": "view cache (2x views, warped)" if cfg.render_method == "view_cache"
-                       else f"full render, ssaa {cfg.ssaa}"}
+        out[preset] = {
+            "edge_alpha_mae": float(np.mean(errs)),
+            "per_pose": errs,
+            "layers": "view cache (2x views, warped)"
+            if cfg.render_method == "view_cache"
+            else f"full render, ssaa {cfg.ssaa}",
+        }
     return out
 
 
@@ -75,8 +87,13 @@ def realism(preset: str) -> dict | None:
     if src[1] not in arms:
         return None
     a = arms[src[1]]
-    return {"kid": a["kid_crops"][0], "kid_sd": a["kid_crops"][1], "auc": a["auc_logreg_lite0"]["auc"],
-            "auc_ci95": a["auc_logreg_lite0"]["ci95"], "source": f"{src[0]}: {src[1]}"}
+    return {
+        "kid": a["kid_crops"][0],
+        "kid_sd": a["kid_crops"][1],
+        "auc": a["auc_logreg_lite0"]["auc"],
+        "auc_ci95": a["auc_logreg_lite0"]["ci95"],
+        "source": f"{src[0]}: {src[1]}",
+    }
 
 
 def study_gain(preset: str) -> dict | None:
@@ -102,21 +119,33 @@ def main(argv=None) -> int:
     edges = edge_errors()
     rows = []
     for p in ("fast", "balanced", "accurate"):
-        rows.append({"preset": p, "cold_ms": timing[f"{p}_cold"]["median_ms"], "warm_ms": timing[f"{p}_warm"]["median_ms"],
-                     "cold_cpu_ms": timing[f"{p}_cold"]["median_cpu_ms"],
-                     "warm_cpu_ms": timing[f"{p}_warm"]["median_cpu_ms"], **edges[p], "realism": realism(p),
-                     "study": study_gain(p)})
+        rows.append(
+            {
+                "preset": p,
+                "cold_ms": timing[f"{p}_cold"]["median_ms"],
+                "warm_ms": timing[f"{p}_warm"]["median_ms"],
+                "cold_cpu_ms": timing[f"{p}_cold"]["median_cpu_ms"],
+                "warm_cpu_ms": timing[f"{p}_warm"]["median_cpu_ms"],
+                **edges[p],
+                "realism": realism(p),
+                "study": study_gain(p),
+            }
+        )
     out = REPO / a.out
     out.mkdir(parents=True, exist_ok=True)
     cmd = "python benchmarks/preset_pareto.py " + " ".join(argv if argv is not None else sys.argv[1:])
     (out / "presets.json").write_text(json.dumps({"command": cmd, "timing_source": a.timing, "rows": rows}, indent=1))
 
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for ax, key, label in ((axes[0], "warm_ms", "ms per call, image seen before (warm)"),
-                           (axes[1], "cold_ms", "ms per call, new image (cold)")):
+    for ax, key, label in (
+        (axes[0], "warm_ms", "ms per call, image seen before (warm)"),
+        (axes[1], "cold_ms", "ms per call, new image (cold)"),
+    ):
         xs = [r[key] for r in rows]
         ys = [r["edge_alpha_mae"] for r in rows]
         ax.plot(xs, ys, "o-", color="tab:blue")
@@ -129,11 +158,18 @@ def main(argv=None) -> int:
         ax.grid(True, which="both", alpha=0.3)
     if "overlay" in timing:
         axes[0].axvline(timing["overlay"]["median_ms"] * 15, color="tab:red", ls="--", lw=1)
-        axes[0].text(timing["overlay"]["median_ms"] * 15, max(r["edge_alpha_mae"] for r in rows), " 15x OverlayElements",
-                     color="tab:red", va="top")
+        axes[0].text(
+            timing["overlay"]["median_ms"] * 15,
+            max(r["edge_alpha_mae"] for r in rows),
+            " 15x OverlayElements",
+            color="tab:red",
+            va="top",
+        )
     axes[1].axvline(250, color="tab:red", ls="--", lw=1)
     axes[1].text(250, max(r["edge_alpha_mae"] for r in rows), " 250 ms", color="tab:red", va="top")
-    fig.suptitle("Presets: speed vs edge accuracy (lower left is better); annotated with the realism KID where measured")
+    fig.suptitle(
+        "Presets: speed vs edge accuracy (lower left is better); annotated with the realism KID where measured"
+    )
     fig.tight_layout()
     fig.savefig(out / "presets_pareto.png", dpi=110)
 
@@ -147,18 +183,30 @@ def main(argv=None) -> int:
             return "not trained with"
         return "; ".join(f"{k}: {v['mean']:+.3f} ± {v['half_width']:.3f} ({v['seeds']} seeds)" for k, v in s.items())
 
-    lines = ["# Presets: speed against accuracy", "", f"Command: `{cmd.strip()}`; timings from `{a.timing}` "
-             "(wall ms, medians; CPU in brackets); edge error measured by this script; realism and study numbers "
-             "read from the files named in `presets.json`.", "",
-             "| preset | layers | cold ms | warm ms | edge alpha MAE vs 4x | realism on TraCon (Lite0, lower KID / AUC nearer 0.5 is better) | study: ΔAP50:95 vs original |",
-             "|---|---|---:|---:|---:|---|---|"]
+    lines = [
+        "# Presets: speed against accuracy",
+        "",
+        f"Command: `{cmd.strip()}`; timings from `{a.timing}` "
+        "(wall ms, medians; CPU in brackets); edge error measured by this script; realism and study numbers "
+        "read from the files named in `presets.json`.",
+        "",
+        "| preset | layers | cold ms | warm ms | edge alpha MAE vs 4x | realism on TraCon (Lite0, lower KID / AUC nearer 0.5 is better) | study: ΔAP50:95 vs original |",
+        "|---|---|---:|---:|---:|---|---|",
+    ]
     for r in rows:
-        lines.append(f"| {r['preset']} | {r['layers']} | {r['cold_ms']:.0f} ({r['cold_cpu_ms']:.0f}) | "
-                     f"{r['warm_ms']:.1f} ({r['warm_cpu_ms']:.1f}) | {r['edge_alpha_mae']:.3f} | {fmt_real(r['realism'])} | "
-                     f"{fmt_study(r['study'])} |")
-    lines += ["", "Realism sources (the pipeline changes between stops; KID differences below ~2 standard deviations are "
-              "not resolved): " + "; ".join(f"{r['preset']}: `{r['realism']['source']}`" for r in rows if r["realism"]),
-              "", "![Pareto](presets_pareto.png)", ""]
+        lines.append(
+            f"| {r['preset']} | {r['layers']} | {r['cold_ms']:.0f} ({r['cold_cpu_ms']:.0f}) | "
+            f"{r['warm_ms']:.1f} ({r['warm_cpu_ms']:.1f}) | {r['edge_alpha_mae']:.3f} | {fmt_real(r['realism'])} | "
+            f"{fmt_study(r['study'])} |"
+        )
+    lines += [
+        "",
+        "Realism sources (the pipeline changes between stops; KID differences below ~2 standard deviations are "
+        "not resolved): " + "; ".join(f"{r['preset']}: `{r['realism']['source']}`" for r in rows if r["realism"]),
+        "",
+        "![Pareto](presets_pareto.png)",
+        "",
+    ]
     (out / "presets.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

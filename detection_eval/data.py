@@ -4,6 +4,7 @@ Boxes in records are xyxy pixels of the original image. Labels are contiguous ``
 to COCO category ids (``label + 1`` for YOLO data). Images are read without EXIF rotation, as the label files index
 the stored pixel grid.
 """
+
 from __future__ import annotations
 
 import json
@@ -27,8 +28,8 @@ class DetectionRecord:
     image_path: str
     width: int
     height: int
-    boxes_xyxy: np.ndarray   # (N, 4) float64 pixels
-    labels: np.ndarray       # (N,) int64 contiguous labels
+    boxes_xyxy: np.ndarray  # (N, 4) float64 pixels
+    labels: np.ndarray  # (N,) int64 contiguous labels
 
     def __post_init__(self):
         if self.boxes_xyxy.shape != (len(self.labels), 4):
@@ -40,7 +41,7 @@ class DetectionSet:
     records: tuple[DetectionRecord, ...]
     category_names: tuple[str, ...]
     category_ids: tuple[int, ...] = ()
-    skipped: dict = field(default_factory=dict)   # reason -> count, for logged skips
+    skipped: dict = field(default_factory=dict)  # reason -> count, for logged skips
 
     def __post_init__(self):
         if not self.category_ids:
@@ -76,8 +77,11 @@ def read_image_rgb(path: str | Path, min_long_side: int | None = None) -> np.nda
     flag = cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION
     if min_long_side:
         long_side = max(image_size(path))
-        for factor, reduced in ((8, cv2.IMREAD_REDUCED_COLOR_8), (4, cv2.IMREAD_REDUCED_COLOR_4),
-                                (2, cv2.IMREAD_REDUCED_COLOR_2)):
+        for factor, reduced in (
+            (8, cv2.IMREAD_REDUCED_COLOR_8),
+            (4, cv2.IMREAD_REDUCED_COLOR_4),
+            (2, cv2.IMREAD_REDUCED_COLOR_2),
+        ):
             if long_side / factor >= min_long_side:
                 flag = reduced | cv2.IMREAD_IGNORE_ORIENTATION
                 break
@@ -89,13 +93,14 @@ def read_image_rgb(path: str | Path, min_long_side: int | None = None) -> np.nda
 
 # ---------------------------------------------------------------- YOLO txt
 
+
 def _yolo_dirs(root: Path, split: str | None) -> tuple[Path, Path]:
     root = Path(root)
-    if root.name == "images" or root.parent.name == "images":      # given the image folder itself
+    if root.name == "images" or root.parent.name == "images":  # given the image folder itself
         image_dir = root
         parts = list(root.parts)
         idx = len(parts) - 1 - parts[::-1].index("images")
-        label_dir = Path(*parts[:idx], "labels", *parts[idx + 1:])
+        label_dir = Path(*parts[:idx], "labels", *parts[idx + 1 :])
     else:
         image_dir, label_dir = root / "images", root / "labels"
         if split:
@@ -143,8 +148,11 @@ def load_yolo_dir(root: str | Path, split: str | None = None, names: tuple[str, 
     max_label = max((int(r.labels.max()) for r in records if len(r.labels)), default=0)
     if names is None:
         names_file = Path(root) / "classes.txt"
-        names = tuple(names_file.read_text().split()) if names_file.exists() else \
-            tuple(f"class_{i}" for i in range(max_label + 1))
+        names = (
+            tuple(names_file.read_text().split())
+            if names_file.exists()
+            else tuple(f"class_{i}" for i in range(max_label + 1))
+        )
     if max_label >= len(names):
         raise ValueError(f"label {max_label} found but only {len(names)} category names given: {names}")
     return DetectionSet(tuple(records), tuple(names), skipped=skipped)
@@ -153,25 +161,35 @@ def load_yolo_dir(root: str | Path, split: str | None = None, names: tuple[str, 
 def format_yolo_labels(boxes_xyxy: np.ndarray, labels: np.ndarray, width: int, height: int) -> str:
     lines = []
     for (x0, y0, x1, y1), c in zip(np.asarray(boxes_xyxy, dtype=np.float64), labels):
-        lines.append(f"{int(c)} {(x0 + x1) / 2 / width:.6f} {(y0 + y1) / 2 / height:.6f} "
-                     f"{(x1 - x0) / width:.6f} {(y1 - y0) / height:.6f}")
+        lines.append(
+            f"{int(c)} {(x0 + x1) / 2 / width:.6f} {(y0 + y1) / 2 / height:.6f} "
+            f"{(x1 - x0) / width:.6f} {(y1 - y0) / height:.6f}"
+        )
     return "\n".join(lines) + ("\n" if lines else "")
 
 
-def write_yolo_sample(root: str | Path, stem: str, image_rgb: np.ndarray, boxes_xyxy: np.ndarray,
-                      labels: np.ndarray, jpeg_quality: int = 95) -> DetectionRecord:
+def write_yolo_sample(
+    root: str | Path,
+    stem: str,
+    image_rgb: np.ndarray,
+    boxes_xyxy: np.ndarray,
+    labels: np.ndarray,
+    jpeg_quality: int = 95,
+) -> DetectionRecord:
     """Write ``root/images/<stem>.jpg`` and ``root/labels/<stem>.txt``; returns the record as it would be read back."""
     root = Path(root)
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "labels").mkdir(parents=True, exist_ok=True)
     h, w = image_rgb.shape[:2]
     img_path = root / "images" / f"{stem}.jpg"
-    if not cv2.imwrite(str(img_path), cv2.cvtColor(image_rgb, cv2.COLOR_RGB2BGR),
-                       [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality]):
+    if not cv2.imwrite(
+        str(img_path), cv2.cvtColor(image_rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality]
+    ):
         raise ValueError(f"cannot write {img_path}")
     (root / "labels" / f"{stem}.txt").write_text(format_yolo_labels(boxes_xyxy, labels, w, h))
-    return DetectionRecord(str(img_path), w, h, np.asarray(boxes_xyxy, np.float64).reshape(-1, 4),
-                           np.asarray(labels, np.int64))
+    return DetectionRecord(
+        str(img_path), w, h, np.asarray(boxes_xyxy, np.float64).reshape(-1, 4), np.asarray(labels, np.int64)
+    )
 
 
 def write_classes(root: str | Path, names: tuple[str, ...]) -> None:
@@ -179,6 +197,7 @@ def write_classes(root: str | Path, names: tuple[str, ...]) -> None:
 
 
 # ---------------------------------------------------------------- COCO json
+
 
 def load_coco_json(path: str | Path, image_root: str | Path | None = None) -> DetectionSet:
     """Read a COCO detection json. ``image_root`` defaults to the json's folder (or its ``images/`` subfolder).
@@ -211,8 +230,15 @@ def load_coco_json(path: str | Path, image_root: str | Path | None = None) -> De
     records = []
     for im in data["images"]:
         anns = np.asarray(by_image[im["id"]], dtype=np.float64).reshape(-1, 5)
-        records.append(DetectionRecord(str(Path(image_root) / im["file_name"]), int(im["width"]), int(im["height"]),
-                                       xywh_to_xyxy(anns[:, :4]), anns[:, 4].astype(np.int64)))
+        records.append(
+            DetectionRecord(
+                str(Path(image_root) / im["file_name"]),
+                int(im["width"]),
+                int(im["height"]),
+                xywh_to_xyxy(anns[:, :4]),
+                anns[:, 4].astype(np.int64),
+            )
+        )
     return DetectionSet(tuple(records), tuple(c["name"] for c in cats), tuple(c["id"] for c in cats), skipped)
 
 
@@ -222,14 +248,26 @@ def coco_gt_dict(dataset: DetectionSet) -> dict:
     for i, r in enumerate(dataset.records, 1):
         images.append({"id": i, "file_name": Path(r.image_path).name, "width": r.width, "height": r.height})
         for box, label in zip(xyxy_to_xywh(r.boxes_xyxy), r.labels):
-            anns.append({"id": len(anns) + 1, "image_id": i, "category_id": dataset.category_ids[int(label)],
-                         "bbox": [float(v) for v in box], "area": float(box[2] * box[3]), "iscrowd": 0})
+            anns.append(
+                {
+                    "id": len(anns) + 1,
+                    "image_id": i,
+                    "category_id": dataset.category_ids[int(label)],
+                    "bbox": [float(v) for v in box],
+                    "area": float(box[2] * box[3]),
+                    "iscrowd": 0,
+                }
+            )
     cats = [{"id": cid, "name": n} for cid, n in zip(dataset.category_ids, dataset.category_names)]
     return {"images": images, "annotations": anns, "categories": cats}
 
 
-def load_dataset(path: str | Path, split: str | None = None, names: tuple[str, ...] | None = None,
-                 image_root: str | Path | None = None) -> DetectionSet:
+def load_dataset(
+    path: str | Path,
+    split: str | None = None,
+    names: tuple[str, ...] | None = None,
+    image_root: str | Path | None = None,
+) -> DetectionSet:
     """A ``.json`` path is COCO; a folder is YOLO txt."""
     p = Path(path)
     if p.suffix.lower() == ".json":

@@ -4,6 +4,7 @@ Metrics: AP (0.50:0.95), AP50, AP75, AP by size (small < 32^2 px, medium, large 
 An undefined metric (no ground truth of that kind) is ``nan`` (pycocotools' -1). Zero detections are scored as such
 (AP 0 where ground truth exists): ``COCO.loadRes([])`` raises, so an empty result set is built directly.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -16,8 +17,20 @@ from pycocotools.cocoeval import COCOeval
 
 from .boxes import xyxy_to_xywh
 
-SUMMARY_NAMES = ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large",
-                 "AR1", "AR10", "AR100", "AR_small", "AR_medium", "AR_large")
+SUMMARY_NAMES = (
+    "AP",
+    "AP50",
+    "AP75",
+    "AP_small",
+    "AP_medium",
+    "AP_large",
+    "AR1",
+    "AR10",
+    "AR100",
+    "AR_small",
+    "AR_medium",
+    "AR_large",
+)
 
 
 def detections_to_coco(image_ids, detections, category_ids) -> list[dict]:
@@ -27,8 +40,14 @@ def detections_to_coco(image_ids, detections, category_ids) -> list[dict]:
     for image_id, det in zip(image_ids, detections):
         boxes = np.asarray(det["boxes"], np.float64).reshape(-1, 4)
         for box, score, label in zip(xyxy_to_xywh(boxes), np.asarray(det["scores"]), np.asarray(det["labels"])):
-            out.append({"image_id": int(image_id), "category_id": int(category_ids[int(label)]),
-                        "bbox": [round(float(v), 3) for v in box], "score": float(score)})
+            out.append(
+                {
+                    "image_id": int(image_id),
+                    "category_id": int(category_ids[int(label)]),
+                    "bbox": [round(float(v), 3) for v in box],
+                    "score": float(score),
+                }
+            )
     return out
 
 
@@ -77,7 +96,10 @@ def coco_evaluate(gt: dict, results: list[dict]) -> dict:
 def format_metrics(m: dict) -> str:
     def f(x):
         return "nan" if isinstance(x, float) and math.isnan(x) else f"{x:.4f}"
+
     head = "  ".join(f"{k}={f(m[k])}" for k in ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large"))
     cats = "  ".join(f"{k}={f(v)}" for k, v in m["per_category_AP"].items())
-    return f"{head}\nper category: {cats}\n{m['num_detections']} detections, {m['num_gt']} gt boxes, " \
-           f"{m['num_images']} images"
+    return (
+        f"{head}\nper category: {cats}\n{m['num_detections']} detections, {m['num_gt']} gt boxes, "
+        f"{m['num_images']} images"
+    )

@@ -1,4 +1,5 @@
 """Run a detector on images or a dataset; detections come back in original image pixels."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,15 +21,16 @@ def _to_numpy(det: dict, lb, width: int, height: int) -> dict:
 
 
 @torch.no_grad()
-def predict_cached(model: Detector, cached: list[CachedImage], sizes: list[tuple[int, int]],
-                   cfg: InferenceConfig, batch_size: int = 8) -> list[dict]:
+def predict_cached(
+    model: Detector, cached: list[CachedImage], sizes: list[tuple[int, int]], cfg: InferenceConfig, batch_size: int = 8
+) -> list[dict]:
     """Detections for cached letterbox contents; ``sizes`` are the original (width, height)."""
     model.eval()
     out = []
     for start in range(0, len(cached), batch_size):
-        chunk = cached[start:start + batch_size]
+        chunk = cached[start : start + batch_size]
         batch = images_to_tensor([pad_to_square(c.image, c.letterbox) for c in chunk])
-        for c, det, (w, h) in zip(chunk, postprocess(model(batch), cfg), sizes[start:start + batch_size]):
+        for c, det, (w, h) in zip(chunk, postprocess(model(batch), cfg), sizes[start : start + batch_size]):
             out.append(_to_numpy(det, c.letterbox, w, h))
     return out
 
@@ -45,8 +47,14 @@ def predict_images(model: Detector, images_rgb: list[np.ndarray], img_size: int,
     return out
 
 
-def evaluate_dataset(model: Detector, dataset: DetectionSet, img_size: int, cfg: InferenceConfig,
-                     cached: list[CachedImage] | None = None, batch_size: int = 8) -> dict:
+def evaluate_dataset(
+    model: Detector,
+    dataset: DetectionSet,
+    img_size: int,
+    cfg: InferenceConfig,
+    cached: list[CachedImage] | None = None,
+    batch_size: int = 8,
+) -> dict:
     """COCO metrics of ``model`` on ``dataset`` (image ids = 1-based record positions, as in ``coco_gt_dict``)."""
     if cached is None:
         cached = [cache_image(r, img_size) for r in dataset.records]

@@ -4,6 +4,7 @@ Images are decoded once, downscaled so that the longer side equals the training 
 kept in memory; augmentation then works on these small arrays. Sample ``i`` of iteration ``t`` draws its randomness
 from ``default_rng([seed, t, i])``, so a run is reproducible regardless of timing.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,16 +21,17 @@ from .losses import Targets
 from .transforms import augment_sample
 
 # (image, boxes_xyxy, labels, rng) -> (image, boxes_xyxy, labels): e.g. online object insertion.
-SampleTransform = Callable[[np.ndarray, np.ndarray, np.ndarray, np.random.Generator],
-                           tuple[np.ndarray, np.ndarray, np.ndarray]]
+SampleTransform = Callable[
+    [np.ndarray, np.ndarray, np.ndarray, np.random.Generator], tuple[np.ndarray, np.ndarray, np.ndarray]
+]
 
 
 @dataclass(frozen=True, eq=False)
 class CachedImage:
-    image: np.ndarray        # letterbox content (no padding), RGB uint8
-    boxes_xyxy: np.ndarray   # in ``image`` pixels
+    image: np.ndarray  # letterbox content (no padding), RGB uint8
+    boxes_xyxy: np.ndarray  # in ``image`` pixels
     labels: np.ndarray
-    letterbox: Letterbox     # original pixels -> padded square of the training size
+    letterbox: Letterbox  # original pixels -> padded square of the training size
 
 
 def cache_image(record, size: int) -> CachedImage:
@@ -38,9 +40,11 @@ def cache_image(record, size: int) -> CachedImage:
     image = read_image_rgb(record.image_path, min_long_side=size)
     if image.shape[:2] != (record.height, record.width):
         ratio_h, ratio_w = image.shape[0] / record.height, image.shape[1] / record.width
-        if abs(ratio_h - ratio_w) > 0.02 or ratio_w > 1.0 + 1e-9:   # reduced decode is 1/2, 1/4 or 1/8 of both
-            raise ValueError(f"{record.image_path}: decoded {image.shape[1]}x{image.shape[0]}, "
-                             f"record says {record.width}x{record.height}")
+        if abs(ratio_h - ratio_w) > 0.02 or ratio_w > 1.0 + 1e-9:  # reduced decode is 1/2, 1/4 or 1/8 of both
+            raise ValueError(
+                f"{record.image_path}: decoded {image.shape[1]}x{image.shape[0]}, "
+                f"record says {record.width}x{record.height}"
+            )
     interp = cv2.INTER_AREA if new_w < image.shape[1] else cv2.INTER_LINEAR
     image = cv2.resize(image, (new_w, new_h), interpolation=interp)
     # Labels rounded in normalised units can overhang the border by a fraction of a pixel: clip to the content.
@@ -63,9 +67,10 @@ def cache_dataset(dataset: DetectionSet, size: int, memo: dict | None = None) ->
 
 def pad_to_square(image: np.ndarray, lb: Letterbox) -> np.ndarray:
     from .boxes import PAD_VALUE
+
     canvas = np.full((lb.size, lb.size, 3), PAD_VALUE, dtype=np.uint8)
     x0, y0 = int(lb.pad_x), int(lb.pad_y)
-    canvas[y0:y0 + image.shape[0], x0:x0 + image.shape[1]] = image
+    canvas[y0 : y0 + image.shape[0], x0 : x0 + image.shape[1]] = image
     return canvas
 
 
@@ -79,8 +84,8 @@ def collate_targets(boxes: list[np.ndarray], labels: list[np.ndarray]) -> Target
     out_boxes = torch.zeros(len(boxes), g, 4)
     out_labels = torch.zeros(len(boxes), g, dtype=torch.long)
     for i, (b, lab) in enumerate(zip(boxes, labels)):
-        out_boxes[i, :len(b)] = torch.as_tensor(b, dtype=torch.float32)
-        out_labels[i, :len(b)] = torch.as_tensor(lab, dtype=torch.long)
+        out_boxes[i, : len(b)] = torch.as_tensor(b, dtype=torch.float32)
+        out_labels[i, : len(b)] = torch.as_tensor(lab, dtype=torch.long)
     return Targets(out_boxes, out_labels, torch.tensor([len(b) for b in boxes], dtype=torch.long))
 
 
@@ -100,9 +105,18 @@ def epoch_items(cache: list[CachedImage], object_image_fraction: float) -> np.nd
 class TrainBatches:
     """Infinite deterministic stream of augmented batches over a cached dataset (epoch-wise shuffles)."""
 
-    def __init__(self, cache: list[CachedImage], size: int, batch_size: int, augment: AugmentConfig, seed: int,
-                 sample_transform: SampleTransform | None = None, object_image_fraction: float = 0.0,
-                 synthetic_mask: np.ndarray | None = None, synthetic_fraction: float = 0.25):
+    def __init__(
+        self,
+        cache: list[CachedImage],
+        size: int,
+        batch_size: int,
+        augment: AugmentConfig,
+        seed: int,
+        sample_transform: SampleTransform | None = None,
+        object_image_fraction: float = 0.0,
+        synthetic_mask: np.ndarray | None = None,
+        synthetic_fraction: float = 0.25,
+    ):
         if not cache:
             raise ValueError("empty training set")
         self.cache, self.size, self.batch_size = cache, size, batch_size

@@ -1,6 +1,7 @@
 """YOLOX losses on SimOTA positives: IoU loss (1 - IoU^2; or 1 - IoU, 1 - GIoU by ``LossConfig.iou_type``),
 objectness BCE on all anchors, class BCE with IoU-aware targets on positives; each normalised by the number of positives
 and weighted by ``LossConfig``."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from .simota import simota_assign
 class Targets:
     """Padded per-batch ground truth. ``boxes_xyxy`` (B, G, 4) pixels, ``labels`` (B, G) long, ``num_gt`` (B,) long:
     only the first ``num_gt[b]`` rows of image b are real (padding is carried explicitly, never guessed)."""
+
     boxes_xyxy: torch.Tensor
     labels: torch.Tensor
     num_gt: torch.Tensor
@@ -25,8 +27,14 @@ class Targets:
         return Targets(self.boxes_xyxy.to(device), self.labels.to(device), self.num_gt.to(device))
 
 
-def detection_loss(decoded: torch.Tensor, anchor_centers: torch.Tensor, anchor_strides: torch.Tensor,
-                   targets: Targets, assigner: AssignerConfig, weights: LossConfig) -> dict[str, torch.Tensor]:
+def detection_loss(
+    decoded: torch.Tensor,
+    anchor_centers: torch.Tensor,
+    anchor_strides: torch.Tensor,
+    targets: Targets,
+    assigner: AssignerConfig,
+    weights: LossConfig,
+) -> dict[str, torch.Tensor]:
     """``decoded`` (B, A, 5 + C): xyxy boxes, objectness logit, class logits."""
     batch, num_anchors = decoded.shape[:2]
     num_classes = decoded.shape[-1] - 5
@@ -47,8 +55,9 @@ def detection_loss(decoded: torch.Tensor, anchor_centers: torch.Tensor, anchor_s
         fg_gt_boxes.append(gt_boxes[gt_idx])
         fg_strides.append(anchor_strides[a.fg_mask])
         fg_cls_logits.append(cls_logit[b, a.fg_mask])
-        fg_cls_targets.append(F.one_hot(gt_labels[gt_idx].long(), num_classes).to(decoded.dtype)
-                              * a.matched_iou[a.fg_mask, None])
+        fg_cls_targets.append(
+            F.one_hot(gt_labels[gt_idx].long(), num_classes).to(decoded.dtype) * a.matched_iou[a.fg_mask, None]
+        )
     num_fg = sum(len(x) for x in fg_boxes)
     norm = float(max(num_fg, 1))
     loss_obj = F.binary_cross_entropy_with_logits(obj_logit, obj_targets, reduction="sum") / norm
@@ -59,8 +68,10 @@ def detection_loss(decoded: torch.Tensor, anchor_centers: torch.Tensor, anchor_s
         else:
             iou = aligned_iou(pred, gt)
             loss_iou = (1 - (iou.pow(2) if weights.iou_type == "iou_squared" else iou)).sum() / norm
-        loss_cls = F.binary_cross_entropy_with_logits(torch.cat(fg_cls_logits), torch.cat(fg_cls_targets),
-                                                      reduction="sum") / norm
+        loss_cls = (
+            F.binary_cross_entropy_with_logits(torch.cat(fg_cls_logits), torch.cat(fg_cls_targets), reduction="sum")
+            / norm
+        )
         loss_l1 = l1_box_loss(pred, gt, torch.cat(fg_strides)).sum() / norm if weights.l1_weight else None
     else:  # keep the graph connected so backward works on images without objects
         loss_iou = boxes.sum() * 0.0
@@ -78,9 +89,11 @@ def l1_box_loss(pred_xyxy: torch.Tensor, gt_xyxy: torch.Tensor, strides: torch.T
     """YOLOX's L1 in the regression's own units: |d centre| / stride and |d log size| (the head predicts
     ``centre / stride - grid`` and ``log(size / stride)``). (N, 4), (N, 4), (N,) -> (N,). Sizes are clamped at
     ``1e-3`` px before the log (a degenerate gt box)."""
+
     def parts(b):
         centre = (b[:, :2] + b[:, 2:]) / 2 / strides[:, None]
         return centre, torch.log((b[:, 2:] - b[:, :2]).clamp(min=1e-3))
+
     pc, pw = parts(pred_xyxy)
     gc, gw = parts(gt_xyxy)
     return (pc - gc).abs().sum(1) + (pw - gw).abs().sum(1)

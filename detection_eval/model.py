@@ -4,6 +4,7 @@
 RGB float in [0, 1], (B, 3, S, S) with S a multiple of 32. Decoded predictions are (B, A, 5 + C): xyxy box in input
 pixels, objectness probability, class probabilities.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,10 +32,12 @@ class PAFPN(nn.Module):
         c3, c4, c5 = (int(c * width) for c in (256, 512, 1024))
         n = max(round(3 * depth), 1)
         Conv = conv_cls(depthwise)
-        self.adapt = nn.ModuleDict({
-            name: (nn.Identity() if in_channels[name] == c else BaseConv(in_channels[name], c, 1, 1))
-            for name, c in zip(LEVELS, (c3, c4, c5))
-        })
+        self.adapt = nn.ModuleDict(
+            {
+                name: (nn.Identity() if in_channels[name] == c else BaseConv(in_channels[name], c, 1, 1))
+                for name, c in zip(LEVELS, (c3, c4, c5))
+            }
+        )
         self.lateral_conv0 = BaseConv(c5, c4, 1, 1)
         self.C3_p4 = CSPLayer(2 * c4, c4, n, False, depthwise=depthwise)
         self.reduce_conv1 = BaseConv(c4, c3, 1, 1)
@@ -77,8 +80,15 @@ class DecoupledHead(nn.Module):
     RetinaNet/FCOS; every level's positives then train the same weights, 3x the samples per weight in a short run.
     Sizes are predicted in strides (``exp(raw) * stride``), so one regressor serves every level."""
 
-    def __init__(self, in_channels: tuple[int, ...], num_classes: int, width: float, depthwise: bool,
-                 prior_prob: float, shared: bool = False):
+    def __init__(
+        self,
+        in_channels: tuple[int, ...],
+        num_classes: int,
+        width: float,
+        depthwise: bool,
+        prior_prob: float,
+        shared: bool = False,
+    ):
         super().__init__()
         hidden = int(256 * width)
         Conv = conv_cls(depthwise)
@@ -91,10 +101,12 @@ class DecoupledHead(nn.Module):
             self.cls_convs = nn.ModuleList([LevelSharedConv(hidden, levels) for _ in range(2)])
             self.reg_convs = nn.ModuleList([LevelSharedConv(hidden, levels) for _ in range(2)])
         else:
-            self.cls_convs = nn.ModuleList([nn.Sequential(Conv(hidden, hidden, 3), Conv(hidden, hidden, 3))
-                                            for _ in in_channels])
-            self.reg_convs = nn.ModuleList([nn.Sequential(Conv(hidden, hidden, 3), Conv(hidden, hidden, 3))
-                                            for _ in in_channels])
+            self.cls_convs = nn.ModuleList(
+                [nn.Sequential(Conv(hidden, hidden, 3), Conv(hidden, hidden, 3)) for _ in in_channels]
+            )
+            self.reg_convs = nn.ModuleList(
+                [nn.Sequential(Conv(hidden, hidden, 3), Conv(hidden, hidden, 3)) for _ in in_channels]
+            )
         n_pred = 1 if shared else levels
         self.cls_preds = nn.ModuleList([nn.Conv2d(hidden, num_classes, 1) for _ in range(n_pred)])
         self.reg_preds = nn.ModuleList([nn.Conv2d(hidden, 4, 1) for _ in range(n_pred)])
@@ -125,8 +137,9 @@ def anchor_grid(shapes: list[tuple[int, int]], strides, device, dtype) -> tuple[
     """Anchor points (cell corners, YOLOX convention) in grid units and their strides: (A, 2), (A,)."""
     grids, stride_list = [], []
     for (h, w), s in zip(shapes, strides):
-        yv, xv = torch.meshgrid(torch.arange(h, device=device, dtype=dtype),
-                                torch.arange(w, device=device, dtype=dtype), indexing="ij")
+        yv, xv = torch.meshgrid(
+            torch.arange(h, device=device, dtype=dtype), torch.arange(w, device=device, dtype=dtype), indexing="ij"
+        )
         grids.append(torch.stack([xv, yv], -1).reshape(-1, 2))
         stride_list.append(torch.full((h * w,), float(s), device=device, dtype=dtype))
     return torch.cat(grids), torch.cat(stride_list)
@@ -136,7 +149,7 @@ def decode_outputs(raw: list[torch.Tensor], strides=STRIDES):
     """Raw head maps -> (B, A, 4 + 1 + C) with xyxy boxes in pixels and *logits* for objectness and classes;
     also returns anchor centres (A, 2) in pixels and strides (A,)."""
     shapes = [tuple(r.shape[-2:]) for r in raw]
-    flat = torch.cat([r.flatten(2).transpose(1, 2) for r in raw], 1)   # (B, A, 5 + C)
+    flat = torch.cat([r.flatten(2).transpose(1, 2) for r in raw], 1)  # (B, A, 5 + C)
     grid, stride = anchor_grid(shapes, strides, flat.device, flat.dtype)
     centre = (flat[..., :2] + grid) * stride[:, None]
     wh = torch.exp(flat[..., 2:4].clamp(max=MAX_LOG_WH)) * stride[:, None]
@@ -150,11 +163,13 @@ class Detector(nn.Module):
         super().__init__()
         m = cfg.model
         self.cfg = cfg
-        self.backbone = build_backbone(m.backbone, m.depth, m.width, m.depthwise, m.pretrained, m.frozen_blocks,
-                                       m.backbone_bn)
+        self.backbone = build_backbone(
+            m.backbone, m.depth, m.width, m.depthwise, m.pretrained, m.frozen_blocks, m.backbone_bn
+        )
         self.neck = PAFPN(self.backbone.out_channels, m.depth, m.width, m.depthwise)
-        self.head = DecoupledHead(self.neck.out_channels, m.num_classes, m.width, m.depthwise, m.prior_prob,
-                                  m.shared_head)
+        self.head = DecoupledHead(
+            self.neck.out_channels, m.num_classes, m.width, m.depthwise, m.prior_prob, m.shared_head
+        )
         self.register_buffer("mean", torch.tensor(IMAGENET_MEAN).view(1, 3, 1, 1), persistent=False)
         self.register_buffer("std", torch.tensor(IMAGENET_STD).view(1, 3, 1, 1), persistent=False)
 
@@ -181,7 +196,7 @@ def postprocess(decoded: torch.Tensor, cfg: InferenceConfig) -> list[dict[str, t
     score threshold (obj * cls) and class-wise NMS, best ``max_detections`` kept."""
     results = []
     for pred in decoded:
-        scores_all = pred[:, 4:5] * pred[:, 5:]                # (A, C)
+        scores_all = pred[:, 4:5] * pred[:, 5:]  # (A, C)
         scores, labels = scores_all.max(1)
         keep = scores > cfg.score_threshold
         boxes, scores, labels = pred[keep, :4], scores[keep], labels[keep]

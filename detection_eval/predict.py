@@ -4,6 +4,7 @@ results with file names).
     detection-eval predict --weights runs/x/weights.pt --images DIR --out out/pred [--score 0.3]
     python -m detection_eval.predict ...   (same arguments)
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,8 +28,15 @@ def draw_detections(image_rgb: np.ndarray, det: dict, names: list[str]) -> np.nd
     for box, score, label in zip(det["boxes"], det["scores"], det["labels"]):
         x0, y0, x1, y1 = (int(round(v)) for v in box)
         cv2.rectangle(out, (x0, y0), (x1, y1), (0, 255, 0), thick)
-        cv2.putText(out, f"{names[int(label)]} {score:.2f}", (x0, max(y0 - 4, 10)), cv2.FONT_HERSHEY_SIMPLEX,
-                    0.4 * thick, (0, 255, 0), thick)
+        cv2.putText(
+            out,
+            f"{names[int(label)]} {score:.2f}",
+            (x0, max(y0 - 4, 10)),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.4 * thick,
+            (0, 255, 0),
+            thick,
+        )
     return cv2.cvtColor(out, cv2.COLOR_BGR2RGB)
 
 
@@ -47,16 +55,22 @@ def predict_folder(weights: str | Path, images: str | Path, out: str | Path, sco
         drawn = draw_detections(image, det, names)
         cv2.imwrite(str(out / f"{p.stem}.jpg"), cv2.cvtColor(drawn, cv2.COLOR_RGB2BGR))
         for box, s, label in zip(det["boxes"], det["scores"], det["labels"]):
-            results.append({"file_name": p.name, "category": names[int(label)], "score": float(s),
-                            "bbox_xywh": [float(box[0]), float(box[1]), float(box[2] - box[0]),
-                                          float(box[3] - box[1])]})
+            results.append(
+                {
+                    "file_name": p.name,
+                    "category": names[int(label)],
+                    "score": float(s),
+                    "bbox_xywh": [float(box[0]), float(box[1]), float(box[2] - box[0]), float(box[3] - box[1])],
+                }
+            )
     (out / "detections.json").write_text(json.dumps(results, indent=1))
     return results
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(prog="detection-eval predict", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="detection-eval predict", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--weights", required=True)
     p.add_argument("--images", required=True, help="folder of images")
     p.add_argument("--out", required=True, help="folder for drawn images and detections.json")

@@ -6,6 +6,7 @@ centre region]``; (3) each gt gets ``k = max(1, floor(sum of its top-``candidate
 (raised to ``min_k``, at most the gt's anchors inside both box and centre region, when ``min_k > 1``);
 (4) an anchor claimed by several gts keeps the one of lowest cost. No gradients flow through the assignment.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,8 +22,8 @@ LOG_EPS = 1e-8  # inside -log(IoU) so IoU 0 gives a large finite cost
 
 @dataclass(frozen=True)
 class Assignment:
-    fg_mask: torch.Tensor      # (A,) bool: anchor is a positive
-    matched_gt: torch.Tensor   # (A,) long: index of the gt for positives, -1 elsewhere
+    fg_mask: torch.Tensor  # (A,) bool: anchor is a positive
+    matched_gt: torch.Tensor  # (A,) long: index of the gt for positives, -1 elsewhere
     matched_iou: torch.Tensor  # (A,) float: IoU of the prediction with its gt for positives, 0 elsewhere
 
     @property
@@ -30,8 +31,9 @@ class Assignment:
         return int(self.fg_mask.sum())
 
 
-def candidate_masks(gt_boxes_xyxy: torch.Tensor, anchor_centers: torch.Tensor, anchor_strides: torch.Tensor,
-                    center_radius: float) -> tuple[torch.Tensor, torch.Tensor]:
+def candidate_masks(
+    gt_boxes_xyxy: torch.Tensor, anchor_centers: torch.Tensor, anchor_strides: torch.Tensor, center_radius: float
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Returns ``(in_box (G, A), in_center (G, A))``: anchor centre strictly inside the gt box; inside the square of
     half-side ``center_radius * stride`` around the gt centre."""
     x, y = anchor_centers[None, :, 0], anchor_centers[None, :, 1]
@@ -52,9 +54,15 @@ def dynamic_k(ious: torch.Tensor, candidate_topk: int) -> torch.Tensor:
 
 
 @torch.no_grad()
-def simota_assign(gt_boxes_xyxy: torch.Tensor, gt_classes: torch.Tensor, pred_boxes_xyxy: torch.Tensor,
-                  pred_cls_prob: torch.Tensor, anchor_centers: torch.Tensor, anchor_strides: torch.Tensor,
-                  cfg: AssignerConfig = AssignerConfig()) -> Assignment:
+def simota_assign(
+    gt_boxes_xyxy: torch.Tensor,
+    gt_classes: torch.Tensor,
+    pred_boxes_xyxy: torch.Tensor,
+    pred_cls_prob: torch.Tensor,
+    anchor_centers: torch.Tensor,
+    anchor_strides: torch.Tensor,
+    cfg: AssignerConfig = AssignerConfig(),
+) -> Assignment:
     """Assign anchors of one image to its gts.
 
     Shapes: gt_boxes_xyxy (G, 4), gt_classes (G,) long, pred_boxes_xyxy (A, 4), pred_cls_prob (A, C) joint
@@ -72,19 +80,19 @@ def simota_assign(gt_boxes_xyxy: torch.Tensor, gt_classes: torch.Tensor, pred_bo
         raise ValueError(f"gt_classes must have shape ({num_gt},), got {tuple(gt_classes.shape)}")
 
     in_box, in_center = candidate_masks(gt_boxes_xyxy, anchor_centers, anchor_strides, cfg.center_radius)
-    candidate = (in_box | in_center).any(0)                      # (A,)
+    candidate = (in_box | in_center).any(0)  # (A,)
     cand_idx = candidate.nonzero(as_tuple=True)[0]
     if cand_idx.numel() == 0:
         return Assignment(fg_mask, matched_gt, matched_iou)
-    in_both = (in_box & in_center)[:, cand_idx]                   # (G, A')
+    in_both = (in_box & in_center)[:, cand_idx]  # (G, A')
 
-    ious = box_iou(gt_boxes_xyxy, pred_boxes_xyxy[cand_idx])      # (G, A')
+    ious = box_iou(gt_boxes_xyxy, pred_boxes_xyxy[cand_idx])  # (G, A')
     iou_cost = -torch.log(ious + LOG_EPS)
     probs = pred_cls_prob[cand_idx].float().clamp(1e-6, 1 - 1e-6)  # (A', C)
     onehot = F.one_hot(gt_classes.long(), probs.shape[1]).float()  # (G, C)
     cls_cost = F.binary_cross_entropy(
         probs[None].expand(num_gt, -1, -1), onehot[:, None].expand(-1, probs.shape[0], -1), reduction="none"
-    ).sum(-1)                                                     # (G, A')
+    ).sum(-1)  # (G, A')
     cost = cfg.cls_cost_weight * cls_cost + cfg.iou_cost_weight * iou_cost + cfg.outside_cost * (~in_both).float()
 
     ks = dynamic_k(ious, cfg.candidate_topk)
@@ -100,8 +108,8 @@ def simota_assign(gt_boxes_xyxy: torch.Tensor, gt_classes: torch.Tensor, pred_bo
         matching[:, multi] = False
         matching[best, multi.nonzero(as_tuple=True)[0]] = True
 
-    assigned = matching.any(0)                                    # (A',)
-    gt_of = matching.float().argmax(0)                            # (A',) valid where assigned
+    assigned = matching.any(0)  # (A',)
+    gt_of = matching.float().argmax(0)  # (A',) valid where assigned
     sel = cand_idx[assigned]
     fg_mask[sel] = True
     matched_gt[sel] = gt_of[assigned]

@@ -16,6 +16,7 @@ t-interval per arm, paired differences to ``original``, and a plot.
     aias-study --config configs/study/tracon_cones_ablations.yaml             # ablation arms
     aias-study --config ... --stage generate | train | summarize              # one stage only
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,14 +31,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from aias_augment.config import CONFIG_DIR, REPO_ROOT, data_root, load_config
+from aias_augment.core.config import CONFIG_DIR, REPO_ROOT, data_root, load_config
 
 from .config import load_detector_config, replace_nested
 from .data import DetectionSet, load_yolo_dir, read_image_rgb, write_classes, write_yolo_sample
 
 log = logging.getLogger("detection_eval.study")
 
-# Stage switches of aias_augment.pipeline.InsertionConfig per arm; None = no insertion.
+# Stage switches of aias_augment.pipeline.image.InsertionConfig per arm; None = no insertion.
 ARM_FLAGS: dict[str, dict | None] = {
     "original": None,
     "inserted": {},
@@ -47,7 +48,7 @@ ARM_FLAGS: dict[str, dict | None] = {
     "no_lighting": {"lighting": False},
     "no_harmonize": {"harmonize": False},
     "inserted_online": {},
-    "inserted_procedural": {"asset_source": "procedural"},   # a new seeded procedural cone per object
+    "inserted_procedural": {"asset_source": "procedural"},  # a new seeded procedural cone per object
     # The inserted image cropped, without resampling, around its largest object so that object's box height matches
     # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
     # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
@@ -63,7 +64,7 @@ ARM_FLAGS: dict[str, dict | None] = {
     "inserted_scene_scale": {"placement_cfg": {"scene_scale_from_sizes": True}},
     # Its ablation: the assumed camera height kept, so sizes are what that height lets the visible ground host.
     "inserted_fixed_scale": {"placement_cfg": {"scene_scale_from_sizes": False}},
-    # The seed's thinned subset's own real instances (aias_augment.bank.lift): pasted at random positions and sizes
+    # The seed's thinned subset's own real instances (aias_augment.assets.bank.lift): pasted at random positions and sizes
     # (Simple Copy-Paste, masks from the boxes by GrabCut), or lifted into 3D and inserted by the full pipeline
     # (placed on the ground, lit, shadowed, harmonized: the pipeline with the data's own appearance).
     "copy_paste": {"copy_paste": True},
@@ -80,17 +81,17 @@ ONLINE_ARMS = ("inserted_online",)
 
 @dataclass(frozen=True)
 class InsertionStudyConfig:
-    preset: str = "fast"                      # aias_augment configs/presets/<preset>.yaml
-    harmonize_method: str = "camera"          # pinned, so every arm and seed uses the same harmonizer
+    preset: str = "fast"  # aias_augment configs/presets/<preset>.yaml
+    harmonize_method: str = "camera"  # pinned, so every arm and seed uses the same harmonizer
     categories: tuple[str, ...] = ("traffic_cone",)
     min_objects: int = 1
     max_objects: int = 3
-    pool_size: int = 200                      # inserted images generated once per arm (backgrounds cycle when larger
-                                              # than the 199 empty road images); every run draws its share from it
-    pool_seed: int = 0                        # copy j uses default_rng([pool_seed, j]) in every arm: paired copies
-    max_side_px: int = 640                    # backgrounds are downscaled to this before insertion (we train at 320)
-    match_real_sizes: bool = True             # target box heights drawn from the labelled train boxes' heights (as a
-                                              # fraction of image height): inserted objects cover the real sizes
+    pool_size: int = 200  # inserted images generated once per arm (backgrounds cycle when larger
+    # than the 199 empty road images); every run draws its share from it
+    pool_seed: int = 0  # copy j uses default_rng([pool_seed, j]) in every arm: paired copies
+    max_side_px: int = 640  # backgrounds are downscaled to this before insertion (we train at 320)
+    match_real_sizes: bool = True  # target box heights drawn from the labelled train boxes' heights (as a
+    # fraction of image height): inserted objects cover the real sizes
 
     def __post_init__(self):
         if self.pool_size < 1:
@@ -99,27 +100,27 @@ class InsertionStudyConfig:
 
 @dataclass(frozen=True)
 class StudyConfig:
-    dataset: str = "tracon"                   # folder under $AIAS_DATA (or an absolute path)
+    dataset: str = "tracon"  # folder under $AIAS_DATA (or an absolute path)
     class_names: tuple[str, ...] = ("cone",)
     train_split: str = "train"
     val_split: str = "val"
-    keep_fraction: float = 0.1                # of the train images that contain cones
+    keep_fraction: float = 0.1  # of the train images that contain cones
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
     arms: tuple[str, ...] = ("original", "inserted", "naive_paste")
-    amounts: tuple[int, ...] = (200,)         # inserted images added per run (an axis: a gain may need enough cones)
-    detector: str = "lite0_320"               # configs/detector/<name>.yaml
-    max_iters: int | None = None              # overrides the detector config: the per-run budget
+    amounts: tuple[int, ...] = (200,)  # inserted images added per run (an axis: a gain may need enough cones)
+    detector: str = "lite0_320"  # configs/detector/<name>.yaml
+    max_iters: int | None = None  # overrides the detector config: the per-run budget
     insertion: InsertionStudyConfig = field(default_factory=InsertionStudyConfig)
     cache_dir: str = "out/study/cache"
-    runs_dir: str = "runs/study"              # weights (not committed)
-    results_dir: str = "results/study"        # metrics, table, plot (committed)
+    runs_dir: str = "runs/study"  # weights (not committed)
+    results_dir: str = "results/study"  # metrics, table, plot (committed)
     reference_arm: str = "original"
     # A development split carved out of train before anything else (fixed draw, seed ``dev_seed``): no arm trains on
     # it, every run is scored on it beside val, and settings are chosen on it, never on val.
     dev_cone_images: int = 0
     dev_empty_images: int = 0
     dev_seed: int = 0
-    online_p: float = 0.5                     # inserted_online: probability that a training sample gets insertions
+    online_p: float = 0.5  # inserted_online: probability that a training sample gets insertions
 
     def __post_init__(self):
         unknown = [a for a in self.arms if a not in ARM_FLAGS]
@@ -130,8 +131,9 @@ class StudyConfig:
         if len(set(self.seeds)) != len(self.seeds) or not self.seeds:
             raise ValueError(f"seeds must be distinct and non-empty, got {self.seeds}")
         if not self.amounts or any(a < 1 or a > self.insertion.pool_size for a in self.amounts):
-            raise ValueError(f"amounts must lie in [1, insertion.pool_size={self.insertion.pool_size}], "
-                             f"got {self.amounts}")
+            raise ValueError(
+                f"amounts must lie in [1, insertion.pool_size={self.insertion.pool_size}], got {self.amounts}"
+            )
 
 
 def _repo_path(p: str) -> Path:
@@ -145,6 +147,7 @@ def dataset_root(cfg: StudyConfig) -> Path:
 
 # ------------------------------------------------------------------ training sets
 
+
 def split_dev(train: DetectionSet, n_cone: int, n_empty: int, seed: int) -> tuple[DetectionSet, DetectionSet]:
     """(rest, dev): ``n_cone`` images with objects and ``n_empty`` without, drawn once with ``default_rng([seed,
     3])``, moved out of ``train`` into a development set that no arm trains on (its empty roads are no insertion
@@ -154,8 +157,9 @@ def split_dev(train: DetectionSet, n_cone: int, n_empty: int, seed: int) -> tupl
     if n_cone > len(with_obj) or n_empty > len(empty) or n_cone < 0 or n_empty < 0:
         raise ValueError(f"dev split of {n_cone} + {n_empty} images asked of {len(with_obj)} + {len(empty)}")
     rng = np.random.default_rng([seed, 3])
-    dev = set(int(i) for i in rng.choice(with_obj, n_cone, replace=False)) | \
-        set(int(i) for i in rng.choice(empty, n_empty, replace=False))
+    dev = set(int(i) for i in rng.choice(with_obj, n_cone, replace=False)) | set(
+        int(i) for i in rng.choice(empty, n_empty, replace=False)
+    )
     rest = [i for i in range(len(train)) if i not in dev]
     return train.subset(rest), train.subset(sorted(dev))
 
@@ -184,12 +188,20 @@ def pool_share(pool_size: int, amount: int, seed: int) -> list[int]:
 
 def real_box_height_fractions(train: DetectionSet) -> tuple[float, ...]:
     """Box height / image height of every labelled box (the class's size distribution in the user's data)."""
-    return tuple(float((r.boxes_xyxy[i, 3] - r.boxes_xyxy[i, 1]) / r.height)
-                 for r in train.records for i in range(len(r.labels)))
+    return tuple(
+        float((r.boxes_xyxy[i, 3] - r.boxes_xyxy[i, 1]) / r.height) for r in train.records for i in range(len(r.labels))
+    )
 
 
-def closeup_crop(image: np.ndarray, boxes_xyxy: np.ndarray, target_fracs, rng: np.random.Generator, *,
-                 min_side_px: int = 128, min_visible: float = 0.5) -> tuple[np.ndarray, np.ndarray, dict]:
+def closeup_crop(
+    image: np.ndarray,
+    boxes_xyxy: np.ndarray,
+    target_fracs,
+    rng: np.random.Generator,
+    *,
+    min_side_px: int = 128,
+    min_visible: float = 0.5,
+) -> tuple[np.ndarray, np.ndarray, dict]:
     """Crop ``image`` (no resampling: the crop's pixels are the image's) around its tallest box so that the box's
     height fraction becomes a target drawn from ``target_fracs``: the frame a nearer camera or a longer lens would
     have seen, at the photo's own sharpness (the detector letterboxes every image to its input size anyway).
@@ -215,7 +227,7 @@ def closeup_crop(image: np.ndarray, boxes_xyxy: np.ndarray, target_fracs, rng: n
     y_lo, y_hi = max(0, int(np.ceil(by1)) - ch), min(int(np.floor(by0)), h - ch)
     x0 = int(rng.integers(x_lo, x_hi + 1)) if x_hi >= x_lo else max(0, min(w - cw, int(round(bx0))))
     y0 = int(rng.integers(y_lo, y_hi + 1)) if y_hi >= y_lo else max(0, min(h - ch, int(round(by0))))
-    crop = image[y0:y0 + ch, x0:x0 + cw].copy()
+    crop = image[y0 : y0 + ch, x0 : x0 + cw].copy()
     moved = boxes - [x0, y0, x0, y0]
     clipped = np.c_[np.clip(moved[:, [0, 2]], 0, cw), np.clip(moved[:, [1, 3]], 0, ch)][:, [0, 2, 1, 3]]
     area = np.prod(np.maximum(boxes[:, 2:] - boxes[:, :2], 1e-9), axis=1)
@@ -227,13 +239,18 @@ def closeup_crop(image: np.ndarray, boxes_xyxy: np.ndarray, target_fracs, rng: n
 
 
 def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
-    from aias_augment.pipeline import load_preset
+    from aias_augment.pipeline.image import load_preset
 
     ic = cfg.insertion
     flags = {k: v for k, v in ARM_FLAGS[arm].items() if k not in STUDY_FLAGS}
-    placement_flags = flags.pop("placement_cfg", {})   # fields of the placement config, on top of the preset's
-    overrides = dict(categories=tuple(ic.categories), min_objects=ic.min_objects, max_objects=ic.max_objects,
-                     harmonize_method=ic.harmonize_method, **flags)
+    placement_flags = flags.pop("placement_cfg", {})  # fields of the placement config, on top of the preset's
+    overrides = dict(
+        categories=tuple(ic.categories),
+        min_objects=ic.min_objects,
+        max_objects=ic.max_objects,
+        harmonize_method=ic.harmonize_method,
+        **flags,
+    )
     base = load_preset(ic.preset).placement_cfg
     if ic.match_real_sizes:
         fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
@@ -246,8 +263,14 @@ def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
     return load_preset(ic.preset, **overrides)
 
 
-def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: list[int], seed: int | None = None,
-                     base: DetectionSet | None = None) -> Path:
+def generate_arm_set(
+    cfg: StudyConfig,
+    arm: str,
+    train: DetectionSet,
+    empty: list[int],
+    seed: int | None = None,
+    base: DetectionSet | None = None,
+) -> Path:
     """Render the arm's pool of ``insertion.pool_size`` inserted copies into a YOLO folder, once for all seeds.
     Resumable: finished copies are listed in ``progress.jsonl`` and kept when a run with the same parameters is
     restarted; ``done.json`` marks a complete pool and is reused while its parameters match."""
@@ -260,12 +283,16 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
     out = _repo_path(cfg.cache_dir) / arm / (f"seed{seed}/pool" if per_seed else "pool")
     done, progress = out / "done.json", out / "progress.jsonl"
     backgrounds = pool_backgrounds(empty, ic.pool_seed, ic.pool_size)
-    wanted = {"arm": arm, "backgrounds": [Path(train.records[i].image_path).name for i in backgrounds],
-              "insertion": dataclasses.asdict(ic), "flags": ARM_FLAGS[arm]}
-    if per_seed:   # the instances of this seed's thinned subset only: no real data of other seeds leaks in
+    wanted = {
+        "arm": arm,
+        "backgrounds": [Path(train.records[i].image_path).name for i in backgrounds],
+        "insertion": dataclasses.asdict(ic),
+        "flags": ARM_FLAGS[arm],
+    }
+    if per_seed:  # the instances of this seed's thinned subset only: no real data of other seeds leaks in
         wanted["seed"] = seed
         wanted["sources"] = [Path(r.image_path).name for r in base.records if len(r.labels)]
-    wanted = json.loads(json.dumps(wanted))   # as it reads back from json (tuples become lists)
+    wanted = json.loads(json.dumps(wanted))  # as it reads back from json (tuples become lists)
     if done.exists():
         prev = json.loads(done.read_text())
         if all(prev.get(k) == v for k, v in wanted.items()):
@@ -276,7 +303,7 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
         progress.unlink(missing_ok=True)
     params_file = out / "params.json"
     if params_file.exists() and json.loads(params_file.read_text()) != wanted:
-        progress.unlink(missing_ok=True)           # a partial pool made with other parameters is not resumed
+        progress.unlink(missing_ok=True)  # a partial pool made with other parameters is not resumed
     out.mkdir(parents=True, exist_ok=True)
     params_file.write_text(json.dumps(wanted))
     finished = {}
@@ -284,17 +311,18 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
         for line in progress.read_text().splitlines():
             try:
                 e = json.loads(line)
-            except json.JSONDecodeError:             # a line cut by a kill
+            except json.JSONDecodeError:  # a line cut by a kill
                 continue
             if (out / "images" / e["image"]).exists() or e.get("failed"):
                 finished[e["copy"]] = e
     try:
         make = _pool_maker(cfg, arm, train, base, out)
-    except RuntimeError as exc:   # no usable instance in the subset: every copy fails with that reason (counted)
+    except RuntimeError as exc:  # no usable instance in the subset: every copy fails with that reason (counted)
         log.warning("%s: %s", arm, exc)
 
         def make(image, rng, _exc=exc):
             raise _exc
+
     t0, n_new = time.perf_counter(), 0
     with progress.open("a") as plog:
         for j, i in enumerate(backgrounds):
@@ -304,9 +332,10 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
             image = read_image_rgb(rec.image_path)
             scale = min(1.0, ic.max_side_px / max(image.shape[:2]))
             if scale < 1:
-                image = cv2.resize(image, (round(image.shape[1] * scale), round(image.shape[0] * scale)),
-                                   interpolation=cv2.INTER_AREA)
-            rng = np.random.default_rng([ic.pool_seed, j])       # same draw stream for every arm: paired copies
+                image = cv2.resize(
+                    image, (round(image.shape[1] * scale), round(image.shape[0] * scale)), interpolation=cv2.INTER_AREA
+                )
+            rng = np.random.default_rng([ic.pool_seed, j])  # same draw stream for every arm: paired copies
             t_img = time.perf_counter()
             try:
                 new_image, boxes_xyxy, modules = make(image, rng)
@@ -319,18 +348,27 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
                 boxes_xyxy = boxes_xyxy[keep]
                 stem = f"{j:04d}_{Path(rec.image_path).stem}__{arm}"
                 write_yolo_sample(out, stem, new_image, boxes_xyxy, np.zeros(len(boxes_xyxy), np.int64))
-                entry = {"copy": j, "background": Path(rec.image_path).name, "image": f"{stem}.jpg",
-                         "boxes": int(keep.sum()), "box_heights_frac": [float(x) for x in
-                                                                        (boxes_xyxy[:, 3] - boxes_xyxy[:, 1])
-                                                                        / image.shape[0]],
-                         "seconds": time.perf_counter() - t_img, "modules": modules}
+                entry = {
+                    "copy": j,
+                    "background": Path(rec.image_path).name,
+                    "image": f"{stem}.jpg",
+                    "boxes": int(keep.sum()),
+                    "box_heights_frac": [float(x) for x in (boxes_xyxy[:, 3] - boxes_xyxy[:, 1]) / image.shape[0]],
+                    "seconds": time.perf_counter() - t_img,
+                    "modules": modules,
+                }
             plog.write(json.dumps(entry) + "\n")
             plog.flush()
             finished[j] = entry
             n_new += 1
             if n_new % 10 == 0:
-                log.info("%s: %d/%d pool images, %.1f s/image", arm, len(finished), len(backgrounds),
-                         (time.perf_counter() - t0) / n_new)
+                log.info(
+                    "%s: %d/%d pool images, %.1f s/image",
+                    arm,
+                    len(finished),
+                    len(backgrounds),
+                    (time.perf_counter() - t0) / n_new,
+                )
     entries = [finished[j] for j in sorted(finished)]
     ok = [e for e in entries if not e.get("failed")]
     failures: dict[str, int] = {}
@@ -340,9 +378,19 @@ def generate_arm_set(cfg: StudyConfig, arm: str, train: DetectionSet, empty: lis
     write_classes(out, cfg.class_names)
     (out / "manifest.json").write_text(json.dumps(entries, indent=1))
     seconds = [e["seconds"] for e in ok]
-    done.write_text(json.dumps({**wanted, "code_commit": _git_head(), "num_images": len(ok),
-                                "num_boxes": sum(e["boxes"] for e in ok), "failures": failures,
-                                "seconds_per_image": float(np.median(seconds)) if seconds else None}, indent=1))
+    done.write_text(
+        json.dumps(
+            {
+                **wanted,
+                "code_commit": _git_head(),
+                "num_images": len(ok),
+                "num_boxes": sum(e["boxes"] for e in ok),
+                "failures": failures,
+                "seconds_per_image": float(np.median(seconds)) if seconds else None,
+            },
+            indent=1,
+        )
+    )
     log.info("%s: pool of %d images, %d inserted boxes", arm, len(ok), sum(e["boxes"] for e in ok))
     return out
 
@@ -355,9 +403,16 @@ def derive_closeup_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: 
     src_done = json.loads((src / "done.json").read_text())
     out = _repo_path(cfg.cache_dir) / arm / "pool"
     done = out / "done.json"
-    wanted = json.loads(json.dumps({"arm": arm, "flags": ARM_FLAGS[arm], "insertion": dataclasses.asdict(cfg.insertion),
-                                    "source": {k: src_done.get(k) for k in ("code_commit", "num_images",
-                                                                            "num_boxes")}}))
+    wanted = json.loads(
+        json.dumps(
+            {
+                "arm": arm,
+                "flags": ARM_FLAGS[arm],
+                "insertion": dataclasses.asdict(cfg.insertion),
+                "source": {k: src_done.get(k) for k in ("code_commit", "num_images", "num_boxes")},
+            }
+        )
+    )
     if done.exists() and all(json.loads(done.read_text()).get(k) == v for k, v in wanted.items()):
         log.info("%s: using cached pool %s", arm, out)
         return out
@@ -373,30 +428,54 @@ def derive_closeup_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: 
             continue
         r = by_name[e["image"]]
         image = read_image_rgb(r.image_path)
-        crop, boxes, info = closeup_crop(image, r.boxes_xyxy, fracs,
-                                         np.random.default_rng([cfg.insertion.pool_seed, e["copy"], 17]))
+        crop, boxes, info = closeup_crop(
+            image, r.boxes_xyxy, fracs, np.random.default_rng([cfg.insertion.pool_seed, e["copy"], 17])
+        )
         stem = Path(e["image"]).stem.replace("__inserted", f"__{arm}")
         write_yolo_sample(out, stem, crop, boxes, np.zeros(len(boxes), np.int64))
-        entries.append({**e, "image": f"{stem}.jpg", "boxes": int(len(boxes)), "closeup": info,
-                        "box_heights_frac": [float(x) for x in (boxes[:, 3] - boxes[:, 1]) / crop.shape[0]]})
+        entries.append(
+            {
+                **e,
+                "image": f"{stem}.jpg",
+                "boxes": int(len(boxes)),
+                "closeup": info,
+                "box_heights_frac": [float(x) for x in (boxes[:, 3] - boxes[:, 1]) / crop.shape[0]],
+            }
+        )
     ok = [e for e in entries if not e.get("failed")]
     write_classes(out, cfg.class_names)
     (out / "manifest.json").write_text(json.dumps(entries, indent=1))
-    done.write_text(json.dumps({**wanted, "code_commit": _git_head(), "num_images": len(ok),
-                                "num_boxes": sum(e["boxes"] for e in ok), "failures": src_done.get("failures", {}),
-                                "seconds_per_image": src_done.get("seconds_per_image"),
-                                "median_zoom": float(np.median([e["closeup"]["zoom"] for e in ok])) if ok else None},
-                               indent=1))
-    log.info("%s: %d close-up copies of %s, median zoom %.2f", arm, len(ok), src,
-             json.loads(done.read_text())["median_zoom"] or 1.0)
+    done.write_text(
+        json.dumps(
+            {
+                **wanted,
+                "code_commit": _git_head(),
+                "num_images": len(ok),
+                "num_boxes": sum(e["boxes"] for e in ok),
+                "failures": src_done.get("failures", {}),
+                "seconds_per_image": src_done.get("seconds_per_image"),
+                "median_zoom": float(np.median([e["closeup"]["zoom"] for e in ok])) if ok else None,
+            },
+            indent=1,
+        )
+    )
+    log.info(
+        "%s: %d close-up copies of %s, median zoom %.2f",
+        arm,
+        len(ok),
+        src,
+        json.loads(done.read_text())["median_zoom"] or 1.0,
+    )
     return out
 
 
 def _git_head() -> str:
     import subprocess
+
     try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO_ROOT, capture_output=True, text=True,
-                              timeout=10).stdout.strip()
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=REPO_ROOT, capture_output=True, text=True, timeout=10
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return "unknown"
 
@@ -404,22 +483,29 @@ def _git_head() -> str:
 def _pool_maker(cfg: StudyConfig, arm: str, train: DetectionSet, base: DetectionSet | None, out: Path):
     """``make(background, rng) -> (image, boxes_xyxy, modules)`` of the arm: the pipeline (with the lifted instances
     of the seed's subset as its assets for ``lifted``), or copy-paste of the subset's real instances."""
-    from aias_augment.pipeline import insert_into_image
+    from aias_augment.pipeline.image import insert_into_image
 
     flags = ARM_FLAGS[arm]
     if flags.get("copy_paste") or flags.get("lifted"):
-        from aias_augment.bank.lift import LiftedAssets, cut_out, lift_instances
+        from aias_augment.assets.bank.lift import LiftedAssets, cut_out, lift_instances
+
         items = [(r.image_path, read_image_rgb(r.image_path), r.boxes_xyxy) for r in base.records if len(r.labels)]
         category = cfg.insertion.categories[0]
         if flags.get("lifted"):
             assets, report = lift_instances(items, category, out / "assets")
-            log.info("%s: lifted %d instances of %d images (rejected: %s)", arm, report.lifted, len(items),
-                     dict(report.rejected))
+            log.info(
+                "%s: lifted %d instances of %d images (rejected: %s)",
+                arm,
+                report.lifted,
+                len(items),
+                dict(report.rejected),
+            )
             if not assets:
                 raise RuntimeError(f"no instance of the subset could be lifted: {dict(report.rejected)}")
             bank = LiftedAssets({category: assets})
         else:
             from .copy_paste import paste_instances
+
             cutouts, rejected = [], {}
             for path, image, boxes in items:
                 for k, box in enumerate(boxes):
@@ -439,6 +525,7 @@ def _pool_maker(cfg: StudyConfig, arm: str, train: DetectionSet, base: Detection
                 n = int(rng.integers(ic.min_objects, ic.max_objects + 1))
                 new, boxes = paste_instances(image, cutouts, rng, fracs, n)
                 return new, boxes, {"mode": f"copy-paste of {len(cutouts)} real instances"}
+
             return make_paste
     else:
         bank = None
@@ -448,20 +535,28 @@ def _pool_maker(cfg: StudyConfig, arm: str, train: DetectionSet, base: Detection
         res = insert_into_image(image, np.zeros((0, 4)), [], rng, ins_cfg, bank=bank)
         b = np.asarray(res.bboxes, np.float64).reshape(-1, 4)
         return res.image, np.c_[b[:, :2], b[:, :2] + b[:, 2:]], dict(res.record.modules)
+
     return make_insert
 
 
-def training_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, amount: int | None = None,
-                 generate: bool = True):
+def training_set(
+    cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, amount: int | None = None, generate: bool = True
+):
     """(training DetectionSet, info dict) for one arm, seed and amount of inserted images."""
     base, empty = thin_cone_images(train, cfg.keep_fraction, seed)
-    info = {"real_images": len(base), "real_cone_images": sum(1 for r in base.records if len(r.labels)),
-            "real_boxes": base.num_boxes}
+    info = {
+        "real_images": len(base),
+        "real_cone_images": sum(1 for r in base.records if len(r.labels)),
+        "real_boxes": base.num_boxes,
+    }
     if ARM_FLAGS[arm] is None or arm in ONLINE_ARMS:
         return base, info
     per_seed = arm in PER_SEED_ARMS
-    folder = generate_arm_set(cfg, arm, train, empty, seed, base) if generate else \
-        _repo_path(cfg.cache_dir) / arm / (f"seed{seed}/pool" if per_seed else "pool")
+    folder = (
+        generate_arm_set(cfg, arm, train, empty, seed, base)
+        if generate
+        else _repo_path(cfg.cache_dir) / arm / (f"seed{seed}/pool" if per_seed else "pool")
+    )
     if not (folder / "done.json").exists():
         raise FileNotFoundError(f"{folder}: augmented pool not generated (run --stage generate)")
     gen = json.loads((folder / "done.json").read_text())
@@ -472,14 +567,21 @@ def training_set(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, amo
     pool = load_yolo_dir(folder, names=cfg.class_names)
     by_name = {Path(r.image_path).name: r for r in pool.records}
     extra = DetectionSet(tuple(by_name[by_copy[j]["image"]] for j in share), pool.category_names)
-    info.update({"amount": amount, "inserted_images": len(extra), "inserted_boxes": extra.num_boxes,
-                 "generation_seconds_per_image": gen["seconds_per_image"], "generation_failures": gen["failures"]})
+    info.update(
+        {
+            "amount": amount,
+            "inserted_images": len(extra),
+            "inserted_boxes": extra.num_boxes,
+            "generation_seconds_per_image": gen["seconds_per_image"],
+            "generation_failures": gen["failures"],
+        }
+    )
     return base + extra, info
 
 
 # ------------------------------------------------------------------ runs
 
-_IMAGE_MEMO: dict = {}   # decoded, resized training images shared by all runs of one process
+_IMAGE_MEMO: dict = {}  # decoded, resized training images shared by all runs of one process
 
 
 def run_name(arm: str, seed: int, amount: int | None) -> str:
@@ -503,17 +605,35 @@ def online_transform(cfg: StudyConfig, train: DetectionSet, scene_cache_dir: Pat
     ins = insertion_config_for_arm(cfg, "inserted", train)
     overrides = {k: getattr(ins, k) for k in ("harmonize_method", "placement_cfg")}
     ic = cfg.insertion
-    tf = InsertObjects(categories=tuple(ic.categories), min_objects=ic.min_objects, max_objects=ic.max_objects,
-                       preset=ic.preset, category_ids={c: 0 for c in ic.categories}, config_overrides=overrides,
-                       scene_cache=None if scene_cache_dir is None else str(scene_cache_dir), scene_cache_items=512,
-                       p=cfg.online_p)
-    compose = A.Compose([tf], bbox_params=A.BboxParams(format="pascal_voc", label_fields=["labels"],
-                                                       min_visibility=0.2), seed=0)
+    tf = InsertObjects(
+        categories=tuple(ic.categories),
+        min_objects=ic.min_objects,
+        max_objects=ic.max_objects,
+        preset=ic.preset,
+        category_ids={c: 0 for c in ic.categories},
+        config_overrides=overrides,
+        scene_cache=None if scene_cache_dir is None else str(scene_cache_dir),
+        scene_cache_items=512,
+        p=cfg.online_p,
+    )
+    compose = A.Compose(
+        [tf], bbox_params=A.BboxParams(format="pascal_voc", label_fields=["labels"], min_visibility=0.2), seed=0
+    )
     return albumentations_transform(compose)
 
 
-def run_one(cfg: StudyConfig, arm: str, seed: int, train: DetectionSet, val: DetectionSet, val_cache,
-            amount: int | None = None, force=False, dev: DetectionSet | None = None, dev_cache=None):
+def run_one(
+    cfg: StudyConfig,
+    arm: str,
+    seed: int,
+    train: DetectionSet,
+    val: DetectionSet,
+    val_cache,
+    amount: int | None = None,
+    force=False,
+    dev: DetectionSet | None = None,
+    dev_cache=None,
+):
     amount = None if not uses_pool(arm) else (cfg.amounts[0] if amount is None else amount)
     name = run_name(arm, seed, amount)
     result_path = _repo_path(cfg.results_dir) / "run_metrics" / f"{name}.json"
@@ -535,6 +655,7 @@ def claim_run(result_path: Path) -> Path | None:
     runs. A claim whose process is gone is taken over. Returns the claim path, or None when another live process
     holds it."""
     import os
+
     claim = result_path.with_suffix(".running")
     claim.parent.mkdir(parents=True, exist_ok=True)
     for _ in range(2):
@@ -544,9 +665,9 @@ def claim_run(result_path: Path) -> Path | None:
             try:
                 pid = int(claim.read_text().strip() or 0)
                 os.kill(pid, 0)
-                return None                      # alive: someone else trains it
+                return None  # alive: someone else trains it
             except (ValueError, ProcessLookupError, FileNotFoundError):
-                claim.unlink(missing_ok=True)    # stale claim of a killed process
+                claim.unlink(missing_ok=True)  # stale claim of a killed process
                 continue
             except PermissionError:
                 return None
@@ -571,30 +692,61 @@ def _train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_
         result_path.with_suffix(".skip").write_text(json.dumps(info, indent=1))
         return None
     log.info("%s: training on %s", name, info)
-    sample_transform = online_transform(cfg, train, _repo_path(cfg.cache_dir) / "scenes") \
-        if arm in ONLINE_ARMS else None
+    sample_transform = (
+        online_transform(cfg, train, _repo_path(cfg.cache_dir) / "scenes") if arm in ONLINE_ARMS else None
+    )
     synthetic = np.r_[np.zeros(info["real_images"], bool), np.ones(len(train_set) - info["real_images"], bool)]
-    res = train_detector(det_cfg, train_set, seed=seed, log_fn=lambda m: log.info("%s %s", name, m),
-                         image_memo=_IMAGE_MEMO, sample_transform=sample_transform, synthetic_mask=synthetic)
+    res = train_detector(
+        det_cfg,
+        train_set,
+        seed=seed,
+        log_fn=lambda m: log.info("%s %s", name, m),
+        image_memo=_IMAGE_MEMO,
+        sample_transform=sample_transform,
+        synthetic_mask=synthetic,
+    )
     t0 = time.perf_counter()
     metrics = evaluate_dataset(res.model, val, det_cfg.train.img_size, det_cfg.inference, cached=val_cache)
     eval_seconds = time.perf_counter() - t0
-    dev_metrics = None if dev is None or not len(dev) else \
-        evaluate_dataset(res.model, dev, det_cfg.train.img_size, det_cfg.inference, cached=dev_cache)
+    dev_metrics = (
+        None
+        if dev is None or not len(dev)
+        else evaluate_dataset(res.model, dev, det_cfg.train.img_size, det_cfg.inference, cached=dev_cache)
+    )
     weights = _repo_path(cfg.runs_dir) / name / "weights.pt"
-    row = {"arm": arm, "seed": seed, "amount": amount, **info, "train_images": len(train_set),
-           "iterations": res.iterations, "batch_size": det_cfg.train.batch_size, "img_size": det_cfg.train.img_size,
-           "threads": det_cfg.train.num_threads, "train_seconds": res.train_seconds,
-           "cache_seconds": res.cache_seconds, "train_images_per_second": res.images_per_second,
-           "eval_seconds": eval_seconds, "final_losses": res.final_losses, "metrics": _nan_to_none(metrics),
-           "dev_metrics": _nan_to_none(dev_metrics),
-           "weights": str(weights), "code_commit": _git_head(), "detector": dataclasses.asdict(det_cfg)}
+    row = {
+        "arm": arm,
+        "seed": seed,
+        "amount": amount,
+        **info,
+        "train_images": len(train_set),
+        "iterations": res.iterations,
+        "batch_size": det_cfg.train.batch_size,
+        "img_size": det_cfg.train.img_size,
+        "threads": det_cfg.train.num_threads,
+        "train_seconds": res.train_seconds,
+        "cache_seconds": res.cache_seconds,
+        "train_images_per_second": res.images_per_second,
+        "eval_seconds": eval_seconds,
+        "final_losses": res.final_losses,
+        "metrics": _nan_to_none(metrics),
+        "dev_metrics": _nan_to_none(dev_metrics),
+        "weights": str(weights),
+        "code_commit": _git_head(),
+        "detector": dataclasses.asdict(det_cfg),
+    }
     save_checkpoint(weights, res.model, train_set.category_names, {k: v for k, v in row.items() if k != "detector"})
     result_path.parent.mkdir(parents=True, exist_ok=True)
     result_path.write_text(json.dumps(row, indent=1))
-    log.info("%s: AP %.4f AP50 %.4f%s (%.0f s train, %.2f img/s)", name, metrics["AP"], metrics["AP50"],
-             "" if dev_metrics is None else f" dev AP {dev_metrics['AP']:.4f}", res.train_seconds,
-             res.images_per_second)
+    log.info(
+        "%s: AP %.4f AP50 %.4f%s (%.0f s train, %.2f img/s)",
+        name,
+        metrics["AP"],
+        metrics["AP50"],
+        "" if dev_metrics is None else f" dev AP {dev_metrics['AP']:.4f}",
+        res.train_seconds,
+        res.images_per_second,
+    )
     return row
 
 
@@ -608,9 +760,11 @@ def _nan_to_none(obj):
 
 # ------------------------------------------------------------------ summary
 
+
 def mean_ci95(values) -> tuple[float, float]:
     """Mean and half-width of the two-sided 95% Student-t interval (nan half-width for fewer than 2 values)."""
     from scipy import stats
+
     v = np.asarray([x for x in values if x is not None], np.float64)
     if v.size == 0:
         return float("nan"), float("nan")
@@ -619,8 +773,13 @@ def mean_ci95(values) -> tuple[float, float]:
     return float(v.mean()), float(stats.t.ppf(0.975, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size))
 
 
-METRIC_COLUMNS = (("AP", "AP50:95"), ("AP50", "AP50"), ("AP_small", "AP_S"), ("AP_medium", "AP_M"),
-                  ("AP_large", "AP_L"))
+METRIC_COLUMNS = (
+    ("AP", "AP50:95"),
+    ("AP50", "AP50"),
+    ("AP_small", "AP_S"),
+    ("AP_medium", "AP_M"),
+    ("AP_large", "AP_L"),
+)
 
 
 def group_of(row: dict) -> str:
@@ -642,9 +801,12 @@ def summarize(rows: list[dict], reference: str = "original") -> tuple[str, dict]
     groups = list(dict.fromkeys(group_of(r) for r in rows))
     summary = {}
     fmt = lambda m, h: "n/a" if math.isnan(m) else (f"{m:.3f}" if math.isnan(h) else f"{m:.3f} ± {h:.3f}")
-    head = "| arm | seeds | train images (real + inserted) | " + " | ".join(c[1] for c in METRIC_COLUMNS) + \
-        f" | ΔAP50:95 vs {reference} (paired) | ΔAP50:95 vs naive_paste (paired) | dev AP50:95 | " \
+    head = (
+        "| arm | seeds | train images (real + inserted) | "
+        + " | ".join(c[1] for c in METRIC_COLUMNS)
+        + f" | ΔAP50:95 vs {reference} (paired) | ΔAP50:95 vs naive_paste (paired) | dev AP50:95 | "
         f"dev ΔAP50:95 vs {reference} | train s/run | train img/s |"
+    )
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for g in groups:
         rs = sorted((r for r in rows if group_of(r) == g), key=lambda r: r["seed"])
@@ -652,30 +814,40 @@ def summarize(rows: list[dict], reference: str = "original") -> tuple[str, dict]
         s = {"arm": arm, "amount": amount, "seeds": [r["seed"] for r in rs]}
         for key, _ in METRIC_COLUMNS:
             s[key] = mean_ci95([r["metrics"][key] for r in rs])
-        s["delta_AP"] = mean_ci95(paired_deltas(rows, g, reference)) if arm != reference else \
-            (float("nan"), float("nan"))
+        s["delta_AP"] = (
+            mean_ci95(paired_deltas(rows, g, reference)) if arm != reference else (float("nan"), float("nan"))
+        )
         naive = f"naive_paste n={amount}"
-        s["delta_AP_vs_naive"] = mean_ci95(paired_deltas(rows, g, naive)) if arm not in (reference, "naive_paste") \
-            and naive in groups else (float("nan"), float("nan"))
+        s["delta_AP_vs_naive"] = (
+            mean_ci95(paired_deltas(rows, g, naive))
+            if arm not in (reference, "naive_paste") and naive in groups
+            else (float("nan"), float("nan"))
+        )
         s["dev_AP"] = mean_ci95([(r.get("dev_metrics") or {}).get("AP") for r in rs])
-        s["dev_delta_AP"] = mean_ci95(paired_deltas(rows, g, reference, split="dev_metrics")) \
-            if arm != reference else (float("nan"), float("nan"))
+        s["dev_delta_AP"] = (
+            mean_ci95(paired_deltas(rows, g, reference, split="dev_metrics"))
+            if arm != reference
+            else (float("nan"), float("nan"))
+        )
         s["train_seconds"] = float(np.median([r["train_seconds"] for r in rs]))
         s["train_images_per_second"] = float(np.median([r["train_images_per_second"] for r in rs]))
         real = int(np.median([r["real_images"] for r in rs]))
         ins = int(np.median([r.get("inserted_images", 0) for r in rs]))
         summary[g] = s
         dn = fmt(*s["delta_AP_vs_naive"]) if not math.isnan(s["delta_AP_vs_naive"][0]) else "—"
-        lines.append(f"| {g} | {len(rs)} | {real} + {ins} | " +
-                     " | ".join(fmt(*s[k]) for k, _ in METRIC_COLUMNS) +
-                     f" | {fmt(*s['delta_AP']) if arm != reference else '—'} | {dn} | {fmt(*s['dev_AP'])} | "
-                     f"{fmt(*s['dev_delta_AP']) if arm != reference else '—'} | {s['train_seconds']:.0f} | "
-                     f"{s['train_images_per_second']:.2f} |")
+        lines.append(
+            f"| {g} | {len(rs)} | {real} + {ins} | "
+            + " | ".join(fmt(*s[k]) for k, _ in METRIC_COLUMNS)
+            + f" | {fmt(*s['delta_AP']) if arm != reference else '—'} | {dn} | {fmt(*s['dev_AP'])} | "
+            f"{fmt(*s['dev_delta_AP']) if arm != reference else '—'} | {s['train_seconds']:.0f} | "
+            f"{s['train_images_per_second']:.2f} |"
+        )
     return "\n".join(lines) + "\n", summary
 
 
 def plot_summary(rows: list[dict], path: Path, reference: str = "original") -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -686,8 +858,16 @@ def plot_summary(rows: list[dict], path: Path, reference: str = "original") -> N
             vals = [r["metrics"][key] for r in rows if group_of(r) == g]
             m, h = mean_ci95(vals)
             ax.scatter([x] * len(vals), vals, color="0.6", s=14, zorder=2)
-            ax.errorbar([x], [m], yerr=[[0 if math.isnan(h) else h]] * 2, fmt="o", color="C0" if g == reference
-                        else "C1", capsize=6, markersize=7, zorder=3)
+            ax.errorbar(
+                [x],
+                [m],
+                yerr=[[0 if math.isnan(h) else h]] * 2,
+                fmt="o",
+                color="C0" if g == reference else "C1",
+                capsize=6,
+                markersize=7,
+                zorder=3,
+            )
         ax.set_xticks(range(len(groups)), groups, rotation=20)
         ax.set_title(f"TraCon val {title} (mean, 95% CI; grey = seeds)")
         ax.grid(axis="y", alpha=0.3)
@@ -701,6 +881,7 @@ def plot_amounts(rows: list[dict], path: Path, reference: str = "original") -> b
     """Paired ΔAP50:95 to ``reference`` (mean, 95 % CI, seeds as dots) against the number of inserted images, one
     line per pool arm with at least two amounts or sharing an amount with one that has; False when nothing to draw."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -718,10 +899,17 @@ def plot_amounts(rows: list[dict], path: Path, reference: str = "original") -> b
                 pts.append((a, m, 0.0 if math.isnan(h) else h, d))
         if not pts:
             continue
-        off = 1.0 + 0.03 * (k - (len(arms) - 1) / 2)   # a small multiplicative offset so the bars do not overlap
+        off = 1.0 + 0.03 * (k - (len(arms) - 1) / 2)  # a small multiplicative offset so the bars do not overlap
         xs = [a * off for a, *_ in pts]
-        ax.errorbar(xs, [m for _, m, _, _ in pts], yerr=[h for *_, h, _ in pts], fmt="o-", capsize=5,
-                    color=f"C{k}", label=f"{arm} (seeds: {', '.join(str(len(d)) for *_, d in pts)})")
+        ax.errorbar(
+            xs,
+            [m for _, m, _, _ in pts],
+            yerr=[h for *_, h, _ in pts],
+            fmt="o-",
+            capsize=5,
+            color=f"C{k}",
+            label=f"{arm} (seeds: {', '.join(str(len(d)) for *_, d in pts)})",
+        )
         for x, (_, _, _, d) in zip(xs, pts):
             ax.scatter([x] * len(d), d, color=f"C{k}", s=10, alpha=0.35)
     ax.axhline(0, color="0.3", lw=1)
@@ -744,24 +932,36 @@ def plot_amounts(rows: list[dict], path: Path, reference: str = "original") -> b
 def plot_size_histograms(cfg: StudyConfig, train: DetectionSet, val: DetectionSet, path: Path) -> dict:
     """Box height / image height of real train, real val and each arm's pool; returns their medians."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     series = {"real train": real_box_height_fractions(train), "real val": real_box_height_fractions(val)}
-    for arm in ARM_FLAGS:   # every pool generated so far (the other study configs' arms too; per-seed pools pooled)
+    for arm in ARM_FLAGS:  # every pool generated so far (the other study configs' arms too; per-seed pools pooled)
         arm_dir = _repo_path(cfg.cache_dir) / arm
-        files = sorted(arm_dir.glob("seed*/pool/manifest.json")) if arm in PER_SEED_ARMS else \
-            [arm_dir / "pool" / "manifest.json"]
-        heights = [h for mf in files if mf.exists() for e in json.loads(mf.read_text())
-                   for h in e.get("box_heights_frac", [])]
+        files = (
+            sorted(arm_dir.glob("seed*/pool/manifest.json"))
+            if arm in PER_SEED_ARMS
+            else [arm_dir / "pool" / "manifest.json"]
+        )
+        heights = [
+            h for mf in files if mf.exists() for e in json.loads(mf.read_text()) for h in e.get("box_heights_frac", [])
+        ]
         if uses_pool(arm) and heights:
             series[f"{arm} pool"] = heights
     fig, ax = plt.subplots(figsize=(7, 4))
     bins = np.linspace(0, 1, 41)
     for k, (name, v) in enumerate(series.items()):
         if len(v):
-            ax.hist(v, bins=bins, density=True, histtype="step", lw=1.8, color=f"C{k}",
-                    label=f"{name} (n={len(v)}, median {np.median(v):.2f})")
+            ax.hist(
+                v,
+                bins=bins,
+                density=True,
+                histtype="step",
+                lw=1.8,
+                color=f"C{k}",
+                label=f"{name} (n={len(v)}, median {np.median(v):.2f})",
+            )
     ax.set_xlabel("box height / image height")
     ax.set_ylabel("density")
     ax.set_title("Object sizes: real cones vs inserted")
@@ -773,8 +973,9 @@ def plot_size_histograms(cfg: StudyConfig, train: DetectionSet, val: DetectionSe
     return {k: float(np.median(v)) for k, v in series.items() if len(v)}
 
 
-def write_summary(cfg: StudyConfig, config_path: str, command: str, train: DetectionSet | None = None,
-                  val: DetectionSet | None = None) -> str:
+def write_summary(
+    cfg: StudyConfig, config_path: str, command: str, train: DetectionSet | None = None, val: DetectionSet | None = None
+) -> str:
     results = _repo_path(cfg.results_dir)
     rows = [json.loads(p.read_text()) for p in sorted((results / "run_metrics").glob("*.json"))]
     rows = [r for r in rows if r["arm"] in ARM_FLAGS]
@@ -787,39 +988,60 @@ def write_summary(cfg: StudyConfig, config_path: str, command: str, train: Detec
     r0 = rows[0]
     gen = {}
     for a in dict.fromkeys(r["arm"] for r in rows):
-        per_image = [r["generation_seconds_per_image"] for r in rows if r["arm"] == a and
-                     r.get("generation_seconds_per_image") is not None]
+        per_image = [
+            r["generation_seconds_per_image"]
+            for r in rows
+            if r["arm"] == a and r.get("generation_seconds_per_image") is not None
+        ]
         if per_image:
             gen[a] = float(np.median(per_image))
-    note = (f"Detector: `{r0['detector']['model']['backbone']}` (width {r0['detector']['model']['width']}), "
-            f"{r0['img_size']} px, {r0['iterations']} iterations x batch {r0['batch_size']} per run, "
-            f"{r0.get('threads', 1)} CPU thread(s) per run. Evaluated on TraCon val ({r0['metrics']['num_images']} "
-            f"images, {r0['metrics']['num_gt']} cones) with pycocotools. Mean ± half-width of the 95% Student-t "
-            f"interval over seeds; Δ columns are paired by seed (seed k of every arm trains on the same thinned "
-            f"real subset, redrawn per seed, so its variance is inside the interval).\n")
+    note = (
+        f"Detector: `{r0['detector']['model']['backbone']}` (width {r0['detector']['model']['width']}), "
+        f"{r0['img_size']} px, {r0['iterations']} iterations x batch {r0['batch_size']} per run, "
+        f"{r0.get('threads', 1)} CPU thread(s) per run. Evaluated on TraCon val ({r0['metrics']['num_images']} "
+        f"images, {r0['metrics']['num_gt']} cones) with pycocotools. Mean ± half-width of the 95% Student-t "
+        f"interval over seeds; Δ columns are paired by seed (seed k of every arm trains on the same thinned "
+        f"real subset, redrawn per seed, so its variance is inside the interval).\n"
+    )
     if gen:
-        note += "Offline generation, median seconds per inserted image: " + \
-            ", ".join(f"{a} {s:.1f}" for a, s in gen.items()) + ".\n"
+        note += (
+            "Offline generation, median seconds per inserted image: "
+            + ", ".join(f"{a} {s:.1f}" for a, s in gen.items())
+            + ".\n"
+        )
     total = sum(r["train_seconds"] + r.get("eval_seconds", 0.0) for r in rows)
-    note += (f"Training and evaluation time summed over the {len(rows)} runs: {total / 60:.0f} min of one CPU "
-             f"thread each (wall time about half of that with one process per core, see the README).\n")
-    md = f"# Detection study: TraCon cones\n\nReproduce: `aias-study --config {config_path}` (generate, train, " \
-         f"summarize); this table was written by `{command}`.\n\n{note}\n{table}\n" \
-         f"![AP by arm](ap_by_arm.png)\n"
+    note += (
+        f"Training and evaluation time summed over the {len(rows)} runs: {total / 60:.0f} min of one CPU "
+        f"thread each (wall time about half of that with one process per core, see the README).\n"
+    )
+    md = (
+        f"# Detection study: TraCon cones\n\nReproduce: `aias-study --config {config_path}` (generate, train, "
+        f"summarize); this table was written by `{command}`.\n\n{note}\n{table}\n"
+        f"![AP by arm](ap_by_arm.png)\n"
+    )
     if plot_amounts(rows, results / "ap_by_amount.png", cfg.reference_arm):
         md += "\n![gain by amount of inserted data](ap_by_amount.png)\n"
     if train is not None and val is not None:
         medians = plot_size_histograms(cfg, train, val, results / "size_histograms.png")
-        md += "\nObject sizes (median box height / image height): " + \
-            ", ".join(f"{k} {v:.3f}" for k, v in medians.items()) + "\n\n![sizes](size_histograms.png)\n"
+        md += (
+            "\nObject sizes (median box height / image height): "
+            + ", ".join(f"{k} {v:.3f}" for k, v in medians.items())
+            + "\n\n![sizes](size_histograms.png)\n"
+        )
     (results / "table.md").write_text(md)
-    (results / "summary.json").write_text(json.dumps(_nan_to_none(
-        {a: {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.items()} for a, s in summary.items()}),
-        indent=1))
+    (results / "summary.json").write_text(
+        json.dumps(
+            _nan_to_none(
+                {a: {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.items()} for a, s in summary.items()}
+            ),
+            indent=1,
+        )
+    )
     return md
 
 
 # ------------------------------------------------------------------ entry point
+
 
 def load_study_config(path: str | Path) -> StudyConfig:
     p = Path(path)
@@ -831,12 +1053,13 @@ def load_study_config(path: str | Path) -> StudyConfig:
 def available_arms(arms) -> list[str]:
     """Arms whose insertion interface exists; the rest are skipped with a logged reason."""
     try:
-        from aias_augment.pipeline import insert_into_image, load_preset  # noqa: F401
+        from aias_augment.pipeline.image import insert_into_image, load_preset  # noqa: F401
+
         return list(arms)
     except ImportError as exc:
         skipped = [a for a in arms if ARM_FLAGS[a] is not None]
         if skipped:
-            log.warning("skipping arms %s: aias_augment.pipeline is not available (%s)", skipped, exc)
+            log.warning("skipping arms %s: aias_augment.pipeline.image is not available (%s)", skipped, exc)
         return [a for a in arms if ARM_FLAGS[a] is None]
 
 
@@ -846,8 +1069,9 @@ def main(argv: list[str] | None = None) -> None:
 
     import torch
 
-    p = argparse.ArgumentParser(prog="aias-study", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="aias-study", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("--config", default="configs/study/tracon_cones.yaml")
     p.add_argument("--stage", choices=("all", "generate", "train", "summarize"), default="all")
     p.add_argument("--arms", nargs="*", help="subset of the config's arms")
@@ -866,8 +1090,9 @@ def main(argv: list[str] | None = None) -> None:
     train = load_yolo_dir(root, cfg.train_split, cfg.class_names)
     val = load_yolo_dir(root, cfg.val_split, cfg.class_names)
     train, dev = split_dev(train, cfg.dev_cone_images, cfg.dev_empty_images, cfg.dev_seed)
-    log.info("train: %d images, %d boxes; dev: %d images, %d boxes", len(train), train.num_boxes, len(dev),
-             dev.num_boxes)
+    log.info(
+        "train: %d images, %d boxes; dev: %d images, %d boxes", len(train), train.num_boxes, len(dev), dev.num_boxes
+    )
     if args.stage == "generate":
         _, empty = thin_cone_images(train, cfg.keep_fraction, seeds[0])
         for arm in arms:
@@ -880,14 +1105,16 @@ def main(argv: list[str] | None = None) -> None:
         return
     if args.stage in ("all", "train"):
         from .loader import cache_dataset
+
         det_cfg = load_detector_config(cfg.detector)
         val_cache = cache_dataset(val, det_cfg.train.img_size)
         dev_cache = cache_dataset(dev, det_cfg.train.img_size) if len(dev) else None
         for seed in seeds:
             for arm in arms:
-                for amount in (amounts if uses_pool(arm) else [None]):
-                    run_one(cfg, arm, seed, train, val, val_cache, amount, force=args.force, dev=dev,
-                            dev_cache=dev_cache)
+                for amount in amounts if uses_pool(arm) else [None]:
+                    run_one(
+                        cfg, arm, seed, train, val, val_cache, amount, force=args.force, dev=dev, dev_cache=dev_cache
+                    )
     print(write_summary(cfg, str(args.config), command, train, val))
 
 

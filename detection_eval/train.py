@@ -1,5 +1,6 @@
 """Training loop: warm-up plus cosine learning rate, EMA weights, deterministic batches; checkpoints carry their
 config so that ``load_checkpoint`` rebuilds the exact model."""
+
 from __future__ import annotations
 
 import copy
@@ -65,9 +66,14 @@ def build_optimizer(model: nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer
                 continue
             is_weight = name == "weight" and not isinstance(module, nn.modules.batchnorm._BatchNorm)
             buckets.setdefault((id(p) in in_backbone, is_weight), []).append(p)
-    groups = [{"params": params, "weight_decay": cfg.weight_decay if is_weight else 0.0,
-               "lr_scale": 1.0 if is_backbone else cfg.head_lr_mult}
-              for (is_backbone, is_weight), params in sorted(buckets.items())]
+    groups = [
+        {
+            "params": params,
+            "weight_decay": cfg.weight_decay if is_weight else 0.0,
+            "lr_scale": 1.0 if is_backbone else cfg.head_lr_mult,
+        }
+        for (is_backbone, is_weight), params in sorted(buckets.items())
+    ]
     if cfg.optimizer == "sgd":
         return torch.optim.SGD(groups, lr=cfg.lr, momentum=cfg.momentum, nesterov=True)
     return torch.optim.AdamW(groups, lr=cfg.lr, betas=(cfg.momentum, cfg.adam_beta2))
@@ -75,20 +81,27 @@ def build_optimizer(model: nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer
 
 @dataclass(frozen=True)
 class TrainResult:
-    model: Detector               # EMA weights if enabled, in eval mode
+    model: Detector  # EMA weights if enabled, in eval mode
     iterations: int
     images_seen: int
-    train_seconds: float          # optimisation loop only
-    cache_seconds: float          # decoding and resizing the training images once
+    train_seconds: float  # optimisation loop only
+    cache_seconds: float  # decoding and resizing the training images once
     images_per_second: float
     final_losses: dict
-    raw_model: Detector | None = None   # the optimised (non-EMA) weights when EMA is on, in eval mode
+    raw_model: Detector | None = None  # the optimised (non-EMA) weights when EMA is on, in eval mode
 
 
-def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
-                   sample_transform: SampleTransform | None = None, device: str | torch.device = "cpu",
-                   log_fn=None, image_memo: dict | None = None, on_iteration=None,
-                   synthetic_mask=None) -> TrainResult:
+def train_detector(
+    cfg: DetectorConfig,
+    train_set: DetectionSet,
+    seed: int,
+    sample_transform: SampleTransform | None = None,
+    device: str | torch.device = "cpu",
+    log_fn=None,
+    image_memo: dict | None = None,
+    on_iteration=None,
+    synthetic_mask=None,
+) -> TrainResult:
     """Train a detector on ``train_set`` for ``cfg.train.max_iters`` iterations. Torch initialisation is seeded by
     ``seed`` through a local generator state (``torch.manual_seed`` inside ``fork_rng``). ``image_memo`` shares
     decoded training images between runs (see ``cache_dataset``). ``on_iteration(it, model, losses)`` is called
@@ -102,8 +115,17 @@ def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
     t0 = time.perf_counter()
     cache = cache_dataset(train_set, tc.img_size, image_memo)
     cache_seconds = time.perf_counter() - t0
-    batches = TrainBatches(cache, tc.img_size, tc.batch_size, cfg.augment, seed, sample_transform,
-                           tc.object_image_fraction, synthetic_mask, tc.synthetic_fraction)
+    batches = TrainBatches(
+        cache,
+        tc.img_size,
+        tc.batch_size,
+        cfg.augment,
+        seed,
+        sample_transform,
+        tc.object_image_fraction,
+        synthetic_mask,
+        tc.synthetic_fraction,
+    )
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         model = Detector.from_config(cfg).to(device)
@@ -126,30 +148,48 @@ def train_detector(cfg: DetectorConfig, train_set: DetectionSet, seed: int,
         if ema is not None:
             ema.update(model)
         losses = {k: float(v.detach()) for k, v in out.items()}
-        losses["grad_norm"] = float(grad_norm)     # before clipping
+        losses["grad_norm"] = float(grad_norm)  # before clipping
         if log_fn is not None and (it % tc.log_every == 0 or it == tc.max_iters - 1):
-            log_fn(f"iter {it}/{tc.max_iters} lr {lr_at(it, tc):.2e} " +
-                   " ".join(f"{k} {v:.3f}" for k, v in losses.items()))
+            log_fn(
+                f"iter {it}/{tc.max_iters} lr {lr_at(it, tc):.2e} "
+                + " ".join(f"{k} {v:.3f}" for k, v in losses.items())
+            )
         if on_iteration is not None:
             t_cb = time.perf_counter()
             on_iteration(it, ema.ema if ema is not None else model, losses)
             model.train()
-            t1 += time.perf_counter() - t_cb     # callback time (evaluation) is not training time
+            t1 += time.perf_counter() - t_cb  # callback time (evaluation) is not training time
     train_seconds = time.perf_counter() - t1
     final = ema.ema if ema is not None else model
     final.eval()
     model.eval()
     seen = tc.max_iters * tc.batch_size
-    return TrainResult(final, tc.max_iters, seen, train_seconds, cache_seconds, seen / max(train_seconds, 1e-9),
-                       losses, model if ema is not None else None)
+    return TrainResult(
+        final,
+        tc.max_iters,
+        seen,
+        train_seconds,
+        cache_seconds,
+        seen / max(train_seconds, 1e-9),
+        losses,
+        model if ema is not None else None,
+    )
 
 
 def save_checkpoint(path: str | Path, model: Detector, category_names, meta: dict | None = None) -> None:
     """Weights together with the full detector config and category names."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"format": "detection_eval/1", "config": dataclasses.asdict(model.cfg),
-                "category_names": list(category_names), "state_dict": model.state_dict(), "meta": meta or {}}, path)
+    torch.save(
+        {
+            "format": "detection_eval/1",
+            "config": dataclasses.asdict(model.cfg),
+            "category_names": list(category_names),
+            "state_dict": model.state_dict(),
+            "meta": meta or {},
+        },
+        path,
+    )
 
 
 def load_checkpoint(path: str | Path, device="cpu") -> tuple[Detector, list[str], dict]:

@@ -3,6 +3,7 @@
 Images are RGB uint8 (H, W, 3); boxes xyxy pixels (N, 4); labels (N,). Every function returns new arrays (inputs
 are never modified) and takes its randomness from the ``numpy.random.Generator`` passed in.
 """
+
 from __future__ import annotations
 
 import cv2
@@ -23,7 +24,7 @@ def place_scaled(image: np.ndarray, boxes: np.ndarray, size: int, scale: float, 
     x0, y0 = max(ox, 0), max(oy, 0)
     x1, y1 = min(ox + new_w, size), min(oy + new_h, size)
     if x1 > x0 and y1 > y0:
-        canvas[y0:y1, x0:x1] = resized[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
+        canvas[y0:y1, x0:x1] = resized[y0 - oy : y1 - oy, x0 - ox : x1 - ox]
     sx, sy = new_w / w, new_h / h
     out = np.asarray(boxes, np.float64).reshape(-1, 4) * [sx, sy, sx, sy] + [ox, oy, ox, oy]
     return canvas, np.clip(out, 0, size)
@@ -73,20 +74,19 @@ def mosaic(samples, size: int, cfg: AugmentConfig, rng: np.random.Generator):
         h, w = image.shape[:2]
         scale = size / 2 / max(h, w) * rng.uniform(*cfg.scale_range)
         tw, th = w * scale, h * scale
-        ox = cx - tw if k in (0, 2) else cx        # tiles meet at the centre: 0 top-left, 1 top-right, ...
+        ox = cx - tw if k in (0, 2) else cx  # tiles meet at the centre: 0 top-left, 1 top-right, ...
         oy = cy - th if k in (0, 1) else cy
         tile, b = place_scaled(image, boxes, size, scale, (ox, oy))
         region = np.zeros((size, size), bool)
         x0, y0 = int(round(ox)), int(round(oy))
-        region[max(y0, 0):max(y0 + round(th), 0), max(x0, 0):max(x0 + round(tw), 0)] = True
+        region[max(y0, 0) : max(y0 + round(th), 0), max(x0, 0) : max(x0 + round(tw), 0)] = True
         canvas[region] = tile[region]
         all_boxes.append(b)
         all_labels.append(np.asarray(labels, np.int64))
     return canvas, np.concatenate(all_boxes).reshape(-1, 4), np.concatenate(all_labels)
 
 
-def augment_sample(image, boxes, labels, size: int, cfg: AugmentConfig, rng: np.random.Generator,
-                   extra=None):
+def augment_sample(image, boxes, labels, size: int, cfg: AugmentConfig, rng: np.random.Generator, extra=None):
     """One training sample: optional mosaic (``extra`` supplies three more samples), random scale/translate,
     horizontal flip, HSV jitter; boxes smaller than ``min_box_side_px`` are dropped."""
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)

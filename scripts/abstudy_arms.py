@@ -1,7 +1,7 @@
 """Render the arms of a small human A/B study: the same empty-road images through several pipeline settings.
 
 Each arm is an ordinary ``aias-augment`` output folder (``images/``, ``records/``, ``annotations.json``), written by
-the same ``aias_augment.offline.run`` that the CLI calls, on the same input list, so ``aias-abstudy build`` can pair
+the same ``aias_augment.cli.offline.run`` that the CLI calls, on the same input list, so ``aias-abstudy build`` can pair
 the arms image by image. The arms are the stage switches of the realism ablation (``detection_eval.study.ARM_FLAGS``):
 
     full         the whole pipeline (placement, lighting, shadow, harmonization)
@@ -10,6 +10,7 @@ the arms image by image. The arms are the stage switches of the realism ablation
 
     python scripts/abstudy_arms.py --images $AIAS_DATA/tracon/images/train --n 6 --out out/abstudy_arms
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,11 +18,16 @@ import logging
 from dataclasses import replace
 from pathlib import Path
 
-from aias_augment.offline import IMAGE_SUFFIXES, Item, run
-from aias_augment.pipeline import PRESETS, load_preset
+from aias_augment.cli.offline import IMAGE_SUFFIXES, Item, run
+from aias_augment.pipeline.image import PRESETS, load_preset
 
-ARMS = {"full": {}, "naive_paste": {"naive_paste": True}, "no_shadow": {"shadow": False},
-        "no_harmonize": {"harmonize": False}, "no_lighting": {"lighting": False}}
+ARMS = {
+    "full": {},
+    "naive_paste": {"naive_paste": True},
+    "no_shadow": {"shadow": False},
+    "no_harmonize": {"harmonize": False},
+    "no_lighting": {"lighting": False},
+}
 
 
 def empty_road_images(images_dir: Path, labels_dir: Path, n: int) -> list[Path]:
@@ -56,8 +62,12 @@ def main(argv=None) -> int:
         ap.error(f"no image with an empty label file in {images}")
     items = [Item(str(p.resolve())) for p in paths]
     for arm in a.arms:
-        cfg = replace(load_preset(a.preset, **ARMS[arm]), categories=tuple(a.categories), max_objects=a.per_image,
-                      min_objects=min(1, a.per_image))
+        cfg = replace(
+            load_preset(a.preset, **ARMS[arm]),
+            categories=tuple(a.categories),
+            max_objects=a.per_image,
+            min_objects=min(1, a.per_image),
+        )
         summary = run(items, cfg, a.seed, str(Path(a.out) / arm))
         print(arm, summary)
     return 0

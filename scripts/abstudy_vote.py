@@ -6,6 +6,7 @@ scores it produces say nothing about realism. Their ids start with ``script-`` s
 
     python scripts/abstudy_vote.py out/abstudy_study --raters 3 --screenshots results/abstudy
 """
+
 from __future__ import annotations
 
 import argparse
@@ -15,8 +16,16 @@ import sys
 from pathlib import Path
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 
 def main(argv=None) -> int:
@@ -29,12 +38,15 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     from playwright.sync_api import sync_playwright
 
-    from aias_augment.abstudy import compute_report, format_report, load_study
-    from aias_augment.abstudy.store import VoteStore
+    from aias_augment.evaluation.abstudy import compute_report, format_report, load_study
+    from aias_augment.evaluation.abstudy.store import VoteStore
 
-    shot_at = min(2, len(load_study(a.study).pairs) - 1)   # the trial screenshot: the third pair (or the last)
-    proc = subprocess.Popen([sys.executable, "-m", "aias_augment.abstudy.cli", "serve", a.study, "--port", "0"],
-                            stdout=subprocess.PIPE, text=True)
+    shot_at = min(2, len(load_study(a.study).pairs) - 1)  # the trial screenshot: the third pair (or the last)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "aias_augment.evaluation.abstudy.cli", "serve", a.study, "--port", "0"],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         line = proc.stdout.readline()
         url = line.split(" on ")[1].split()[0].rstrip("/")
@@ -45,7 +57,7 @@ def main(argv=None) -> int:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
             for r in range(a.raters):
-                ctx = browser.new_context(viewport={"width": 1400, "height": 720})   # its own cookie jar
+                ctx = browser.new_context(viewport={"width": 1400, "height": 720})  # its own cookie jar
                 page = ctx.new_page()
                 page.set_default_timeout(30000)
                 page.goto(url + "/")
@@ -60,12 +72,13 @@ def main(argv=None) -> int:
                     if shots and r == 0 and n == shot_at:
                         page.screenshot(path=str(shots / "trial.png"))
                     u = rng.random()
-                    page.keyboard.press("ArrowDown" if u < a.tie_share else "ArrowLeft" if u < (1 + a.tie_share) / 2
-                                        else "ArrowRight")
+                    page.keyboard.press(
+                        "ArrowDown" if u < a.tie_share else "ArrowLeft" if u < (1 + a.tie_share) / 2 else "ArrowRight"
+                    )
                     n += 1
                 print(f"script-{r + 1}: {n} votes")
                 if r == a.raters - 1:
-                    page.keyboard.press("Enter")          # the focused results link
+                    page.keyboard.press("Enter")  # the focused results link
                     page.wait_for_url(url + "/results")
                     page.wait_for_selector("body[data-state=ready]")
                     if shots:

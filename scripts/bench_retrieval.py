@@ -10,6 +10,7 @@ and the query time (median over queries: feature extraction, search, total).
 
     python scripts/bench_retrieval.py --data $AIAS_DATA --out results/retrieval
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,10 +23,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from aias_augment.config import data_root
-from aias_augment.retrieval.features import extract_features
-from aias_augment.retrieval.index import FrameRef, QueryConfig, SceneIndex, build_index
-from aias_augment.retrieval.sources import iter_frames, read_image
+from aias_augment.core.config import data_root
+from aias_augment.scenes.retrieval.features import extract_features
+from aias_augment.scenes.retrieval.index import FrameRef, QueryConfig, SceneIndex, build_index
+from aias_augment.scenes.retrieval.sources import iter_frames, read_image
 
 
 def database_frames(data: Path, kitti_every: int, video_every: int) -> list[tuple[FrameRef, np.ndarray]]:
@@ -64,14 +65,17 @@ def crop(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     cw = int(np.clip(np.sqrt(area * aspect) * w, 32, w))
     ch = int(np.clip(np.sqrt(area / aspect) * h, 32, h))
     x0, y0 = int(rng.integers(0, w - cw + 1)), int(rng.integers(0, h - ch + 1))
-    c = img[y0:y0 + ch, x0:x0 + cw]
+    c = img[y0 : y0 + ch, x0 : x0 + cw]
     s = rng.uniform(0.7, 1.3)  # and a scale change
     return cv2.resize(c, (max(16, round(cw * s)), max(16, round(ch * s))), interpolation=cv2.INTER_AREA)
 
 
 #: Example road regions (a user's clicks): frame index in the database order, rows and columns as image fractions.
-ROAD_EXAMPLES = {"kitti06_seq": ((0.72, 1.0), (0.3, 0.7)), "dgp_scene": ((0.85, 1.0), (0.0, 0.3)),
-                 "vtest": ((0.42, 0.65), (0.55, 0.8))}
+ROAD_EXAMPLES = {
+    "kitti06_seq": ((0.72, 1.0), (0.3, 0.7)),
+    "dgp_scene": ((0.85, 1.0), (0.0, 0.3)),
+    "vtest": ((0.42, 0.65), (0.55, 0.8)),
+}
 
 
 def named_words_road(index, frames) -> dict:
@@ -82,7 +86,7 @@ def named_words_road(index, frames) -> dict:
         img = frames[d][1]
         h, w = img.shape[:2]
         m = np.zeros((h, w), bool)
-        m[int(r0 * h):int(r1 * h), int(c0 * w):int(c1 * w)] = True
+        m[int(r0 * h) : int(r1 * h), int(c0 * w) : int(c1 * w)] = True
         examples.append((img, m))
         used.append(d)
     index.name_words("road", examples, n_words=128)
@@ -92,16 +96,21 @@ def named_words_road(index, frames) -> dict:
     held_out = np.ones(len(frac), bool)
     held_out[used] = False  # the example frames themselves are not evaluated
     outdoor_min = float(frac[held_out & ~indoor].min())
-    return {"examples": {frames[d][0].clip + "/" + frames[d][0].frame: ROAD_EXAMPLES[frames[d][0].clip] for d in used},
-            "n_words": int(len(index.names["road"])),
-            "mean_fraction_by_clip": {c: round(float(frac[[r.clip == c for r in index.refs]].mean()), 4) for c in clips},
-            "indoor_max_fraction": round(float(frac[indoor].max()), 4),
-            "outdoor_min_fraction_held_out": round(outdoor_min, 4),
-            "indoor_frames_rank_last": bool(frac[indoor].max() < outdoor_min)}
+    return {
+        "examples": {frames[d][0].clip + "/" + frames[d][0].frame: ROAD_EXAMPLES[frames[d][0].clip] for d in used},
+        "n_words": int(len(index.names["road"])),
+        "mean_fraction_by_clip": {c: round(float(frac[[r.clip == c for r in index.refs]].mean()), 4) for c in clips},
+        "indoor_max_fraction": round(float(frac[indoor].max()), 4),
+        "outdoor_min_fraction_held_out": round(outdoor_min, 4),
+        "indoor_frames_rank_last": bool(frac[indoor].max() < outdoor_min),
+    }
 
 
-PERTURBATIONS = {"photometric": photometric, "crop": crop,
-                 "crop+photometric": lambda im, rng: photometric(crop(im, rng), rng)}
+PERTURBATIONS = {
+    "photometric": photometric,
+    "crop": crop,
+    "crop+photometric": lambda im, rng: photometric(crop(im, rng), rng),
+}
 
 
 def main(argv=None) -> int:
@@ -116,8 +125,12 @@ def main(argv=None) -> int:
     p.add_argument("--rerank", type=int, default=QueryConfig.rerank)
     p.add_argument("--index-out", type=Path, default=Path("out/retrieval/bench_index.npz"))
     p.add_argument("--named-words-only", action="store_true", help="only the named-words (road) evaluation")
-    p.add_argument("--index-in", type=Path, default=None,
-                   help="reuse an index built by an earlier run with the same data options (skips the build)")
+    p.add_argument(
+        "--index-in",
+        type=Path,
+        default=None,
+        help="reuse an index built by an earlier run with the same data options (skips the build)",
+    )
     a = p.parse_args(argv)
     cv2.setNumThreads(1)
     rng = np.random.default_rng(a.seed)
@@ -156,10 +169,20 @@ def main(argv=None) -> int:
             plain = index.query_features(feats, cfg_plain)
             rank = next((h.rank for h in hits if h.ref.key == ref.key), None)
             rank_plain = next((h.rank for h in plain if h.ref.key == ref.key), None)
-            rows.append({"clip": ref.clip, "frame": ref.frame, "perturbation": name, "rank": rank,
-                         "rank_tfidf_only": rank_plain, "top1": hits[0].ref.key if hits else None,
-                         "top1_inliers": hits[0].inliers if hits else 0, "n_features": len(feats),
-                         "seconds_features": t1 - t0, "seconds_search": t2 - t1})
+            rows.append(
+                {
+                    "clip": ref.clip,
+                    "frame": ref.frame,
+                    "perturbation": name,
+                    "rank": rank,
+                    "rank_tfidf_only": rank_plain,
+                    "top1": hits[0].ref.key if hits else None,
+                    "top1_inliers": hits[0].inliers if hits else 0,
+                    "n_features": len(feats),
+                    "seconds_features": t1 - t0,
+                    "seconds_search": t2 - t1,
+                }
+            )
         if (qi + 1) % 10 == 0:
             r1 = np.mean([r["rank"] == 1 for r in rows])
             print(f"{qi + 1}/{len(frames)} frames, {len(rows)} queries, running Recall@1 {r1:.3f}", flush=True)
@@ -169,47 +192,78 @@ def main(argv=None) -> int:
         return round(float(np.mean([r[key] is not None and r[key] <= k for r in sel])), 4) if sel else None
 
     summary = {
-        "database_frames": len(frames), "queries": len(rows), "index": timings,
-        "recall@1": recall(rows, 1), "recall@5": recall(rows, 5),
+        "database_frames": len(frames),
+        "queries": len(rows),
+        "index": timings,
+        "recall@1": recall(rows, 1),
+        "recall@5": recall(rows, 5),
         "recall@1_tfidf_only": recall(rows, 1, "rank_tfidf_only"),
         "recall@5_tfidf_only": recall(rows, 5, "rank_tfidf_only"),
-        "by_perturbation": {n: {"recall@1": recall([r for r in rows if r["perturbation"] == n], 1),
-                                "recall@1_tfidf_only": recall([r for r in rows if r["perturbation"] == n], 1,
-                                                              "rank_tfidf_only")} for n in PERTURBATIONS},
-        "by_clip": {c: {"queries": sum(r["clip"] == c for r in rows),
-                        "recall@1": recall([r for r in rows if r["clip"] == c], 1)}
-                    for c in sorted({r["clip"] for r in rows})},
+        "by_perturbation": {
+            n: {
+                "recall@1": recall([r for r in rows if r["perturbation"] == n], 1),
+                "recall@1_tfidf_only": recall([r for r in rows if r["perturbation"] == n], 1, "rank_tfidf_only"),
+            }
+            for n in PERTURBATIONS
+        },
+        "by_clip": {
+            c: {
+                "queries": sum(r["clip"] == c for r in rows),
+                "recall@1": recall([r for r in rows if r["clip"] == c], 1),
+            }
+            for c in sorted({r["clip"] for r in rows})
+        },
         "query_seconds_median": {
             "features": round(statistics.median(r["seconds_features"] for r in rows), 4),
             "search_and_rerank": round(statistics.median(r["seconds_search"] for r in rows), 4),
-            "total": round(statistics.median(r["seconds_features"] + r["seconds_search"] for r in rows), 4)},
-        "failures": [{k: r[k] for k in ("clip", "frame", "perturbation", "rank", "top1", "top1_inliers")}
-                     for r in rows if r["rank"] != 1],
+            "total": round(statistics.median(r["seconds_features"] + r["seconds_search"] for r in rows), 4),
+        },
+        "failures": [
+            {k: r[k] for k in ("clip", "frame", "perturbation", "rank", "top1", "top1_inliers")}
+            for r in rows
+            if r["rank"] != 1
+        ],
         "named_words_road": nw,
         "command": "python scripts/bench_retrieval.py " + " ".join(sys.argv[1:] if argv is None else argv),
-        "config": {"kitti_every": a.kitti_every, "video_every": a.video_every, "words": a.words, "seed": a.seed,
-                   "query": dict(cfg.__dict__)},
+        "config": {
+            "kitti_every": a.kitti_every,
+            "video_every": a.video_every,
+            "words": a.words,
+            "seed": a.seed,
+            "query": dict(cfg.__dict__),
+        },
     }
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "bench.json").write_text(json.dumps(summary, indent=1))
-    md = ["# Scene retrieval benchmark", "", f"Command: `{summary['command']}`", "",
-          f"- database: {len(frames)} real frames ({', '.join(summary['by_clip'])}); "
-          f"{timings['features']} RootSIFT features, {timings['words']} words",
-          f"- queries: {len(rows)} (each frame x {', '.join(PERTURBATIONS)})",
-          f"- **Recall@1 = {summary['recall@1']}**, Recall@5 = {summary['recall@5']} "
-          f"(tf-idf only, no spatial re-ranking: R@1 = {summary['recall@1_tfidf_only']})",
-          f"- median query time: {summary['query_seconds_median']['total']} s "
-          f"(features {summary['query_seconds_median']['features']} s, search + re-rank "
-          f"{summary['query_seconds_median']['search_and_rerank']} s)",
-          f"- index build: features {timings['seconds_features']} s, vocabulary {timings['seconds_vocabulary']} s, "
-          f"index {timings['seconds_index']} s", "", "| perturbation | R@1 | R@1 tf-idf only |", "|---|---|---|"]
+    md = [
+        "# Scene retrieval benchmark",
+        "",
+        f"Command: `{summary['command']}`",
+        "",
+        f"- database: {len(frames)} real frames ({', '.join(summary['by_clip'])}); "
+        f"{timings['features']} RootSIFT features, {timings['words']} words",
+        f"- queries: {len(rows)} (each frame x {', '.join(PERTURBATIONS)})",
+        f"- **Recall@1 = {summary['recall@1']}**, Recall@5 = {summary['recall@5']} "
+        f"(tf-idf only, no spatial re-ranking: R@1 = {summary['recall@1_tfidf_only']})",
+        f"- median query time: {summary['query_seconds_median']['total']} s "
+        f"(features {summary['query_seconds_median']['features']} s, search + re-rank "
+        f"{summary['query_seconds_median']['search_and_rerank']} s)",
+        f"- index build: features {timings['seconds_features']} s, vocabulary {timings['seconds_vocabulary']} s, "
+        f"index {timings['seconds_index']} s",
+        "",
+        "| perturbation | R@1 | R@1 tf-idf only |",
+        "|---|---|---|",
+    ]
     md += [f"| {n} | {v['recall@1']} | {v['recall@1_tfidf_only']} |" for n, v in summary["by_perturbation"].items()]
     md += ["", "| clip | queries | R@1 |", "|---|---|---|"]
     md += [f"| {c} | {v['queries']} | {v['recall@1']} |" for c, v in summary["by_clip"].items()]
-    md += ["", "Named words `road` (one example region in a KITTI, a DGP and a vtest frame, see named_words.json): "
-           "mean fraction of a frame's features on road words per clip: "
-           + ", ".join(f"{c} {v}" for c, v in nw["mean_fraction_by_clip"].items())
-           + f"; every indoor NYU frame ranks below every held-out outdoor frame: {nw['indoor_frames_rank_last']}."]
+    md += [
+        "",
+        "Named words `road` (one example region in a KITTI, a DGP and a vtest frame, see named_words.json): "
+        "mean fraction of a frame's features on road words per clip: "
+        + ", ".join(f"{c} {v}" for c, v in nw["mean_fraction_by_clip"].items())
+        + f"; every indoor NYU frame ranks below every held-out outdoor frame: {nw['indoor_frames_rank_last']}.",
+    ]
     (a.out / "bench.md").write_text("\n".join(md) + "\n")
     print("\n".join(md))
     return 0

@@ -10,6 +10,7 @@ Rows, top to bottom:
 4. procedural cones alone: ``render_object`` albedo x a fixed Lambert sun + ambient (no pipeline), one seed each.
 Everything is seeded (``--seed``); the same command gives the same sheet.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,13 +24,13 @@ from PIL import Image, ImageDraw
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
-from aias_augment.bank.procedural import procedural_asset  # noqa: E402
-from aias_augment.config import data_root  # noqa: E402
-from aias_augment.geometry import Intrinsics, make_rigid  # noqa: E402
-from aias_augment.insertion.config import load_preset  # noqa: E402
-from aias_augment.pipeline import insert_into_image  # noqa: E402
-from aias_augment.placement import PlacementConfig  # noqa: E402
-from aias_augment.render import linear_to_srgb, render_object  # noqa: E402
+from aias_augment.apply.render import linear_to_srgb, render_object  # noqa: E402
+from aias_augment.assets.bank.procedural import procedural_asset  # noqa: E402
+from aias_augment.core.config import data_root  # noqa: E402
+from aias_augment.core.geometry import Intrinsics, make_rigid  # noqa: E402
+from aias_augment.pipeline.config import load_preset  # noqa: E402
+from aias_augment.pipeline.image import insert_into_image  # noqa: E402
+from aias_augment.plan.placement import PlacementConfig  # noqa: E402
 
 TILE = (96, 136)  # (w, h) of one crop tile
 COLS = 10
@@ -44,8 +45,14 @@ def _tile(img: Image.Image, box_xyxy, margin: float = 0.12) -> Image.Image:
     """The box with a margin, fitted (aspect kept) into a grey tile."""
     x0, y0, x1, y1 = box_xyxy
     mw, mh = (x1 - x0) * margin, (y1 - y0) * margin
-    crop = img.crop((max(0, int(x0 - mw)), max(0, int(y0 - mh)), min(img.width, int(np.ceil(x1 + mw))),
-                     min(img.height, int(np.ceil(y1 + mh)))))
+    crop = img.crop(
+        (
+            max(0, int(x0 - mw)),
+            max(0, int(y0 - mh)),
+            min(img.width, int(np.ceil(x1 + mw))),
+            min(img.height, int(np.ceil(y1 + mh))),
+        )
+    )
     s = min(TILE[0] / crop.width, TILE[1] / crop.height)
     crop = crop.resize((max(1, round(crop.width * s)), max(1, round(crop.height * s))), Image.LANCZOS)
     t = Image.new("RGB", TILE, BG)
@@ -74,14 +81,20 @@ def real_tiles(root: Path, n: int, min_px: int) -> list[Image.Image]:
     return out
 
 
-def inserted_tiles(root: Path, n: int, asset_source: str, preset: str, seed: int, min_px: int
-                   ) -> tuple[list[Image.Image], float]:
+def inserted_tiles(
+    root: Path, n: int, asset_source: str, preset: str, seed: int, min_px: int
+) -> tuple[list[Image.Image], float]:
     empty = [lab for lab in sorted((root / "labels" / "train").glob("*.txt")) if not lab.read_text().strip()]
     rng_pick = np.random.default_rng(seed)
     order = rng_pick.permutation(len(empty))
     # big enough to see the texture: box heights 20-45 % of the image height
-    cfg = replace(load_preset(preset), asset_source=asset_source, min_objects=2, max_objects=2,
-                  placement_cfg=replace(PlacementConfig(), box_height_frac_range=(0.2, 0.45)))
+    cfg = replace(
+        load_preset(preset),
+        asset_source=asset_source,
+        min_objects=2,
+        max_objects=2,
+        placement_cfg=replace(PlacementConfig(), box_height_frac_range=(0.2, 0.45)),
+    )
     out, t0, k = [], time.perf_counter(), 0
     for i in order:
         img = np.asarray(Image.open(_image_of(empty[i], "train", root)).convert("RGB"))
@@ -100,7 +113,7 @@ def studio_tiles(n: int, seed: int) -> list[Image.Image]:
     """Each cone alone, seen from 1.6 m eye height at ~4 m, albedo x Lambert (sun from upper left) + ambient."""
     out = []
     intr = Intrinsics(600.0, 600.0, TILE[0] - 0.5, TILE[1] - 0.5, TILE[0] * 2, TILE[1] * 2)
-    R_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)   # object z (up) -> camera -y
+    R_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)  # object z (up) -> camera -y
     el = np.deg2rad(15.0)
     Rx = np.array([[1, 0, 0], [0, np.cos(el), -np.sin(el)], [0, np.sin(el), np.cos(el)]])
     sun = np.array([-0.55, -0.65, -0.5])
@@ -131,7 +144,7 @@ def body_colour_stats(tiles: list[Image.Image]) -> tuple[float, float, float]:
 
 def sheet(sections: list[tuple[str, list[Image.Image]]]) -> Image.Image:
     head = 18
-    rows = [(title, [tiles[i:i + COLS] for i in range(0, len(tiles), COLS)]) for title, tiles in sections]
+    rows = [(title, [tiles[i : i + COLS] for i in range(0, len(tiles), COLS)]) for title, tiles in sections]
     H = sum(head + len(r) * TILE[1] for _, r in rows)
     out = Image.new("RGB", (COLS * TILE[0], H), (30, 30, 30))
     d = ImageDraw.Draw(out)
@@ -161,18 +174,28 @@ def main(argv=None) -> None:
     proc, s_proc = inserted_tiles(root, 2 * COLS, "procedural", args.preset, args.seed, args.min_inserted_px)
     default, s_def = inserted_tiles(root, COLS, "default", args.preset, args.seed, args.min_inserted_px)
     studio = studio_tiles(COLS, args.seed)
-    img = sheet([("real: TraCon val label boxes", real),
-                 (f"procedural family, inserted by the pipeline ({args.preset}) into empty TraCon train images", proc),
-                 ("current default mesh (gazebo construction_cone), inserted the same way", default),
-                 ("procedural family alone: render_object albedo x Lambert sun + ambient, seeds 0-9", studio)])
-    for name, tiles in (("real", real), ("procedural inserted", proc), ("default inserted", default),
-                        ("procedural studio", studio)):
+    img = sheet(
+        [
+            ("real: TraCon val label boxes", real),
+            (f"procedural family, inserted by the pipeline ({args.preset}) into empty TraCon train images", proc),
+            ("current default mesh (gazebo construction_cone), inserted the same way", default),
+            ("procedural family alone: render_object albedo x Lambert sun + ambient, seeds 0-9", studio),
+        ]
+    )
+    for name, tiles in (
+        ("real", real),
+        ("procedural inserted", proc),
+        ("default inserted", default),
+        ("procedural studio", studio),
+    ):
         sat, val, hue = body_colour_stats(tiles)
         print(f"{name:20s} cone-body pixels: median saturation {sat:.2f}, value {val:.2f}, hue {hue:.0f} deg")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     img.save(args.out)
-    print(f"wrote {args.out} ({img.width}x{img.height}); pipeline {s_proc:.1f} s/image (procedural), "
-          f"{s_def:.1f} s/image (default); total {time.perf_counter() - t0:.0f} s")
+    print(
+        f"wrote {args.out} ({img.width}x{img.height}); pipeline {s_proc:.1f} s/image (procedural), "
+        f"{s_def:.1f} s/image (default); total {time.perf_counter() - t0:.0f} s"
+    )
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@
 Evaluation time is excluded from the reported training time. Use one thread per run (``--threads``) and at most two
 runs side by side on the 2-core machine.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,7 +43,7 @@ def parse_overrides(items: list[str]) -> dict:
 def run(args) -> None:
     import torch
 
-    from aias_augment.config import data_root
+    from aias_augment.core.config import data_root
     from detection_eval.data import load_yolo_dir
     from detection_eval.inference import evaluate_dataset
     from detection_eval.loader import cache_dataset
@@ -68,32 +69,60 @@ def run(args) -> None:
         losses.append({"iter": it, **step_losses})
         if (it + 1) % args.eval_every == 0 or it + 1 == cfg.train.max_iters:
             m = evaluate_dataset(model, val, cfg.train.img_size, cfg.inference, cached=val_cache)
-            evals.append({"iter": it + 1, "AP": m["AP"], "AP50": m["AP50"], "AP_small": m["AP_small"],
-                          "AP_medium": m["AP_medium"], "AP_large": m["AP_large"]})
+            evals.append(
+                {
+                    "iter": it + 1,
+                    "AP": m["AP"],
+                    "AP50": m["AP50"],
+                    "AP_small": m["AP_small"],
+                    "AP_medium": m["AP_medium"],
+                    "AP_large": m["AP_large"],
+                }
+            )
             logging.info("iter %d: val AP %.4f AP50 %.4f", it + 1, m["AP"], m["AP50"])
 
     res = train_detector(cfg, train, seed=args.seed, log_fn=logging.info, on_iteration=on_iteration)
     final_raw = None
-    if res.raw_model is not None:   # the optimised weights beside the EMA ones: does EMA help at this schedule?
+    if res.raw_model is not None:  # the optimised weights beside the EMA ones: does EMA help at this schedule?
         m = evaluate_dataset(res.raw_model, val, cfg.train.img_size, cfg.inference, cached=val_cache)
-        final_raw = {"iter": res.iterations, "AP": m["AP"], "AP50": m["AP50"], "AP_small": m["AP_small"],
-                     "AP_medium": m["AP_medium"], "AP_large": m["AP_large"]}
+        final_raw = {
+            "iter": res.iterations,
+            "AP": m["AP"],
+            "AP50": m["AP50"],
+            "AP_small": m["AP_small"],
+            "AP_medium": m["AP_medium"],
+            "AP_large": m["AP_large"],
+        }
         logging.info("raw (non-EMA) weights: val AP %.4f AP50 %.4f", m["AP"], m["AP50"])
-    row = {"name": args.name or out.name, "config": args.config, "overrides": {k: list(v) if isinstance(v, tuple)
-                                                                              else v for k, v in overrides.items()},
-           "seed": args.seed, "keep_fraction": args.keep_fraction, "train_images": len(train),
-           "train_boxes": train.num_boxes, "iterations": res.iterations, "batch_size": cfg.train.batch_size,
-           "threads": args.threads, "train_seconds": res.train_seconds,
-           "train_images_per_second": res.images_per_second, "wall_seconds": time.perf_counter() - t_start,
-           "final": evals[-1], "final_raw": final_raw, "evals": evals, "losses": losses,
-           "command": "python scripts/detector_curves.py " + " ".join(sys.argv[1:])}
+    row = {
+        "name": args.name or out.name,
+        "config": args.config,
+        "overrides": {k: list(v) if isinstance(v, tuple) else v for k, v in overrides.items()},
+        "seed": args.seed,
+        "keep_fraction": args.keep_fraction,
+        "train_images": len(train),
+        "train_boxes": train.num_boxes,
+        "iterations": res.iterations,
+        "batch_size": cfg.train.batch_size,
+        "threads": args.threads,
+        "train_seconds": res.train_seconds,
+        "train_images_per_second": res.images_per_second,
+        "wall_seconds": time.perf_counter() - t_start,
+        "final": evals[-1],
+        "final_raw": final_raw,
+        "evals": evals,
+        "losses": losses,
+        "command": "python scripts/detector_curves.py " + " ".join(sys.argv[1:]),
+    }
     (out / "curve.json").write_text(json.dumps(row, indent=1))
-    logging.info("done: AP %.4f in %.0f s train (%.2f img/s)", evals[-1]["AP"], res.train_seconds,
-                 res.images_per_second)
+    logging.info(
+        "done: AP %.4f in %.0f s train (%.2f img/s)", evals[-1]["AP"], res.train_seconds, res.images_per_second
+    )
 
 
 def smooth(values, k: int = 15):
     import numpy as np
+
     v = np.asarray(values, float)
     if len(v) < k:
         return v
@@ -102,6 +131,7 @@ def smooth(values, k: int = 15):
 
 def plot(paths: list[str], out: str) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -112,17 +142,18 @@ def plot(paths: list[str], out: str) -> None:
         label = f"{r['name']} ({r['final']['AP']:.3f})"
         it = [x["iter"] for x in r["losses"]]
         axes[0].plot([e["iter"] for e in r["evals"]], [e["AP"] for e in r["evals"]], "o-", color=c, label=label)
-        if r.get("final_raw"):      # the optimised weights beside the EMA ones
+        if r.get("final_raw"):  # the optimised weights beside the EMA ones
             axes[0].plot([r["final_raw"]["iter"]], [r["final_raw"]["AP"]], "x", color=c, ms=9, mew=2)
         axes[1].plot(it, smooth([x["obj"] for x in r["losses"]]), color=c)
-        pos = [x for x in r["losses"] if x["num_fg"] > 0]          # IoU and class terms exist only with positives
+        pos = [x for x in r["losses"] if x["num_fg"] > 0]  # IoU and class terms exist only with positives
         for ax, key in zip(axes[2:4], ("iou", "cls")):
             ax.plot([x["iter"] for x in pos], smooth([x[key] for x in pos]), color=c)
         axes[4].plot(it, smooth([float(x["num_fg"] == 0) for x in r["losses"]], 25), color=c)
     axes[0].set_title("TraCon val AP50:95 (returned weights: EMA if on; x = raw)", fontsize=10)
     axes[0].legend(fontsize=7)
-    for ax, key in zip(axes[1:4], ("objectness loss", "IoU loss (batches with positives)",
-                                   "class loss (batches with positives)")):
+    for ax, key in zip(
+        axes[1:4], ("objectness loss", "IoU loss (batches with positives)", "class loss (batches with positives)")
+    ):
         ax.set_title(f"train {key}, smoothed", fontsize=10)
         ax.set_yscale("log")
     axes[4].set_title("share of batches without any positive (smoothed)", fontsize=10)
@@ -137,15 +168,19 @@ def plot(paths: list[str], out: str) -> None:
 
 def table(paths: list[str]) -> str:
     """Markdown rows: variant, data, seed, AP and AP50 (EMA weights; raw weights in brackets), train s, img/s."""
-    rows = ["| variant | data | seed | AP50:95 | AP50 | AP50:95 raw weights | train s | train img/s | threads |"
-            " command |", "|---|---|---|---|---|---|---|---|---|---|"]
+    rows = [
+        "| variant | data | seed | AP50:95 | AP50 | AP50:95 raw weights | train s | train img/s | threads | command |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for path in paths:
         r = json.loads(Path(path).read_text())
         data = "all" if r["keep_fraction"] >= 1 else f"thinned {r['keep_fraction']:.0%}"
         raw = f"{r['final_raw']['AP']:.3f}" if r.get("final_raw") else "—"
-        rows.append(f"| {r['name']} | {data} | {r['seed']} | {r['final']['AP']:.3f} | {r['final']['AP50']:.3f} | "
-                    f"{raw} | {r['train_seconds']:.0f} | {r['train_images_per_second']:.2f} | {r['threads']} | "
-                    f"`{r['command']}` |")
+        rows.append(
+            f"| {r['name']} | {data} | {r['seed']} | {r['final']['AP']:.3f} | {r['final']['AP50']:.3f} | "
+            f"{raw} | {r['train_seconds']:.0f} | {r['train_images_per_second']:.2f} | {r['threads']} | "
+            f"`{r['command']}` |"
+        )
     return "\n".join(rows)
 
 

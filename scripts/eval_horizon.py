@@ -7,6 +7,7 @@ assumption that cam0 of frame 0 is level (``--up level``: up_world = (0, -1, 0))
 
     python scripts/eval_horizon.py $AIAS_DATA/kitti06_seq --out results/placement
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aias_augment.ground import GroundFitError, ground_plane_from_depth
+from aias_augment.analyse.ground import GroundFitError, ground_plane_from_depth
 from aias_augment.scenes.kitti import open_kitti_sequence
 from aias_augment.scenes.single_image import estimate_camera_from_image, horizon_row_error_px
 
@@ -28,7 +29,7 @@ def world_up_from_stereo(seq, indices, rng) -> tuple[np.ndarray, list[float]]:
     for i in indices:
         depth = seq.stereo_depth(i)
         lower = np.zeros(depth.shape, bool)
-        lower[int(seq.intrinsics.cy) + 10:] = True
+        lower[int(seq.intrinsics.cy) + 10 :] = True
         try:
             g = ground_plane_from_depth(depth, seq.intrinsics, rng, mask=lower, max_depth_m=20)
         except GroundFitError as e:
@@ -72,19 +73,22 @@ def main(argv=None) -> int:
         unknown = estimate_camera_from_image(frame.image, np.random.default_rng(args.seed))
         err_known = horizon_row_error_px(known.horizon_line, line_true, cols)
         err_unknown = horizon_row_error_px(unknown.horizon_line, line_true, cols)
-        rows.append({
-            "frame_id": seq.frame_ids[i],
-            "true_horizon_row_at_cx": float(-(line_true[0] * seq.intrinsics.cx + line_true[2]) / line_true[1]),
-            "est_horizon_row_at_cx": known.horizon_row_at(seq.intrinsics.cx),
-            "horizon_err_px_center": float(err_known[1]), "horizon_err_px_max_edges": float(err_known.max()),
-            "pitch_err_deg_known_K": float(np.degrees(known.pitch_rad - true_pitch)),
-            "roll_err_deg": float(np.degrees(known.roll_rad - true_roll)),
-            "horizon_source": known.horizon_source,
-            "unknown_K_horizon_err_px_center": float(err_unknown[1]),
-            "unknown_K_focal_source": unknown.focal_source,
-            "unknown_K_focal_rel_err": float(unknown.intrinsics.fx / seq.intrinsics.fx - 1),
-            "unknown_K_pitch_err_deg": float(np.degrees(unknown.pitch_rad - true_pitch)),
-        })
+        rows.append(
+            {
+                "frame_id": seq.frame_ids[i],
+                "true_horizon_row_at_cx": float(-(line_true[0] * seq.intrinsics.cx + line_true[2]) / line_true[1]),
+                "est_horizon_row_at_cx": known.horizon_row_at(seq.intrinsics.cx),
+                "horizon_err_px_center": float(err_known[1]),
+                "horizon_err_px_max_edges": float(err_known.max()),
+                "pitch_err_deg_known_K": float(np.degrees(known.pitch_rad - true_pitch)),
+                "roll_err_deg": float(np.degrees(known.roll_rad - true_roll)),
+                "horizon_source": known.horizon_source,
+                "unknown_K_horizon_err_px_center": float(err_unknown[1]),
+                "unknown_K_focal_source": unknown.focal_source,
+                "unknown_K_focal_rel_err": float(unknown.intrinsics.fx / seq.intrinsics.fx - 1),
+                "unknown_K_pitch_err_deg": float(np.degrees(unknown.pitch_rad - true_pitch)),
+            }
+        )
     elapsed = time.perf_counter() - t0
 
     def stats(key, absolute=True):
@@ -94,20 +98,31 @@ def main(argv=None) -> int:
 
     fv = [r for r in rows if r["unknown_K_focal_source"] == "vanishing_points"]
     summary = {
-        "sequence": str(Path(args.sequence).resolve()), "frames": len(rows), "up_source": args.up,
-        "up_world": up_world.tolist(), "stereo_camera_heights_m": heights,
-        "known_K": {"horizon_err_px_center": stats("horizon_err_px_center"),
-                    "horizon_err_px_max_edges": stats("horizon_err_px_max_edges"),
-                    "pitch_err_deg": stats("pitch_err_deg_known_K"), "roll_err_deg": stats("roll_err_deg"),
-                    "horizon_sources": {s: sum(r["horizon_source"] == s for r in rows)
-                                        for s in sorted({r["horizon_source"] for r in rows})}},
-        "unknown_K": {"horizon_err_px_center": stats("unknown_K_horizon_err_px_center"),
-                      "pitch_err_deg": stats("unknown_K_pitch_err_deg"),
-                      "focal_from_vanishing_points_frames": len(fv),
-                      "focal_rel_err_when_from_vps": (stats("unknown_K_focal_rel_err") if False else
-                                                      (float(np.median(np.abs([r["unknown_K_focal_rel_err"] for r in fv])))
-                                                       if fv else None)),
-                      "focal_rel_err_all": stats("unknown_K_focal_rel_err")},
+        "sequence": str(Path(args.sequence).resolve()),
+        "frames": len(rows),
+        "up_source": args.up,
+        "up_world": up_world.tolist(),
+        "stereo_camera_heights_m": heights,
+        "known_K": {
+            "horizon_err_px_center": stats("horizon_err_px_center"),
+            "horizon_err_px_max_edges": stats("horizon_err_px_max_edges"),
+            "pitch_err_deg": stats("pitch_err_deg_known_K"),
+            "roll_err_deg": stats("roll_err_deg"),
+            "horizon_sources": {
+                s: sum(r["horizon_source"] == s for r in rows) for s in sorted({r["horizon_source"] for r in rows})
+            },
+        },
+        "unknown_K": {
+            "horizon_err_px_center": stats("unknown_K_horizon_err_px_center"),
+            "pitch_err_deg": stats("unknown_K_pitch_err_deg"),
+            "focal_from_vanishing_points_frames": len(fv),
+            "focal_rel_err_when_from_vps": (
+                stats("unknown_K_focal_rel_err")
+                if False
+                else (float(np.median(np.abs([r["unknown_K_focal_rel_err"] for r in fv]))) if fv else None)
+            ),
+            "focal_rel_err_all": stats("unknown_K_focal_rel_err"),
+        },
         "seconds_per_frame": elapsed / len(rows),
         "command": "python " + " ".join([sys.argv[0], *(argv if argv is not None else sys.argv[1:])]),
     }

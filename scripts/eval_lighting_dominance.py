@@ -10,6 +10,7 @@ area-resampled copy W pixels wide with the intrinsics scaled, as the fast preset
 
 Usage: python scripts/eval_lighting_dominance.py --out results/lighting [--grey-step 5 --widths 0 160]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from aias_augment.config import data_root
-from aias_augment.geometry import Intrinsics
-from aias_augment.lighting.estimate import estimate_lighting
+from aias_augment.analyse.lighting.estimate import estimate_lighting
+from aias_augment.core.config import data_root
+from aias_augment.core.geometry import Intrinsics
 
 
 def frames(root: Path, video_step: int, grey_step: int = 0):
@@ -32,7 +33,13 @@ def frames(root: Path, video_step: int, grey_step: int = 0):
     kitti = root / "kitti06_color_snippet"
     K = Intrinsics(707.0912, 707.0912, 601.8873, 183.1104, 1226, 370)
     for i in (12, 13, 14, 17):
-        yield "kitti06 sunny street", f"kitti06-{i}", np.array(Image.open(kitti / f"kitti06-{i}-color.png").convert("RGB")), K, True
+        yield (
+            "kitti06 sunny street",
+            f"kitti06-{i}",
+            np.array(Image.open(kitti / f"kitti06-{i}-color.png").convert("RGB")),
+            K,
+            True,
+        )
     if grey_step:
         for i in range(0, 51, grey_step):
             g = np.array(Image.open(root / "kitti06_seq" / "image_l" / f"{i:06d}.png"))
@@ -76,28 +83,52 @@ def main(argv=None) -> int:
             t = time.perf_counter()
             e = estimate_lighting(im, Kw, rng=np.random.default_rng(0))
             dt = time.perf_counter() - t
-            rows.append({"group": group, "frame": name, "width": width, "expected_sun": expected,
-                         "dominant_sun": e.dominant_sun, "sun_sky_ratio": e.sun_sky_ratio,
-                         "confidence": e.confidence, "source": e.source, "seconds": dt})
-            print(f"{name:18s} width {width or img.shape[1]:4d} expected {expected!s:5s} got {e.dominant_sun!s:5s} "
-                  f"ratio {e.sun_sky_ratio:5.2f} ({dt:.2f} s)", flush=True)
+            rows.append(
+                {
+                    "group": group,
+                    "frame": name,
+                    "width": width,
+                    "expected_sun": expected,
+                    "dominant_sun": e.dominant_sun,
+                    "sun_sky_ratio": e.sun_sky_ratio,
+                    "confidence": e.confidence,
+                    "source": e.source,
+                    "seconds": dt,
+                }
+            )
+            print(
+                f"{name:18s} width {width or img.shape[1]:4d} expected {expected!s:5s} got {e.dominant_sun!s:5s} "
+                f"ratio {e.sun_sky_ratio:5.2f} ({dt:.2f} s)",
+                flush=True,
+            )
     groups = {}
     for r in rows:
         g = groups.setdefault(r["group"], {}).setdefault(str(r["width"]), {"n": 0, "correct": 0})
         g["n"] += 1
         g["correct"] += int(r["dominant_sun"] == r["expected_sun"])
-    report = {"command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
-              "groups": groups, "rows": rows,
-              "median_seconds": float(np.median([r["seconds"] for r in rows]))}
+    report = {
+        "command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
+        "groups": groups,
+        "rows": rows,
+        "median_seconds": float(np.median([r["seconds"] for r in rows])),
+    }
     (out / "dominance.json").write_text(json.dumps(report, indent=1))
     width_names = {w: ("as given" if w == 0 else f"{w} px copy") for w in args.widths}
-    lines = ["# Dominant-sun detection on real frames", "", f"Command: `{report['command']}`", "",
-             "| frames | expected | " + " | ".join(f"correct ({width_names[w]})" for w in args.widths) + " |",
-             "|---|---|" + "---|" * len(args.widths)]
+    lines = [
+        "# Dominant-sun detection on real frames",
+        "",
+        f"Command: `{report['command']}`",
+        "",
+        "| frames | expected | " + " | ".join(f"correct ({width_names[w]})" for w in args.widths) + " |",
+        "|---|---|" + "---|" * len(args.widths),
+    ]
     for gname, g in groups.items():
         exp = next(r["expected_sun"] for r in rows if r["group"] == gname)
-        lines.append(f"| {gname} | {'sun' if exp else 'no sun'} | "
-                     + " | ".join(f"{g[str(w)]['correct']} / {g[str(w)]['n']}" for w in args.widths) + " |")
+        lines.append(
+            f"| {gname} | {'sun' if exp else 'no sun'} | "
+            + " | ".join(f"{g[str(w)]['correct']} / {g[str(w)]['n']}" for w in args.widths)
+            + " |"
+        )
     lines += ["", f"Median time of `estimate_lighting` per frame: {report['median_seconds']:.2f} s (CPU, shared)"]
     for w in args.widths:
         ts = [r["seconds"] for r in rows if r["width"] == w]

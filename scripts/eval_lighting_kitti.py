@@ -25,6 +25,7 @@ casts shadows shorter than the contact zone excluded around the base, which stay
 
 Usage: python scripts/eval_lighting_kitti.py --out results/lighting
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,9 +41,10 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
-from aias_augment.config import data_root  # noqa: E402
-from aias_augment.geometry import Intrinsics  # noqa: E402
-from aias_augment.lighting import hdr, ratio  # noqa: E402
+from aias_augment.analyse.lighting import ratio  # noqa: E402
+from aias_augment.core import hdr
+from aias_augment.core.config import data_root  # noqa: E402
+from aias_augment.core.geometry import Intrinsics  # noqa: E402
 
 KITTI_K = (707.0912, 707.0912, 601.8873, 183.1104)
 KITTI_CAMERA_HEIGHT_M = 1.65
@@ -61,7 +63,9 @@ def load_frame(folder: Path, idx: int) -> np.ndarray:
 
 
 def road_mask(K: Intrinsics) -> np.ndarray:
-    return ratio.ground_region_mask(K, np.array([0.0, -1.0, 0.0]), KITTI_CAMERA_HEIGHT_M, ROAD_LATERAL_M, ROAD_FORWARD_M)
+    return ratio.ground_region_mask(
+        K, np.array([0.0, -1.0, 0.0]), KITTI_CAMERA_HEIGHT_M, ROAD_LATERAL_M, ROAD_FORWARD_M
+    )
 
 
 def real_shadow(img: np.ndarray, road: np.ndarray) -> ratio.LitShadowMeasurement:
@@ -85,8 +89,14 @@ def near_object(K: Intrinsics, cam_from_object: np.ndarray, asset, radius_factor
     return ok & (np.hypot(dx, dy) < radius_factor * float(asset.height_m))
 
 
-def inserted_shadow(img_in: np.ndarray, img_out: np.ndarray, road: np.ndarray, lit_in: np.ndarray,
-                    object_mask: np.ndarray, exclude: np.ndarray | None = None) -> dict:
+def inserted_shadow(
+    img_in: np.ndarray,
+    img_out: np.ndarray,
+    road: np.ndarray,
+    lit_in: np.ndarray,
+    object_mask: np.ndarray,
+    exclude: np.ndarray | None = None,
+) -> dict:
     """The inserted shadow's depth: the median output / input luminance ratio q over its core (q < 0.97, eroded by
     ``CORE_ERODE_PX``, on road pixels lit in the input; the object and the contact zone at its base excluded): per
     pixel, so free of the asphalt's albedo variation, but on thin shadow bands the core still mixes in penumbra.
@@ -119,7 +129,7 @@ def pipeline_object_masks(res, cat: str, K: Intrinsics, shape) -> tuple[np.ndarr
     """The inserted objects' pixels (from the record's RLE masks) and the ground near their bases."""
     from pycocotools import mask as mask_utils
 
-    from aias_augment.assets import default_asset
+    from aias_augment.assets.asset import default_asset
 
     obj = np.zeros(shape, bool)
     for a in res.record.annotations:
@@ -137,7 +147,7 @@ def sun_side_strip(K: Intrinsics, sun_in_cam: np.ndarray, cat: str) -> np.ndarra
     """Ground pixels where an object of ``cat`` casts its shadow (for the sun ``sun_in_cam``) onto the road box: the
     road box (forward 8-16 m) moved back along the shadow direction by the object's half-diagonal plus half its
     shadow length (clipped to 1-4 m)."""
-    from aias_augment.assets import CATEGORY_HEIGHT_RANGE_M, default_asset
+    from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, default_asset
 
     up = np.array([0.0, -1.0, 0.0])
     s = np.asarray(sun_in_cam, dtype=np.float64)
@@ -167,19 +177,29 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     folder = Path(args.data)
     fx, fy, cx, cy = KITTI_K
-    report = {"command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
-              "frames": {}, "insertions": []}
+    report = {
+        "command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
+        "frames": {},
+        "insertions": [],
+    }
     vis_rows = []
     for idx in args.frames:
         img = load_frame(folder, idx)
         K = Intrinsics(fx, fy, cx, cy, img.shape[1], img.shape[0])
         road = road_mask(K)
         m = real_shadow(img, road)
-        report["frames"][idx] = {"real_shadow_to_lit": m.shadow_to_lit, "sun_sky_ratio": m.sun_sky_ratio,
-                                 "separation": m.separation, "shadow_fraction": m.shadow_fraction,
-                                 "dominant_sun": m.dominant_sun, "road_pixels": m.n_pixels}
-        print(f"frame {idx}: real shadow/lit {m.shadow_to_lit:.3f} (sun/sky {m.sun_sky_ratio:.2f}, D {m.separation:.2f},"
-              f" shadow {100 * m.shadow_fraction:.1f} %)")
+        report["frames"][idx] = {
+            "real_shadow_to_lit": m.shadow_to_lit,
+            "sun_sky_ratio": m.sun_sky_ratio,
+            "separation": m.separation,
+            "shadow_fraction": m.shadow_fraction,
+            "dominant_sun": m.dominant_sun,
+            "road_pixels": m.n_pixels,
+        }
+        print(
+            f"frame {idx}: real shadow/lit {m.shadow_to_lit:.3f} (sun/sky {m.sun_sky_ratio:.2f}, D {m.separation:.2f},"
+            f" shadow {100 * m.shadow_fraction:.1f} %)"
+        )
         vis = img.copy()
         vis[road] = (0.6 * vis[road] + [0, 60, 0]).astype(np.uint8)
         vis[m.shadow_mask] = [255, 0, 0]
@@ -187,12 +207,12 @@ def main(argv=None) -> int:
         if args.skip_insertion:
             vis_rows.append(vis)
             continue
-        from aias_augment import composite as comp
-        from aias_augment import pipeline
-        from aias_augment.assets import CATEGORY_HEIGHT_RANGE_M, default_asset
-        from aias_augment.lighting.estimate import estimate_lighting
-        from aias_augment.lighting.shading import shade_object
-        from aias_augment.render import render_object
+        from aias_augment.analyse.lighting.estimate import estimate_lighting
+        from aias_augment.apply import composite as comp
+        from aias_augment.apply.render import render_object
+        from aias_augment.apply.shading import shade_object
+        from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, default_asset
+        from aias_augment.pipeline import image as pipeline
 
         lighting_road = estimate_lighting(img, K, meta={"ground_mask": road}, rng=np.random.default_rng(0))
         report["frames"][idx]["estimate"] = lighting_road.to_dict()
@@ -222,11 +242,23 @@ def main(argv=None) -> int:
                 bg = comp.apply_shadow(comp.to_linear(img), shadow_ratio)
                 shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lighting_road)
                 out_a = comp.to_uint8(comp.alpha_over(bg, shaded, rl.alpha))
-                runs = [("road_placement", out_a, rl.alpha > 0, lighting_road, time.perf_counter() - t,
-                         near_object(K, cam_from_object, asset))]
-                cfg = replace(pipeline.InsertionConfig(categories=(cat,)), harmonize=False, min_objects=1, max_objects=1)
+                runs = [
+                    (
+                        "road_placement",
+                        out_a,
+                        rl.alpha > 0,
+                        lighting_road,
+                        time.perf_counter() - t,
+                        near_object(K, cam_from_object, asset),
+                    )
+                ]
+                cfg = replace(
+                    pipeline.InsertionConfig(categories=(cat,)), harmonize=False, min_objects=1, max_objects=1
+                )
                 t = time.perf_counter()
-                res = pipeline.insert_into_image(img, rng=np.random.default_rng(seed), cfg=cfg, intrinsics=K, n_objects=1)
+                res = pipeline.insert_into_image(
+                    img, rng=np.random.default_rng(seed), cfg=cfg, intrinsics=K, n_objects=1
+                )
                 dt = time.perf_counter() - t
                 if res.record.annotations:
                     obj, near = pipeline_object_masks(res, cat, K, img.shape[:2])
@@ -238,8 +270,14 @@ def main(argv=None) -> int:
                 if light1 is not None and light1.dominant_sun and light1.sun_direction_in_cam is not None:
                     strip = sun_side_strip(K, np.asarray(light1.sun_direction_in_cam), cat)
                     t = time.perf_counter()
-                    res2 = pipeline.insert_into_image(img, rng=np.random.default_rng(seed), cfg=cfg, intrinsics=K,
-                                                      n_objects=1, meta={"placeable_mask": strip, "ground_mask": None})
+                    res2 = pipeline.insert_into_image(
+                        img,
+                        rng=np.random.default_rng(seed),
+                        cfg=cfg,
+                        intrinsics=K,
+                        n_objects=1,
+                        meta={"placeable_mask": strip, "ground_mask": None},
+                    )
                     dt = time.perf_counter() - t
                     light2 = res2.record.lighting
                     if not np.allclose(light2.sun_direction_in_cam, light1.sun_direction_in_cam):
@@ -249,13 +287,21 @@ def main(argv=None) -> int:
                         runs.append(("pipeline_sun_side", res2.image, obj2, light2, dt, near2))
                 for variant, out_img, obj, light, dt, near in runs:
                     meas, umbra = inserted_shadow(img, out_img, road, m.lit_mask, obj, near)
-                    row = {"frame": idx, "category": cat, "seed": seed, "variant": variant, "seconds": dt,
-                           "estimated_sun_sky_ratio": light.sun_sky_ratio if light is not None else None,
-                           "dominant_sun": bool(light.dominant_sun) if light is not None else None,
-                           "real_shadow_to_lit": m.shadow_to_lit, **meas}
+                    row = {
+                        "frame": idx,
+                        "category": cat,
+                        "seed": seed,
+                        "variant": variant,
+                        "seconds": dt,
+                        "estimated_sun_sky_ratio": light.sun_sky_ratio if light is not None else None,
+                        "dominant_sun": bool(light.dominant_sun) if light is not None else None,
+                        "real_shadow_to_lit": m.shadow_to_lit,
+                        **meas,
+                    }
                     if "inserted_shadow_to_lit_mixture" in meas:
-                        row["rel_error_mixture"] = abs(meas["inserted_shadow_to_lit_mixture"] - m.shadow_to_lit
-                                                       ) / m.shadow_to_lit
+                        row["rel_error_mixture"] = (
+                            abs(meas["inserted_shadow_to_lit_mixture"] - m.shadow_to_lit) / m.shadow_to_lit
+                        )
                     if "inserted_shadow_to_lit" in meas:
                         row["rel_error"] = abs(meas["inserted_shadow_to_lit"] - m.shadow_to_lit) / m.shadow_to_lit
                         if variant == "pipeline_sun_side" and seed == args.seeds[0]:
@@ -263,9 +309,11 @@ def main(argv=None) -> int:
                             v2[umbra] = (0.5 * v2[umbra] + [120, 0, 120]).astype(np.uint8)
                             vis = np.concatenate([vis, v2], axis=0)
                     report["insertions"].append(row)
-                    print(f"  {cat:8s} seed {seed} {variant:15s}: inserted "
-                          f"{meas.get('inserted_shadow_to_lit', float('nan')):.3f} vs real {m.shadow_to_lit:.3f}  "
-                          f"rel err {row.get('rel_error', float('nan')):.3f}  (umbra {meas['umbra_pixels']} px, {dt:.1f} s)")
+                    print(
+                        f"  {cat:8s} seed {seed} {variant:15s}: inserted "
+                        f"{meas.get('inserted_shadow_to_lit', float('nan')):.3f} vs real {m.shadow_to_lit:.3f}  "
+                        f"rel err {row.get('rel_error', float('nan')):.3f}  (umbra {meas['umbra_pixels']} px, {dt:.1f} s)"
+                    )
         vis_rows.append(vis)
     summary = {}
     for variant in ("road_placement", "pipeline", "pipeline_sun_side"):
@@ -273,9 +321,13 @@ def main(argv=None) -> int:
             rows = [r for r in report["insertions"] if r["variant"] == variant]
             errs = [r[key] for r in rows if key in r]
             if errs:
-                summary[variant + suffix] = {"n": len(errs), "of": len(rows), "median_rel_error": float(np.median(errs)),
-                                             "max_rel_error": float(np.max(errs)),
-                                             "frac_within_15pct": float(np.mean(np.array(errs) < 0.15))}
+                summary[variant + suffix] = {
+                    "n": len(errs),
+                    "of": len(rows),
+                    "median_rel_error": float(np.median(errs)),
+                    "max_rel_error": float(np.max(errs)),
+                    "frac_within_15pct": float(np.mean(np.array(errs) < 0.15)),
+                }
     report["summary"] = summary
     reals = [f["real_shadow_to_lit"] for f in report["frames"].values()]
     report["real_shadow_to_lit_median"] = float(np.median(reals))
@@ -283,30 +335,53 @@ def main(argv=None) -> int:
     from PIL import Image
 
     width = max(v.shape[1] for v in vis_rows)
-    Image.fromarray(np.concatenate([np.pad(v, ((0, 0), (0, width - v.shape[1]), (0, 0))) for v in vis_rows], 0)[::2, ::2]
-                    ).save(out / "kitti_shadows.jpg", quality=80)
-    lines = ["# KITTI 06: inserted vs real shadow depth on the road", "", f"Command: `{report['command']}`", "",
-             "Real shadow/lit per frame (road box, lit vs shadowed asphalt):", "",
-             "| frame | real shadow/lit | sun/sky ratio | Ashman D | shadow fraction | dominant sun |", "|---|---|---|---|---|---|"]
+    Image.fromarray(
+        np.concatenate([np.pad(v, ((0, 0), (0, width - v.shape[1]), (0, 0))) for v in vis_rows], 0)[::2, ::2]
+    ).save(out / "kitti_shadows.jpg", quality=80)
+    lines = [
+        "# KITTI 06: inserted vs real shadow depth on the road",
+        "",
+        f"Command: `{report['command']}`",
+        "",
+        "Real shadow/lit per frame (road box, lit vs shadowed asphalt):",
+        "",
+        "| frame | real shadow/lit | sun/sky ratio | Ashman D | shadow fraction | dominant sun |",
+        "|---|---|---|---|---|---|",
+    ]
     for idx, f in report["frames"].items():
-        lines.append(f"| {idx} | {f['real_shadow_to_lit']:.3f} | {f['sun_sky_ratio']:.2f} | {f['separation']:.2f} "
-                     f"| {100 * f['shadow_fraction']:.1f} % | {f['dominant_sun']} |")
+        lines.append(
+            f"| {idx} | {f['real_shadow_to_lit']:.3f} | {f['sun_sky_ratio']:.2f} | {f['separation']:.2f} "
+            f"| {100 * f['shadow_fraction']:.1f} % | {f['dominant_sun']} |"
+        )
     if report["insertions"]:
-        lines += ["", "| frame | object | seed | variant | inserted shadow/lit (median q, core) | real | rel. error "
-                  "| core px | mixture split: inserted shadow/lit | rel. error |", "|---|---|---|---|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            "| frame | object | seed | variant | inserted shadow/lit (median q, core) | real | rel. error "
+            "| core px | mixture split: inserted shadow/lit | rel. error |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
         for r in report["insertions"]:
-            lines.append(f"| {r['frame']} | {r['category']} | {r['seed']} | {r['variant']} "
-                         f"| {r.get('inserted_shadow_to_lit', float('nan')):.3f} | {r['real_shadow_to_lit']:.3f} "
-                         f"| {100 * r.get('rel_error', float('nan')):.1f} % | {r['umbra_pixels']} "
-                         f"| {r.get('inserted_shadow_to_lit_mixture', float('nan')):.3f} "
-                         f"| {100 * r.get('rel_error_mixture', float('nan')):.1f} % |")
+            lines.append(
+                f"| {r['frame']} | {r['category']} | {r['seed']} | {r['variant']} "
+                f"| {r.get('inserted_shadow_to_lit', float('nan')):.3f} | {r['real_shadow_to_lit']:.3f} "
+                f"| {100 * r.get('rel_error', float('nan')):.1f} % | {r['umbra_pixels']} "
+                f"| {r.get('inserted_shadow_to_lit_mixture', float('nan')):.3f} "
+                f"| {100 * r.get('rel_error_mixture', float('nan')):.1f} % |"
+            )
         lines += ["", "Summary (target: within 15 %):", ""]
         for k, s in summary.items():
-            lines.append(f"- {k}: measurable {s['n']} of {s['of']}, median rel. error {100 * s['median_rel_error']:.1f} "
-                         f"%, max {100 * s['max_rel_error']:.1f} %, {100 * s['frac_within_15pct']:.0f} % within 15 %")
-    lines += ["", "![overlay](kitti_shadows.jpg)", "",
-              "Overlay: green = road box, red = real shadow pixels, blue = real lit pixels; below each frame, one "
-              "end-to-end insertion (pipeline_sun_side, first seed) with the core of its shadow in magenta.", ""]
+            lines.append(
+                f"- {k}: measurable {s['n']} of {s['of']}, median rel. error {100 * s['median_rel_error']:.1f} "
+                f"%, max {100 * s['max_rel_error']:.1f} %, {100 * s['frac_within_15pct']:.0f} % within 15 %"
+            )
+    lines += [
+        "",
+        "![overlay](kitti_shadows.jpg)",
+        "",
+        "Overlay: green = road box, red = real shadow pixels, blue = real lit pixels; below each frame, one "
+        "end-to-end insertion (pipeline_sun_side, first seed) with the core of its shadow in magenta.",
+        "",
+    ]
     (out / "kitti_shadow_report.md").write_text("\n".join(lines))
     print(json.dumps(summary, indent=1))
     return 0

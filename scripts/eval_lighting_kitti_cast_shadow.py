@@ -32,6 +32,7 @@ real shadows point away from it: expected shadow azimuth = sun azimuth + 180 deg
 
 Usage: PYOPENGL_PLATFORM=egl python scripts/eval_lighting_kitti_cast_shadow.py --out results/lighting
 """
+
 from __future__ import annotations
 
 import argparse
@@ -47,9 +48,10 @@ os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
-from aias_augment.config import data_root  # noqa: E402
-from aias_augment.geometry import Intrinsics  # noqa: E402
-from aias_augment.lighting import hdr, ratio  # noqa: E402
+from aias_augment.analyse.lighting import ratio  # noqa: E402
+from aias_augment.core import hdr
+from aias_augment.core.config import data_root  # noqa: E402
+from aias_augment.core.geometry import Intrinsics  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import eval_lighting_kitti as ek  # noqa: E402
@@ -83,8 +85,11 @@ def real_sun_azimuth(img: np.ndarray, K: Intrinsics) -> dict:
     lat, fwd = np.cos(axis), np.sin(axis)  # axis = atan2(forward, lateral)
     if lat > 0:
         lat, fwd = -lat, -fwd  # the end on the left
-    return {"azimuth_deg": float(np.degrees(np.arctan2(lat, fwd))), "axis_strength": strength,
-            "shadow_pixels": int(m.shadow_mask.sum())}
+    return {
+        "azimuth_deg": float(np.degrees(np.arctan2(lat, fwd))),
+        "axis_strength": strength,
+        "shadow_pixels": int(m.shadow_mask.sum()),
+    }
 
 
 def circ_mean_deg(a) -> float:
@@ -97,7 +102,7 @@ def wrap_deg(a: float) -> float:
 
 
 def asset_of(placement):
-    from aias_augment.assets import DEFAULT_ASSETS, default_asset
+    from aias_augment.assets.asset import DEFAULT_ASSETS, default_asset
 
     for i in range(len(DEFAULT_ASSETS.get(placement.category, ()))):
         a = default_asset(placement.category, i)
@@ -127,7 +132,7 @@ def cast_shadow(img_in: np.ndarray, img_out: np.ndarray, record, K: Intrinsics) 
     T = np.asarray(p.cam_from_object, float)
     R, t = T[:3, :3], T[:3, 3]
     n = R[:, 2]  # object up in the camera
-    vv, uu = np.mgrid[0:K.height, 0:K.width]
+    vv, uu = np.mgrid[0 : K.height, 0 : K.width]
     rays = np.stack([(uu - K.cx) / K.fx, (vv - K.cy) / K.fy, np.ones_like(uu, float)], -1)
     denom = rays @ n
     s = (t @ n) / np.where(np.abs(denom) > 1e-9, denom, np.nan)
@@ -143,9 +148,13 @@ def cast_shadow(img_in: np.ndarray, img_out: np.ndarray, record, K: Intrinsics) 
     dy = np.maximum(np.maximum(lo[1] - local[..., 1], local[..., 1] - hi[1]), 0.0)
     contact = 1.0 - 0.6 * np.exp(-np.hypot(dx, dy) / (0.25 * float(p.height_m)))
     dark = on_ground & ~obj & (q < np.minimum(DARK_Q, contact - DARK_MARGIN)) & (y_in > 1e-3)
-    out = {"cast_shadow_pixels": int(dark.sum()), "darkened_pixels_any": int((~obj & (q < DARK_Q)).sum()),
-           "object_pixels": n_obj, "min_q": float(q[~obj].min()) if (~obj).any() else 1.0,
-           "cast_shadow": bool(dark.sum() >= max(MIN_SHADOW_PX, MIN_SHADOW_FRAC * n_obj))}
+    out = {
+        "cast_shadow_pixels": int(dark.sum()),
+        "darkened_pixels_any": int((~obj & (q < DARK_Q)).sum()),
+        "object_pixels": n_obj,
+        "min_q": float(q[~obj].min()) if (~obj).any() else 1.0,
+        "cast_shadow": bool(dark.sum() >= max(MIN_SHADOW_PX, MIN_SHADOW_FRAC * n_obj)),
+    }
     L = record.lighting
     if L is not None and L.dominant_sun and L.sun_direction_in_cam is not None:
         # Where the shadow of the object's top should land (its own sun): outside the image, or inside the object's
@@ -162,7 +171,7 @@ def cast_shadow(img_in: np.ndarray, img_out: np.ndarray, record, K: Intrinsics) 
         else:
             out["shadow_tip_in_image"] = False
     if dark.sum() >= MIN_SHADOW_PX:
-        w = (1.0 - q[dark])
+        w = 1.0 - q[dark]
         c = (local[dark][:, :2] * w[:, None]).sum(0) / w.sum() - 0.5 * (lo[:2] + hi[:2])
         d_cam = R[:, :2] @ c  # ground vector in the camera frame
         fwd = np.array([0.0, 0.0, 1.0]) - n[2] * n
@@ -216,10 +225,16 @@ def main(argv=None) -> int:
         truth[i] = real_sun_azimuth(img, K)
         truth[i]["world_azimuth_deg"] = wrap_deg(truth[i]["azimuth_deg"] + np.degrees(yaw_of(poses[i])))
     sun_world = circ_mean_deg([truth[i]["world_azimuth_deg"] for i in COLOUR_FRAMES])
-    print("truth (real shadow axis, sun on the left):", {i: round(v["azimuth_deg"], 1) for i, v in truth.items()},
-          f"world {sun_world:.1f} deg")
-    report = {"command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
-              "truth": {"per_colour_frame": truth, "sun_world_azimuth_deg": sun_world}, "insertions": []}
+    print(
+        "truth (real shadow axis, sun on the left):",
+        {i: round(v["azimuth_deg"], 1) for i, v in truth.items()},
+        f"world {sun_world:.1f} deg",
+    )
+    report = {
+        "command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
+        "truth": {"per_colour_frame": truth, "sun_world_azimuth_deg": sun_world},
+        "insertions": [],
+    }
     cams = [True] + ([False] if args.unknown_camera else [])
     for preset in args.presets:
         transforms = {}
@@ -238,8 +253,15 @@ def main(argv=None) -> int:
                     res = comp(image=img, **({"camera_k": K.K} if known else {}))
                     dt = time.perf_counter() - t0
                     rec = t.last_record
-                    row = {"preset": preset, "kind": kind, "frame": idx, "camera_known": known, "seed": seed,
-                           "seconds": dt, "truth_sun_azimuth_deg": sun_az_truth}
+                    row = {
+                        "preset": preset,
+                        "kind": kind,
+                        "frame": idx,
+                        "camera_known": known,
+                        "seed": seed,
+                        "seconds": dt,
+                        "truth_sun_azimuth_deg": sun_az_truth,
+                    }
                     if rec is None or not rec.placements:
                         row["inserted"] = False
                         row["why"] = None if rec is None else rec.modules.get("placement")
@@ -247,11 +269,18 @@ def main(argv=None) -> int:
                         print(f"{preset:8s} {kind:6s} {idx:2d} K={known!s:5s} seed {seed}: nothing inserted")
                         continue
                     L = rec.lighting
-                    row.update({"inserted": True, "category": rec.placements[0].category,
-                                "dominant_sun": bool(L.dominant_sun), "confidence": float(L.confidence),
-                                "sun_sky_ratio": float(L.sun_sky_ratio), "source": L.source,
-                                "shadow_module": rec.modules.get("shadow"),
-                                "lighting_module": rec.modules.get("lighting")})
+                    row.update(
+                        {
+                            "inserted": True,
+                            "category": rec.placements[0].category,
+                            "dominant_sun": bool(L.dominant_sun),
+                            "confidence": float(L.confidence),
+                            "sun_sky_ratio": float(L.sun_sky_ratio),
+                            "source": L.source,
+                            "shadow_module": rec.modules.get("shadow"),
+                            "lighting_module": rec.modules.get("lighting"),
+                        }
+                    )
                     if L.sun_direction_in_cam is not None:
                         d = np.asarray(L.sun_direction_in_cam)
                         up = np.asarray(L.up_in_cam)
@@ -271,21 +300,36 @@ def main(argv=None) -> int:
                     if "shadow_azimuth_deg" in row:
                         row["shadow_vs_truth_deg"] = abs(wrap_deg(row["shadow_azimuth_deg"] - (sun_az_truth + 180.0)))
                         if "sun_azimuth_deg" in row:
-                            row["shadow_vs_own_sun_deg"] = abs(wrap_deg(row["shadow_azimuth_deg"]
-                                                                        - (row["sun_azimuth_deg"] + 180.0)))
+                            row["shadow_vs_own_sun_deg"] = abs(
+                                wrap_deg(row["shadow_azimuth_deg"] - (row["sun_azimuth_deg"] + 180.0))
+                            )
                     report["insertions"].append(row)
-                    print(f"{preset:8s} {kind:6s} {idx:2d} K={known!s:5s} seed {seed}: {row['category']:12s} "
-                          f"sun {row['dominant_sun']!s:5s} conf {row['confidence']:.2f} r {row['sun_sky_ratio']:.2f} "
-                          f"az {row.get('sun_azimuth_deg', float('nan')):7.1f} (truth {sun_az_truth:6.1f}) "
-                          f"cast {row['cast_shadow_pixels']:5d} px dir err "
-                          f"{row.get('shadow_vs_truth_deg', float('nan')):5.1f} / own "
-                          f"{row.get('shadow_vs_own_sun_deg', float('nan')):5.1f} ({dt:.1f} s)", flush=True)
+                    print(
+                        f"{preset:8s} {kind:6s} {idx:2d} K={known!s:5s} seed {seed}: {row['category']:12s} "
+                        f"sun {row['dominant_sun']!s:5s} conf {row['confidence']:.2f} r {row['sun_sky_ratio']:.2f} "
+                        f"az {row.get('sun_azimuth_deg', float('nan')):7.1f} (truth {sun_az_truth:6.1f}) "
+                        f"cast {row['cast_shadow_pixels']:5d} px dir err "
+                        f"{row.get('shadow_vs_truth_deg', float('nan')):5.1f} / own "
+                        f"{row.get('shadow_vs_own_sun_deg', float('nan')):5.1f} ({dt:.1f} s)",
+                        flush=True,
+                    )
     # Summary per preset x kind x camera
     summary = {}
     for r in report["insertions"]:
         key = f"{r['preset']} / {r['kind']} / {'K given' if r['camera_known'] else 'K unknown'}"
-        s = summary.setdefault(key, {"calls": 0, "inserted": 0, "dominant_sun": 0, "cast_shadow": 0,
-                                     "frames_without_sun": [], "dir_err": [], "sun_err": [], "own_err": []})
+        s = summary.setdefault(
+            key,
+            {
+                "calls": 0,
+                "inserted": 0,
+                "dominant_sun": 0,
+                "cast_shadow": 0,
+                "frames_without_sun": [],
+                "dir_err": [],
+                "sun_err": [],
+                "own_err": [],
+            },
+        )
         s["calls"] += 1
         if not r["inserted"]:
             continue
@@ -293,14 +337,22 @@ def main(argv=None) -> int:
         s["dominant_sun"] += int(r["dominant_sun"])
         s["cast_shadow"] += int(r["cast_shadow"])
         if r["dominant_sun"] and not r["cast_shadow"]:
-            why = ("shadow off the image" if not r.get("shadow_tip_in_image", True) else
-                   "shadow behind the object" if r.get("shadow_tip_behind_object") else "other")
+            why = (
+                "shadow off the image"
+                if not r.get("shadow_tip_in_image", True)
+                else "shadow behind the object"
+                if r.get("shadow_tip_behind_object")
+                else "other"
+            )
             s.setdefault("sun_but_no_visible_shadow", {}).setdefault(why, 0)
             s["sun_but_no_visible_shadow"][why] += 1
         if not r["dominant_sun"] and r["frame"] not in s["frames_without_sun"]:
             s["frames_without_sun"].append(r["frame"])
-        for k, col in (("dir_err", "shadow_vs_truth_deg"), ("sun_err", "sun_azimuth_error_deg"),
-                       ("own_err", "shadow_vs_own_sun_deg")):
+        for k, col in (
+            ("dir_err", "shadow_vs_truth_deg"),
+            ("sun_err", "sun_azimuth_error_deg"),
+            ("own_err", "shadow_vs_own_sun_deg"),
+        ):
             if col in r:
                 s[k].append(r[col])
     for s in summary.values():
@@ -313,27 +365,35 @@ def main(argv=None) -> int:
                 s["dir_measured"] = len(v)
     report["summary"] = summary
     (out / f"{args.name}.json").write_text(json.dumps(report, indent=1))
-    lines = ["# KITTI 06 (sunny, hard shadows): does every insertion get a cast shadow?", "",
-             f"Command: `PYOPENGL_PLATFORM=egl {report['command']}`", "",
-             "Truth for the direction: the real shadow bands on the road box of the colour frames (axis) with the sun "
-             "on the left (by eye), moved to the world frame with the KITTI poses: "
-             + ", ".join(f"frame {i}: {v['azimuth_deg']:.0f} deg (axis strength {v['axis_strength']:.2f})"
-                         for i, v in truth.items())
-             + f"; street sun at world azimuth {sun_world:.1f} deg. Azimuths: camera frame, from forward, right "
-             "positive. Cast shadow: at least max(5, 3 % of the object's pixels) ground pixels outside the object darkened "
-             "by more than the contact shade alone (q < min(0.85, 1 - 0.6 exp(-rho / 0.25 h) - 0.15)).", "",
-             "| preset / frames / camera | insertions | dominant sun | cast shadow | sun but no visible shadow: why "
-             "(the own sun's shadow tip) | frames without sun | shadow dir vs real: median / max deg (within 45) | sun "
-             "azimuth err median / max | shadow vs own sun median / max |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "# KITTI 06 (sunny, hard shadows): does every insertion get a cast shadow?",
+        "",
+        f"Command: `PYOPENGL_PLATFORM=egl {report['command']}`",
+        "",
+        "Truth for the direction: the real shadow bands on the road box of the colour frames (axis) with the sun "
+        "on the left (by eye), moved to the world frame with the KITTI poses: "
+        + ", ".join(
+            f"frame {i}: {v['azimuth_deg']:.0f} deg (axis strength {v['axis_strength']:.2f})" for i, v in truth.items()
+        )
+        + f"; street sun at world azimuth {sun_world:.1f} deg. Azimuths: camera frame, from forward, right "
+        "positive. Cast shadow: at least max(5, 3 % of the object's pixels) ground pixels outside the object darkened "
+        "by more than the contact shade alone (q < min(0.85, 1 - 0.6 exp(-rho / 0.25 h) - 0.15)).",
+        "",
+        "| preset / frames / camera | insertions | dominant sun | cast shadow | sun but no visible shadow: why "
+        "(the own sun's shadow tip) | frames without sun | shadow dir vs real: median / max deg (within 45) | sun "
+        "azimuth err median / max | shadow vs own sun median / max |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for k, s in summary.items():
         f = lambda x: "-" if x is None else f"{x:.0f}"  # noqa: E731
         whys = ", ".join(f"{w}: {c}" for w, c in s.get("sun_but_no_visible_shadow", {}).items()) or "-"
-        lines.append(f"| {k} | {s['inserted']} / {s['calls']} | {s['dominant_sun']} | {s['cast_shadow']} | {whys} "
-                     f"| {', '.join(map(str, s['frames_without_sun'])) or '-'} "
-                     f"| {f(s['dir_err_median_deg'])} / {f(s['dir_err_max_deg'])} ({s['dir_within_45_deg']} of "
-                     f"{s['dir_measured']}) | {f(s['sun_err_median_deg'])} / {f(s['sun_err_max_deg'])} "
-                     f"| {f(s['own_err_median_deg'])} / {f(s['own_err_max_deg'])} |")
+        lines.append(
+            f"| {k} | {s['inserted']} / {s['calls']} | {s['dominant_sun']} | {s['cast_shadow']} | {whys} "
+            f"| {', '.join(map(str, s['frames_without_sun'])) or '-'} "
+            f"| {f(s['dir_err_median_deg'])} / {f(s['dir_err_max_deg'])} ({s['dir_within_45_deg']} of "
+            f"{s['dir_measured']}) | {f(s['sun_err_median_deg'])} / {f(s['sun_err_max_deg'])} "
+            f"| {f(s['own_err_median_deg'])} / {f(s['own_err_max_deg'])} |"
+        )
     lines += ["", "Per insertion: `" + f"{args.name}.json" + "` (`insertions`).", ""]
     (out / f"{args.name}.md").write_text("\n".join(lines))
     print(json.dumps(summary, indent=1))

@@ -7,6 +7,7 @@ the side and the confidence per frame.
 
 Usage: python scripts/eval_lighting_kitti_sun.py --out results/lighting
 """
+
 from __future__ import annotations
 
 import argparse
@@ -16,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from aias_augment.config import data_root
-from aias_augment.geometry import Intrinsics
-from aias_augment.lighting.estimate import estimate_lighting
+from aias_augment.analyse.lighting.estimate import estimate_lighting
+from aias_augment.core.config import data_root
+from aias_augment.core.geometry import Intrinsics
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import eval_lighting_kitti as ek  # noqa: E402
@@ -41,10 +42,18 @@ def main(argv=None) -> int:
             continue
         az = float(np.rad2deg(np.arctan2(d[0], d[2])))
         el = float(np.rad2deg(np.arcsin(np.clip(-d[1], -1, 1))))
-        rows[idx] = {"azimuth_right_positive_deg": az, "elevation_deg": el, "side": "left" if az < 0 else "right",
-                     "correct_side": bool(az < 0), "confidence": est.confidence, "source": est.source}
-        print(f"frame {idx}: sun az {az:6.1f} deg (right +), el {el:5.1f}, side {rows[idx]['side']}, "
-              f"confidence {est.confidence:.2f}")
+        rows[idx] = {
+            "azimuth_right_positive_deg": az,
+            "elevation_deg": el,
+            "side": "left" if az < 0 else "right",
+            "correct_side": bool(az < 0),
+            "confidence": est.confidence,
+            "source": est.source,
+        }
+        print(
+            f"frame {idx}: sun az {az:6.1f} deg (right +), el {el:5.1f}, side {rows[idx]['side']}, "
+            f"confidence {est.confidence:.2f}"
+        )
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cmd = "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:]))

@@ -10,6 +10,7 @@ photo: (R/G, B/G) of the inserted whites divided by the real ones' (1.0 = the sa
 
     python scripts/eval_neutral_whites.py --photos 40 --out results/lighting/neutral_whites
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,16 +25,21 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from aias_augment.config import data_root  # noqa: E402
-from aias_augment.insertion import analyse_scene, apply_plan, plan_insertion  # noqa: E402
-from aias_augment.insertion.config import load_preset  # noqa: E402
-from aias_augment.render import render_object, srgb_to_linear  # noqa: E402
-from aias_augment.scene import Frame  # noqa: E402
+from aias_augment.analyse.analysis import analyse_scene  # noqa: E402
+from aias_augment.apply.render import render_object, srgb_to_linear  # noqa: E402
+from aias_augment.apply.stages import apply_plan  # noqa: E402
+from aias_augment.core.config import data_root  # noqa: E402
+from aias_augment.core.frame import Frame  # noqa: E402
+from aias_augment.pipeline.config import load_preset  # noqa: E402
+from aias_augment.plan.insertion import plan_insertion  # noqa: E402
 
 #: arm -> (LightingConfig overrides, InsertionConfig overrides)
-ARMS = {"scene": ({}, {}), "neutral": ({"ambient_colour": "neutral"}, {}),
-        "neutral_lum": ({"ambient_colour": "neutral"}, {"harmonize_colour": "luminance"}),
-        "scene_lum": ({}, {"harmonize_colour": "luminance"})}
+ARMS = {
+    "scene": ({}, {}),
+    "neutral": ({"ambient_colour": "neutral"}, {}),
+    "neutral_lum": ({"ambient_colour": "neutral"}, {"harmonize_colour": "luminance"}),
+    "scene_lum": ({}, {"harmonize_colour": "luminance"}),
+}
 
 
 def real_white_rgb(img: np.ndarray, boxes_xyxy: np.ndarray) -> np.ndarray | None:
@@ -115,20 +121,24 @@ def main(argv=None) -> int:
             if an.region is None:
                 break
             if plan is None:
-                plan = plan_insertion(an, cfg, np.random.default_rng([a.seed, len(rows)]), n_objects=3,
-                                      existing_boxes_xyxy=boxes)
+                plan = plan_insertion(
+                    an, cfg, np.random.default_rng([a.seed, len(rows)]), n_objects=3, existing_boxes_xyxy=boxes
+                )
                 if not plan.objects:
                     break
             row[f"{arm}_sh_dc_rg_bg"] = chroma(np.asarray(an.lighting.ambient_sh)[0]).round(4).tolist()
-            for harm in ((False, True) if not over else (True,)):
+            for harm in (False, True) if not over else (True,):
                 out = apply_plan(frame, an, plan, replace(cfg, harmonize=harm)).image
                 ins = inserted_white_rgb(out, plan, an)
                 if ins is not None:
                     row[f"{arm}_{'harm' if harm else 'raw'}"] = (chroma(ins) / chroma(real)).round(4).tolist()
         if len(row) > 2:
             rows.append(row)
-            print(f"[{len(rows)}/{a.photos} {time.perf_counter() - t0:.0f}s] {stem} " +
-                  " ".join(f"{k} {v}" for k, v in row.items() if k.endswith(("raw", "harm"))), flush=True)
+            print(
+                f"[{len(rows)}/{a.photos} {time.perf_counter() - t0:.0f}s] {stem} "
+                + " ".join(f"{k} {v}" for k, v in row.items() if k.endswith(("raw", "harm"))),
+                flush=True,
+            )
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "rows.json").write_text(json.dumps(rows, indent=1))
@@ -137,14 +147,17 @@ def main(argv=None) -> int:
 
 def write_report(rows: list[dict], a) -> int:
     out = Path(a.out)
-    lines = ["# Inserted whites vs the photo's own white cone sleeves\n",
-             f"`python scripts/eval_neutral_whites.py --photos {a.photos} --seed {a.seed} --preset {a.preset} "
-             f"--out {a.out}`: {len(rows)} TraCon train photos with labelled cones ({a.preset} preset, up to 3 "
-             f"cones inserted per photo). Ratios are inserted / real; 1.0 is the real sleeves' colour. Arms: `scene` / "
-             f"`neutral` = LightingConfig.ambient_colour; `_lum` = InsertionConfig.harmonize_colour 'luminance'. A "
-             f"photo counts in an arm when its inserted cones show >= 10 unclipped white pixels; TraCon train only "
-             f"(val was not looked at).\n",
-             "| arm | harmonized | photos | median R/G | median B/G | within 0.94-1.06 (both) |", "|---|---|---|---|---|---|"]
+    lines = [
+        "# Inserted whites vs the photo's own white cone sleeves\n",
+        f"`python scripts/eval_neutral_whites.py --photos {a.photos} --seed {a.seed} --preset {a.preset} "
+        f"--out {a.out}`: {len(rows)} TraCon train photos with labelled cones ({a.preset} preset, up to 3 "
+        f"cones inserted per photo). Ratios are inserted / real; 1.0 is the real sleeves' colour. Arms: `scene` / "
+        f"`neutral` = LightingConfig.ambient_colour; `_lum` = InsertionConfig.harmonize_colour 'luminance'. A "
+        f"photo counts in an arm when its inserted cones show >= 10 unclipped white pixels; TraCon train only "
+        f"(val was not looked at).\n",
+        "| arm | harmonized | photos | median R/G | median B/G | within 0.94-1.06 (both) |",
+        "|---|---|---|---|---|---|",
+    ]
     summary = {}
     for arm in ARMS:
         for h in ("raw", "harm"):
@@ -152,17 +165,31 @@ def write_report(rows: list[dict], a) -> int:
             if not len(v):
                 continue
             ok = float(np.mean(np.all((v > 0.94) & (v < 1.06), axis=1)))
-            summary[f"{arm}_{h}"] = {"n": len(v), "median_rg": float(np.median(v[:, 0])),
-                                     "median_bg": float(np.median(v[:, 1])), "within": ok}
-            lines.append(f"| {arm} | {'yes' if h == 'harm' else 'no'} | {len(v)} | {np.median(v[:, 0]):.3f} | "
-                         f"{np.median(v[:, 1]):.3f} | {100 * ok:.0f} % |")
-    lines += ["", "Paired by photo (the same plan in every arm): the deviation max(|log R/G|, |log B/G|) of the inserted "
-              "whites from the real sleeves, mean of the paired difference with a 95 % photo-bootstrap interval.", "",
-              "| from | to | photos | median deviation (from -> to) | mean paired difference [95 %] |",
-              "|---|---|---|---|---|"]
+            summary[f"{arm}_{h}"] = {
+                "n": len(v),
+                "median_rg": float(np.median(v[:, 0])),
+                "median_bg": float(np.median(v[:, 1])),
+                "within": ok,
+            }
+            lines.append(
+                f"| {arm} | {'yes' if h == 'harm' else 'no'} | {len(v)} | {np.median(v[:, 0]):.3f} | "
+                f"{np.median(v[:, 1]):.3f} | {100 * ok:.0f} % |"
+            )
+    lines += [
+        "",
+        "Paired by photo (the same plan in every arm): the deviation max(|log R/G|, |log B/G|) of the inserted "
+        "whites from the real sleeves, mean of the paired difference with a 95 % photo-bootstrap interval.",
+        "",
+        "| from | to | photos | median deviation (from -> to) | mean paired difference [95 %] |",
+        "|---|---|---|---|---|",
+    ]
     boot = np.random.default_rng(0)
-    for x, y in (("scene_harm", "neutral_lum_harm"), ("scene_harm", "scene_lum_harm"),
-                 ("scene_lum_harm", "neutral_lum_harm"), ("scene_raw", "neutral_raw")):
+    for x, y in (
+        ("scene_harm", "neutral_lum_harm"),
+        ("scene_harm", "scene_lum_harm"),
+        ("scene_lum_harm", "neutral_lum_harm"),
+        ("scene_raw", "neutral_raw"),
+    ):
         p = np.array([[np.abs(np.log(r[k])).max() for k in (x, y)] for r in rows if x in r and y in r])
         if len(p) < 2:
             continue
@@ -170,13 +197,20 @@ def write_report(rows: list[dict], a) -> int:
         bs = [d[boot.integers(0, len(d), len(d))].mean() for _ in range(4000)]
         lo, hi = np.percentile(bs, [2.5, 97.5])
         summary[f"{x}->{y}"] = {"n": len(d), "mean_diff": float(d.mean()), "ci95": [float(lo), float(hi)]}
-        lines.append(f"| {x} | {y} | {len(d)} | {np.median(p[:, 0]):.3f} -> {np.median(p[:, 1]):.3f} | "
-                     f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}] |")
+        lines.append(
+            f"| {x} | {y} | {len(d)} | {np.median(p[:, 0]):.3f} -> {np.median(p[:, 1]):.3f} | "
+            f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}] |"
+        )
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    lines += ["", "Contact sheet (`python scripts/neutral_whites_sheet.py --photos 8`): a real cone of each photo, then the "
-              "same inserted cone with the scene-coloured ambient and full harmonizer, and with the current defaults. "
-              "Pink whites beside red cones (rows 1, 6) come out white; a yellow cast on a white studio background "
-              "(row 4) and on grass (row 2) remains in both, from a source not yet isolated.", "", "![sheet](sheet.jpg)"]
+    lines += [
+        "",
+        "Contact sheet (`python scripts/neutral_whites_sheet.py --photos 8`): a real cone of each photo, then the "
+        "same inserted cone with the scene-coloured ambient and full harmonizer, and with the current defaults. "
+        "Pink whites beside red cones (rows 1, 6) come out white; a yellow cast on a white studio background "
+        "(row 4) and on grass (row 2) remains in both, from a source not yet isolated.",
+        "",
+        "![sheet](sheet.jpg)",
+    ]
     (out / "README.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

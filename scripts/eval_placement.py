@@ -18,6 +18,7 @@ contact point horizontally (perpendicular to the rig's up: KITTI camera -y, DGP 
 (sklearn) of measured points more than 0.2 m above the locally measured ground; a placement intersects when any
 clustered point lies inside its box.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,12 +33,12 @@ import cv2
 import numpy as np
 from sklearn.cluster import DBSCAN
 
-from aias_augment.assets import default_asset
-from aias_augment.collision import OrientedBox, points_inside_box
-from aias_augment.geometry import project_points
-from aias_augment.ground import GroundFitError, depth_to_points, fit_ground_plane
-from aias_augment.placement import PlacementConfig, sample_placement
-from aias_augment.region import RegionConfig, placeable_region
+from aias_augment.analyse.ground import GroundFitError, depth_to_points, fit_ground_plane
+from aias_augment.analyse.region import RegionConfig, placeable_region
+from aias_augment.assets.asset import default_asset
+from aias_augment.core.geometry import project_points
+from aias_augment.plan.collision import OrientedBox, points_inside_box
+from aias_augment.plan.placement import PlacementConfig, sample_placement
 
 log = logging.getLogger("eval_placement")
 
@@ -46,15 +47,23 @@ def load_frames(path: Path, step: int):
     """Yield (name, frame, measured points in cam, up_in_cam, existing boxes, depth_source)."""
     if list(path.glob("scene_*.json")) or list(path.glob("*/scene_*.json")):
         from aias_augment.scenes.dgp import open_dgp_scene
+
         scene = open_dgp_scene(path)
         for s in range(0, len(scene), step):
             for cam in scene.camera_names:
                 f = scene.frame(s, cam)
                 uv, z = project_points(f.meta["lidar_points_in_cam"], f.intrinsics.K)
-                yield (f"sample{s}/{cam}", f, f.meta["lidar_points_in_cam"], f.meta["up_in_cam"],
-                       f.meta["boxes_in_cam"], "lidar")
+                yield (
+                    f"sample{s}/{cam}",
+                    f,
+                    f.meta["lidar_points_in_cam"],
+                    f.meta["up_in_cam"],
+                    f.meta["boxes_in_cam"],
+                    "lidar",
+                )
     else:
         from aias_augment.scenes.kitti import open_kitti_sequence
+
         seq = open_kitti_sequence(path)
         for i in range(0, len(seq), step):
             f = seq.frame(i, with_depth=True)
@@ -89,17 +98,32 @@ def place_one(frame, points, up, existing, asset, rng, args, reasons: Counter):
     the measured points (local refit + 3D collision checks happen inside it)."""
     intr = frame.intrinsics
     try:
-        coarse = fit_ground_plane(points[points[:, 2] < 30], rng, up_hint=up, max_tilt_deg=15,
-                                  threshold_m=0.08, source="coarse")
+        coarse = fit_ground_plane(
+            points[points[:, 2] < 30], rng, up_hint=up, max_tilt_deg=15, threshold_m=0.08, source="coarse"
+        )
     except GroundFitError as e:
         reasons[f"no coarse ground: {e}"] += 1
         return None
     region = placeable_region(intr, coarse, depth=frame.depth, cfg=RegionConfig())
-    pcfg = PlacementConfig(max_tries=args.max_tries, max_distance_m=args.max_distance, min_distance_m=3.0,
-                           local_radius_m=args.local_radius, local_ground_band_m=args.ground_band,
-                           local_fallback=args.local_fallback)
-    placement, report = sample_placement(asset, coarse, intr, rng, depth=frame.depth, region_mask=region.mask,
-                                         cfg=pcfg, points_in_cam=points, existing_objects=existing)
+    pcfg = PlacementConfig(
+        max_tries=args.max_tries,
+        max_distance_m=args.max_distance,
+        min_distance_m=3.0,
+        local_radius_m=args.local_radius,
+        local_ground_band_m=args.ground_band,
+        local_fallback=args.local_fallback,
+    )
+    placement, report = sample_placement(
+        asset,
+        coarse,
+        intr,
+        rng,
+        depth=frame.depth,
+        region_mask=region.mask,
+        cfg=pcfg,
+        points_in_cam=points,
+        existing_objects=existing,
+    )
     for k, v in report.rejected.items():
         reasons[k] += v
     reasons["local refit failed (candidates)"] += report.local_refit_failed
@@ -107,11 +131,18 @@ def place_one(frame, points, up, existing, asset, rng, args, reasons: Counter):
         reasons["no candidate passed"] += 1
         return None
     contact = np.array(placement.contact_point_in_cam)
-    box = OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m * placement.scale),
-                                         asset.category)
+    box = OrientedBox.standing_on_ground(
+        placement.cam_from_object_matrix, tuple(asset.extents_m * placement.scale), asset.category
+    )
     coarse_contact = coarse.intersect_pixels(np.array(placement.contact_pixel), intr)
-    return {"contact": contact, "box": box, "coarse": coarse, "coarse_contact": coarse_contact,
-            "placement": placement, "region": region.to_dict()}
+    return {
+        "contact": contact,
+        "box": box,
+        "coarse": coarse,
+        "coarse_contact": coarse_contact,
+        "placement": placement,
+        "region": region.to_dict(),
+    }
 
 
 def draw(frame, placed, points, path):
@@ -146,11 +177,19 @@ def main(argv=None) -> int:
     ap.add_argument("--local-radius", type=float, default=3.0, help="m, ground refit around the contact point")
     ap.add_argument("--measure-radius", type=float, default=0.5, help="m, measured points around the contact")
     ap.add_argument("--max-distance", type=float, default=25.0, help="m, farthest contact point")
-    ap.add_argument("--ground-band", type=float, default=0.4,
-                    help="m, local refit uses points within this distance of the coarse ground")
+    ap.add_argument(
+        "--ground-band",
+        type=float,
+        default=0.4,
+        help="m, local refit uses points within this distance of the coarse ground",
+    )
     ap.add_argument("--max-tries", type=int, default=300, help="candidates per object (PlacementConfig.max_tries)")
-    ap.add_argument("--local-fallback", choices=("global", "reject"), default="global",
-                    help="when the local refit fails: use the coarse plane (production default) or reject")
+    ap.add_argument(
+        "--local-fallback",
+        choices=("global", "reject"),
+        default="global",
+        help="when the local refit fails: use the coarse plane (production default) or reject",
+    )
     ap.add_argument("--pictures", type=int, default=3)
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -184,50 +223,79 @@ def main(argv=None) -> int:
                 hits = int(points_inside_box(clusters, p["box"]).sum()) if len(clusters) else 0
                 rel = points - p["contact"]
                 hgt = rel @ up
-                p["near_points"] = points[(np.linalg.norm(rel - hgt[:, None] * up, axis=1) < radius)
-                                          & (np.abs(hgt) < 0.3)]
+                p["near_points"] = points[
+                    (np.linalg.norm(rel - hgt[:, None] * up, axis=1) < radius) & (np.abs(hgt) < 0.3)
+                ]
                 placed.append(p)
-                row = {"seed": seed, "frame": name, "category": asset.category, "depth_source": depth_source,
-                       "contact_in_cam": p["contact"].round(4).tolist(),
-                       "distance_m": float(np.linalg.norm(p["contact"])),
-                       "contact_err_m": err, "measured_points_near": n_near, "measure_radius_m": radius,
-                       "coarse_plane_contact_err_m": measured_contact_error(
-                           p["coarse_contact"], points, up, radius)[0],
-                       "coarse_vs_local_contact_m": float(np.linalg.norm(p["coarse_contact"] - p["contact"])),
-                       "ground_used": p["placement"].ground_used,
-                       "ground": {"normal": p["placement"].ground_normal_in_cam, "d": p["placement"].ground_d,
-                                  "num_inliers": p["placement"].ground_num_inliers,
-                                  "rms_m": p["placement"].ground_rms_m},
-                       "clustered_points_inside_box": hits,
-                       "region": p["region"]}
+                row = {
+                    "seed": seed,
+                    "frame": name,
+                    "category": asset.category,
+                    "depth_source": depth_source,
+                    "contact_in_cam": p["contact"].round(4).tolist(),
+                    "distance_m": float(np.linalg.norm(p["contact"])),
+                    "contact_err_m": err,
+                    "measured_points_near": n_near,
+                    "measure_radius_m": radius,
+                    "coarse_plane_contact_err_m": measured_contact_error(p["coarse_contact"], points, up, radius)[0],
+                    "coarse_vs_local_contact_m": float(np.linalg.norm(p["coarse_contact"] - p["contact"])),
+                    "ground_used": p["placement"].ground_used,
+                    "ground": {
+                        "normal": p["placement"].ground_normal_in_cam,
+                        "d": p["placement"].ground_d,
+                        "num_inliers": p["placement"].ground_num_inliers,
+                        "rms_m": p["placement"].ground_rms_m,
+                    },
+                    "clustered_points_inside_box": hits,
+                    "region": p["region"],
+                }
                 rows.append(row)
                 if err is not None:
                     errs.append(abs(err))
             if pictures < args.pictures and seed == args.seeds[0] and placed:
                 draw(frame, placed, points, args.out / f"placement_{tag}_{pictures}.jpg")
                 pictures += 1
-        per_seed.append({"seed": seed, "placements": sum(r["seed"] == seed for r in rows),
-                         "median_abs_contact_err_m": float(np.median(errs)) if errs else None})
+        per_seed.append(
+            {
+                "seed": seed,
+                "placements": sum(r["seed"] == seed for r in rows),
+                "median_abs_contact_err_m": float(np.median(errs)) if errs else None,
+            }
+        )
     elapsed = time.perf_counter() - t0
     measured = [abs(r["contact_err_m"]) for r in rows if r["contact_err_m"] is not None]
     summary = {
-        "scene": str(args.scene.resolve()), "depth_source": rows[0]["depth_source"] if rows else None,
-        "frames": len(frames), "seeds": args.seeds, "placements": len(rows),
+        "scene": str(args.scene.resolve()),
+        "depth_source": rows[0]["depth_source"] if rows else None,
+        "frames": len(frames),
+        "seeds": args.seeds,
+        "placements": len(rows),
         "placements_measured": len(measured),
         "placements_unmeasured_no_ground_points_nearby": len(rows) - len(measured),
         "median_abs_contact_err_m": float(np.median(measured)) if measured else None,
         "p90_abs_contact_err_m": float(np.percentile(measured, 90)) if measured else None,
-        "median_of_seed_medians_m": float(np.median([s["median_abs_contact_err_m"] for s in per_seed
-                                                     if s["median_abs_contact_err_m"] is not None])),
+        "median_of_seed_medians_m": float(
+            np.median([s["median_abs_contact_err_m"] for s in per_seed if s["median_abs_contact_err_m"] is not None])
+        ),
         "per_seed": per_seed,
         "placements_intersecting_point_clusters": int(sum(r["clustered_points_inside_box"] > 0 for r in rows)),
         "median_distance_m": float(np.median([r["distance_m"] for r in rows])) if rows else None,
-        "median_abs_contact_err_if_coarse_plane_m": float(np.median(
-            [abs(r["coarse_plane_contact_err_m"]) for r in rows if r["coarse_plane_contact_err_m"] is not None])),
+        "median_abs_contact_err_if_coarse_plane_m": float(
+            np.median(
+                [abs(r["coarse_plane_contact_err_m"]) for r in rows if r["coarse_plane_contact_err_m"] is not None]
+            )
+        ),
         "placements_on_local_plane": int(sum(r["ground_used"] == "local" for r in rows)),
-        "median_abs_contact_err_local_plane_m": float(np.median(
-            [abs(r["contact_err_m"]) for r in rows if r["contact_err_m"] is not None and r["ground_used"] == "local"]
-            or [np.nan])),
+        "median_abs_contact_err_local_plane_m": float(
+            np.median(
+                [
+                    abs(r["contact_err_m"])
+                    for r in rows
+                    if r["contact_err_m"] is not None and r["ground_used"] == "local"
+                ]
+                or [np.nan]
+            )
+        ),
         "median_coarse_vs_local_contact_shift_m": float(np.median([r["coarse_vs_local_contact_m"] for r in rows])),
         "rejected_candidates": dict(reasons.most_common()),
         "seconds": elapsed,

@@ -23,6 +23,7 @@ Per frame (the loaders of ``scripts/eval_placement.py``: KITTI stereo -> SGBM de
     vote; the placement lands on measured ground when most of them are ground.
 Also the horizon/camera estimate against the measured coarse ground: horizon row error at cx, pitch/roll, height.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,13 +40,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from eval_placement import load_frames  # noqa: E402  (the loaders of the measured-placement evaluation)
 
-from aias_augment.geometry import project_points  # noqa: E402
-from aias_augment.ground import GroundFitError, GroundPlane, depth_to_points, fit_ground_plane  # noqa: E402
-from aias_augment.insertion import analyse_scene, plan_insertion  # noqa: E402
-from aias_augment.insertion.config import InsertionConfig  # noqa: E402
-from aias_augment.placement import PlacementConfig, ground_band_points, refit_local_ground  # noqa: E402
-from aias_augment.region import placeable_region  # noqa: E402
-from aias_augment.scene import Frame  # noqa: E402
+from aias_augment.analyse.analysis import analyse_scene  # noqa: E402
+from aias_augment.analyse.ground import GroundFitError, GroundPlane, depth_to_points, fit_ground_plane  # noqa: E402
+from aias_augment.analyse.region import placeable_region  # noqa: E402
+from aias_augment.core.frame import Frame  # noqa: E402
+from aias_augment.core.geometry import project_points  # noqa: E402
+from aias_augment.pipeline.config import InsertionConfig  # noqa: E402
+from aias_augment.plan.insertion import plan_insertion  # noqa: E402
+from aias_augment.plan.placement import PlacementConfig, ground_band_points, refit_local_ground  # noqa: E402
 from aias_augment.scenes.single_image import horizon_row_error_px  # noqa: E402
 
 log = logging.getLogger("eval_placement_image_only")
@@ -62,8 +64,9 @@ def coarse_ground(points, up, rng, max_depth_m: float = 30.0, band_m: float = 0.
     lower = hgt[hgt <= np.median(hgt)]
     hist, edges = np.histogram(lower, bins=np.arange(lower.min(), lower.max() + 0.2, 0.1))
     mode = edges[np.argmax(hist)] + 0.05
-    return fit_ground_plane(front[np.abs(hgt - mode) < band_m], rng, up_hint=up, max_tilt_deg=15, threshold_m=0.08,
-                            source="coarse")
+    return fit_ground_plane(
+        front[np.abs(hgt - mode) < band_m], rng, up_hint=up, max_tilt_deg=15, threshold_m=0.08, source="coarse"
+    )
 
 
 def measured_ground_labels(frame, points, up, rng, *, tol_m: float, cell_m: float, max_depth_m: float = 40.0):
@@ -94,8 +97,12 @@ def measured_ground_labels(frame, points, up, rng, *, tol_m: float, cell_m: floa
         by_cell.setdefault((cells[i, 0], cells[i, 1]), []).append(i)
     for key, members in by_cell.items():
         members = np.array(members)
-        near = [planes[(key[0] + a, key[1] + b)] for a in (-1, 0, 1) for b in (-1, 0, 1)
-                if (key[0] + a, key[1] + b) in planes] or [coarse]
+        near = [
+            planes[(key[0] + a, key[1] + b)]
+            for a in (-1, 0, 1)
+            for b in (-1, 0, 1)
+            if (key[0] + a, key[1] + b) in planes
+        ] or [coarse]
         dist[members] = np.min([np.abs(p.signed_distance(pix_pts[members])) for p in near], axis=0)
     labels[rc[:, 0], rc[:, 1]] = np.where(dist < tol_m, GROUND, OFF_GROUND)
     return labels, coarse, len(planes)
@@ -107,8 +114,9 @@ def cached_labels(frame, points, up, args, key):
     if path is not None and path.exists():
         with np.load(path) as z:
             return z["labels"], GroundPlane(z["normal"], float(z["d"]), "coarse"), int(z["planes"])
-    labels, coarse, n = measured_ground_labels(frame, points, up, np.random.default_rng(0), tol_m=args.tol,
-                                               cell_m=args.cell)
+    labels, coarse, n = measured_ground_labels(
+        frame, points, up, np.random.default_rng(0), tol_m=args.tol, cell_m=args.cell
+    )
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(path, labels=labels, normal=coarse.normal, d=coarse.d, planes=n)
@@ -120,10 +128,12 @@ def contact_label(labels, uv, radius_px: int) -> tuple[int, int]:
     h, w = labels.shape
     u, v = int(round(uv[0])), int(round(uv[1]))
     if not (-radius_px <= u < w + radius_px and -radius_px <= v < h + radius_px):
-        return UNKNOWN, 0   # the contact is outside the image (a random 2D box reaching below the frame)
-    win = labels[max(0, v - radius_px):min(h, v + radius_px + 1), max(0, u - radius_px):min(w, u + radius_px + 1)]
-    yy, xx = np.mgrid[max(0, v - radius_px):min(h, v + radius_px + 1), max(0, u - radius_px):min(w, u + radius_px + 1)]
-    known = (win != UNKNOWN) & ((yy - v) ** 2 + (xx - u) ** 2 <= radius_px ** 2)
+        return UNKNOWN, 0  # the contact is outside the image (a random 2D box reaching below the frame)
+    win = labels[max(0, v - radius_px) : min(h, v + radius_px + 1), max(0, u - radius_px) : min(w, u + radius_px + 1)]
+    yy, xx = np.mgrid[
+        max(0, v - radius_px) : min(h, v + radius_px + 1), max(0, u - radius_px) : min(w, u + radius_px + 1)
+    ]
+    known = (win != UNKNOWN) & ((yy - v) ** 2 + (xx - u) ** 2 <= radius_px**2)
     if not known.any():
         return UNKNOWN, 0
     return (GROUND if (win[known] == GROUND).mean() >= 0.5 else OFF_GROUND), int(known.sum())
@@ -150,9 +160,14 @@ def region_scores(mask, labels) -> dict:
     ground = labels == GROUND
     rk = int((mask & known).sum())
     rg = int((mask & ground).sum())
-    return {"region_known_px": rk, "region_on_ground_px": rg, "ground_px": int(ground.sum()),
-            "precision": rg / rk if rk else None, "recall": rg / int(ground.sum()) if ground.any() else None,
-            "region_fraction": float(mask.mean())}
+    return {
+        "region_known_px": rk,
+        "region_on_ground_px": rg,
+        "ground_px": int(ground.sum()),
+        "precision": rg / rk if rk else None,
+        "recall": rg / int(ground.sum()) if ground.any() else None,
+        "region_fraction": float(mask.mean()),
+    }
 
 
 def draw(image, mask, labels, contacts, path):
@@ -187,15 +202,19 @@ def summarise(rows: list[dict], placements: list[dict], variant: str) -> dict:
     known = [p for p in pl if p["label"] != UNKNOWN]
     on = sum(p["label"] == GROUND for p in known)
     prec = [r[variant]["precision"] for r in rows if r[variant]["precision"] is not None]
-    return {"precision": rg / rk if rk else None, "recall": rg / gp if gp else None,
-            "median_frame_precision": float(np.median(prec)) if prec else None,
-            "min_frame_precision": float(np.min(prec)) if prec else None,
-            "frames_with_precision_below_0.95": int(sum(p < 0.95 for p in prec)),
-            "region_fraction_mean": float(np.mean([r[variant]["region_fraction"] for r in rows])),
-            "placements": len(pl), "placements_measured": len(known), "placements_on_ground": on,
-            "placements_on_ground_frac": on / len(known) if known else None,
-            "frames_without_placement": int(sum(
-                not any(p["frame"] == r["frame"] for p in pl) for r in rows))}
+    return {
+        "precision": rg / rk if rk else None,
+        "recall": rg / gp if gp else None,
+        "median_frame_precision": float(np.median(prec)) if prec else None,
+        "min_frame_precision": float(np.min(prec)) if prec else None,
+        "frames_with_precision_below_0.95": int(sum(p < 0.95 for p in prec)),
+        "region_fraction_mean": float(np.mean([r[variant]["region_fraction"] for r in rows])),
+        "placements": len(pl),
+        "placements_measured": len(known),
+        "placements_on_ground": on,
+        "placements_on_ground_frac": on / len(known) if known else None,
+        "frames_without_placement": int(sum(not any(p["frame"] == r["frame"] for p in pl) for r in rows)),
+    }
 
 
 def evaluate_scene(path: Path, args, out: Path) -> dict:
@@ -203,8 +222,9 @@ def evaluate_scene(path: Path, args, out: Path) -> dict:
     rows, placements = [], []
     pictures = 0
     t0 = time.perf_counter()
-    cfg = InsertionConfig(lighting=False, categories=tuple(args.categories), min_objects=args.per_frame,
-                          max_objects=args.per_frame)
+    cfg = InsertionConfig(
+        lighting=False, categories=tuple(args.categories), min_objects=args.per_frame, max_objects=args.per_frame
+    )
     step = args.step if "kitti" in tag else args.dgp_step
     for name, frame, points, up, _existing3d, source in load_frames(path, step):
         labels, coarse, n_planes = cached_labels(frame, points, up, args, f"{tag}_{name.replace('/', '_')}")
@@ -214,16 +234,22 @@ def evaluate_scene(path: Path, args, out: Path) -> dict:
         before = placeable_region(intr, analysis.ground)  # the region without the image (before issue 15)
         variants = {"before": dataclasses.replace(analysis, region=before), "after": analysis}
         cols = np.array([intr.cx])
-        row = {"frame": name, "depth_source": source, "local_planes": n_planes,
-               "known_px": int((labels != UNKNOWN).sum()), "ground_px": int((labels == GROUND).sum()),
-               "region_evidence": analysis.region.evidence, "modules": {k: analysis.modules.get(k) for k in
-                                                                         ("camera", "ground", "region")},
-               "horizon_row_err_at_cx_px": float(horizon_row_error_px(analysis.ground.horizon_line(intr),
-                                                                      coarse.horizon_line(frame.intrinsics), cols)[0]),
-               "pitch_roll_deg_estimated": [float(np.degrees(x)) for x in analysis.ground.pitch_roll_rad()],
-               "pitch_roll_deg_measured": [float(np.degrees(x)) for x in coarse.pitch_roll_rad()],
-               "camera_height_m_measured": float(coarse.camera_height_m),
-               "camera_height_m_used": float(analysis.ground.camera_height_m)}
+        row = {
+            "frame": name,
+            "depth_source": source,
+            "local_planes": n_planes,
+            "known_px": int((labels != UNKNOWN).sum()),
+            "ground_px": int((labels == GROUND).sum()),
+            "region_evidence": analysis.region.evidence,
+            "modules": {k: analysis.modules.get(k) for k in ("camera", "ground", "region")},
+            "horizon_row_err_at_cx_px": float(
+                horizon_row_error_px(analysis.ground.horizon_line(intr), coarse.horizon_line(frame.intrinsics), cols)[0]
+            ),
+            "pitch_roll_deg_estimated": [float(np.degrees(x)) for x in analysis.ground.pitch_roll_rad()],
+            "pitch_roll_deg_measured": [float(np.degrees(x)) for x in coarse.pitch_roll_rad()],
+            "camera_height_m_measured": float(coarse.camera_height_m),
+            "camera_height_m_used": float(analysis.ground.camera_height_m),
+        }
         existing = boxes_2d(frame)
         contacts_after = []
         # "random_2d": where the realism/study arms without placement (no_placement, naive_paste) put an object: a
@@ -242,30 +268,54 @@ def evaluate_scene(path: Path, args, out: Path) -> dict:
                         uv = (0.5 * (x0 + x1), y1)
                     radius = args.contact_radius if source == "stereo" else args.contact_radius_sparse
                     lab, n_known = contact_label(labels, uv, radius)
-                    placements.append({"variant": vname, "frame": name, "seed": seed,
-                                       "category": o.placement.category,
-                                       "contact_pixel": [round(uv[0], 1), round(uv[1], 1)],
-                                       "distance_m_image_only": float(np.linalg.norm(o.placement.contact_point_in_cam)),
-                                       "label": lab, "known_px_near": n_known})
+                    placements.append(
+                        {
+                            "variant": vname,
+                            "frame": name,
+                            "seed": seed,
+                            "category": o.placement.category,
+                            "contact_pixel": [round(uv[0], 1), round(uv[1], 1)],
+                            "distance_m_image_only": float(np.linalg.norm(o.placement.contact_point_in_cam)),
+                            "label": lab,
+                            "known_px_near": n_known,
+                        }
+                    )
                     if vname == "after":
                         contacts_after.append((uv, lab))
         rows.append(row)
-        log.info("%s %s: precision before %.3f after %s, recall after %s, horizon err %.1f px", tag, name,
-                 row["before"]["precision"] or float("nan"), row["after"]["precision"], row["after"]["recall"],
-                 row["horizon_row_err_at_cx_px"])
+        log.info(
+            "%s %s: precision before %.3f after %s, recall after %s, horizon err %.1f px",
+            tag,
+            name,
+            row["before"]["precision"] or float("nan"),
+            row["after"]["precision"],
+            row["after"]["recall"],
+            row["horizon_row_err_at_cx_px"],
+        )
         if pictures < args.pictures and (len(rows) - 1) % max(1, args.picture_every) == 0:
             draw(frame.image, analysis.region.mask, labels, contacts_after, out / f"image_only_{tag}_{pictures}.jpg")
             if pictures == 0:
                 draw(frame.image, before.mask, labels, [], out / f"image_only_{tag}_{pictures}_before.jpg")
             pictures += 1
     herr = np.abs([r["horizon_row_err_at_cx_px"] for r in rows])
-    return {"scene": str(path.resolve()), "depth_source": rows[0]["depth_source"], "frames": len(rows),
-            "step": step, "seeds": args.seeds,
-            "before": summarise(rows, placements, "before"), "after": summarise(rows, placements, "after"),
-            "random_2d": summarise(rows, placements, "random_2d"),
-            "horizon_row_err_at_cx_px": {"median": float(np.median(herr)), "p90": float(np.percentile(herr, 90)),
-                                         "max": float(herr.max())},
-            "seconds": time.perf_counter() - t0, "per_frame": rows, "placements": placements}
+    return {
+        "scene": str(path.resolve()),
+        "depth_source": rows[0]["depth_source"],
+        "frames": len(rows),
+        "step": step,
+        "seeds": args.seeds,
+        "before": summarise(rows, placements, "before"),
+        "after": summarise(rows, placements, "after"),
+        "random_2d": summarise(rows, placements, "random_2d"),
+        "horizon_row_err_at_cx_px": {
+            "median": float(np.median(herr)),
+            "p90": float(np.percentile(herr, 90)),
+            "max": float(herr.max()),
+        },
+        "seconds": time.perf_counter() - t0,
+        "per_frame": rows,
+        "placements": placements,
+    }
 
 
 def main(argv=None) -> int:
@@ -289,13 +339,23 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     args.out.mkdir(parents=True, exist_ok=True)
-    results = {"command": "python scripts/eval_placement_image_only.py "
-                          + " ".join(argv if argv is not None else sys.argv[1:]), "scenes": {}}
+    results = {
+        "command": "python scripts/eval_placement_image_only.py "
+        + " ".join(argv if argv is not None else sys.argv[1:]),
+        "scenes": {},
+    }
     for path in args.scenes:
         res = evaluate_scene(path, args, args.out)
         results["scenes"][path.resolve().name] = res
-        print(json.dumps({k: res[k] for k in ("scene", "frames", "before", "after", "random_2d", "horizon_row_err_at_cx_px",
-                                              "seconds")}, indent=1))
+        print(
+            json.dumps(
+                {
+                    k: res[k]
+                    for k in ("scene", "frames", "before", "after", "random_2d", "horizon_row_err_at_cx_px", "seconds")
+                },
+                indent=1,
+            )
+        )
     (args.out / f"{args.name}.json").write_text(json.dumps(results, indent=1))
     return 0
 

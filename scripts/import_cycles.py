@@ -2,12 +2,13 @@
 relative) built with ``ast``, and its strongly connected components of more than one module (or a module importing
 itself).
 
-    python scripts/import_cycles.py                 # aias_augment; exit 1 if there is a cycle
+    python scripts/import_cycles.py                 # aias_augment; exit 1 if there is a cycle or a private reach
     python scripts/import_cycles.py detection_eval
 
 An edge ``a -> b`` means a module ``a`` imports ``b`` (``from b import x`` where ``b.x`` is a submodule: to
 ``b.x``; a package's ``__init__`` is the module ``pkg``). Imports under ``if TYPE_CHECKING:`` are not edges.
 """
+
 from __future__ import annotations
 
 import ast
@@ -51,7 +52,7 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> dict[str, int
     out: dict[str, int] = {}
 
     def add(target: str, line: int):
-        while target and target not in modules:   # a name inside a module: the module
+        while target and target not in modules:  # a name inside a module: the module
             target = target.rpartition(".")[0]
         if target and target != name:
             out.setdefault(target, line)
@@ -66,7 +67,7 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> dict[str, int
                 add(a.name, node.lineno)
         elif isinstance(node, ast.ImportFrom):
             if node.level:
-                base = here[:len(here) - node.level + 1] if node.level > 1 else here
+                base = here[: len(here) - node.level + 1] if node.level > 1 else here
                 mod = ".".join(base + ([node.module] if node.module else []))
             else:
                 mod = node.module or ""
@@ -131,17 +132,46 @@ def describe(comp: list[str], graph: dict[str, dict[str, int]]) -> list[str]:
     return [f"{a}:{line} -> {b}" for a in comp for b, line in sorted(graph[a].items()) if b in inside]
 
 
+def private_reaches(package: str, root: Path = ROOT) -> list[str]:
+    """Imports of another module's private name (``from pkg.a import _helper`` in ``pkg.b``), as 'b:line -> a._helper'.
+    A private name is the module's own business: what others need is public, under a name that says so."""
+    modules = module_names(package, root)
+    out = []
+    for name, path in modules.items():
+        is_pkg = path.name == "__init__.py"
+        here = name.split(".") if is_pkg else name.split(".")[:-1]
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                base = here[: len(here) - node.level + 1] if node.level > 1 else here
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            if mod not in modules or mod == name:
+                continue
+            out += [
+                f"{name}:{node.lineno} -> {mod}.{a.name}"
+                for a in node.names
+                if a.name.startswith("_") and not a.name.startswith("__")
+            ]
+    return out
+
+
 def main(argv=None) -> int:
     package = (argv if argv is not None else sys.argv[1:] or ["aias_augment"])[0]
     graph = import_graph(package)
     found = cycles(graph)
-    print(f"{package}: {len(graph)} modules, {sum(len(v) for v in graph.values())} import edges, "
-          f"{len(found)} cycle(s)")
+    print(f"{package}: {len(graph)} modules, {sum(len(v) for v in graph.values())} import edges, {len(found)} cycle(s)")
     for comp in found:
         print(f"\ncycle of {len(comp)}: {', '.join(comp)}")
         for e in describe(comp, graph):
             print("  " + e)
-    return 1 if found else 0
+    private = private_reaches(package)
+    print(f"{len(private)} import(s) of another module's private name")
+    for line in private:
+        print("  " + line)
+    return 1 if found or private else 0
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ the pipeline (fast preset) beside the same roads with the shared mesh.
 
     python scripts/lift_contact_sheet.py --images 40 --out results/lift
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,11 +18,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from aias_augment.assets import default_asset
-from aias_augment.bank.lift import LiftConfig, LiftedAssets, cut_out, lift_instances, profile_iou
-from aias_augment.bank.lift_view import source_view
-from aias_augment.config import data_root
-from aias_augment.render import linear_to_srgb, render_object
+from aias_augment.apply.render import linear_to_srgb, render_object
+from aias_augment.assets.asset import default_asset
+from aias_augment.assets.bank.lift import LiftConfig, LiftedAssets, cut_out, lift_instances, profile_iou
+from aias_augment.assets.bank.lift_view import source_view
+from aias_augment.core.config import data_root
 from detection_eval.data import load_yolo_dir, read_image_rgb
 
 CELL = 160
@@ -44,7 +45,7 @@ def _cell(img: np.ndarray) -> np.ndarray:
     r = cv2.resize(img, (max(1, round(w * s)), max(1, round(h * s))), interpolation=cv2.INTER_AREA)
     out = np.full((CELL, CELL, 3), 128, np.uint8)
     y0, x0 = (CELL - r.shape[0]) // 2, (CELL - r.shape[1]) // 2
-    out[y0:y0 + r.shape[0], x0:x0 + r.shape[1]] = r
+    out[y0 : y0 + r.shape[0], x0 : x0 + r.shape[1]] = r
     return out
 
 
@@ -64,7 +65,7 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     train = load_yolo_dir(data_root() / "tracon", "train", ("cone",))
-    recs = [r for r in train.records if len(r.labels)][:args.images]
+    recs = [r for r in train.records if len(r.labels)][: args.images]
     cfg = LiftConfig()
     t0 = time.perf_counter()
     items = [(r.image_path, read_image_rgb(r.image_path), r.boxes_xyxy) for r in recs]
@@ -83,8 +84,15 @@ def main() -> None:
             lay = render_object(a, T, intr, ssaa=1)
             m = lay.alpha > 0.5
             iou = float((m & cut.mask).sum() / max((m | cut.mask).sum(), 1))
-            ious.append({"image": Path(path).name, "box": k, "render_iou": iou, "profile_iou": profile_iou(cut.mask),
-                         "height_px": int(cut.mask.any(1).sum())})
+            ious.append(
+                {
+                    "image": Path(path).name,
+                    "box": k,
+                    "render_iou": iou,
+                    "profile_iou": profile_iou(cut.mask),
+                    "height_px": int(cut.mask.any(1).sum()),
+                }
+            )
             if len(rows) < args.rows:
                 crop = cut.rgb.copy()
                 cnt, _ = cv2.findContours(cut.mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
@@ -100,7 +108,8 @@ def main() -> None:
     cv2.imwrite(str(out / "contact_sheet.png"), np.vstack([head] + rows)[..., ::-1])
 
     # The lifted bank (read back from its GLB files) inserted by the pipeline, beside the shared mesh.
-    from aias_augment.pipeline import insert_into_image, load_preset
+    from aias_augment.pipeline.image import insert_into_image, load_preset
+
     cfg_ins = load_preset("fast", harmonize_method="camera")
     bank = LiftedAssets.from_dir(out / "bank")
     empties = [r for r in train.records if not len(r.labels)][:6]
@@ -116,15 +125,25 @@ def main() -> None:
         tiles.append(np.hstack(pair))
     cv2.imwrite(str(out / "inserted_lifted_vs_mesh.jpg"), np.vstack(tiles)[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 88])
     r_iou = [e["render_iou"] for e in ious]
-    summary = {"command": "python scripts/lift_contact_sheet.py " + " ".join(
-        f"--{k} {v}" for k, v in vars(args).items()), "images": len(items), "lift": report.to_dict()["rejected"],
-        "lifted": report.lifted, "lift_seconds_per_instance": lift_s / max(report.lifted, 1),
+    summary = {
+        "command": "python scripts/lift_contact_sheet.py " + " ".join(f"--{k} {v}" for k, v in vars(args).items()),
+        "images": len(items),
+        "lift": report.to_dict()["rejected"],
+        "lifted": report.lifted,
+        "lift_seconds_per_instance": lift_s / max(report.lifted, 1),
         "render_iou_median": float(np.median(r_iou)) if r_iou else None,
         "render_iou_min": float(np.min(r_iou)) if r_iou else None,
         "render_iou_below_0.9": int(sum(i < 0.9 for i in r_iou)),
-        "label_margins_frac_median": dict(zip(("left", "top", "right", "bottom"), np.median(
-            [a.meta["label_margins_frac"] for a in assets], axis=0).round(4).tolist())) if assets else None,
-        "instances": ious}
+        "label_margins_frac_median": dict(
+            zip(
+                ("left", "top", "right", "bottom"),
+                np.median([a.meta["label_margins_frac"] for a in assets], axis=0).round(4).tolist(),
+            )
+        )
+        if assets
+        else None,
+        "instances": ious,
+    }
     (out / "report.json").write_text(json.dumps(summary, indent=1))
     print(json.dumps({k: v for k, v in summary.items() if k != "instances"}, indent=1))
 

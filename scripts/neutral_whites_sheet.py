@@ -5,6 +5,7 @@ defaults (neutral ambient, harmonizer luminance only).
 
     python scripts/neutral_whites_sheet.py --photos 8 --out results/lighting/neutral_whites/sheet.jpg
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,10 +18,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from aias_augment.config import data_root  # noqa: E402
-from aias_augment.insertion import analyse_scene, apply_plan, plan_insertion  # noqa: E402
-from aias_augment.insertion.config import load_preset  # noqa: E402
-from aias_augment.scene import Frame  # noqa: E402
+from aias_augment.analyse.analysis import analyse_scene  # noqa: E402
+from aias_augment.apply.stages import apply_plan  # noqa: E402
+from aias_augment.core.config import data_root  # noqa: E402
+from aias_augment.core.frame import Frame  # noqa: E402
+from aias_augment.pipeline.config import load_preset  # noqa: E402
+from aias_augment.plan.insertion import plan_insertion  # noqa: E402
 
 TILE = 160
 
@@ -62,16 +65,24 @@ def main(argv=None) -> int:
         an_old, an_new = analyse_scene(frame, old), analyse_scene(frame, new)
         if an_new.region is None:
             continue
-        plan = plan_insertion(an_new, new, np.random.default_rng([a.seed, len(rows)]), n_objects=1,
-                              existing_boxes_xyxy=boxes)
+        plan = plan_insertion(
+            an_new, new, np.random.default_rng([a.seed, len(rows)]), n_objects=1, existing_boxes_xyxy=boxes
+        )
         if not plan.objects:
             continue
         box = plan.objects[0].placement.amodal_box_xyxy
         if box[3] - box[1] < 24:
             continue
         real = boxes[int(np.argmax(boxes[:, 3] - boxes[:, 1]))]
-        rows.append(np.hstack([crop(img, real), crop(apply_plan(frame, an_old, plan, old).image, box),
-                               crop(apply_plan(frame, an_new, plan, new).image, box)]))
+        rows.append(
+            np.hstack(
+                [
+                    crop(img, real),
+                    crop(apply_plan(frame, an_old, plan, old).image, box),
+                    crop(apply_plan(frame, an_new, plan, new).image, box),
+                ]
+            )
+        )
         print(f"{len(rows)}/{a.photos} {stem}", flush=True)
     sheet = np.vstack(rows)
     head = np.full((28, sheet.shape[1], 3), 255, np.uint8)

@@ -19,6 +19,7 @@ the cases that differ.
     PYOPENGL_PLATFORM=egl python scripts/output_digest.py --write
     PYOPENGL_PLATFORM=egl python scripts/output_digest.py --check
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,7 +43,8 @@ CLIP_FRAMES = 8
 
 
 def data_dir() -> Path:
-    from aias_augment.config import data_root
+    from aias_augment.core.config import data_root
+
     return Path(data_root())
 
 
@@ -56,6 +58,7 @@ def read_rgb(path: Path) -> np.ndarray:
 def kitti_frame(index: int):
     """(image, K 3x3) of KITTI 06 colour frame ``index`` (K from KITTI04-12.yaml, the snippet's calibration)."""
     from aias_augment.scenes.kitti import read_kitti_calib
+
     root = data_dir() / "kitti06_color_snippet"
     img = read_rgb(root / f"kitti06-{index}-color.png")
     intr, _ = read_kitti_calib(root / "KITTI04-12.yaml", img.shape[1], img.shape[0])
@@ -79,7 +82,7 @@ def frame_1920x1080() -> np.ndarray:
     h, w = img.shape[:2]
     ch = int(round(w * 9 / 16))
     top = (h - ch) // 2
-    return cv2.resize(np.ascontiguousarray(img[top:top + ch]), (1920, 1080), interpolation=cv2.INTER_AREA)
+    return cv2.resize(np.ascontiguousarray(img[top : top + ch]), (1920, 1080), interpolation=cv2.INTER_AREA)
 
 
 def sha_image(img: np.ndarray) -> str:
@@ -99,7 +102,7 @@ def sha_boxes(boxes, labels) -> str:
 def cases():
     """Yield (case name, thunk returning (image, boxes, labels, n_inserted))."""
     from aias_augment import insert_into_image, load_preset
-    from aias_augment.working_resolution import insert_bounded
+    from aias_augment.pipeline.bounded import insert_bounded
 
     k12, K12 = kitti_frame(12)
     k17, K17 = kitti_frame(17)
@@ -110,28 +113,43 @@ def cases():
         def run():
             r = fn(img, boxes, labels, np.random.default_rng(seed), cfg, **kw)
             return r.image, r.bboxes, r.labels, len(r.inserted_labels)
+
         return run
 
     for preset in PRESETS:
         cfg = load_preset(preset)
         for seed in SEEDS:
-            yield (f"insert_into_image/kitti06-12/{preset}/seed{seed}",
-                   door(insert_into_image, k12, None, None, seed, cfg, intrinsics=K12))
-            yield (f"insert_into_image/kitti06-17/{preset}/seed{seed}",
-                   door(insert_into_image, k17, None, None, seed, cfg, intrinsics=K17))
-            yield (f"insert_into_image/tracon/{preset}/seed{seed}",
-                   door(insert_into_image, tracon, tracon_boxes, tracon_labels, seed, cfg))
-            yield (f"insert_bounded/tracon/{preset}/seed{seed}",
-                   door(insert_bounded, tracon, tracon_boxes, tracon_labels, seed, cfg))
-            yield (f"insert_bounded/dgp-1920x1080/{preset}/seed{seed}",
-                   door(insert_bounded, big, None, None, seed, cfg))
+            yield (
+                f"insert_into_image/kitti06-12/{preset}/seed{seed}",
+                door(insert_into_image, k12, None, None, seed, cfg, intrinsics=K12),
+            )
+            yield (
+                f"insert_into_image/kitti06-17/{preset}/seed{seed}",
+                door(insert_into_image, k17, None, None, seed, cfg, intrinsics=K17),
+            )
+            yield (
+                f"insert_into_image/tracon/{preset}/seed{seed}",
+                door(insert_into_image, tracon, tracon_boxes, tracon_labels, seed, cfg),
+            )
+            yield (
+                f"insert_bounded/tracon/{preset}/seed{seed}",
+                door(insert_bounded, tracon, tracon_boxes, tracon_labels, seed, cfg),
+            )
+            yield (
+                f"insert_bounded/dgp-1920x1080/{preset}/seed{seed}",
+                door(insert_bounded, big, None, None, seed, cfg),
+            )
 
     def transform():
         import albumentations as A
 
         from aias_augment import InsertObjects
-        tf = A.Compose([InsertObjects(categories=["traffic_cone"], max_objects=2, p=1.0, preset="fast")],
-                       bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=3)
+
+        tf = A.Compose(
+            [InsertObjects(categories=["traffic_cone"], max_objects=2, p=1.0, preset="fast")],
+            bbox_params=A.BboxParams(format="coco", label_fields=["labels"]),
+            seed=3,
+        )
         outs = [tf(image=tracon, bboxes=tracon_boxes, labels=tracon_labels) for _ in range(2)]
         return outs
 
@@ -143,6 +161,7 @@ def cases():
                 outs.extend(transform())
             o = outs[i]
             return o["image"], o["bboxes"], o["labels"], len(o["labels"]) - len(tracon_labels)
+
         return run
 
     for i in range(2):
@@ -154,23 +173,31 @@ def cases():
 
 def clip(seed: int):
     def run():
-        from aias_augment.assets import default_asset
-        from aias_augment.ground import prior_ground_plane
-        from aias_augment.lighting.estimate import estimate_lighting_clip
+        from aias_augment.analyse.ground import prior_ground_plane
+        from aias_augment.analyse.lighting.estimate import estimate_lighting_clip
+        from aias_augment.assets.asset import default_asset
+        from aias_augment.pipeline.clip import VideoInsertionConfig, insert_into_clip
         from aias_augment.scenes.kitti import open_kitti_sequence
-        from aias_augment.video import VideoInsertionConfig, insert_into_clip
 
         seq = open_kitti_sequence(data_dir() / "kitti06_seq")
         frames = [seq.frame(i).image for i in range(CLIP_FRAMES)]
         poses = np.stack([seq.cam_from_world(i) for i in range(CLIP_FRAMES)])
         rng = np.random.default_rng(seed)
         lighting = estimate_lighting_clip(frames, seq.intrinsics, poses, rng=rng)
-        res = insert_into_clip(frames, seq.intrinsics, poses, rng, VideoInsertionConfig(lookahead_frames=6),
-                               asset=default_asset("traffic_cone"), ground_in_cam0=prior_ground_plane(1.65),
-                               lighting=lighting)
+        res = insert_into_clip(
+            frames,
+            seq.intrinsics,
+            poses,
+            rng,
+            VideoInsertionConfig(lookahead_frames=6),
+            asset=default_asset("traffic_cone"),
+            ground_in_cam0=prior_ground_plane(1.65),
+            lighting=lighting,
+        )
         boxes = [b for b in res.boxes_xywh if b is not None]
         visible = [str(i) for i, b in enumerate(res.boxes_xywh) if b is not None]
         return np.stack(res.frames), boxes, visible, len(boxes)
+
     return run
 
 
@@ -180,11 +207,19 @@ def compute(verbose: bool = True) -> dict:
     for name, run in cases():
         t = time.perf_counter()
         img, boxes, labels, n = run()
-        out[name] = {"image_sha256": sha_image(img), "boxes_sha256": sha_boxes(boxes, labels),
-                     "shape": list(np.asarray(img).shape), "n_boxes": int(len(labels)), "n_inserted": int(n)}
+        out[name] = {
+            "image_sha256": sha_image(img),
+            "boxes_sha256": sha_boxes(boxes, labels),
+            "shape": list(np.asarray(img).shape),
+            "n_boxes": int(len(labels)),
+            "n_inserted": int(n),
+        }
         if verbose:
-            print(f"{time.perf_counter() - t:6.2f}s  {name}  {out[name]['image_sha256'][:12]} "
-                  f"{out[name]['boxes_sha256'][:12]}  inserted {n}", flush=True)
+            print(
+                f"{time.perf_counter() - t:6.2f}s  {name}  {out[name]['image_sha256'][:12]} "
+                f"{out[name]['boxes_sha256'][:12]}  inserted {n}",
+                flush=True,
+            )
     if verbose:
         print(f"total {time.perf_counter() - t_all:.1f}s", flush=True)
     return out
@@ -221,8 +256,10 @@ def write_table(digests: dict) -> None:
     for name, d in digests.items():
         sh = d["shape"]
         shape = f"{sh[-2]}x{sh[-3]}" + (f" x {sh[0]} frames" if len(sh) == 4 else "")
-        lines.append(f"| `{name}` | {shape} | {d['n_boxes']} | {d['n_inserted']} | `{d['image_sha256'][:16]}` | "
-                     f"`{d['boxes_sha256'][:16]}` |")
+        lines.append(
+            f"| `{name}` | {shape} | {d['n_boxes']} | {d['n_inserted']} | `{d['image_sha256'][:16]}` | "
+            f"`{d['boxes_sha256'][:16]}` |"
+        )
     (OUT_DIR / "README.md").write_text("\n".join(lines) + "\n")
 
 

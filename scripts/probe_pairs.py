@@ -1,8 +1,9 @@
 #!/usr/bin/env python
 """Per-seed val AP50:95 and paired differences of chosen arm pairs from a study's run metrics (markdown).
 
-    python scripts/probe_pairs.py results/study_probe/run_metrics
+python scripts/probe_pairs.py results/study_probe/run_metrics
 """
+
 from __future__ import annotations
 
 import json
@@ -13,9 +14,14 @@ import numpy as np
 from scipy import stats
 
 ARMS = ["original", "naive_paste", "no_placement", "inserted_fixed_scale", "inserted_scene_scale"]
-PAIRS = [("inserted_scene_scale", "inserted_fixed_scale"), ("inserted_scene_scale", "naive_paste"),
-         ("inserted_scene_scale", "original"), ("no_placement", "naive_paste"),
-         ("inserted_fixed_scale", "naive_paste"), ("naive_paste", "original")]
+PAIRS = [
+    ("inserted_scene_scale", "inserted_fixed_scale"),
+    ("inserted_scene_scale", "naive_paste"),
+    ("inserted_scene_scale", "original"),
+    ("no_placement", "naive_paste"),
+    ("inserted_fixed_scale", "naive_paste"),
+    ("naive_paste", "original"),
+]
 
 
 def main(folder: str) -> int:
@@ -29,8 +35,11 @@ def main(folder: str) -> int:
     for a in ARMS:
         v = [ap.get((a, s), {}).get("val") for s in seeds]
         got = [x for x in v if x is not None]
-        print(f"| {a} | " + " | ".join("—" if x is None else f"{x:.3f}" for x in v) +
-              f" | {np.mean(got):.3f} (n={len(got)}) |")
+        print(
+            f"| {a} | "
+            + " | ".join("—" if x is None else f"{x:.3f}" for x in v)
+            + f" | {np.mean(got):.3f} (n={len(got)}) |"
+        )
     print()
     print("| pair | seeds | val Δ per seed | val mean Δ [95 %] | dev mean Δ [95 %] |")
     print("|---|---|---|---|---|")

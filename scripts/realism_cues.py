@@ -19,6 +19,7 @@ interval by bootstrap over photos) is run again:
 A cue matters when taking it away brings the AUC down toward the floor. Writes ``<out>/cues.json`` and
 ``<out>/cues.md`` (with the command) and ``<out>/cues_sheet.png`` (one row of crops per view and set).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,8 +37,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "scripts"))
 
-from aias_augment.realism.crops import CropConfig, context_window, normalise_crop  # noqa: E402
-from aias_augment.realism.two_sample import logistic_two_sample  # noqa: E402
+from aias_augment.evaluation.realism.crops import CropConfig, context_window, normalise_crop  # noqa: E402
+from aias_augment.evaluation.realism.two_sample import logistic_two_sample  # noqa: E402
 
 log = logging.getLogger("realism_cues")
 VIEWS = ("as is", "grey", "grey, normalised", "object only", "surroundings only", "object only, grey, normalised")
@@ -46,6 +47,7 @@ VIEWS = ("as is", "grey", "grey, normalised", "object only", "surroundings only"
 def crops_with_boxes(records, rng: np.random.Generator, cfg: CropConfig, copies: set | None = None):
     """The report's crops (``object_crops``: the same draws of ``rng``) with each box in crop pixels."""
     from detection_eval.data import read_image_rgb
+
     crops, boxes, groups = [], [], []
     lo, hi = np.log(cfg.target_height_range_px[0]), np.log(cfg.target_height_range_px[1])
     for rec in records:
@@ -68,8 +70,10 @@ def crops_with_boxes(records, rng: np.random.Generator, cfg: CropConfig, copies:
 def _box_mask(box, size: int, grow: int = 1) -> np.ndarray:
     m = np.zeros((size, size), np.uint8)
     x0, y0, x1, y1 = box
-    m[max(0, int(np.floor(y0)) - grow):min(size, int(np.ceil(y1)) + grow),
-      max(0, int(np.floor(x0)) - grow):min(size, int(np.ceil(x1)) + grow)] = 1
+    m[
+        max(0, int(np.floor(y0)) - grow) : min(size, int(np.ceil(y1)) + grow),
+        max(0, int(np.floor(x0)) - grow) : min(size, int(np.ceil(x1)) + grow),
+    ] = 1
     return m
 
 
@@ -113,29 +117,34 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="results/realism/cues")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    from detection_eval import study
-    from detection_eval.data import load_yolo_dir
     from eval_realism import _pool_copies, _study_cfg
 
-    from aias_augment.realism.features import Lite0Features
+    from aias_augment.evaluation.realism.features import Lite0Features
+    from detection_eval import study
+    from detection_eval.data import load_yolo_dir
 
     t0 = time.perf_counter()
     ccfg = CropConfig()
     cfg = _study_cfg(args.cache_dir, 1)
     root = study.dataset_root(cfg)
-    seed = 0   # the report's seeds: reference [0, 1], floor [0, 2], arms [0, 3]
-    sets = {"real TraCon train (reference)": crops_with_boxes(
-                load_yolo_dir(root, cfg.train_split, cfg.class_names).records, np.random.default_rng([seed, 1]), ccfg),
-            "real TraCon val (floor)": crops_with_boxes(
-                load_yolo_dir(root, cfg.val_split, cfg.class_names).records, np.random.default_rng([seed, 2]), ccfg)}
+    seed = 0  # the report's seeds: reference [0, 1], floor [0, 2], arms [0, 3]
+    sets = {
+        "real TraCon train (reference)": crops_with_boxes(
+            load_yolo_dir(root, cfg.train_split, cfg.class_names).records, np.random.default_rng([seed, 1]), ccfg
+        ),
+        "real TraCon val (floor)": crops_with_boxes(
+            load_yolo_dir(root, cfg.val_split, cfg.class_names).records, np.random.default_rng([seed, 2]), ccfg
+        ),
+    }
     folders = {a: REPO / args.cache_dir / a / "pool" for a in args.arms}
     missing = [a for a, f in folders.items() if not (f / "done.json").exists()]
     if missing:
         raise SystemExit(f"no pool for {missing} under {args.cache_dir}: run scripts/eval_realism.py generate first")
     common = set.intersection(*[_pool_copies(f) for f in folders.values()])
     for a, f in folders.items():
-        sets[a] = crops_with_boxes(load_yolo_dir(f, names=cfg.class_names).records, np.random.default_rng([seed, 3]),
-                                   ccfg, copies=common)
+        sets[a] = crops_with_boxes(
+            load_yolo_dir(f, names=cfg.class_names).records, np.random.default_rng([seed, 3]), ccfg, copies=common
+        )
     log.info("crops: %s", {k: len(v[0]) for k, v in sets.items()})
     extractor = Lite0Features(input_size=args.feature_size)
     ref_name = "real TraCon train (reference)"
@@ -160,25 +169,40 @@ def main(argv=None) -> int:
     out = REPO / args.out
     out.mkdir(parents=True, exist_ok=True)
     width = max(r.shape[1] for r in sheet_rows)
-    sheet = np.concatenate([np.pad(r, ((0, 2), (0, width - r.shape[1]), (0, 0)), constant_values=255)
-                            for r in sheet_rows])
+    sheet = np.concatenate(
+        [np.pad(r, ((0, 2), (0, width - r.shape[1]), (0, 0)), constant_values=255) for r in sheet_rows]
+    )
     cv2.imwrite(str(out / "cues_sheet.png"), sheet[..., ::-1])
     command = "python scripts/realism_cues.py " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
-    rep = {"command": command, "crops": {k: len(v[0]) for k, v in sets.items()}, "photos":
-           {k: len(set(v[2])) for k, v in sets.items()}, "auc": results, "seconds": time.perf_counter() - t0}
+    rep = {
+        "command": command,
+        "crops": {k: len(v[0]) for k, v in sets.items()},
+        "photos": {k: len(set(v[2])) for k, v in sets.items()},
+        "auc": results,
+        "seconds": time.perf_counter() - t0,
+    }
     (out / "cues.json").write_text(json.dumps(rep, indent=1))
     names = [k for k in sets if k != ref_name]
-    lines = ["# What separates inserted cones from real ones: the two-sample AUC with one cue taken away", "",
-             f"Command: `{command}` ({rep['seconds']:.0f} s). Reference: real TraCon train, {rep['crops'][ref_name]} "
-             f"crops. Classifier: logistic regression on EfficientNet-Lite0 features, 5 folds grouped by photo, 95 % "
-             "interval by bootstrap over photos (0.5 = indistinguishable). Rows of `cues_sheet.png`: per view, "
-             "8 crops of each set in the order " + ", ".join(sets) + ".", "",
-             "| view | " + " | ".join(f"{n} ({rep['crops'][n]} crops)" for n in names) + " |",
-             "|---|" + "---|" * len(names)]
+    lines = [
+        "# What separates inserted cones from real ones: the two-sample AUC with one cue taken away",
+        "",
+        f"Command: `{command}` ({rep['seconds']:.0f} s). Reference: real TraCon train, {rep['crops'][ref_name]} "
+        f"crops. Classifier: logistic regression on EfficientNet-Lite0 features, 5 folds grouped by photo, 95 % "
+        "interval by bootstrap over photos (0.5 = indistinguishable). Rows of `cues_sheet.png`: per view, "
+        "8 crops of each set in the order " + ", ".join(sets) + ".",
+        "",
+        "| view | " + " | ".join(f"{n} ({rep['crops'][n]} crops)" for n in names) + " |",
+        "|---|" + "---|" * len(names),
+    ]
     for vname in VIEWS:
-        lines.append(f"| {vname} | " + " | ".join(
-            f"{results[vname][n]['auc']:.3f} [{results[vname][n]['ci95'][0]:.3f}, {results[vname][n]['ci95'][1]:.3f}]"
-            for n in names) + " |")
+        lines.append(
+            f"| {vname} | "
+            + " | ".join(
+                f"{results[vname][n]['auc']:.3f} [{results[vname][n]['ci95'][0]:.3f}, {results[vname][n]['ci95'][1]:.3f}]"
+                for n in names
+            )
+            + " |"
+        )
     (out / "cues.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

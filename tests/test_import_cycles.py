@@ -1,5 +1,6 @@
 """No import cycle inside the package: the module import graph (module- and function-level imports) of
 ``aias_augment`` has no strongly connected component of more than one module (scripts/import_cycles.py)."""
+
 import importlib.util
 from pathlib import Path
 
@@ -18,7 +19,8 @@ def test_no_import_cycle_in_aias_augment():
     graph = tool.import_graph("aias_augment")
     found = tool.cycles(graph)
     assert not found, "import cycles:\n" + "\n".join(
-        f"{', '.join(c)}:\n  " + "\n  ".join(tool.describe(c, graph)) for c in found)
+        f"{', '.join(c)}:\n  " + "\n  ".join(tool.describe(c, graph)) for c in found
+    )
 
 
 def test_no_import_cycle_in_detection_eval():
@@ -42,3 +44,21 @@ def test_the_tool_finds_cycles_through_function_level_and_relative_imports(tmp_p
     graph = tool.import_graph("pkg", tmp_path)
     assert graph["pkg.sub.b"] == {"pkg.c": 2}
     assert tool.cycles(graph) == [["pkg.a", "pkg.c", "pkg.sub.b"]]
+
+
+def test_no_module_imports_another_modules_private_name():
+    tool = _tool()
+    for package in ("aias_augment", "detection_eval"):
+        assert tool.private_reaches(package) == [], package
+
+
+def test_the_tool_finds_a_private_name_imported_from_another_module(tmp_path):
+    """Relative and absolute forms are both found; a module's own private names and dunders are not reaches."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("from .a import __doc__\n")
+    (pkg / "a.py").write_text("def _helper():\n    pass\n")
+    (pkg / "b.py").write_text("from .a import _helper\n")
+    (pkg / "c.py").write_text("def f():\n    from pkg.a import _helper, __name__\n")
+    tool = _tool()
+    assert tool.private_reaches("pkg", tmp_path) == ["pkg.b:1 -> pkg.a._helper", "pkg.c:2 -> pkg.a._helper"]

@@ -1,5 +1,6 @@
 """scripts/output_digest.py's digests and comparison (the pipeline runs themselves are the script's job: too slow
 for the unit tests)."""
+
 import importlib.util
 from pathlib import Path
 
@@ -39,17 +40,23 @@ def test_compare_lists_every_differing_case():
     d = {"image_sha256": "a", "boxes_sha256": "b"}
     expected = {"same": d, "image": d, "boxes": d, "gone": d}
     got = {"same": d, "image": {**d, "image_sha256": "x"}, "boxes": {**d, "boxes_sha256": "y"}, "new": d}
-    assert tool.compare(expected, got) == ["boxes: boxes_sha256 differ", "gone: missing case",
-                                          "image: image_sha256 differ", "new: new case"]
+    assert tool.compare(expected, got) == [
+        "boxes: boxes_sha256 differ",
+        "gone: missing case",
+        "image: image_sha256 differ",
+        "new: new case",
+    ]
     assert tool.compare(expected, expected) == []
 
 
 def test_committed_digests_cover_every_case_of_the_reference_set():
     """The committed json has exactly the script's cases (names only: computing them is --check's job)."""
     import json
+
     tool = _tool()
     committed = json.loads((ROOT / "results" / "architecture" / "digests.json").read_text())
     doors = {name.split("/")[0] for name in committed}
     assert doors == {"insert_into_image", "insert_bounded", "InsertObjects", "insert_into_clip"}
-    assert {n.split("/")[2] for n in committed if n.startswith(("insert_into_image", "insert_bounded"))} == \
-        set(tool.PRESETS)
+    assert {n.split("/")[2] for n in committed if n.startswith(("insert_into_image", "insert_bounded"))} == set(
+        tool.PRESETS
+    )

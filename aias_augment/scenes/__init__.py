@@ -1,4 +1,4 @@
-"""Scene sources: readers that turn a dataset layout into :class:`aias_augment.scene.Frame` records.
+"""Scene sources: readers that turn a dataset layout into :class:`aias_augment.core.frame.Frame` records.
 
 - :mod:`.kitti`: KITTI odometry layout (calib P0..P3 or a pyslam yaml, poses, left/right images), stereo depth.
 - :mod:`.dgp`: DGP/DDAD scenes (cameras, LiDAR, extrinsics, 3D boxes).

@@ -6,6 +6,7 @@ Layout: ``<scene>/scene_*.json`` (samples -> datum keys; each datum has a world 
 ``bounding_box_3d/<CAM>/*.json`` (boxes in that camera's frame; box x = length, y = width, z = height).
 Quaternions are (qw, qx, qy, qz) dicts. Camera frames are OpenCV (x right, y down, z forward).
 """
+
 from __future__ import annotations
 
 import json
@@ -15,10 +16,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..collision import OrientedBox
-from ..geometry import Intrinsics, invert_rigid, make_rigid, project_points, transform_points
-from ..scene import Frame
-from .kitti import read_image_rgb
+from aias_augment.core.frame import Frame
+from aias_augment.core.geometry import Intrinsics, invert_rigid, make_rigid, project_points, transform_points
+from aias_augment.plan.collision import OrientedBox
+from aias_augment.scenes.kitti import read_image_rgb
 
 __all__ = ["DgpScene", "open_dgp_scene", "pose_from_json", "lidar_depth_image"]
 
@@ -47,9 +48,9 @@ def lidar_depth_image(points_in_cam: np.ndarray, intrinsics: Intrinsics) -> np.n
 @dataclass(frozen=True)
 class DgpScene:
     root: Path
-    samples: tuple[dict, ...]          # per sample: {sensor name: datum dict}
-    intrinsics_by_sensor: dict         # name -> (fx, fy, cx, cy)
-    vehicle_from_sensor: dict          # name -> 4x4
+    samples: tuple[dict, ...]  # per sample: {sensor name: datum dict}
+    intrinsics_by_sensor: dict  # name -> (fx, fy, cx, cy)
+    vehicle_from_sensor: dict  # name -> 4x4
 
     @property
     def camera_names(self) -> list[str]:
@@ -84,8 +85,13 @@ class DgpScene:
         boxes = []
         for a in json.loads((self.root / path).read_text()).get("annotations", []):
             b = a["box"]
-            boxes.append(OrientedBox(pose_from_json(b["pose"]), (b["length"], b["width"], b["height"]),
-                                     label=f"class{a.get('class_id')}#{a.get('instance_id')}"))
+            boxes.append(
+                OrientedBox(
+                    pose_from_json(b["pose"]),
+                    (b["length"], b["width"], b["height"]),
+                    label=f"class{a.get('class_id')}#{a.get('instance_id')}",
+                )
+            )
         return boxes
 
     def frame(self, sample: int, camera: str = "CAMERA_01", lidar: str = "LIDAR") -> Frame:
@@ -96,14 +102,26 @@ class DgpScene:
         image = read_image_rgb(self.root / datum["filename"])
         fx, fy, cx, cy = self.intrinsics_by_sensor[camera]
         intr = Intrinsics(fx, fy, cx, cy, image.shape[1], image.shape[0])
-        points = transform_points(self.cam_from_lidar(sample, camera, lidar), self.lidar_points_in_sensor(sample, lidar))
-        return Frame(image=image, intrinsics=intr,
-                     cam_from_world=invert_rigid(self.world_from_sensor(sample, camera)),
-                     depth=lidar_depth_image(points, intr),
-                     meta={"source": "dgp", "root": str(self.root), "sample": sample, "camera": camera,
-                           "image_path": str(self.root / datum["filename"]), "depth_source": "lidar",
-                           "lidar_points_in_cam": points, "boxes_in_cam": self.boxes_in_cam(sample, camera),
-                           "up_in_cam": invert_rigid(self.vehicle_from_sensor[camera])[:3, :3] @ [0, 0, 1.0]})
+        points = transform_points(
+            self.cam_from_lidar(sample, camera, lidar), self.lidar_points_in_sensor(sample, lidar)
+        )
+        return Frame(
+            image=image,
+            intrinsics=intr,
+            cam_from_world=invert_rigid(self.world_from_sensor(sample, camera)),
+            depth=lidar_depth_image(points, intr),
+            meta={
+                "source": "dgp",
+                "root": str(self.root),
+                "sample": sample,
+                "camera": camera,
+                "image_path": str(self.root / datum["filename"]),
+                "depth_source": "lidar",
+                "lidar_points_in_cam": points,
+                "boxes_in_cam": self.boxes_in_cam(sample, camera),
+                "up_in_cam": invert_rigid(self.vehicle_from_sensor[camera])[:3, :3] @ [0, 0, 1.0],
+            },
+        )
 
 
 def open_dgp_scene(path: str | Path) -> DgpScene:

@@ -11,6 +11,7 @@ Layouts understood (``open_kitti_sequence`` detects them):
 Poses: each pose line is row-major 3x4 ``world_from_cam`` of the left camera (world = left camera of frame 0).
 Frames carry ``cam_from_world`` (the inverse). Baseline: ``-P1[0, 3] / P1[0, 0]`` (right camera to the right).
 """
+
 from __future__ import annotations
 
 import re
@@ -20,9 +21,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..geometry import Intrinsics, check_rigid, invert_rigid
-from ..scene import Frame
-from ..stereo import stereo_depth
+from aias_augment.analyse.stereo import stereo_depth
+from aias_augment.core.frame import Frame
+from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid
 
 __all__ = ["KittiSequence", "open_kitti_sequence", "read_kitti_calib", "read_kitti_poses", "read_image_rgb"]
 
@@ -41,7 +42,7 @@ def read_image_rgb(path: Path) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
-def _read_projection_matrices(path: Path) -> dict[str, np.ndarray]:
+def read_projection_matrices(path: Path) -> dict[str, np.ndarray]:
     mats: dict[str, np.ndarray] = {}
     unnamed = 0
     for line in Path(path).read_text().splitlines():
@@ -58,7 +59,7 @@ def _read_projection_matrices(path: Path) -> dict[str, np.ndarray]:
     return mats
 
 
-def _read_pyslam_yaml(path: Path) -> dict[str, float]:
+def read_pyslam_yaml(path: Path) -> dict[str, float]:
     """Flat ``Key: number`` lines of an OpenCV/pyslam settings file (its %YAML header breaks pyyaml)."""
     out = {}
     for line in Path(path).read_text().splitlines():
@@ -72,13 +73,13 @@ def read_kitti_calib(path: str | Path, width: int, height: int, *, colour: bool 
     """(left intrinsics, baseline metres) from a KITTI calib.txt (P0/P1, or P2/P3 with ``colour``) or pyslam yaml."""
     path = Path(path)
     if path.suffix in (".yaml", ".yml"):
-        v = _read_pyslam_yaml(path)
+        v = read_pyslam_yaml(path)
         missing = [k for k in ("Camera.fx", "Camera.fy", "Camera.cx", "Camera.cy", "Camera.bf") if k not in v]
         if missing:
             raise ValueError(f"{path}: missing {missing}")
         intr = Intrinsics(v["Camera.fx"], v["Camera.fy"], v["Camera.cx"], v["Camera.cy"], width, height)
         return intr, v["Camera.bf"] / v["Camera.fx"]
-    mats = _read_projection_matrices(path)
+    mats = read_projection_matrices(path)
     left, right = ("P2", "P3") if colour else ("P0", "P1")
     if left not in mats or right not in mats:
         raise ValueError(f"{path}: needs {left} and {right} (3x4 each), found {sorted(mats)}")
@@ -131,11 +132,21 @@ class KittiSequence:
         """Frame ``i`` (an index into ``frame_ids``); ``with_depth`` computes SGBM depth from the right image."""
         image = read_image_rgb(self.left_paths[i])
         depth = self.stereo_depth(i, **stereo_kw) if with_depth else None
-        return Frame(image=image, intrinsics=self.intrinsics, cam_from_world=self.cam_from_world(i), depth=depth,
-                     meta={"source": "kitti", "root": str(self.root), "frame_id": self.frame_ids[i],
-                           "left_path": str(self.left_paths[i]),
-                           "right_path": None if self.right_paths[i] is None else str(self.right_paths[i]),
-                           "baseline_m": self.baseline_m, "depth_source": "stereo_sgbm" if with_depth else None})
+        return Frame(
+            image=image,
+            intrinsics=self.intrinsics,
+            cam_from_world=self.cam_from_world(i),
+            depth=depth,
+            meta={
+                "source": "kitti",
+                "root": str(self.root),
+                "frame_id": self.frame_ids[i],
+                "left_path": str(self.left_paths[i]),
+                "right_path": None if self.right_paths[i] is None else str(self.right_paths[i]),
+                "baseline_m": self.baseline_m,
+                "depth_source": "stereo_sgbm" if with_depth else None,
+            },
+        )
 
     def frames(self, *, with_depth: bool = False, **stereo_kw) -> list[Frame]:
         return [self.frame(i, with_depth=with_depth, **stereo_kw) for i in range(len(self))]
@@ -159,8 +170,14 @@ def _open_snippet(root: Path) -> KittiSequence:
         raise FileNotFoundError(f"{root}: no kitti<seq>-<frame>-color.png images")
     ids = tuple(sorted(lefts))
     seq = re.match(r"^kitti(\d+)-", lefts[ids[0]].name).group(1)
-    rights = tuple((lefts[i].with_name(f"kitti{seq}-{i}-R-color.png") if
-                    lefts[i].with_name(f"kitti{seq}-{i}-R-color.png").exists() else None) for i in ids)
+    rights = tuple(
+        (
+            lefts[i].with_name(f"kitti{seq}-{i}-R-color.png")
+            if lefts[i].with_name(f"kitti{seq}-{i}-R-color.png").exists()
+            else None
+        )
+        for i in ids
+    )
     w, h = _image_size(lefts[ids[0]])
     intr, baseline = read_kitti_calib(yaml_path, w, h)
     poses_path = root / f"{seq}.txt"
@@ -174,8 +191,9 @@ def _open_snippet(root: Path) -> KittiSequence:
     return KittiSequence(root, intr, baseline, ids, tuple(lefts[i] for i in ids), rights, poses)
 
 
-def open_kitti_sequence(path: str | Path, *, poses_path: str | Path | None = None,
-                        colour: bool = False) -> KittiSequence:
+def open_kitti_sequence(
+    path: str | Path, *, poses_path: str | Path | None = None, colour: bool = False
+) -> KittiSequence:
     """Open any KITTI-odometry-layout sequence folder (see module doc). Raises FileNotFoundError/ValueError."""
     root = Path(path)
     if not root.is_dir():
@@ -195,8 +213,9 @@ def open_kitti_sequence(path: str | Path, *, poses_path: str | Path | None = Non
     if not left_paths:
         raise FileNotFoundError(f"{root / left_dir}: no png images")
     ids = tuple(int(p.stem) for p in left_paths)
-    right_paths = tuple((root / right_dir / p.name) if (root / right_dir / p.name).exists() else None
-                        for p in left_paths)
+    right_paths = tuple(
+        (root / right_dir / p.name) if (root / right_dir / p.name).exists() else None for p in left_paths
+    )
     w, h = _image_size(left_paths[0])
     intr, baseline = read_kitti_calib(calib, w, h, colour=colour)
     if poses_path is None:

@@ -4,6 +4,7 @@ Layout: ``color/<i>.png`` (RGB), ``depth/<i>.pgm`` (16-bit, ``depth_m = value / 
 ``pose.txt`` one line per frame ``tx ty tz qx qy qz qw`` = world_from_cam (OpenCV camera axes).
 NYU frames have a white border from the Kinect registration: ``border_px`` pixels on each side get no depth.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -13,9 +14,9 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..geometry import Intrinsics, invert_rigid, make_rigid
-from ..scene import Frame
-from .kitti import read_image_rgb
+from aias_augment.core.frame import Frame
+from aias_augment.core.geometry import Intrinsics, invert_rigid, make_rigid
+from aias_augment.scenes.kitti import read_image_rgb
 
 __all__ = ["NYU_INTRINSICS", "RgbdSequence", "open_rgbd_sequence", "read_tum_poses"]
 
@@ -54,16 +55,27 @@ class RgbdSequence:
         if b > 0:
             depth[:b], depth[-b:], depth[:, :b], depth[:, -b:] = 0, 0, 0, 0
         cam_from_world = None if self.world_from_cams is None else invert_rigid(self.world_from_cams[i])
-        return Frame(image=image, intrinsics=self.intrinsics, cam_from_world=cam_from_world, depth=depth,
-                     meta={"source": "rgbd", "root": str(self.root), "index": i, "depth_source": "rgbd",
-                           "image_path": str(self.color_paths[i])})
+        return Frame(
+            image=image,
+            intrinsics=self.intrinsics,
+            cam_from_world=cam_from_world,
+            depth=depth,
+            meta={
+                "source": "rgbd",
+                "root": str(self.root),
+                "index": i,
+                "depth_source": "rgbd",
+                "image_path": str(self.color_paths[i]),
+            },
+        )
 
     def frames(self) -> list[Frame]:
         return [self.frame(i) for i in range(len(self))]
 
 
-def open_rgbd_sequence(path: str | Path, intrinsics: Intrinsics = NYU_INTRINSICS, *, depth_scale: float = 1000.0,
-                       border_px: int = 8) -> RgbdSequence:
+def open_rgbd_sequence(
+    path: str | Path, intrinsics: Intrinsics = NYU_INTRINSICS, *, depth_scale: float = 1000.0, border_px: int = 8
+) -> RgbdSequence:
     root = Path(path)
 
     def numbered(folder: str, ext: str) -> list[Path]:

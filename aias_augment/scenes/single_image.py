@@ -15,6 +15,7 @@ Method (man-made / street scenes):
 5. Ground: the plane whose normal is the horizon's (n ~ -K^T l), at ``camera_height_m`` (a prior: 1.65 m is
    KITTI's; pass your rig's).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -22,18 +23,24 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
-from ..ground import GroundPlane
+from aias_augment.analyse.ground import GroundPlane
+from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 
-__all__ = ["SingleImageCamera", "SingleImageConfig", "detect_line_segments", "fit_vanishing_point",
-           "estimate_camera_from_image", "horizon_row_error_px"]
+__all__ = [
+    "SingleImageCamera",
+    "SingleImageConfig",
+    "detect_line_segments",
+    "fit_vanishing_point",
+    "estimate_camera_from_image",
+    "horizon_row_error_px",
+]
 
 
 @dataclass(frozen=True)
 class SingleImageConfig:
-    min_segment_frac: float = 0.02          # of the image diagonal
-    vertical_tolerance_deg: float = 15.0    # segments within this of the image vertical are vertical candidates
-    inlier_angle_deg: float = 1.5           # segment direction vs direction to the VP
+    min_segment_frac: float = 0.02  # of the image diagonal
+    vertical_tolerance_deg: float = 15.0  # segments within this of the image vertical are vertical candidates
+    inlier_angle_deg: float = 1.5  # segment direction vs direction to the VP
     ransac_iterations: int = 400
     min_vp_inliers: int = 6
     horizontal_vp_radius_frac: float = 1.0  # the street VP lies within this fraction of the diagonal of the centre
@@ -45,12 +52,12 @@ class SingleImageConfig:
 @dataclass(frozen=True)
 class SingleImageCamera:
     intrinsics: Intrinsics
-    horizon_line: tuple[float, float, float]   # a u + b v + c = 0, (a, b) unit, ground side positive
+    horizon_line: tuple[float, float, float]  # a u + b v + c = 0, (a, b) unit, ground side positive
     pitch_rad: float
     roll_rad: float
     ground: GroundPlane
-    focal_source: str                           # "given" | "vanishing_points" | "prior"
-    horizon_source: str                         # "vertical+horizontal_vp" | "horizontal_vp" | "prior"
+    focal_source: str  # "given" | "vanishing_points" | "prior"
+    horizon_source: str  # "vertical+horizontal_vp" | "horizontal_vp" | "prior"
     vp_horizontal: tuple[float, float, float] | None
     vp_vertical: tuple[float, float, float] | None
     num_segments: int
@@ -105,14 +112,14 @@ def weighted_pairs(rng: np.random.Generator, prob: np.ndarray, n: int) -> np.nda
     state = rng.bit_generator.state
     cdf = np.cumsum(prob)
     cdf /= cdf[-1]
-    x = rng.random(3 * n)                      # enough for every pair drawing its third uniform
+    x = rng.random(3 * n)  # enough for every pair drawing its third uniform
     first = cdf.searchsorted(x, side="right")
     out = np.empty((n, 2), np.int64)
     pos = 0
     for i in range(n):
         a, b = first[pos], first[pos + 1]
         pos += 2
-        while a == b:                          # numpy: the found index gets p = 0, the cdf is rebuilt, one more draw
+        while a == b:  # numpy: the found index gets p = 0, the cdf is rebuilt, one more draw
             if pos >= len(x):
                 x = np.concatenate([x, rng.random(n)])
                 first = cdf.searchsorted(x, side="right")
@@ -124,13 +131,19 @@ def weighted_pairs(rng: np.random.Generator, prob: np.ndarray, n: int) -> np.nda
             pos += 1
         out[i] = a, b
     rng.bit_generator.state = state
-    rng.random(pos)                            # consume exactly what the n calls consumed
+    rng.random(pos)  # consume exactly what the n calls consumed
     return out
 
 
-def fit_vanishing_point(seg: np.ndarray, rng: np.random.Generator, *, iterations: int = 400,
-                        inlier_angle_deg: float = 1.5, min_inliers: int = 6,
-                        finite_within: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+def fit_vanishing_point(
+    seg: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    iterations: int = 400,
+    inlier_angle_deg: float = 1.5,
+    min_inliers: int = 6,
+    finite_within: tuple[np.ndarray, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray] | None:
     """Length-weighted RANSAC VP of segments: (homogeneous unit VP (3,), inlier mask) or None.
 
     ``finite_within=(centre_xy, radius_px)`` only accepts finite VPs within ``radius_px`` of ``centre_xy``.
@@ -178,8 +191,13 @@ def _finite_point(vp: np.ndarray, far: float) -> np.ndarray | None:
     return vp[:2] / vp[2] if abs(vp[2]) > 1e-12 and np.all(np.abs(vp[:2] / vp[2]) < far) else None
 
 
-def estimate_camera_from_image(image: np.ndarray, rng: np.random.Generator, *, intrinsics: Intrinsics | None = None,
-                               cfg: SingleImageConfig = SingleImageConfig()) -> SingleImageCamera:
+def estimate_camera_from_image(
+    image: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    intrinsics: Intrinsics | None = None,
+    cfg: SingleImageConfig = SingleImageConfig(),
+) -> SingleImageCamera:
     """Horizon, pitch, roll, focal and a ground-plane prior for one (H, W[, 3]) uint8 image."""
     img = np.asarray(image)
     if img.dtype != np.uint8 or img.ndim not in (2, 3):
@@ -238,10 +256,17 @@ def estimate_camera_from_image(image: np.ndarray, rng: np.random.Generator, *, i
     ground = GroundPlane(n, cfg.camera_height_m, f"single_image:{horizon_source}")
     pitch, roll = ground.pitch_roll_rad()
     return SingleImageCamera(
-        intrinsics=intrinsics, horizon_line=tuple(map(float, horizon)), pitch_rad=pitch, roll_rad=roll,
-        ground=ground, focal_source=focal_source, horizon_source=horizon_source,
+        intrinsics=intrinsics,
+        horizon_line=tuple(map(float, horizon)),
+        pitch_rad=pitch,
+        roll_rad=roll,
+        ground=ground,
+        focal_source=focal_source,
+        horizon_source=horizon_source,
         vp_horizontal=None if vp_h is None else tuple(map(float, vp_h)),
-        vp_vertical=None if vp_v is None else tuple(map(float, vp_v)), num_segments=len(seg))
+        vp_vertical=None if vp_v is None else tuple(map(float, vp_v)),
+        num_segments=len(seg),
+    )
 
 
 def horizon_row_error_px(line_a, line_b, columns: np.ndarray) -> np.ndarray:

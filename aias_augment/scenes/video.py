@@ -8,6 +8,7 @@ Pairs with a median flow below ``static_flow_px`` are treated as a static camera
 what a tripod video (e.g. ``$AIAS_DATA/video/vtest.avi``) gives.
 K is given, or estimated from the first frame by :func:`aias_augment.scenes.single_image.estimate_camera_from_image`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -15,7 +16,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..geometry import Intrinsics, invert_rigid, make_rigid
+from aias_augment.core.geometry import Intrinsics, invert_rigid, make_rigid
 
 __all__ = ["VideoMotionConfig", "VideoMotion", "track_pair", "relative_pose", "estimate_video_motion", "read_video"]
 
@@ -25,19 +26,19 @@ class VideoMotionConfig:
     max_corners: int = 1500
     quality_level: float = 0.01
     min_distance_px: int = 7
-    fb_max_err_px: float = 1.0          # forward-backward tracking error allowed
+    fb_max_err_px: float = 1.0  # forward-backward tracking error allowed
     ransac_threshold_px: float = 1.0
     static_flow_px: float = 0.5
     min_inliers: int = 30
-    step_scale_m: float = 1.0           # translation length per frame (unknown in monocular video)
+    step_scale_m: float = 1.0  # translation length per frame (unknown in monocular video)
 
 
 @dataclass(frozen=True, eq=False)
 class VideoMotion:
     intrinsics: Intrinsics
-    cams_from_world: np.ndarray          # (N, 4, 4), world = camera of frame 0
-    num_inliers: tuple[int, ...]         # per pair (0 for static / failed)
-    status: tuple[str, ...]              # per pair: "moving" | "static" | "failed: ..."
+    cams_from_world: np.ndarray  # (N, 4, 4), world = camera of frame 0
+    num_inliers: tuple[int, ...]  # per pair (0 for static / failed)
+    status: tuple[str, ...]  # per pair: "moving" | "static" | "failed: ..."
     focal_source: str = "given"
     meta: dict = field(default_factory=dict)
 
@@ -70,8 +71,9 @@ def _grey(img: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_RGB2GRAY) if img.ndim == 3 else img
 
 
-def track_pair(img0: np.ndarray, img1: np.ndarray, cfg: VideoMotionConfig = VideoMotionConfig()
-               ) -> tuple[np.ndarray, np.ndarray]:
+def track_pair(
+    img0: np.ndarray, img1: np.ndarray, cfg: VideoMotionConfig = VideoMotionConfig()
+) -> tuple[np.ndarray, np.ndarray]:
     """Matched pixels (M, 2), (M, 2) of corners tracked from img0 to img1 that pass a forward-backward check."""
     g0, g1 = _grey(img0), _grey(img1)
     p0 = cv2.goodFeaturesToTrack(g0, cfg.max_corners, cfg.quality_level, cfg.min_distance_px)
@@ -84,16 +86,22 @@ def track_pair(img0: np.ndarray, img1: np.ndarray, cfg: VideoMotionConfig = Vide
     return p0.reshape(-1, 2)[ok].astype(np.float64), p1.reshape(-1, 2)[ok].astype(np.float64)
 
 
-def relative_pose(pts0: np.ndarray, pts1: np.ndarray, intrinsics: Intrinsics, rng: np.random.Generator,
-                  cfg: VideoMotionConfig = VideoMotionConfig()) -> tuple[np.ndarray, int, str]:
+def relative_pose(
+    pts0: np.ndarray,
+    pts1: np.ndarray,
+    intrinsics: Intrinsics,
+    rng: np.random.Generator,
+    cfg: VideoMotionConfig = VideoMotionConfig(),
+) -> tuple[np.ndarray, int, str]:
     """cam1_from_cam0 with unit (or zero, when static) translation, number of inliers, status."""
     if len(pts0) < cfg.min_inliers:
         return np.eye(4), 0, f"failed: {len(pts0)} tracks < {cfg.min_inliers}"
     if np.median(np.linalg.norm(pts1 - pts0, axis=1)) < cfg.static_flow_px:
         return np.eye(4), 0, "static"
     cv2.setRNGSeed(int(rng.integers(0, 2**31 - 1)))
-    E, mask = cv2.findEssentialMat(pts0, pts1, intrinsics.K, method=cv2.RANSAC, prob=0.999,
-                                   threshold=cfg.ransac_threshold_px)
+    E, mask = cv2.findEssentialMat(
+        pts0, pts1, intrinsics.K, method=cv2.RANSAC, prob=0.999, threshold=cfg.ransac_threshold_px
+    )
     if E is None or E.shape != (3, 3):
         return np.eye(4), 0, "failed: no essential matrix"
     n, R, t, mask_pose = cv2.recoverPose(E, pts0, pts1, intrinsics.K, mask=mask)
@@ -102,16 +110,21 @@ def relative_pose(pts0: np.ndarray, pts1: np.ndarray, intrinsics: Intrinsics, rn
     return make_rigid(R, t.ravel() / max(np.linalg.norm(t), 1e-12)), int(n), "moving"
 
 
-def estimate_video_motion(frames: list[np.ndarray], rng: np.random.Generator, *,
-                          intrinsics: Intrinsics | None = None,
-                          cfg: VideoMotionConfig = VideoMotionConfig()) -> VideoMotion:
+def estimate_video_motion(
+    frames: list[np.ndarray],
+    rng: np.random.Generator,
+    *,
+    intrinsics: Intrinsics | None = None,
+    cfg: VideoMotionConfig = VideoMotionConfig(),
+) -> VideoMotion:
     """Chain pairwise motions into ``cams_from_world`` (world = first camera). A failed pair keeps the previous
     pose (recorded in ``status``) rather than inventing motion."""
     if len(frames) < 2:
         raise ValueError("need at least 2 frames")
     focal_source = "given"
     if intrinsics is None:
-        from .single_image import estimate_camera_from_image
+        from aias_augment.scenes.single_image import estimate_camera_from_image
+
         est = estimate_camera_from_image(frames[0], rng)
         intrinsics, focal_source = est.intrinsics, est.focal_source
     h, w = np.asarray(frames[0]).shape[:2]
@@ -142,5 +155,7 @@ def trajectory_errors(est_cams_from_world: np.ndarray, gt_cams_from_world: np.nd
         if np.linalg.norm(te) > 1e-9 and np.linalg.norm(tg) > 1e-9:
             c = te @ tg / (np.linalg.norm(te) * np.linalg.norm(tg))
             direction.append(np.degrees(np.arccos(np.clip(c, -1, 1))))
-    return {"rotation_err_deg_median": float(np.median(rot)),
-            "translation_dir_err_deg_median": float(np.median(direction)) if direction else None}
+    return {
+        "rotation_err_deg_median": float(np.median(rot)),
+        "translation_dir_err_deg_median": float(np.median(direction)) if direction else None,
+    }

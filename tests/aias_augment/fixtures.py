@@ -1,8 +1,9 @@
 """Small self-made test assets (no shared data needed)."""
+
 import numpy as np
 import trimesh
 
-from aias_augment.assets import Asset, normalise_meshes
+from aias_augment.assets.asset import Asset, normalise_meshes
 
 
 def box_asset(extents=(0.4, 0.6, 1.0), category="box", color=(200, 60, 20)) -> Asset:
@@ -20,7 +21,7 @@ def synthetic_ground_drive(n: int = 12, height_m: float = 1.5, K=None):
     """
     import cv2
 
-    from aias_augment.geometry import Intrinsics, invert_rigid, make_rigid, rotation_about_axis
+    from aias_augment.core.geometry import Intrinsics, invert_rigid, make_rigid, rotation_about_axis
 
     K = K or Intrinsics(500.0, 500.0, 320.0, 200.0, 640, 360)
     rng = np.random.default_rng(0)
@@ -49,6 +50,7 @@ def tracon_train_photo(name: str, max_side: int) -> np.ndarray:
 
     import cv2
     import pytest
+
     p = Path(os.environ.get("AIAS_DATA", "../shared/data")) / "tracon" / "images" / "train" / name
     if not p.is_file():
         pytest.skip(f"{p} missing (AIAS_DATA)")

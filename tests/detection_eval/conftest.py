@@ -1,4 +1,5 @@
 """Shared fixtures: a tiny synthetic detection set written as a real YOLO-txt folder."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -11,6 +12,7 @@ def make_synthetic_image(rng: np.random.Generator, size: int, n_objects: int):
     """Textured background with ``n_objects`` orange, white-striped 'cones' (filled triangles on a base) whose
     boxes are known exactly."""
     import cv2
+
     image = rng.integers(40, 140, (size, size, 3), dtype=np.uint8)
     image = cv2.GaussianBlur(image, (5, 5), 0)
     boxes = []
@@ -25,8 +27,10 @@ def make_synthetic_image(rng: np.random.Generator, size: int, n_objects: int):
         tri = np.array([[x0 + w // 2, y0], [x0, y0 + h - 1], [x0 + w - 1, y0 + h - 1]], np.int32)
         cv2.fillConvexPoly(image, tri, (255, 110, 0))
         cv2.line(image, (x0 + w // 4, y0 + h // 2), (x0 + 3 * w // 4, y0 + h // 2), (255, 255, 255), max(2, h // 10))
-        ys, xs = np.nonzero(np.all(image[y0:y0 + h, x0:x0 + w] == (255, 110, 0), -1) |
-                            np.all(image[y0:y0 + h, x0:x0 + w] == (255, 255, 255), -1))
+        ys, xs = np.nonzero(
+            np.all(image[y0 : y0 + h, x0 : x0 + w] == (255, 110, 0), -1)
+            | np.all(image[y0 : y0 + h, x0 : x0 + w] == (255, 255, 255), -1)
+        )
         boxes.append(np.array([x0 + xs.min(), y0 + ys.min(), x0 + xs.max() + 1, y0 + ys.max() + 1], float))
     return image, np.array(boxes).reshape(-1, 4)
 

@@ -6,8 +6,15 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from detection_eval.boxes import (box_iou, cxcywh_to_xyxy, letterbox_image, letterbox_params, xywh_to_xyxy,
-                                  xyxy_to_cxcywh, xyxy_to_xywh)
+from detection_eval.boxes import (
+    box_iou,
+    cxcywh_to_xyxy,
+    letterbox_image,
+    letterbox_params,
+    xywh_to_xyxy,
+    xyxy_to_cxcywh,
+    xyxy_to_xywh,
+)
 
 
 def test_conversions_round_trip():
@@ -19,6 +26,7 @@ def test_conversions_round_trip():
 
 def test_giou_known_values():
     from detection_eval.boxes import aligned_giou
+
     a = torch.tensor([[0.0, 0.0, 10.0, 10.0], [0.0, 0.0, 10.0, 10.0], [0.0, 0.0, 10.0, 10.0]])
     b = torch.tensor([[0.0, 0.0, 10.0, 10.0], [5.0, 0.0, 15.0, 10.0], [20.0, 0.0, 30.0, 10.0]])
     # identical: 1; half overlap: IoU 50/150, hull 150 = union -> 1/3; disjoint: 0 - (300 - 200) / 300 = -1/3
@@ -32,8 +40,7 @@ def test_iou_known_values():
 
 
 @settings(max_examples=40, deadline=None)
-@given(h=st.integers(8, 900), w=st.integers(8, 900), size=st.sampled_from([64, 320, 640]),
-       center=st.booleans())
+@given(h=st.integers(8, 900), w=st.integers(8, 900), size=st.sampled_from([64, 320, 640]), center=st.booleans())
 def test_letterbox_box_round_trip(h, w, size, center):
     lb = letterbox_params(h, w, size, center)
     boxes = np.array([[0.0, 0.0, w, h], [w * 0.25, h * 0.5, w * 0.75, h * 0.9]])
@@ -46,13 +53,13 @@ def test_letterbox_box_round_trip(h, w, size, center):
 
 def test_letterbox_image_places_content_where_boxes_say():
     image = np.zeros((100, 200, 3), np.uint8)
-    image[40:60, 100:140] = 255                                # a white patch, xyxy (100, 40, 140, 60)
+    image[40:60, 100:140] = 255  # a white patch, xyxy (100, 40, 140, 60)
     canvas, lb = letterbox_image(image, 64)
     assert canvas.shape == (64, 64, 3)
     x0, y0, x1, y1 = lb.boxes_to_letterbox(np.array([[100.0, 40.0, 140.0, 60.0]]))[0]
-    inner = canvas[int(np.ceil(y0)) + 1:int(y1) - 1, int(np.ceil(x0)) + 1:int(x1) - 1]
+    inner = canvas[int(np.ceil(y0)) + 1 : int(y1) - 1, int(np.ceil(x0)) + 1 : int(x1) - 1]
     assert inner.min() > 200
-    assert (canvas[:int(lb.pad_y) - 1] == 114).all()           # padding above the content
+    assert (canvas[: int(lb.pad_y) - 1] == 114).all()  # padding above the content
 
 
 def test_letterbox_rejects_bad_input():

@@ -1,5 +1,6 @@
 """End-to-end plumbing of the commands on a real (tiny) dataset: saved weights evaluate on a YOLO folder and on a
 COCO json, and predict writes one drawn image per input."""
+
 from __future__ import annotations
 
 import json
@@ -18,8 +19,10 @@ from detection_eval.train import save_checkpoint
 @pytest.fixture()
 def weights(tmp_path):
     torch.manual_seed(0)
-    cfg = DetectorConfig(model=ModelConfig(backbone="cspdarknet", pretrained=False, width=0.125, depth=0.33),
-                         train=TrainConfig(img_size=64))
+    cfg = DetectorConfig(
+        model=ModelConfig(backbone="cspdarknet", pretrained=False, width=0.125, depth=0.33),
+        train=TrainConfig(img_size=64),
+    )
     path = tmp_path / "w.pt"
     save_checkpoint(path, Detector(cfg).eval(), ["cone"])
     return path
@@ -37,7 +40,7 @@ def test_eval_on_yolo_dir_and_coco_json(weights, tiny_yolo_dir, tmp_path):
     (tmp_path / "gt.json").write_text(json.dumps(gt))
     out2 = tmp_path / "m2.json"
     main(["eval", "--weights", str(weights), "--data", str(tmp_path / "gt.json"), "--out", str(out2)])
-    assert json.loads(out2.read_text())["AP"] == pytest.approx(m["AP"])   # same data, same model: same score
+    assert json.loads(out2.read_text())["AP"] == pytest.approx(m["AP"])  # same data, same model: same score
 
 
 def test_predict_writes_drawn_images(weights, tiny_yolo_dir, tmp_path):

@@ -5,8 +5,16 @@ import json
 import numpy as np
 import pytest
 
-from detection_eval.data import (coco_gt_dict, format_yolo_labels, load_coco_json, load_dataset, load_yolo_dir,
-                                 parse_yolo_label_file, write_classes, write_yolo_sample)
+from detection_eval.data import (
+    coco_gt_dict,
+    format_yolo_labels,
+    load_coco_json,
+    load_dataset,
+    load_yolo_dir,
+    parse_yolo_label_file,
+    write_classes,
+    write_yolo_sample,
+)
 
 
 def test_yolo_round_trip(tmp_path):
@@ -43,7 +51,7 @@ def test_yolo_split_layout_and_missing_label_is_counted(tmp_path):
     (tmp_path / "x" / "labels" / "a.txt").rename(tmp_path / "ds" / "labels" / "val" / "a.txt")
     ds = load_yolo_dir(tmp_path / "ds", split="val", names=("cone",))
     assert len(ds) == 1 and ds.skipped == {"no label file": 1}
-    same = load_dataset(tmp_path / "ds" / "images" / "val", names=("cone",))   # image folder given directly
+    same = load_dataset(tmp_path / "ds" / "images" / "val", names=("cone",))  # image folder given directly
     assert len(same) == 1
     with pytest.raises(ValueError, match="split"):
         load_yolo_dir(tmp_path / "ds")
@@ -60,15 +68,17 @@ def test_bad_yolo_line_names_file_and_line(tmp_path):
 
 
 def test_format_yolo_labels_known_values():
-    assert format_yolo_labels(np.array([[10.0, 20.0, 30.0, 60.0]]), [0], 100, 200) == \
-        "0 0.200000 0.200000 0.200000 0.200000\n"
+    assert (
+        format_yolo_labels(np.array([[10.0, 20.0, 30.0, 60.0]]), [0], 100, 200)
+        == "0 0.200000 0.200000 0.200000 0.200000\n"
+    )
 
 
 def test_coco_json_round_trip(tmp_path, tiny_yolo_dir):
     ds = load_yolo_dir(tiny_yolo_dir)
     gt = coco_gt_dict(ds)
     for im, r in zip(gt["images"], ds.records):
-        im["file_name"] = r.image_path          # absolute paths stay valid from anywhere
+        im["file_name"] = r.image_path  # absolute paths stay valid from anywhere
     path = tmp_path / "gt.json"
     path.write_text(json.dumps(gt))
     back = load_dataset(path)
@@ -78,10 +88,14 @@ def test_coco_json_round_trip(tmp_path, tiny_yolo_dir):
 
 
 def test_coco_json_skips_crowd_and_keeps_category_ids(tmp_path):
-    data = {"images": [{"id": 7, "file_name": "a.jpg", "width": 50, "height": 40}],
-            "categories": [{"id": 3, "name": "cone"}, {"id": 9, "name": "barrel"}],
-            "annotations": [{"id": 1, "image_id": 7, "category_id": 9, "bbox": [1, 2, 10, 20], "iscrowd": 0},
-                            {"id": 2, "image_id": 7, "category_id": 3, "bbox": [0, 0, 5, 5], "iscrowd": 1}]}
+    data = {
+        "images": [{"id": 7, "file_name": "a.jpg", "width": 50, "height": 40}],
+        "categories": [{"id": 3, "name": "cone"}, {"id": 9, "name": "barrel"}],
+        "annotations": [
+            {"id": 1, "image_id": 7, "category_id": 9, "bbox": [1, 2, 10, 20], "iscrowd": 0},
+            {"id": 2, "image_id": 7, "category_id": 3, "bbox": [0, 0, 5, 5], "iscrowd": 1},
+        ],
+    }
     (tmp_path / "c.json").write_text(json.dumps(data))
     ds = load_coco_json(tmp_path / "c.json")
     assert ds.category_ids == (3, 9) and ds.skipped == {"crowd": 1}

@@ -1,4 +1,5 @@
 """Loss terms on hand-made positives: the IoU-loss variants and YOLOX's L1 in regression units."""
+
 from __future__ import annotations
 
 import math
@@ -13,7 +14,7 @@ from detection_eval.losses import Targets, detection_loss, l1_box_loss
 def test_l1_box_loss_in_strides_and_log_size():
     gt = torch.tensor([[0.0, 0.0, 16.0, 32.0]])
     assert l1_box_loss(gt, gt, torch.tensor([8.0])).item() == pytest.approx(0.0)
-    shifted = torch.tensor([[8.0, 0.0, 24.0, 64.0]])   # centre +8 px in x, +16 px in y; height x2
+    shifted = torch.tensor([[8.0, 0.0, 24.0, 64.0]])  # centre +8 px in x, +16 px in y; height x2
     expected = 8 / 8 + 16 / 8 + 0.0 + math.log(2.0)
     assert l1_box_loss(shifted, gt, torch.tensor([8.0])).item() == pytest.approx(expected, rel=1e-5)
 
@@ -25,8 +26,7 @@ def _one_positive_case():
     decoded = torch.zeros(1, 2, 6)
     decoded[0, 0, :4] = torch.tensor([0.0, 0.0, 24.0, 12.0])
     decoded[0, 1, :4] = torch.tensor([90.0, 90.0, 110.0, 110.0])
-    targets = Targets(torch.tensor([[[0.0, 0.0, 24.0, 24.0]]]), torch.zeros(1, 1, dtype=torch.long),
-                      torch.tensor([1]))
+    targets = Targets(torch.tensor([[[0.0, 0.0, 24.0, 24.0]]]), torch.zeros(1, 1, dtype=torch.long), torch.tensor([1]))
     return decoded, centers, strides, targets
 
 
@@ -35,7 +35,7 @@ def test_iou_loss_types(iou_type, expected):
     decoded, centers, strides, targets = _one_positive_case()
     out = detection_loss(decoded, centers, strides, targets, AssignerConfig(), LossConfig(iou_type=iou_type))
     assert out["num_fg"].item() == 1
-    assert out["iou"].item() == pytest.approx(expected, abs=1e-5)    # hull = union here, so GIoU = IoU
+    assert out["iou"].item() == pytest.approx(expected, abs=1e-5)  # hull = union here, so GIoU = IoU
     assert "l1" not in out
 
 

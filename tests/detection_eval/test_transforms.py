@@ -18,8 +18,8 @@ def test_place_scaled_moves_pixels_and_boxes_together():
     canvas, out = place_scaled(image, boxes, 128, 1.5, (7, -3))
     assert np.allclose(out, [[37.0, 12.0, 67.0, 42.0]])
     x0, y0, x1, y1 = out[0].astype(int)
-    assert canvas[y0 + 1:y1 - 1, x0 + 1:x1 - 1].min() > 150
-    assert canvas[y1 + 2:, :].max() <= 114 and canvas[y1 + 2:, :].min() >= 0
+    assert canvas[y0 + 1 : y1 - 1, x0 + 1 : x1 - 1].min() > 150
+    assert canvas[y1 + 2 :, :].max() <= 114 and canvas[y1 + 2 :, :].min() >= 0
 
 
 def test_hflip_twice_is_identity():

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from aias_augment.config import data_root
-from aias_augment.geometry import invert_rigid, project_points
-from aias_augment.ground import fit_ground_plane
+from aias_augment.analyse.ground import fit_ground_plane
+from aias_augment.core.config import data_root
+from aias_augment.core.geometry import invert_rigid, project_points
 from aias_augment.scenes.dgp import open_dgp_scene
 
 DGP = data_root() / "dgp_scene"
@@ -39,7 +39,8 @@ def test_frame_lidar_depth_and_ground(scene):
 
 def test_boxes_contain_their_lidar_points(scene):
     f = scene.frame(0, "CAMERA_01")
-    from aias_augment.collision import points_inside_box
+    from aias_augment.plan.collision import points_inside_box
+
     counts = [points_inside_box(f.meta["lidar_points_in_cam"], b, 0.1).sum() for b in f.meta["boxes_in_cam"]]
     assert len(counts) > 5 and np.median(counts) > 5  # annotated cars hold LiDAR returns: frames are consistent
 

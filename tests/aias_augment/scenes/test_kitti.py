@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from aias_augment.config import data_root
-from aias_augment.geometry import invert_rigid
+from aias_augment.core.config import data_root
+from aias_augment.core.geometry import invert_rigid
 from aias_augment.scenes.kitti import open_kitti_sequence, read_kitti_calib, read_kitti_poses
 
 SEQ = data_root() / "kitti06_seq"

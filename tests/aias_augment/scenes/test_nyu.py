@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from aias_augment.config import data_root
-from aias_augment.ground import ground_plane_from_depth
+from aias_augment.analyse.ground import ground_plane_from_depth
+from aias_augment.core.config import data_root
 from aias_augment.scenes.nyu import open_rgbd_sequence, read_tum_poses
 
 NYU = data_root() / "nyu_rgbd"

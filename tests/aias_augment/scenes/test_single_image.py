@@ -2,11 +2,15 @@ import cv2
 import numpy as np
 import pytest
 
-from aias_augment.config import data_root
-from aias_augment.geometry import Intrinsics, project_points
-from aias_augment.ground import prior_ground_plane
-from aias_augment.scenes.single_image import (estimate_camera_from_image, fit_vanishing_point, horizon_row_error_px,
-                                              weighted_pairs)
+from aias_augment.analyse.ground import prior_ground_plane
+from aias_augment.core.config import data_root
+from aias_augment.core.geometry import Intrinsics, project_points
+from aias_augment.scenes.single_image import (
+    estimate_camera_from_image,
+    fit_vanishing_point,
+    horizon_row_error_px,
+    weighted_pairs,
+)
 
 INTR = Intrinsics(500, 500, 399.5, 299.5, 800, 600)
 
@@ -74,6 +78,7 @@ def test_bad_input():
 @pytest.mark.skipif(not (data_root() / "kitti06_seq").exists(), reason="KITTI data not available")
 def test_kitti_frame_horizon_near_truth():
     from aias_augment.scenes.kitti import open_kitti_sequence
+
     seq = open_kitti_sequence(data_root() / "kitti06_seq")
     est = estimate_camera_from_image(seq.frame(0).image, np.random.default_rng(0), intrinsics=seq.intrinsics)
     # KITTI cam0 is mounted level to within ~1 deg: the true horizon is within ~12 px of cy (fy tan 1 deg)
@@ -86,7 +91,7 @@ def test_weighted_pairs_are_numpys_pairs_and_leave_the_same_state(seed):
     segment is drawn twice (numpy's redraw), and the generator continues where those calls leave it."""
     r = np.random.default_rng(seed)
     w = r.uniform(0.0, 1.0, int(r.integers(2, 30))) ** 4
-    w[0] *= 200.0 if seed % 2 else 1.0        # a dominant segment: duplicates and redraws happen
+    w[0] *= 200.0 if seed % 2 else 1.0  # a dominant segment: duplicates and redraws happen
     prob = w / w.sum()
     a_rng, b_rng = np.random.default_rng(seed + 10), np.random.default_rng(seed + 10)
     expect = np.stack([a_rng.choice(len(prob), 2, replace=False, p=prob) for _ in range(300)])

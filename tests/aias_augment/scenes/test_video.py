@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from aias_augment.config import data_root
+from aias_augment.core.config import data_root
 from aias_augment.scenes.video import estimate_video_motion, read_video, trajectory_errors
 
 KITTI = data_root() / "kitti06_seq"
@@ -10,6 +10,7 @@ KITTI = data_root() / "kitti06_seq"
 @pytest.mark.skipif(not KITTI.exists(), reason="KITTI data not available")
 def test_kitti_motion_matches_ground_truth():
     from aias_augment.scenes.kitti import open_kitti_sequence
+
     seq = open_kitti_sequence(KITTI)
     idx = [0, 1, 2, 3]
     m = estimate_video_motion([seq.frame(i).image for i in idx], np.random.default_rng(0), intrinsics=seq.intrinsics)

@@ -1,0 +1,636 @@
+"""``InsertObjects``: the albumentations adapter over :func:`aias_augment.pipeline.image.insert_into_image`.
+
+Use it inside ``A.Compose(..., bbox_params=A.BboxParams(format="coco", label_fields=[...]), seed=...)``. Optional
+per-sample targets: ``camera_k`` (3x3 intrinsics of the image as passed in), ``depth`` ((H, W) metres, 0/NaN =
+unknown) and ``scene`` (:class:`aias_augment.core.scene_inputs.SceneInputs`: e.g. a road mask where objects may stand;
+a bad one is a counted skip like any odd sample). Inserted boxes are appended with their label (``category_ids[name]`` or the category name); existing
+boxes whose visible fraction under the inserted objects falls below the Compose's ``min_visibility`` are dropped.
+Put it first in the pipeline: later geometric transforms do not update ``camera_k``/``depth``.
+
+Inputs (:func:`aias_augment.adapters.boundary.image_for_insertion`): grey, RGB or RGBA; uint8; uint16 (converted to 8 bit by
+``round(v / 257)`` for the insertion, inserted pixels written back as ``v * 257``); float in [0, 1] (``round(v * 255)``,
+written back as ``v / 255``). Pixels the insertion does not touch are returned bit for bit. A float image with NaN/Inf
+or values outside [0, 1], ``depth`` without ``camera_k`` or another odd sample is left unchanged and counted by reason
+in ``transform.counts`` (as is a call that placed nothing, with why); it never stops an epoch. Images above 2 MP are
+analysed and planned at 2 MP and rendered at full size (:mod:`aias_augment.pipeline.bounded`).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import albumentations as A
+import numpy as np
+from albumentations.core.bbox_utils import (
+    convert_bboxes_from_albumentations,
+    convert_bboxes_to_albumentations,
+    denormalize_bboxes,
+)
+
+from aias_augment.adapters.boundary import (
+    SampleSkip,
+    TransformCounts,
+    check_categories,
+    check_sample_targets,
+    image_for_insertion,
+)
+from aias_augment.adapters.variants import (
+    Variant,
+    VariantCache,
+    VariantResult,
+    plain_image_key,
+    variant_key,
+    variant_key_prefix,
+    variant_rng,
+)
+from aias_augment.analyse.cache import SceneCache
+from aias_augment.apply.view_cache import ViewCache
+from aias_augment.assets.asset import PathAssets
+from aias_augment.pipeline.bounded import ANALYSIS_MAX_PIXELS, insert_bounded
+from aias_augment.pipeline.image import PRESETS, InsertionConfig, load_preset
+
+log = logging.getLogger(__name__)
+
+_NO_BOXES = np.zeros((0, 4))
+_NO_BOXES.flags.writeable = False
+_NO_TARGETS = MappingProxyType({})
+#: Bbox formats whose round trip through the Compose's processor :func:`_encode_boxes` reproduces.
+_ENCODED_FORMATS = ("coco", "pascal_voc", "yolo")
+
+
+def _same(image: np.ndarray) -> np.ndarray:
+    """``restore`` of a uint8 RGB input (C-contiguous): the output is already in the input's form."""
+    return image
+
+
+class InsertObjects(A.DualTransform):
+    """Insert 3D objects photorealistically and append their COCO boxes.
+
+    Args:
+        categories: object categories to insert (default asset bank: see ``aias_augment.assets.asset.DEFAULT_ASSETS``).
+        max_objects / min_objects: number of objects per image, drawn uniformly.
+        preset: "fast" | "balanced" | "accurate" (configs/presets/*.yaml).
+        category_ids: label written for each category (e.g. {"traffic_cone": 3}); default: the category name.
+        assets: your own meshes, {"category": ["path.obj", ...]}.
+        config_overrides: any :class:`InsertionConfig` field (e.g. {"shadow": False}); a nested config as a mapping
+            of some of its fields updates the preset's (e.g. {"placement_cfg": {"max_tries": 30}}). Every value is
+            checked here: a wrong type or a value out of range raises, naming the field.
+        scene_cache: a folder for scene analyses (camera, ground, region, lighting) shared by all workers and runs;
+            None: only the in-process cache. Either way an image seen again (same bytes, K, depth) is not analysed
+            again: the analysis is cached by content in an LRU of ``scene_cache_items`` entries in each process.
+            With a folder, the fast preset's asset views are kept in ``scene_cache/views`` too (by asset content
+            and view bin): a view one worker rendered is read by the others. See :meth:`warm`.
+        variants_per_image: None (default): a new insertion per call. K: each image gets at most K insertions
+            over training, each computed once and then pasted (~0.1 ms instead of ~20 ms): a call draws which of
+            the K it gets (see :mod:`aias_augment.adapters.variants`; kept in memory and, with ``scene_cache``,
+            in ``scene_cache/variants`` for every worker and run). Trades variety for speed;
+            ``warm(images, variants=True)`` computes them all before training.
+        variants_seed: the seed of the variants' own plans (a variant is a function of the sample, this and its
+            index; the Compose seed picks which variant a call gets).
+        p: probability of applying.
+
+    Attributes:
+        counts: :class:`aias_augment.adapters.boundary.TransformCounts` of this process (``counts.to_dict()``: calls,
+            inserted, objects, skipped by reason, nothing_inserted by reason, converted by conversion).
+        skipped: the number of images left unchanged (all reasons).
+    """
+
+    _targets = (
+        A.core.type_definitions.Targets.IMAGE,
+        A.core.type_definitions.Targets.MASK,
+        A.core.type_definitions.Targets.BBOXES,
+    )
+
+    def __init__(
+        self,
+        categories: tuple[str, ...] | list[str] = ("traffic_cone",),
+        max_objects: int = 3,
+        min_objects: int = 1,
+        preset: str = "balanced",
+        category_ids: dict[str, Any] | None = None,
+        assets: dict[str, list[str]] | None = None,
+        config_overrides: dict[str, Any] | None = None,
+        scene_cache: str | None = None,
+        scene_cache_items: int = 128,
+        variants_per_image: int | None = None,
+        variants_seed: int = 0,
+        p: float = 0.5,
+    ):
+        super().__init__(p=p)
+        if variants_per_image is not None and (
+            isinstance(variants_per_image, bool)
+            or int(variants_per_image) != variants_per_image
+            or variants_per_image < 1
+        ):
+            raise ValueError(f"variants_per_image must be None or an integer >= 1, got {variants_per_image!r}")
+        self.variants_per_image = None if variants_per_image is None else int(variants_per_image)
+        self.variants_seed = int(variants_seed)
+        if preset not in PRESETS:
+            raise ValueError(f"preset must be one of {PRESETS}, got {preset!r}")
+        if not 0.0 <= p <= 1.0:
+            raise ValueError(f"p must be in [0, 1], got {p}")
+        self.categories = tuple(categories)
+        if not self.categories:
+            raise ValueError("categories must not be empty")
+        if any(c not in (assets or {}) for c in self.categories):  # unknown categories: InputError now
+            check_categories([c for c in self.categories if c not in (assets or {})])
+        self.max_objects = int(max_objects)
+        self.min_objects = int(min_objects)
+        self.preset = preset
+        self.category_ids = dict(category_ids) if category_ids else None
+        self.assets = assets
+        self.config_overrides = dict(config_overrides or {})
+        # Validates everything now: unknown override keys and wrong types raise TypeError, values out of range
+        # ValueError, each naming the field (config.checked_config).
+        self.config: InsertionConfig = load_preset(
+            preset,
+            categories=self.categories,
+            max_objects=self.max_objects,
+            min_objects=self.min_objects,
+            **self.config_overrides,
+        )
+        if self.category_ids is not None:
+            missing = set(self.categories) - set(self.category_ids)
+            if missing:
+                raise ValueError(f"category_ids lacks {sorted(missing)}")
+        self._bank = PathAssets(assets) if assets else None
+        self.scene_cache = None if scene_cache is None else str(scene_cache)
+        self.scene_cache_items = int(scene_cache_items)
+        self._scene_cache = SceneCache(self.scene_cache_items, self.scene_cache)
+        # The view cache of the fast preset: on disk beside the scene analyses when there is a folder; else the
+        # process-wide one (shared by every transform of the process).
+        self._view_cache = None if scene_cache is None else ViewCache(directory=Path(scene_cache) / "views")
+        self._variants = VariantCache(directory=None if scene_cache is None else Path(scene_cache) / "variants")
+        self._variant_prefix = None  # hash of config, assets and seed (made on first use; not picklable)
+        self.counts = TransformCounts()  # calls, insertions, skips and empty calls by reason (this process)
+        self.last_record = None  # InsertionRecord of the latest call in this process (for debugging/replay)
+
+    def warm(
+        self, images, camera_ks=None, depths=None, view_plans: int = 0, variants: bool = False, bboxes=None
+    ) -> dict:
+        """Analyse ``images`` (an iterable of what the transform will be called with: arrays in any input format it
+        accepts) into the scene cache before training, so that no call pays a first analysis: with ``scene_cache``
+        (a folder) every DataLoader worker and later run reads them; without, only this process's LRU holds them.
+        ``camera_ks`` / ``depths``: per image, as the ``camera_k`` / ``depth`` targets (None: none).
+        ``view_plans``: with the fast preset, also draw that many plans per image (on generators of their own, so
+        from the planner's own distribution of assets and poses) and render the views their objects use into the
+        view cache (``scene_cache/views`` with a folder: every worker reads them; else this process's), so that
+        the calls find most views cached. Only images of at most 2 MP (larger ones are analysed, their views not).
+
+        Each image goes through the call's own path (:func:`aias_augment.pipeline.bounded.insert_bounded` with
+        the scene cache, on a generator of its own), so the cached analysis is the one the call looks up (same
+        frame, same key); the insertion it makes is discarded and the transform's generator, counts and records
+        are untouched: warming changes when the analysis (and a view) is computed, never what a call returns.
+        ``variants``: with ``variants_per_image`` K, also compute each image's K variants (into this process's
+        variant cache and, with ``scene_cache``, its folder), so that calls only paste them; ``bboxes``: per image,
+        the boxes the calls will carry, as they pass them: in the Compose's bbox format (COCO xywh for a transform
+        outside a Compose with ``bbox_params``). A variant is made for its image's boxes (None: no boxes), so they go
+        through the Compose's own conversion here as in a call (to albumentations' float32 boxes, clipped or
+        filtered as its ``BboxParams`` say, and back): warm's keys are the calls' keys bit for bit.
+        Returns ``{"images", "analysed", "already_cached", "skipped", "views_rendered", "views_cached",
+        "variants_computed", "variants_cached", "boxes_refused"}`` (boxes_refused: images whose boxes the Compose's
+        processor refuses, as it would in a call; logged, no variants made for them)."""
+        if variants and not self.variants_per_image:
+            raise ValueError("warm(variants=True) needs InsertObjects(variants_per_image=K)")
+        out = {
+            "images": 0,
+            "analysed": 0,
+            "already_cached": 0,
+            "skipped": 0,
+            "views_rendered": 0,
+            "views_cached": 0,
+            "variants_computed": 0,
+            "variants_cached": 0,
+            "boxes_refused": 0,
+        }
+        cache = self._scene_cache
+        for i, image in enumerate(images):
+            out["images"] += 1
+            k = None if camera_ks is None else camera_ks[i]
+            d = None if depths is None else depths[i]
+            try:
+                rgb, _, _ = image_for_insertion(image)
+                h, w = rgb.shape[:2]
+                check_sample_targets({"camera_k": k, "depth": d}, h, w)
+            except SampleSkip:
+                out["skipped"] += 1
+                continue
+            before = cache.misses
+            try:
+                insert_bounded(
+                    rgb,
+                    None,
+                    None,
+                    np.random.default_rng(i),
+                    self.config,
+                    intrinsics=k,
+                    depth=d,
+                    bank=self._bank,
+                    scene_cache=cache,
+                    n_objects=0,
+                )
+            except Exception as e:  # as in a call: an odd image is skipped, not fatal
+                log.warning("warm: image %d skipped (%s)", i, e)
+                out["skipped"] += 1
+                continue
+            out["analysed" if cache.misses > before else "already_cached"] += 1
+            if view_plans and self.config.render_method == "view_cache" and h * w <= ANALYSIS_MAX_PIXELS:
+                self._warm_views(rgb, k, d, view_plans, i, out)
+            if variants:
+                try:
+                    boxes = np.zeros((0, 4)) if bboxes is None else self._boxes_as_called(bboxes[i], h, w)
+                except ValueError as e:  # boxes the Compose would refuse in a call too
+                    log.warning("warm: no variants for image %d: its boxes are refused (%s)", i, e)
+                    out["boxes_refused"] += 1
+                    continue
+                for j in range(self.variants_per_image):
+                    m0 = self._variants.misses
+                    try:
+                        self._variant(rgb, boxes, 0.0, {"camera_k": k, "depth": d}, j=j)
+                    except Exception as e:  # as in a call
+                        log.warning("warm: variant %d of image %d not made (%s)", j, i, e)
+                        continue
+                    out["variants_computed" if self._variants.misses > m0 else "variants_cached"] += 1
+        return out
+
+    def _warm_views(self, rgb, k, d, view_plans: int, i: int, out: dict) -> None:
+        from aias_augment.apply.view_cache import default_view_cache, render_from_view_cache
+        from aias_augment.core.frame import Frame
+        from aias_augment.core.geometry import Intrinsics
+        from aias_augment.plan.insertion import plan_insertion
+
+        h, w = rgb.shape[:2]
+        intr = None if k is None else Intrinsics.from_matrix(np.asarray(k, float), w, h)
+        depth = None if d is None else np.asarray(d, np.float32)
+        analysis = self._scene_cache.get(Frame(rgb, intr, depth=depth, meta={}), self.config)
+        vc = self._view_cache if self._view_cache is not None else default_view_cache()
+        for j in range(view_plans):
+            plan = plan_insertion(analysis, self.config, np.random.default_rng([i, j, 1]), depth=depth, bank=self._bank)
+            for o in plan.objects:
+                m0 = vc.misses
+                if render_from_view_cache(o.asset, o.cam_from_object, analysis.intrinsics, vc) is not None:
+                    out["views_rendered" if vc.misses > m0 else "views_cached"] += 1
+
+    def _variant(
+        self,
+        rgb: np.ndarray,
+        existing_xywh: np.ndarray,
+        min_vis: float,
+        data,
+        j: int | None = None,
+        key: str | None = None,
+    ):
+        """Variant ``j`` (None: drawn with the call's generator) of this sample, computed on a miss. ``key``: the
+        sample's :func:`variant_key` when the caller has it (and found it missing: it is not looked up again)."""
+        if j is None:
+            j = int(self.random_generator.integers(self.variants_per_image))
+        # Boxes to 1e-3 px, in the key and in the insertion alike: the Compose's normalise/denormalise round trip
+        # (or warm's raw boxes) must find the same variant, and the variant is made from exactly what its key says.
+        if len(existing_xywh):
+            existing_xywh = np.round(np.asarray(existing_xywh, np.float64).reshape(-1, 4), 3)
+        v = None
+        if key is None:
+            key = variant_key(
+                rgb,
+                camera_k=data.get("camera_k"),
+                depth=data.get("depth"),
+                scene=data.get("scene"),
+                existing_xywh=existing_xywh,
+                prefix=self._key_prefix(),
+            )
+            v = self._variants.get(key, j)
+        labels = list(range(len(existing_xywh)))
+        if v is None:
+            full = insert_bounded(
+                rgb,
+                existing_xywh,
+                labels,
+                variant_rng(self.variants_seed, j, key),
+                self.config,
+                intrinsics=data.get("camera_k"),
+                depth=data.get("depth"),
+                bank=self._bank,
+                scene_cache=self._scene_cache,
+                view_cache=self._view_cache,
+                scene=data.get("scene"),
+            )
+            v = Variant.from_result(rgb, full)
+            h, w = rgb.shape[:2]
+            for fmt in _ENCODED_FORMATS:  # the new boxes as a Compose will encode them, made once, kept with it
+                v.encoded[(h, w, fmt)] = _encode_boxes(v.inserted_bboxes, h, w, fmt)
+            self._variants.put(key, j, v)
+        return v.result(rgb, existing_xywh, labels, min_vis)
+
+    def _key_prefix(self):
+        """The variant keys' fixed part (config, assets, seed): :func:`variant_key_prefix`, made on first use."""
+        if self._variant_prefix is None:
+            self._variant_prefix = variant_key_prefix(self.config, self.assets, self.variants_seed)
+        return self._variant_prefix
+
+    @property
+    def skipped(self) -> int:
+        """Images left unchanged because the sample was refused or insertion failed (``counts.skipped``: why)."""
+        return self.counts.total_skipped
+
+    @property
+    def targets_as_params(self) -> list[str]:
+        return ["image"]
+
+    def get_transform_init_args_names(self) -> tuple[str, ...]:
+        return (
+            "categories",
+            "max_objects",
+            "min_objects",
+            "preset",
+            "category_ids",
+            "assets",
+            "config_overrides",
+            "scene_cache",
+            "scene_cache_items",
+            "variants_per_image",
+            "variants_seed",
+        )
+
+    # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
+    def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+        if self.variants_per_image:
+            img = data["image"]
+            boxes = data.get("bboxes")
+            if (
+                type(img) is np.ndarray
+                and img.dtype == np.uint8
+                and img.ndim == 3
+                and img.shape[2] == 3
+                and img.size
+                and img.flags.c_contiguous
+                and (boxes is None or len(boxes) == 0)
+                and data.get("camera_k") is None
+                and data.get("depth") is None
+                and data.get("scene") is None
+            ):
+                return self._plain_variant(img)
+        return self._general_params(data)
+
+    def _plain_variant(self, rgb: np.ndarray) -> dict[str, Any]:
+        """A variant call on a uint8 RGB image (the training loop's usual input) without existing boxes, K, depth
+        or scene facts: what :meth:`_general_params` does for it (the image passes the boundary as it is and
+        ``restore`` is the identity), in fewer steps: a draw, the key, a lookup, a copy with the window pasted."""
+        j = int(self.random_generator.integers(self.variants_per_image))
+        try:
+            key = plain_image_key(rgb, self._key_prefix())
+            v = self._variants.get(key, j)
+            res = (
+                self._variant(rgb, _NO_BOXES, 0.0, _NO_TARGETS, j=j, key=key)
+                if v is None
+                else v.result(rgb, _NO_BOXES, ())
+            )
+        except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
+            self.counts.skip(e, log)
+            return {"insert_result": None, "restore": _same}
+        self.last_record = res.variant if isinstance(res, VariantResult) else res.record
+        n = len(res.inserted_labels)
+        self.counts.result(n, None if n else res.record.to_dict(), log)
+        return {"insert_result": res, "restore": _same}
+
+    def _general_params(self, data: dict[str, Any]) -> dict[str, Any]:
+        try:  # the sample's boundary: dtype/range/shape of the image, camera_k and depth (SampleSkip: counted)
+            rgb, restore, conversion = image_for_insertion(data["image"])
+            h, w = rgb.shape[:2]
+            check_sample_targets(data, h, w)
+        except SampleSkip as e:
+            self.counts.skip(e, log)
+            return {"insert_result": None, "restore": None}
+        if conversion:
+            self.counts.convert(conversion)
+        boxes_internal = data.get("bboxes")
+        n_existing = 0 if boxes_internal is None else len(boxes_internal)
+        existing_xywh = np.zeros((0, 4)) if not n_existing else _xywh_from_internal(boxes_internal, h, w)
+        min_vis = 0.0
+        proc = self._bbox_processor()
+        if proc is not None:
+            min_vis = float(proc.params.min_visibility)
+        try:
+            if self.variants_per_image:
+                res = self._variant(rgb, existing_xywh, min_vis, data)
+            else:
+                res = insert_bounded(
+                    rgb,
+                    existing_xywh,
+                    list(range(n_existing)),
+                    self.random_generator,
+                    self.config,
+                    intrinsics=data.get("camera_k"),
+                    depth=data.get("depth"),
+                    min_visibility=min_vis,
+                    bank=self._bank,
+                    scene_cache=self._scene_cache,
+                    view_cache=self._view_cache,
+                    scene=data.get("scene"),
+                )
+        except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
+            self.counts.skip(e, log)
+            return {"insert_result": None, "restore": restore}
+        self.last_record = res.variant if isinstance(res, VariantResult) else res.record
+        self.counts.result(len(res.inserted_labels), None if res.inserted_labels else res.record.to_dict(), log)
+        return {"insert_result": res, "restore": restore}
+
+    @property
+    def last_record(self):
+        """The InsertionRecord of the latest call in this process (for debugging/replay; None before any)."""
+        r = self._last_record
+        return r.record if isinstance(r, Variant) else r
+
+    @last_record.setter
+    def last_record(self, value) -> None:
+        self._last_record = value  # a record, or the variant whose record it is (unpickled when read)
+
+    def __getstate__(self):
+        # Per-call state (render results, the restore closure) is not part of the transform.
+        state = self.__dict__.copy()
+        state["params"] = {}
+        state["_variant_prefix"] = None
+        state["_last_record"] = None
+        return state
+
+    def _boxes_as_called(self, boxes, h: int, w: int) -> np.ndarray:
+        """COCO xywh pixels of ``boxes`` (the Compose's bbox format; COCO xywh without a bbox processor) as a call
+        reads them: through the processor's own ``check_and_convert`` (float32 albumentations boxes, clip and
+        filter as configured; the Compose's preprocess) and :func:`_xywh_from_internal`."""
+        b = np.asarray(boxes, np.float64).reshape(-1, 4)
+        if len(b) == 0:
+            return np.zeros((0, 4))
+        proc, shape = self._bbox_processor(), {"height": h, "width": w}
+        internal = (
+            proc.check_and_convert(b, shape, direction="to")
+            if proc is not None
+            else convert_bboxes_to_albumentations(b, "coco", shape)
+        )
+        return _xywh_from_internal(internal, h, w)
+
+    def _bbox_processor(self):
+        try:
+            return self.get_processor("bboxes")
+        except (AttributeError, KeyError):
+            return None
+
+    def apply(self, img: np.ndarray, insert_result=None, restore=None, **params: Any) -> np.ndarray:
+        if insert_result is None:
+            return img
+        return restore(insert_result.image)
+
+    def apply_to_mask(self, mask: np.ndarray, **params: Any) -> np.ndarray:
+        # Inserted objects are not written into user masks (their instance ids are unknown to us).
+        return mask
+
+    def apply_to_bboxes(self, bboxes: np.ndarray, insert_result=None, **params: Any) -> np.ndarray:
+        if insert_result is None or (len(insert_result.inserted_labels) == 0 and insert_result.keep_existing.all()):
+            return bboxes
+        kept = bboxes[insert_result.keep_existing] if len(bboxes) else bboxes
+        if len(insert_result.inserted_labels) == 0:
+            return kept
+        new_rows = self._encode_new_boxes(insert_result, bboxes, params["shape"])
+        if len(kept) == 0:
+            return new_rows
+        return np.concatenate([kept, new_rows.astype(kept.dtype)], axis=0)
+
+    def _encode_new_boxes(self, res, bboxes: np.ndarray, shape) -> np.ndarray:
+        """Run the new boxes through the Compose bbox processor (as albumentations' Mosaic does) so that their labels
+        are encoded by the same label manager the Compose will use to decode them, even when the image had no box.
+
+        With the processor's defaults (``clip`` and ``filter_invalid_bboxes`` off) and a COCO / Pascal VOC / YOLO
+        format, the boxes' round trip (to the user's format and back, in float32) is :func:`_encode_boxes`, kept
+        per variant, image size and format (a variant's boxes come again and again), and only the labels go
+        through the processor's label manager (``process_field``, as its ``preprocess`` calls it): the same rows,
+        byte for byte (tested against ``preprocess``). Anything else, or a box the processor's check would look
+        at twice, goes through ``preprocess`` itself."""
+        h, w = shape[:2]
+        proc = self._bbox_processor()
+        label_fields = None if proc is None else proc.params.label_fields
+        if label_fields:
+            values = [self._label_for(c, proc, label_fields[0]) for c in res.inserted_labels]
+            p = proc.params
+            if p.format in _ENCODED_FORMATS and not p.clip and not p.filter_invalid_bboxes:
+                memo = getattr(getattr(res, "variant", None), "encoded", None)
+                mk = (h, w, p.format)
+                geo = None if memo is None else memo.get(mk)
+                if geo is None:
+                    geo = _encode_boxes(res.inserted_bboxes, h, w, p.format)
+                    if memo is not None:
+                        memo[mk] = geo
+                elif type(geo) is bytes:  # as stored
+                    geo = memo[mk] = np.frombuffer(geo, np.float32).reshape(-1, 4)
+                if geo is not False:  # False: a box the processor's check must see (it may raise)
+                    # the labels' columns promoted as preprocess's hstack promotes them, then float32
+                    rows = np.hstack((geo, *_encoded_labels(proc.label_manager, label_fields, values)))
+                    return _pad_columns(rows.astype(np.float32, copy=False), bboxes)
+            return _pad_columns(self._preprocess_new_boxes(res, proc, values, label_fields, h, w), bboxes)
+        return _internal_from_xywh(res.inserted_bboxes, h, w)
+
+    @staticmethod
+    def _preprocess_new_boxes(res, proc, values: list, label_fields, h: int, w: int) -> np.ndarray:
+        """The new boxes through ``proc.preprocess`` (the Compose's own conversion, checks and label encoding)."""
+        user_fmt = convert_bboxes_from_albumentations(
+            _internal_from_xywh(res.inserted_bboxes, h, w), proc.params.format, {"height": h, "width": w}
+        )
+        temp = {"image": np.zeros((h, w, 1), np.uint8), "bboxes": user_fmt}
+        for f in label_fields:
+            temp[f] = list(values)
+        saved = dict(proc.is_sequence_input)
+        try:
+            proc.preprocess(temp)
+        finally:
+            proc.is_sequence_input.clear()
+            proc.is_sequence_input.update(saved)
+        return temp["bboxes"]
+
+    def _label_for(self, category: str, proc, field: str):
+        if self.category_ids is not None:
+            return self.category_ids[category]
+        meta = proc.label_manager.metadata.get("bboxes", {}).get(field)
+        if meta is not None and meta.is_numerical:
+            raise ValueError(
+                f"InsertObjects: the label field {field!r} holds numbers; pass category_ids="
+                f"{{{category!r}: <id>}} so inserted boxes get numeric labels"
+            )
+        return category
+
+
+def _xywh_from_internal(boxes_internal, h: int, w: int) -> np.ndarray:
+    """COCO xywh pixels (float64) of albumentations' normalised x_min, y_min, x_max, y_max boxes (extra columns
+    ignored): what a call reads from the Compose, and what warm() makes of its boxes."""
+    xyxy = denormalize_bboxes(np.asarray(boxes_internal)[:, :4], {"height": h, "width": w})
+    return np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]]
+
+
+def _internal_from_xywh(xywh, h: int, w: int) -> np.ndarray:
+    """(K, 4) float32 albumentations boxes (normalised x_min, y_min, x_max, y_max) of COCO xywh pixel boxes."""
+    xywh = np.asarray(xywh, np.float64).reshape(-1, 4)
+    xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
+    return (xyxy / np.array([w, h, w, h], np.float64)).astype(np.float32)
+
+
+def _pad_columns(rows: np.ndarray, bboxes: np.ndarray) -> np.ndarray:
+    """``rows`` with zero columns added up to ``bboxes``' (extra columns, e.g. bbox ids)."""
+    if len(bboxes) and rows.shape[1] < bboxes.shape[1]:
+        rows = np.c_[rows, np.zeros((len(rows), bboxes.shape[1] - rows.shape[1]), rows.dtype)]
+    return rows
+
+
+def _encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
+    """(K, 4) float32: COCO xywh pixel boxes as albumentations' processor (``clip`` and ``filter_invalid_bboxes``
+    off) encodes them when they arrive in ``fmt`` ("coco", "pascal_voc" or "yolo") from our normalised float32
+    boxes: ``convert_bboxes_from_albumentations`` then ``convert_bboxes_to_albumentations``, the same operations
+    in the same dtypes (float32 storage, float64 where albumentations scales), so the same bits. False when a box
+    is not strictly inside [0, 1] with x_max > x_min and y_max > y_min: the processor's ``check_bboxes`` must
+    then decide (its tolerance, its error)."""
+    scale = np.array([w, h, w, h], np.float64)
+    norm = _internal_from_xywh(xywh, h, w)  # what the boxes are in albumentations' format
+    user = np.empty_like(norm)  # convert_bboxes_from_albumentations(norm, fmt)
+    if fmt == "yolo":
+        user[:, :2] = (norm[:, :2] + norm[:, 2:]) / 2
+        user[:, 2:] = norm[:, 2:] - norm[:, :2]
+    else:
+        den = norm * scale  # denormalize_bboxes: float64
+        if fmt == "coco":
+            user[:, :2] = den[:, :2]
+            user[:, 2:] = den[:, 2:] - den[:, :2]
+        else:
+            user[:] = den
+    geo = np.empty_like(user)  # convert_bboxes_to_albumentations(user, fmt)
+    if fmt == "yolo":
+        half = user[:, 2:] / 2
+        geo[:, :2] = user[:, :2] - half
+        geo[:, 2:] = user[:, :2] + half
+    else:
+        if fmt == "coco":
+            geo[:, :2] = user[:, :2]
+            geo[:, 2:] = user[:, :2] + user[:, 2:]
+        else:
+            geo[:] = user
+        geo[:] = geo.astype(np.float64) / scale  # normalize_bboxes: float64, stored as float32
+    if not (((geo >= 0) & (geo <= 1)).all() and (geo[:, 2:] > geo[:, :2]).all()):
+        return False
+    geo.flags.writeable = False
+    return geo
+
+
+def _encoded_labels(manager, label_fields, values: list) -> list[np.ndarray]:
+    """``manager.process_field("bboxes", field, values)`` for each label field, as the processor's ``preprocess``
+    calls it: (K, 1) arrays. Where that call would change nothing in the manager (a field it has seen, holding
+    numbers; or strings its encoder knows all of) the same array is made here without it; else it is called."""
+    meta = manager.metadata.get("bboxes")
+    out = []
+    for f in label_fields:
+        m = None if meta is None else meta.get(f)
+        if m is not None and m.is_numerical:  # _encode_data of a list: float32
+            out.append(np.array(values, dtype=np.float32).reshape(-1, 1))
+            continue
+        e = None if m is None else m.encoder
+        if e is not None and not e.is_numerical and all(type(v) is str and v in e.classes_ for v in values):
+            out.append(np.array([e.classes_[v] for v in values]).reshape(-1, 1))  # LabelEncoder.transform
+            continue
+        out.append(manager.process_field("bboxes", f, list(values)))
+    return out

@@ -1,0 +1,246 @@
+"""Sun-to-sky ratio from lit versus shadowed ground of one material, and detection of scenes with no dominant sun.
+
+Method: inside a ground region (given, or the road-like area below the horizon), fit a two-component Gaussian mixture
+to log-luminance (sklearn). A sunny ground with cast shadows is bimodal: the dark mode is shadow (sky light only), the
+bright mode lit (sky + sun). Same material is enforced loosely by dropping pixels whose chromaticity is far from the
+region's median (lane paint, grass, cars). Pixels near the class boundary (penumbrae, texture) are dropped by keeping only
+confident posteriors and eroding each class. The ratio uses class medians of linear luminance.
+
+A scene has a dominant sun when the mixture is clearly bimodal (Ashman's D >= ``min_separation``), both modes hold at
+least ``min_fraction`` of the region, and lit / shadow >= ``min_lit_to_shadow``. Overcast and indoor ground is unimodal
+(D < 2 for a single Gaussian's best two-component fit) or too flat. See ``shadows`` for the ratio convention.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from aias_augment.analyse.lighting.envmap import camera_ray_directions
+from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
+from aias_augment.core.hdr import luminance
+from aias_augment.core.rng import require_rng
+
+__all__ = [
+    "LitShadowMeasurement",
+    "measure_lit_shadow",
+    "ground_region_mask",
+    "ground_coordinates",
+    "shadow_axis_on_ground",
+]
+
+
+@dataclass(frozen=True)
+class LitShadowMeasurement:
+    """Result of :func:`measure_lit_shadow`. Luminances and RGB are linear; masks are (H, W) bool."""
+
+    lit_rgb: np.ndarray
+    shadow_rgb: np.ndarray
+    lit_luminance: float
+    shadow_luminance: float
+    shadow_to_lit: float
+    sun_sky_ratio: float
+    separation: float
+    shadow_fraction: float
+    n_pixels: int
+    dominant_sun: bool
+    lit_mask: np.ndarray
+    shadow_mask: np.ndarray
+
+
+def ground_coordinates(
+    intrinsics: Intrinsics, up_in_cam: np.ndarray, camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where each pixel's ray meets a flat ground ``camera_height_m`` below the camera: (H, W, 2) (lateral, forward)
+    metres in the gravity-aligned camera frame (lateral positive to the right, forward along the camera's heading) and
+    (H, W) bool (False at or above the horizon, where the ray never meets the ground). Both read-only: the last few
+    (camera, up, height) are kept, one analysis asks for them once per ground box."""
+    up = np.asarray(up_in_cam, dtype=np.float64).reshape(3)
+    return _ground_coordinates(
+        float(intrinsics.fx),
+        float(intrinsics.fy),
+        float(intrinsics.cx),
+        float(intrinsics.cy),
+        int(intrinsics.width),
+        int(intrinsics.height),
+        tuple(float(x) for x in up),
+        float(camera_height_m),
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _ground_coordinates(fx, fy, cx, cy, width, height, up_in_cam, camera_height_m):
+    intrinsics = Intrinsics(fx, fy, cx, cy, width, height)
+    up = np.asarray(up_in_cam, dtype=np.float64)
+    up = up / np.linalg.norm(up)
+    rays = camera_ray_directions(intrinsics)
+    down_cos = -(rays @ up)
+    ok = down_cos > 1e-6  # rays at or above the horizon never meet the ground
+    t = np.where(ok, camera_height_m / np.maximum(down_cos, 1e-6), 0.0)
+    pts = rays * t[..., None]
+    fwd = np.array([0.0, 0.0, 1.0]) - up[2] * up
+    fwd /= np.linalg.norm(fwd)
+    right = np.cross(fwd, up)  # level OpenCV camera: z x (-y) = +x
+    g = np.stack([pts @ right, pts @ fwd], axis=-1)
+    g.flags.writeable = ok.flags.writeable = False
+    return g, ok
+
+
+def ground_region_mask(
+    intrinsics: Intrinsics,
+    up_in_cam: np.ndarray,
+    camera_height_m: float = CAMERA_HEIGHT_PRIOR_M,
+    lateral_range_m: tuple[float, float] = (-3.0, 3.0),
+    forward_range_m: tuple[float, float] = (5.0, 25.0),
+) -> np.ndarray:
+    """Pixels whose ray meets a flat ground ``camera_height_m`` below the camera inside a box in front of it.
+
+    The box is in the gravity-aligned frame of the camera: lateral (x, right positive) and forward distance (m). KITTI's
+    camera is 1.65 m above the road. Returns (H, W) bool.
+    """
+    g, ok = ground_coordinates(intrinsics, up_in_cam, camera_height_m)
+    lat, fwd_d = g[..., 0], g[..., 1]
+    return (
+        ok
+        & (lat >= lateral_range_m[0])
+        & (lat <= lateral_range_m[1])
+        & (fwd_d >= forward_range_m[0])
+        & (fwd_d <= forward_range_m[1])
+    )
+
+
+def shadow_axis_on_ground(
+    shadow_mask: np.ndarray,
+    region_mask: np.ndarray,
+    ground_xy: np.ndarray,
+    bin_m: float = 0.1,
+    step_deg: float = 2.0,
+    min_pixels: int = 50,
+) -> tuple[float, float]:
+    """Axis of straight cast-shadow bands on the ground by projection profiles: (angle, strength).
+
+    Shadows of upright thin occluders (poles, posts, trunks) are long bands along the sun's azimuth. For each candidate
+    axis angle theta, shadow points (``ground_xy`` (H, W, 2) lateral/forward metres) are projected on the axis normal
+    and histogrammed (``bin_m``); bands aligned with theta make the histogram peaky (large sum of squared counts). The
+    peakiness is divided by that of all ``region_mask`` points at the same theta, so the region's own shape does not
+    bias the answer. Works on fragmented 1-2 px lines, unlike connected components. Angle = atan2(forward, lateral)
+    in [0, pi) (the sun lies along it, on one of its two sides); strength = 1 - median / max of the normalised
+    peakiness over theta (0: no direction stands out). Fewer than ``min_pixels`` shadow points give (0, 0).
+    """
+    shadow = np.asarray(shadow_mask, bool) & region_mask
+    if shadow.sum() < min_pixels or region_mask.sum() < min_pixels:
+        return 0.0, 0.0
+    ps, pr = ground_xy[shadow], ground_xy[region_mask]
+    thetas = np.deg2rad(np.arange(0.0, 180.0, step_deg))
+    rel = np.empty(len(thetas))
+    for k, th in enumerate(thetas):
+        normal = np.array([-np.sin(th), np.cos(th)])
+        a, b = ps @ normal, pr @ normal
+        edges = np.arange(b.min(), b.max() + 2 * bin_m, bin_m)
+        hs = np.histogram(a, edges)[0].astype(np.float64)
+        hr = np.histogram(b, edges)[0].astype(np.float64)
+        rel[k] = (np.sum(hs**2) / len(a) ** 2) / max(np.sum(hr**2) / len(b) ** 2, 1e-12)
+    rel = ndimage.uniform_filter1d(rel, 3, mode="wrap")
+    best = int(np.argmax(rel))
+    return float(thetas[best]), float(np.clip(1.0 - np.median(rel) / max(rel[best], 1e-12), 0.0, 1.0))
+
+
+def measure_lit_shadow(
+    image_linear: np.ndarray,
+    region_mask: np.ndarray,
+    *,
+    max_chroma_dev: float = 0.04,
+    min_posterior: float = 0.95,
+    erode_px: int = 0,
+    min_separation: float = 2.0,
+    min_fraction: float = 0.01,
+    min_lit_to_shadow: float = 1.5,
+    max_samples: int = 8000,
+    rng: np.random.Generator,
+) -> LitShadowMeasurement | None:
+    """Measure lit and shadowed luminance of the ground in ``region_mask``; None if fewer than 200 usable pixels.
+
+    ``image_linear``: (H, W, 3) float linear RGB (use ``hdr.srgb_to_linear``; clipped pixels are excluded).
+    """
+    from sklearn.mixture import GaussianMixture
+
+    img = np.asarray(image_linear, dtype=np.float64)
+    region = np.asarray(region_mask, bool)
+    if img.ndim != 3 or img.shape[2] != 3 or region.shape != img.shape[:2]:
+        raise ValueError(f"measure_lit_shadow: image {img.shape} and mask {region.shape} do not match")
+    rng = require_rng(rng, "measure_lit_shadow")
+    Y = luminance(img).astype(np.float64)
+    usable = region & np.isfinite(Y) & (Y > 1e-4) & (img.max(axis=2) < 0.97)
+    if usable.sum() < 200:
+        return None
+    chroma = img / np.maximum(img.sum(axis=2, keepdims=True), 1e-6)  # eps: black pixels are already excluded
+    med = np.median(chroma[usable], axis=0)
+    # Shadows are bluer (sky light), so allow more deviation toward blue than elsewhere.
+    dev = chroma - med
+    dev[..., 2] = np.where(dev[..., 2] > 0, dev[..., 2] * 0.5, dev[..., 2])
+    usable &= np.abs(dev).max(axis=2) < max_chroma_dev * 2.0
+    if usable.sum() < 200:
+        return None
+    logY = np.log(np.maximum(Y, 1e-6))  # eps: only usable pixels (Y > 1e-4) are read below
+    idx = np.flatnonzero(usable.ravel())
+    fit_idx = rng.choice(idx, max_samples, replace=False) if idx.size > max_samples else idx
+    n = int(usable.sum())
+    if float(np.ptp(logY.ravel()[fit_idx])) < 1e-3:  # one flat colour: nothing to separate
+        rgb, y = np.median(img[usable], 0), float(np.median(Y[usable]))
+        return LitShadowMeasurement(rgb, rgb, y, y, 1.0, 0.0, 0.0, 0.0, n, False, usable, np.zeros_like(usable))
+    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=1).fit(logY.ravel()[fit_idx, None])
+    mu = gm.means_.ravel()
+    sd = np.sqrt(gm.covariances_.ravel())
+    dark, bright = int(np.argmin(mu)), int(np.argmax(mu))
+    separation = float(abs(mu[bright] - mu[dark]) / np.sqrt(0.5 * (sd[0] ** 2 + sd[1] ** 2)))
+    post = np.zeros(Y.size)
+    post[idx] = gm.predict_proba(logY.ravel()[idx, None])[:, dark]
+    post = post.reshape(Y.shape)
+    shadow = usable & (post >= min_posterior)
+    lit = usable & (post <= 1.0 - min_posterior)
+    if erode_px > 0:
+        shadow = ndimage.binary_erosion(shadow, iterations=erode_px)
+        lit = ndimage.binary_erosion(lit, iterations=erode_px)
+    if shadow.sum() < 20 or lit.sum() < 20:
+        shadow_fraction = float(shadow.sum()) / n
+        return LitShadowMeasurement(
+            np.median(img[usable], 0),
+            np.median(img[usable], 0),
+            float(np.median(Y[usable])),
+            float(np.median(Y[usable])),
+            1.0,
+            0.0,
+            separation,
+            shadow_fraction,
+            n,
+            False,
+            lit,
+            shadow,
+        )
+    lit_rgb = np.median(img[lit], axis=0)
+    shadow_rgb = np.median(img[shadow], axis=0)
+    lit_y, shadow_y = float(np.median(Y[lit])), float(np.median(Y[shadow]))
+    shadow_to_lit = shadow_y / max(lit_y, 1e-12)
+    frac = float(shadow.sum()) / max(float(shadow.sum() + lit.sum()), 1.0)
+    dominant = bool(
+        separation >= min_separation
+        and min_fraction <= frac <= 1.0 - min_fraction
+        and lit_y / max(shadow_y, 1e-12) >= min_lit_to_shadow
+    )
+    return LitShadowMeasurement(
+        lit_rgb,
+        shadow_rgb,
+        lit_y,
+        shadow_y,
+        float(shadow_to_lit),
+        float(max(lit_y / max(shadow_y, 1e-12) - 1.0, 0.0)),
+        separation,
+        frac,
+        n,
+        dominant,
+        lit,
+        shadow,
+    )

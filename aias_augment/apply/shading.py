@@ -1,0 +1,107 @@
+"""Shading of an inserted object: SH ambient plus a shadowed directional sun, Lambertian.
+
+Output is linear radiance in the units of the lighting estimate: ``albedo / pi * (E_sh(n) + E_sun max(0, n.l) v)``
+with ``E_sh`` the SH irradiance (``sh``), ``E_sun`` the sun's normal-incidence irradiance, ``l`` the sun direction and
+``v`` the per-pixel sun visibility (self-shadowing from the renderer; 1 when not given). The 1/pi makes a white
+surface under a uniform sky of radiance L show exactly L. Indoor / no dominant sun: ambient only.
+
+Fluorescent orange (issue 15): road-safety orange (cones, barrels, vests) is daylight-fluorescent paint or plastic: it
+absorbs blue-green light and re-emits it as orange, so its luminance factor (about 0.3-0.45, ASTM D4956 / EN 471
+orange) exceeds what any non-fluorescent surface of that saturation can reflect (sRGB (255, 72, 18) reflects 0.26 at
+most). A texture cannot store reflectance above 1, so albedos of that colour (hue 0-35 deg, saturation >= 0.8, value
+>= 0.5, measured on the sRGB-encoded albedo) get the luminance gain of :func:`fluorescent_gain` in
+:func:`shade_object`, the one shading function every render path calls; no channel is lifted above 1 (white's
+response), so e.g. (208, 64, 16) paint becomes (255, 80, 23)-like while (255, 72, 18) gains little.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aias_augment.analyse.lighting.estimate import LightingEstimate
+from aias_augment.analyse.lighting.sh import sh_irradiance
+
+__all__ = ["shade_object", "shade_pixels", "irradiance_at_normals", "fluorescent_gain", "FLUORESCENT_GAIN"]
+
+#: Luminance gain of a fully fluorescent-orange albedo: (255, 72, 18) reflects 0.26; x 1.6 = 0.41, mid-range of the
+#: daylight-fluorescent orange luminance factors (0.3-0.45). Read at call time (1.0: off, as the realism report's
+#: "fixes off" arm sets it).
+FLUORESCENT_GAIN = 1.6
+
+
+def irradiance_at_normals(
+    normals_in_cam: np.ndarray, lighting: LightingEstimate, sun_visibility: np.ndarray | None = None
+) -> np.ndarray:
+    """Total irradiance (*, 3) at unit normals (*, 3) in the camera frame."""
+    n = np.asarray(normals_in_cam, dtype=np.float64)
+    E = sh_irradiance(lighting.ambient_sh, n)
+    if lighting.dominant_sun and lighting.sun_direction_in_cam is not None:
+        cos = np.maximum(n @ lighting.sun_direction_in_cam, 0.0)
+        if sun_visibility is not None:
+            cos = cos * np.clip(np.asarray(sun_visibility, dtype=np.float64), 0.0, 1.0)
+        E = E + cos[..., None] * lighting.sun_irradiance_rgb
+    return E
+
+
+def fluorescent_gain(albedo_linear: np.ndarray, gain: float = FLUORESCENT_GAIN) -> np.ndarray:
+    """(*,) multiplicative gain per albedo (*, 3) linear: ``1 + (gain - 1) w`` with w in [0, 1] the weight of
+    daylight-fluorescent orange: full for sRGB hue 0-30 deg, saturation >= 0.9 and value >= 0.6, fading linearly to 0 at
+    hue 35 deg, saturation 0.8 and value 0.5. Every other colour (whites, greys, blues, dark or pale oranges): 1."""
+    a = np.clip(np.asarray(albedo_linear, dtype=np.float64), 0.0, 1.0)
+    c = np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)  # sRGB encoding
+    r, g, b = c[..., 0], c[..., 1], c[..., 2]
+    mx, mn = c.max(-1), c.min(-1)
+    sat = np.where(mx > 1e-6, (mx - mn) / np.maximum(mx, 1e-6), 0.0)  # eps: black albedo
+    hue = 60.0 * (g - b) / np.maximum(mx - mn, 1e-6)  # valid where red is the max
+    w = (
+        (r >= mx)
+        * np.clip((35.0 - hue) / 5.0, 0, 1)
+        * (hue >= 0)
+        * np.clip((sat - 0.8) / 0.1, 0, 1)
+        * np.clip((mx - 0.5) / 0.1, 0, 1)
+    )
+    return 1.0 + (gain - 1.0) * w
+
+
+def shade_object(
+    albedo_linear: np.ndarray,
+    normals_in_cam: np.ndarray,
+    mask: np.ndarray,
+    lighting: LightingEstimate,
+    sun_visibility: np.ndarray | None = None,
+) -> np.ndarray:
+    """Linear RGB (H, W, 3) float32 of the object (0 outside ``mask``). Normals need not be exactly unit (renormalised);
+    zero normals inside the mask get ambient from the up direction rather than NaN."""
+    albedo = np.asarray(albedo_linear, dtype=np.float64)
+    n = np.asarray(normals_in_cam, dtype=np.float64)
+    m = np.asarray(mask, bool)
+    if albedo.ndim != 3 or albedo.shape[2] != 3 or n.shape != albedo.shape or m.shape != albedo.shape[:2]:
+        raise ValueError(f"shade_object: albedo {albedo.shape}, normals {n.shape}, mask {m.shape} must match (H, W, 3)")
+    if sun_visibility is not None and np.asarray(sun_visibility).shape != m.shape:
+        raise ValueError(f"shade_object: sun_visibility must be {m.shape}")
+    if not (np.all(np.isfinite(albedo[m])) and np.all(np.isfinite(n[m]))):
+        raise ValueError("shade_object: albedo or normals contain NaN or Inf inside the mask")
+    out = np.zeros(albedo.shape, np.float32)
+    out[m] = shade_pixels(
+        albedo[m], n[m], lighting, None if sun_visibility is None else np.asarray(sun_visibility, dtype=np.float64)[m]
+    )
+    return out
+
+
+def shade_pixels(
+    albedo_linear: np.ndarray,
+    normals_in_cam: np.ndarray,
+    lighting: LightingEstimate,
+    sun_visibility: np.ndarray | None = None,
+) -> np.ndarray:
+    """:func:`shade_object` on a list of pixels: albedo (N, 3), normals (N, 3) (renormalised; a zero normal gets
+    the up direction), sun visibility (N,) or None -> (N, 3) float32 linear radiance (non-finite results as 0). The
+    caller checks finiteness (``shade_object`` does)."""
+    n = np.asarray(normals_in_cam, dtype=np.float64)
+    length = np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
+    n = np.where(length > 1e-6, n / np.maximum(length, 1e-6), lighting.up_in_cam)  # eps: degenerate normals
+    E = irradiance_at_normals(n, lighting, sun_visibility)
+    a = np.clip(np.asarray(albedo_linear, dtype=np.float64), 0.0, None)
+    # the gain never lifts a channel above white's response (albedo 1): the saturation guard on white holds for it
+    a = np.minimum(a * fluorescent_gain(a, FLUORESCENT_GAIN)[:, None], np.maximum(a, 1.0))
+    return np.nan_to_num(a * E / np.pi, nan=0.0, posinf=0.0).astype(np.float32)

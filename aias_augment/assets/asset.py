@@ -1,0 +1,568 @@
+"""Mesh assets: load textured meshes (OBJ+MTL, DAE, GLB/GLTF, PLY), normalise to the canonical object frame.
+
+Canonical object frame: metres, z up, centred in x/y on the bounding box, resting on z = 0 (the contact plane).
+Units are read from the file, never guessed: COLLADA ``<unit meter=...>`` and ``<up_axis>``, gazebo ``model.sdf``
+``<scale>``, or an explicit ``scale``/``up_axis`` given by the caller (sidecar metadata).
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import re
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from aias_augment.core.config import data_root
+from aias_augment.core.errors import InputError
+
+if TYPE_CHECKING:  # imported where used: trimesh (~0.16 s with networkx) only when meshes are read
+    import trimesh
+
+log = logging.getLogger(__name__)
+
+MESH_SUFFIXES = {".obj", ".dae", ".glb", ".gltf", ".ply", ".stl", ".off"}
+
+#: Real-world height ranges (metres) per category, used to sample a physically plausible scale.
+CATEGORY_HEIGHT_RANGE_M: dict[str, tuple[float, float]] = {
+    "traffic_cone": (0.45, 0.92),
+    "barrel": (0.9, 1.1),
+    "barrier": (0.8, 1.1),
+    "concrete_block": (0.15, 0.25),
+    "fire_hydrant": (0.6, 0.9),
+    "car": (1.35, 1.9),
+    "parking_block": (0.1, 0.2),
+    "cow": (1.2, 1.6),
+}
+
+#: Default asset per category in the shared data folder (relative to ``data_root()``).
+DEFAULT_ASSETS: dict[str, list[str]] = {
+    "traffic_cone": ["meshes/gazebo_models/construction_cone"],
+    "barrel": ["meshes/gazebo_models/construction_barrel"],
+    "barrier": ["meshes/gazebo_models/jersey_barrier"],
+    "concrete_block": ["meshes/gazebo_models/cinder_block"],
+    "fire_hydrant": ["meshes/gazebo_models/fire_hydrant"],
+    "car": ["meshes/gazebo_models/hatchback", "meshes/gazebo_models/suv"],
+    "parking_block": ["meshes/gazebo_models/drc_practice_yellow_parking_block"],
+}
+
+
+class AssetError(ValueError):
+    """A mesh could not be loaded or is unusable (reason in the message)."""
+
+
+#: Plausible heights (metres) of categories that have no sampling range in :data:`CATEGORY_HEIGHT_RANGE_M`.
+PLAUSIBLE_HEIGHT_M = {
+    "person": (1.0, 2.1),
+    "pedestrian": (1.0, 2.1),
+    "child": (0.7, 1.6),
+    "bicycle": (0.8, 1.3),
+    "motorcycle": (0.9, 1.6),
+    "truck": (2.5, 4.5),
+    "bus": (2.7, 4.3),
+    "dog": (0.3, 0.9),
+    "stroller": (0.8, 1.2),
+    "traffic_light": (0.6, 6.0),
+    "sign": (0.3, 3.5),
+}
+
+
+def plausible_scale(height_m: float, category: str) -> tuple[float, str | None]:
+    """A mesh ``height_m`` tall for ``category`` (units unknown): (scale to apply, warning or None). Metres when the
+    height is in the category's plausible range (3x margin); else the unit (cm, mm, in, dm, km) whose height lands
+    closest to the middle of the range; none: InputError."""
+    if not math.isfinite(height_m) or height_m <= 0:
+        raise InputError(f"mesh for {category!r} has height {height_m}")
+    lo, hi = CATEGORY_HEIGHT_RANGE_M.get(category) or PLAUSIBLE_HEIGHT_M.get(category) or (0.05, 30.0)
+    mid, lo, hi = math.sqrt(lo * hi), lo / 3, hi * 3
+    if lo <= height_m <= hi:
+        return 1.0, None
+    fits = [
+        (abs(math.log(height_m * s / mid)), unit, s)
+        for unit, s in (
+            ("centimetres", 0.01),
+            ("millimetres", 0.001),
+            ("inches", 0.0254),
+            ("decimetres", 0.1),
+            ("kilometres", 1e3),
+        )
+        if lo <= height_m * s <= hi
+    ]
+    if not fits:
+        raise InputError(
+            f"mesh for {category!r} is {height_m:g} units tall; no unit (m, cm, mm, in, dm, km) gives a "
+            f"height in [{lo:.3g}, {hi:.3g}] m (give its scale explicitly)"
+        )
+    _, unit, s = min(fits)
+    return s, (
+        f"mesh for {category!r} is {height_m:g} units tall: implausible in metres; guessed {unit}, "
+        f"rescaled by {s:g} to {height_m * s:.3g} m"
+    )
+
+
+class _ScaledMeshes(Sequence):
+    """The meshes of :meth:`Asset.scaled`, made on first read: new vertices, shared faces, the given normals (a
+    uniform scale keeps unit normals: no recompute at a seam) and a shallow copy of the visual (the texture is not
+    copied). The fast path never reads them (it draws and shadows the root's meshes times the scale), so a sample
+    does not pay for building them (~0.25 ms per call). Pickles as the tuple of meshes."""
+
+    __slots__ = ("_base", "_factor", "_built")
+
+    def __init__(self, base, factor: float):
+        self._base, self._factor, self._built = base, factor, None
+
+    def _meshes(self) -> tuple:
+        import trimesh
+
+        if self._built is None:
+            self._built = tuple(
+                trimesh.Trimesh(
+                    vertices=np.asarray(m.vertices) * self._factor,
+                    faces=m.faces,
+                    vertex_normals=m.vertex_normals,
+                    visual=copy.copy(m.visual),
+                    process=False,
+                )
+                for m in self._base
+            )
+        return self._built
+
+    def __len__(self) -> int:
+        return len(self._base)
+
+    def __getitem__(self, i):
+        return self._meshes()[i]
+
+    def __iter__(self):
+        return iter(self._meshes())
+
+    def __reduce__(self):
+        return (tuple, (self._meshes(),))
+
+
+@dataclass(frozen=True, eq=False)
+class Asset:
+    """A renderable object in the canonical frame (metres, z up, on z = 0).
+
+    ``meshes`` keeps one trimesh per material so textures survive (no atlas packing).
+    """
+
+    name: str
+    category: str
+    meshes: tuple[trimesh.Trimesh, ...]
+    source: str
+    licence: str = ""
+    procedural: bool = False
+    meta: dict = field(default_factory=dict)
+    # Provenance for the renderer: an asset made by ``scaled`` is ``render_scale`` x its unscaled ``render_root``, so
+    # the renderer draws the root's cached GPU mesh through a scale matrix instead of uploading a copy per call.
+    render_root: "Asset | None" = field(default=None, repr=False, compare=False)
+    render_scale: float = field(default=1.0, repr=False, compare=False)
+
+    @property
+    def bounds_m(self) -> np.ndarray:
+        """(2, 3) min/max corners in the object frame (computed once per asset: an asset's meshes are not changed
+        after it is made; trimesh re-hashes the vertices at each ``bounds``, ~0.2 ms per call)."""
+        b = self.__dict__.get("_bounds_m")
+        if b is None:
+            bb = np.array([m.bounds for m in self.meshes])
+            b = np.stack([bb[:, 0].min(0), bb[:, 1].max(0)])
+            self.__dict__["_bounds_m"] = b  # a memo, not a field: the dataclass stays frozen and compares the same
+        return b.copy()
+
+    @property
+    def extents_m(self) -> np.ndarray:
+        b = self.bounds_m
+        return b[1] - b[0]
+
+    @property
+    def height_m(self) -> float:
+        return float(self.extents_m[2])
+
+    def corners_m(self) -> np.ndarray:
+        """(8, 3) corners of the axis-aligned bounding box in the object frame (read-only; made once per asset)."""
+        c = self.__dict__.get("_corners_m")
+        if c is None:
+            lo, hi = self.bounds_m
+            c = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            c.setflags(write=False)
+            self.__dict__["_corners_m"] = c
+        return c
+
+    def scaled(self, factor: float) -> "Asset":
+        """Uniformly scaled copy about the contact point (origin); stays on z = 0."""
+        if not np.isfinite(factor) or factor <= 0:
+            raise AssetError(f"scale factor must be positive and finite, got {factor}")
+        root = self.render_root if self.render_root is not None else self
+        out = Asset(
+            self.name,
+            self.category,
+            _ScaledMeshes(self.meshes, float(factor)),
+            self.source,
+            self.licence,
+            self.procedural,
+            {**self.meta, "scale": self.meta.get("scale", 1.0) * factor},
+            root,
+            self.render_scale * float(factor),
+        )
+        # Its bounds are this asset's times the (positive) factor, exactly: min/max commute with the product.
+        out.__dict__["_bounds_m"] = self.bounds_m * float(factor)
+        return out
+
+    @property
+    def triangle_count(self) -> int:
+        return int(sum(len(m.faces) for m in self.meshes))
+
+
+def axis_rotation_to_z_up(up_axis: str) -> np.ndarray:
+    import trimesh
+
+    up_axis = up_axis.upper().replace("_UP", "")
+    if up_axis == "Z":
+        return np.eye(4)
+    if up_axis == "Y":  # y-up -> z-up: rotate +90 deg about x (y -> z, z -> -y)
+        return trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])
+    if up_axis == "X":
+        return trimesh.transformations.rotation_matrix(-np.pi / 2, [0, 1, 0])
+    raise AssetError(f"unknown up axis {up_axis!r}")
+
+
+def read_collada_unit(path: Path) -> tuple[float, str]:
+    """(metres per unit, up axis) declared in a COLLADA file's <asset> block (defaults 1.0, 'Y' per the spec)."""
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        raise AssetError(f"{path}: not valid COLLADA XML ({e})") from e
+    ns = re.match(r"\{.*\}", root.tag)
+    ns = ns.group(0) if ns else ""
+    meter, up = 1.0, "Y_UP"
+    asset = root.find(f"{ns}asset")
+    if asset is not None:
+        unit = asset.find(f"{ns}unit")
+        if unit is not None and unit.get("meter"):
+            meter = float(unit.get("meter"))
+        up_el = asset.find(f"{ns}up_axis")
+        if up_el is not None and up_el.text:
+            up = up_el.text.strip()
+    return meter, up
+
+
+def scene_parts(loaded, path: Path) -> list[trimesh.Trimesh]:
+    """Every triangle mesh of a loaded file, its scene-graph transform applied, materials kept (no checks)."""
+    import trimesh
+
+    if isinstance(loaded, trimesh.Trimesh):
+        return [loaded]
+    if not isinstance(loaded, trimesh.Scene):
+        raise AssetError(f"{path}: unsupported geometry type {type(loaded).__name__} (no triangles)")
+    parts = []
+    for node in loaded.graph.nodes_geometry:
+        transform, geom_name = loaded.graph[node]
+        g = loaded.geometry[geom_name]
+        if isinstance(g, trimesh.Trimesh):
+            g = g.copy()
+            g.apply_transform(transform)
+            parts.append(g)
+    return parts
+
+
+def _flatten(loaded, path: Path) -> list[trimesh.Trimesh]:
+    meshes = [m for m in scene_parts(loaded, path) if len(m.faces) > 0]
+    if not meshes:
+        raise AssetError(f"{path}: contains no triangles")
+    for m in meshes:
+        if not np.all(np.isfinite(m.vertices)):
+            raise AssetError(f"{path}: non-finite vertex coordinates")
+    return meshes
+
+
+def load_mesh_file(
+    path: str | Path, *, scale: float | None = None, up_axis: str | None = None
+) -> list[trimesh.Trimesh]:
+    """Load a mesh file into z-up metres (not yet recentred). Units from the file unless ``scale`` is given."""
+    import trimesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise AssetError(f"mesh file not found: {path}")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise AssetError(f"{path}: unsupported mesh format {path.suffix!r} (supported: {sorted(MESH_SUFFIXES)})")
+    file_scale, file_up = 1.0, "Y_UP" if path.suffix.lower() in {".obj", ".gltf", ".glb"} else "Z_UP"
+    if path.suffix.lower() == ".dae":
+        file_scale, file_up = read_collada_unit(path)
+    try:
+        loaded = trimesh.load(str(path), process=False)  # no maintain_order: it drops OBJ UVs when vt != v counts
+    except Exception as e:  # trimesh raises many types for broken files
+        raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
+    meshes = _flatten(loaded, path)
+    for m in meshes:
+        _renderable_textures(m.visual, path)
+    s = file_scale * (1.0 if scale is None else scale)
+    R = axis_rotation_to_z_up(up_axis or file_up)
+    for m in meshes:
+        m.apply_transform(R)
+        m.apply_scale(s)
+    return meshes
+
+
+#: The texture slots of trimesh's materials (SimpleMaterial, PBRMaterial) that the renderer uploads.
+_TEXTURE_SLOTS = (
+    "image",
+    "baseColorTexture",
+    "metallicRoughnessTexture",
+    "normalTexture",
+    "occlusionTexture",
+    "emissiveTexture",
+)
+
+
+def _renderable_textures(visual, path: Path) -> None:
+    """Convert the material's textures in place to 8-bit RGB or RGBA, the layouts the renderer takes for every
+    slot: grey+alpha (``LA``, e.g. MetaDrive's ``vehicle/130``), palette, greyscale, CMYK and 16-bit/float images
+    would otherwise be accepted here and fail at every render. An image that cannot be converted is an
+    :class:`AssetError` naming the file."""
+    material = getattr(visual, "material", None)
+    if material is None:
+        return
+    from PIL import Image
+
+    for slot in _TEXTURE_SLOTS:
+        img = getattr(material, slot, None)
+        if not isinstance(img, Image.Image) or img.mode in ("RGB", "RGBA"):
+            continue
+        try:
+            if img.mode in ("I", "I;16", "I;16B", "I;16L", "F"):  # high bit depth: scaled to its own 8-bit range
+                a = np.asarray(img, dtype=np.float64)
+                lo, hi = (float(a.min()), float(a.max())) if a.size else (0.0, 1.0)
+                a = np.round(255.0 * (a - lo) / (hi - lo)) if hi > lo else np.zeros_like(a)
+                img = Image.fromarray(a.astype(np.uint8)).convert("RGB")
+            else:
+                alpha = img.mode in ("LA", "La", "PA", "RGBa") or "transparency" in img.info
+                img = img.convert("RGBA" if alpha else "RGB")
+        except (OSError, ValueError) as e:
+            raise AssetError(
+                f"{path}: texture {slot!r} of mode {img.mode!r} cannot be converted to RGB(A) ({e})"
+            ) from e
+        setattr(material, slot, img)
+
+
+#: Crease angle (deg) of the vertex normals made at asset load (:func:`crease_normals`): faces meeting at a vertex
+#: whose normals differ by less than this are shaded as one smooth surface, sharper edges stay sharp. A 24-sided cone's
+#: neighbouring sides differ by 15 deg (smooth), its base rim by ~70-90 deg (sharp); a cube's faces by 90 deg (flat).
+CREASE_ANGLE_DEG = 40.0
+
+#: Above this many (corner, corner) pairs at shared positions (the sum over positions of corners^2) the crease pass
+#: is skipped and the file's (or trimesh's) normals are kept, with a warning (a pathological file: thousands of faces
+#: at one point).
+_MAX_CREASE_PAIRS = 50_000_000
+
+
+def crease_normals(mesh: trimesh.Trimesh, crease_deg: float = CREASE_ANGLE_DEG) -> trimesh.Trimesh:
+    """A copy of ``mesh`` with angle-thresholded smooth vertex normals (same faces, in the same order).
+
+    Each face corner gets the corner-angle-weighted mean of the normals of every face touching the same *position*
+    (vertices split by UV or normal seams count as one) whose normal is within ``crease_deg`` of this face's normal;
+    a vertex whose corners end up with different normals (a crease) is split into one vertex per normal, carrying
+    its UV / colour. So a tessellated cone or cylinder is smooth along its side and sharp at its rims, a cube keeps
+    flat faces. Angle weighting makes the normal independent of how a face fan is triangulated (Thuermer &
+    Wuethrich 1998). trimesh's ``smooth_shade`` groups whole faces into patches through the face adjacency of merged
+    vertices, which UV seams break (the cone's side would stay faceted at every texture seam), hence this per-corner
+    version. Degenerate faces get their vertices' previous normals.
+    """
+    import trimesh
+
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if len(f) == 0:
+        return mesh.copy(include_cache=True)
+    tri = v[f]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(cross, axis=1)
+    diag = float(np.linalg.norm(np.ptp(v, axis=0)))
+    valid = length > 1e-14 * max(diag, 1e-30) ** 2  # eps: zero-area faces have no normal
+    fn = np.where(valid[:, None], cross / np.maximum(length, 1e-300)[:, None], 0.0)
+    weight = np.nan_to_num(trimesh.triangles.angles(tri)) * valid[:, None]  # (F, 3) corner angles
+    # one id per position (vertices within 1e-7 of the bounding-box diagonal are the same point)
+    q = np.round(v / max(diag * 1e-7, 1e-30)).astype(np.int64)
+    _, pos = np.unique(q, axis=0, return_inverse=True)
+    corner_pos = pos.reshape(-1)[f].reshape(-1)  # (3F,)
+    corner_face = np.repeat(np.arange(len(f)), 3)
+    order = np.argsort(corner_pos, kind="stable")
+    cp = corner_pos[order]
+    starts = np.r_[0, np.flatnonzero(np.diff(cp)) + 1]
+    counts = np.diff(np.r_[starts, len(cp)])
+    if int(np.sum(counts.astype(np.int64) ** 2)) > _MAX_CREASE_PAIRS:
+        log.warning("crease normals skipped: %d corners at one position (file normals kept)", int(counts.max()))
+        return mesh.copy(include_cache=True)
+    group = np.repeat(np.arange(len(starts)), counts)  # group of each sorted corner
+    c = counts[group]
+    i = np.repeat(np.arange(len(cp)), c)  # pairs (i, j) within a group
+    j = starts[group][i] + (np.arange(len(i)) - np.repeat(np.cumsum(c) - c, c))
+    fi, fj = corner_face[order][i], corner_face[order][j]
+    keep = np.einsum("ij,ij->i", fn[fi], fn[fj]) >= np.cos(np.radians(crease_deg))
+    contrib = fn[fj[keep]] * weight.reshape(-1)[order][j[keep]][:, None]
+    target = order[i[keep]]
+    n = np.stack([np.bincount(target, contrib[:, k], minlength=3 * len(f)) for k in range(3)], axis=1)
+    n_len = np.linalg.norm(n, axis=1)
+    old = np.asarray(mesh.vertex_normals, dtype=np.float64)[f.reshape(-1)]
+    n = np.where(n_len[:, None] > 1e-12, n / np.maximum(n_len, 1e-300)[:, None], old)  # eps: degenerate faces
+    # one vertex per (original vertex, normal): corners of one vertex with the same face set sum in the same order,
+    # so their normals are bitwise equal; the rounding only merges what differs by float noise
+    key = np.c_[f.reshape(-1), np.round(n * 1e6).astype(np.int64)]
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    src = f.reshape(-1)[first]
+    visual = None
+    kind = getattr(mesh.visual, "kind", None)
+    if isinstance(mesh.visual, trimesh.visual.TextureVisuals):
+        uv = getattr(mesh.visual, "uv", None)
+        uv = None if uv is None or len(uv) != len(v) else np.asarray(uv)[src]
+        visual = trimesh.visual.TextureVisuals(uv=uv, material=mesh.visual.material)
+    elif kind == "vertex":
+        visual = trimesh.visual.ColorVisuals(vertex_colors=np.asarray(mesh.visual.vertex_colors)[src])
+    elif kind == "face":
+        visual = trimesh.visual.ColorVisuals(face_colors=np.asarray(mesh.visual.face_colors))
+    out = trimesh.Trimesh(
+        v[src],
+        inverse.reshape(-1, 3),
+        vertex_normals=n[first],
+        visual=visual,
+        process=False,
+        metadata=copy.deepcopy(mesh.metadata),
+    )
+    return out
+
+
+def normalise_meshes(
+    meshes: list[trimesh.Trimesh], crease_deg: float | None = CREASE_ANGLE_DEG
+) -> tuple[trimesh.Trimesh, ...]:
+    """Centre x/y on the bounding box and put the lowest point on z = 0; vertex normals smoothed up to the crease
+    angle ``crease_deg`` (:func:`crease_normals`; None: the meshes' normals are kept, e.g. analytic ones)."""
+    b = np.array([m.bounds for m in meshes])
+    lo, hi = b[:, 0].min(0), b[:, 1].max(0)
+    ext = hi - lo
+    if not np.all(np.isfinite(ext)) or ext.max() <= 0:
+        raise AssetError("mesh has degenerate (zero-size) bounds")
+    shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    out = []
+    for m in meshes:
+        c = crease_normals(m, crease_deg) if crease_deg is not None else m.copy(include_cache=True)
+        c.apply_translation(shift)  # keeps the vertex normals (a plain copy would recompute them)
+        out.append(c)
+    return tuple(out)
+
+
+def gazebo_visual_mesh(model_dir: Path) -> tuple[Path, float]:
+    sdf = model_dir / "model.sdf"
+    root = ET.parse(sdf).getroot()
+    mesh_el = root.find(".//visual//mesh") or root.find(".//mesh")
+    if mesh_el is None or mesh_el.find("uri") is None:
+        raise AssetError(f"{sdf}: no <mesh><uri> in a visual")
+    uri = mesh_el.find("uri").text.strip()
+    rel = uri.split("model://", 1)[-1].split("/", 1)[-1]
+    scale_el = mesh_el.find("scale")
+    scale = 1.0
+    if scale_el is not None and scale_el.text:
+        s = [float(v) for v in scale_el.text.split()]
+        if len(set(s)) != 1:
+            log.warning("%s: non-uniform scale %s, using the mean", sdf, s)
+        scale = float(np.mean(s))
+    return model_dir / rel, scale
+
+
+def load_asset(
+    path: str | Path,
+    *,
+    category: str = "object",
+    name: str | None = None,
+    scale: float | None = None,
+    up_axis: str | None = None,
+    licence: str = "",
+) -> Asset:
+    """Load a mesh file or a gazebo model folder (``model.sdf``) as a canonical :class:`Asset`."""
+    path = Path(path)
+    if path.is_dir():
+        if not (path / "model.sdf").is_file():
+            raise AssetError(f"{path}: a folder asset needs a model.sdf (gazebo layout)")
+        mesh_path, sdf_scale = gazebo_visual_mesh(path)
+        # gazebo meshes are in the model's z-up frame; the COLLADA unit still applies.
+        meshes = load_mesh_file(mesh_path, scale=sdf_scale * (scale or 1.0), up_axis=up_axis or "Z_UP")
+        if not licence and (path.parent / "LICENSE").exists():
+            licence = "CC-BY-3.0 (gazebo_models)"
+    else:
+        meshes = load_mesh_file(path, scale=scale, up_axis=up_axis)
+    return Asset(name or path.stem, category, normalise_meshes(meshes), str(path), licence)
+
+
+_CACHE: dict[tuple, Asset] = {}
+
+
+def default_asset(category: str, index: int = 0) -> Asset:
+    """The default asset of a category from the shared data folder (cached per process)."""
+    if category not in DEFAULT_ASSETS:
+        raise KeyError(f"no default asset for category {category!r}; known: {sorted(DEFAULT_ASSETS)}")
+    rel = DEFAULT_ASSETS[category][index % len(DEFAULT_ASSETS[category])]
+    key = (category, rel)
+    if key not in _CACHE:
+        _CACHE[key] = load_asset(data_root() / rel, category=category, name=Path(rel).name)
+    return _CACHE[key]
+
+
+class PathAssets:
+    """A small asset source from user paths: ``{"stroller": ["my/stroller.obj", ...]}``.
+
+    ``scales``/``up_axes`` optionally give the unit scale and up axis per path for files that do not declare them.
+    Every file is loaded once at construction, so a file that cannot be read, converted or sized for its category is
+    an :class:`AssetError` naming it here rather than a skip at every later call; a copy sent to another process
+    reloads its files on first use.
+    """
+
+    def __init__(
+        self, paths: dict[str, list[str]], scales: dict[str, float] | None = None, up_axes: dict[str, str] | None = None
+    ):
+        if not paths:
+            raise ValueError("PathAssets needs at least one category")
+        self.paths = {c: [str(p) for p in ps] for c, ps in paths.items()}
+        for c, ps in self.paths.items():
+            if not ps:
+                raise ValueError(f"PathAssets: category {c!r} has no paths")
+        missing = [p for ps in self.paths.values() for p in ps if not Path(p).exists()]
+        if missing:
+            raise AssetError(f"PathAssets: mesh paths do not exist: {missing}")
+        self.scales = scales or {}
+        self.up_axes = up_axes or {}
+        self._loaded: dict[str, Asset] = {}
+        for c, ps in self.paths.items():
+            for p in ps:
+                try:
+                    self._load(c, p)
+                except AssetError as e:
+                    raise AssetError(f"PathAssets: category {c!r}: {e}") from e
+
+    def categories(self) -> list[str]:
+        return sorted(self.paths)
+
+    def _load(self, category: str, p: str) -> Asset:
+        if p not in self._loaded:
+            asset = load_asset(p, category=category, scale=self.scales.get(p), up_axis=self.up_axes.get(p))
+            if p not in self.scales:  # units unknown: an implausible height is rescaled with a warning, or refused
+                s, warning = plausible_scale(asset.height_m, category)
+                if warning:
+                    log.warning("%s: %s", p, warning)
+                    asset = load_asset(p, category=category, scale=s, up_axis=self.up_axes.get(p))
+                    asset.meta["unit_guess"] = warning
+            self._loaded[p] = asset
+        return self._loaded[p]
+
+    def sample(self, category: str, rng: np.random.Generator) -> Asset:
+        if category not in self.paths:
+            return default_asset(category)
+        return self._load(category, self.paths[category][int(rng.integers(len(self.paths[category])))])
+
+    def __getstate__(self):  # pickles without loaded meshes (reloaded lazily in each worker)
+        return {"paths": self.paths, "scales": self.scales, "up_axes": self.up_axes, "_loaded": {}}

@@ -1,0 +1,400 @@
+"""Procedural generators for rare road debris that has no good mesh, labelled ``procedural=True``.
+
+- ``stone``: a noise-displaced, flattened icosphere, box-projected UVs, textured with a real photo texture
+  (the rock textures of the furniture catalogs when available).
+- ``concrete_block``: a box with chipped (noise-displaced) corners, textured with a real concrete texture.
+- ``crumpled_sheet``: a folded, crumpled thin sheet (plastic/cardboard/metal), double sided.
+- ``traffic_cone``: a seeded family of cones (and delineator posts): colour, proportions, 0-3 reflective bands,
+  square or round base, dirt; a smooth surface of revolution with a drawn texture, every draw recorded in ``meta``.
+Each generator draws its size from the category's real range and all randomness from the passed generator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import trimesh
+from PIL import Image
+
+from aias_augment.assets.asset import Asset, normalise_meshes
+
+__all__ = [
+    "GENERATORS",
+    "CATEGORY_SPECS",
+    "ProceduralSpec",
+    "generate",
+    "procedural_asset",
+    "make_stone",
+    "make_concrete_block",
+    "make_crumpled_sheet",
+    "make_traffic_cone",
+]
+
+
+@dataclass(frozen=True)
+class ProceduralSpec:
+    generator: str  # stone | concrete_block | crumpled_sheet | traffic_cone
+    category: str
+    height_range_m: tuple[float, float]
+
+
+def _box_uv(vertices: np.ndarray, normals: np.ndarray, tile_m: float) -> np.ndarray:
+    """Box projection: each vertex takes the two coordinates orthogonal to its dominant normal axis (in tiles)."""
+    ax = np.argmax(np.abs(normals), axis=1)
+    u = np.where(ax == 0, vertices[:, 1], vertices[:, 0])
+    v = np.where(ax == 2, vertices[:, 1], vertices[:, 2])
+    return np.c_[u, v] / tile_m
+
+
+def _textured(mesh: trimesh.Trimesh, texture: Image.Image | None, colour_rgba, tile_m: float) -> trimesh.Trimesh:
+    if texture is None:
+        mat = trimesh.visual.material.SimpleMaterial(diffuse=np.asarray(colour_rgba, np.uint8))
+        mesh.visual = trimesh.visual.TextureVisuals(material=mat)
+        return mesh
+    # unshare vertices so that each face gets consistent box-projected UVs
+    m = trimesh.Trimesh(
+        mesh.vertices[mesh.faces].reshape(-1, 3), np.arange(len(mesh.faces) * 3).reshape(-1, 3), process=False
+    )
+    fn = np.repeat(mesh.face_normals, 3, axis=0)
+    uv = _box_uv(m.vertices, fn, tile_m)
+    mat = trimesh.visual.material.SimpleMaterial(image=texture, diffuse=np.array([255, 255, 255, 255], np.uint8))
+    return trimesh.Trimesh(
+        m.vertices, m.faces, vertex_normals=fn, visual=trimesh.visual.TextureVisuals(uv=uv, material=mat), process=False
+    )
+
+
+def _smooth_noise(dirs: np.ndarray, rng: np.random.Generator, n_waves: int, freq: float) -> np.ndarray:
+    """Sum of random plane waves over unit directions: a cheap smooth noise on the sphere, zero mean, in ~[-1, 1]."""
+    k = rng.normal(size=(n_waves, 3)) * freq
+    ph = rng.uniform(0, 2 * np.pi, n_waves)
+    amp = 1.0 / (1.0 + np.linalg.norm(k, axis=1))
+    out = (np.sin(dirs @ k.T + ph) * amp).sum(1)
+    return out / max(np.abs(out).max(), 1e-9)  # eps: guard an all-zero noise
+
+
+def make_stone(rng: np.random.Generator, height_m: float, texture: Image.Image | None = None) -> trimesh.Trimesh:
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    dirs = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
+    r = 1.0 + 0.25 * _smooth_noise(dirs, rng, 12, 2.5) + 0.06 * _smooth_noise(dirs, rng, 24, 7.0)
+    v = dirs * r[:, None] * rng.uniform([0.8, 0.6, 0.45], [1.3, 1.0, 0.7])  # flatter than wide, like a resting stone
+    v[:, 2] = np.maximum(v[:, 2], v[:, 2].min() * 0.6)  # flattened contact face
+    m = trimesh.Trimesh(v, sphere.faces, process=False)
+    m.apply_scale(height_m / np.ptp(m.vertices[:, 2]))
+    return _textured(m, texture, (118, 112, 104, 255), tile_m=max(height_m, 0.05))
+
+
+def make_concrete_block(
+    rng: np.random.Generator, height_m: float, texture: Image.Image | None = None
+) -> trimesh.Trimesh:
+    ext = np.array([rng.uniform(1.5, 2.5), rng.uniform(0.8, 1.3), 1.0]) * height_m
+    box = trimesh.creation.box(extents=ext).subdivide().subdivide()
+    v = box.vertices.copy()
+    rel = np.abs(v) / (ext / 2)
+    corner = np.clip((rel.min(1) - 0.5) * 2, 0, 1)  # 1 on edges/corners, 0 towards face centres
+    v -= np.sign(v) * corner[:, None] * rng.uniform(0, 0.12, size=v.shape) * height_m  # chipped edges
+    m = trimesh.Trimesh(v, box.faces, process=False)
+    return _textured(m, texture, (150, 148, 142, 255), tile_m=0.4)
+
+
+def make_crumpled_sheet(
+    rng: np.random.Generator, height_m: float, texture: Image.Image | None = None, colour_rgba=None
+) -> trimesh.Trimesh:
+    n = 24
+    size = rng.uniform(0.4, 1.0)
+    xs, ys = np.meshgrid(np.linspace(-size / 2, size / 2, n), np.linspace(-size / 2, size / 2, n))
+    pts = np.c_[xs.ravel(), ys.ravel()]
+    z = np.zeros(len(pts))
+    for _ in range(6):  # folds: ridges along random lines
+        d = rng.normal(size=2)
+        d /= np.linalg.norm(d)
+        z += rng.uniform(0.3, 1.0) * np.abs(np.sin((pts @ d) * rng.uniform(4, 12) + rng.uniform(0, np.pi)))
+    z += 0.2 * rng.normal(size=len(pts))  # crumples
+    z = (z - z.min()) / max(np.ptp(z), 1e-9) * height_m  # eps: a flat draw stays flat
+    faces = []
+    for i in range(n - 1):
+        for j in range(n - 1):
+            a, b, c, d2 = i * n + j, i * n + j + 1, (i + 1) * n + j, (i + 1) * n + j + 1
+            faces += [[a, b, d2], [a, d2, c]]
+    faces = np.array(faces)
+    top = trimesh.Trimesh(np.c_[pts, z], faces, process=False)
+    both = trimesh.Trimesh(np.r_[top.vertices, top.vertices], np.r_[faces, faces[:, ::-1] + len(pts)], process=False)
+    if colour_rgba is None:
+        colour_rgba = [(200, 200, 195, 255), (60, 90, 160, 255), (170, 130, 85, 255), (40, 40, 40, 255)][
+            int(rng.integers(4))
+        ]
+    return _textured(both, texture, colour_rgba, tile_m=size)
+
+
+# --- traffic cones: a seeded family (cones and delineator posts) ------------------------------------------------
+
+#: Body colours (sRGB) and their probabilities: fluorescent orange dominates real cones.
+CONE_COLOURS: dict[str, tuple[tuple[int, int, int], float]] = {
+    "orange": ((255, 72, 18), 0.55),  # TraCon's real cone bodies: median hue ~8 deg
+    "red_orange": ((246, 44, 24), 0.27),
+    "red": ((210, 28, 34), 0.06),
+    "yellow": ((252, 196, 8), 0.07),
+    "lime": ((190, 226, 24), 0.05),
+}
+CONE_TEXTURE_SIZE = (256, 512)  # (width, height) of the drawn texture image
+_V_BASE = (0.0, 0.1)  # texture rows (v, 0 = image bottom) of the base's solid colour
+_V_BODY = (0.14, 1.0)  # texture rows of the body: v linear in height from the base top to the tip
+
+
+def _wrapped_blur(x: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian blur, periodic along x (columns wrap around the surface of revolution's seam)."""
+    pad = int(3 * sigma) + 1
+    y = cv2.GaussianBlur(np.pad(x, ((0, 0), (pad, pad)), mode="wrap"), (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    return y[:, pad:-pad]
+
+
+def _choice(rng: np.random.Generator, table: dict):
+    keys = list(table)
+    p = np.array([table[k][1] if isinstance(table[k], tuple) else table[k] for k in keys], float)
+    return keys[int(rng.choice(len(keys), p=p / p.sum()))]
+
+
+def _superellipse(theta: np.ndarray, n: float) -> np.ndarray:
+    """Radius factor of the superellipse |x|^n + |y|^n = 1 along directions theta (n = 2: circle, large: square)."""
+    c, s = np.abs(np.cos(theta)), np.abs(np.sin(theta))
+    return (c**n + s**n) ** (-1.0 / n)
+
+
+def _loft(
+    sections: list[list[tuple[float, float, float, float]]], segments: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A closed surface of revolution from smooth ``sections``, each a list of rings (z, r, superellipse n, v)
+    going up; consecutive sections share their end/start ring position but not vertices, so the normals break
+    there (creases). A ring with r == 0 is a pole (one vertex). Returns vertices, faces (outward, CCW), vertex
+    normals (smooth within a section, seamless across the UV seam) and UVs (u = angle, v as given)."""
+    theta = np.linspace(0.0, 2 * np.pi, segments + 1)
+    verts, faces, normals, uvs = [], [], [], []
+    base = 0
+    for sec in sections:
+        ids, pos, uv = [], [], []
+        for z, r, n, v in sec:
+            if r <= 0:
+                ids.append([len(pos)])
+                pos.append([0.0, 0.0, z])
+                uv.append([0.5, v])
+            else:
+                rr = r * _superellipse(theta[:-1], n)
+                ring = np.c_[rr * np.cos(theta[:-1]), rr * np.sin(theta[:-1]), np.full(segments, z)]
+                ids.append(list(range(len(pos), len(pos) + segments + 1)))
+                pos += ring.tolist() + [ring[0].tolist()]  # the seam column repeats column 0
+                uv += np.c_[theta / (2 * np.pi), np.full(segments + 1, v)].tolist()
+        pos = np.array(pos)
+        sf = []
+        for a, b in zip(ids[:-1], ids[1:]):
+            if len(a) == 1 and len(b) == 1:
+                continue
+            if len(a) == 1:  # bottom pole: fan, outward = down
+                sf += [[a[0], b[j + 1], b[j]] for j in range(segments)]
+            elif len(b) == 1:  # top pole
+                sf += [[a[j], a[j + 1], b[0]] for j in range(segments)]
+            else:
+                for j in range(segments):
+                    sf += [[a[j], a[j + 1], b[j + 1]], [a[j], b[j + 1], b[j]]]
+        sf = np.array(sf)
+        # smooth normals on the geometric vertices (seam column merged into column 0), area weighted
+        geo = np.arange(len(pos))
+        for ring in ids:
+            if len(ring) > 1:
+                geo[ring[-1]] = ring[0]
+        tri = pos[sf]
+        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 x area
+        acc = np.zeros_like(pos)
+        for k in range(3):
+            np.add.at(acc, geo[sf[:, k]], fn)
+        acc = acc[geo]
+        nrm = acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-12)  # eps: isolated vertex
+        verts.append(pos)
+        faces.append(sf + base)
+        normals.append(nrm)
+        uvs.append(np.array(uv))
+        base += len(pos)
+    return np.concatenate(verts), np.concatenate(faces), np.concatenate(normals), np.concatenate(uvs)
+
+
+def _cone_params(rng: np.random.Generator, h: float) -> dict:
+    """Every shape/colour/wear parameter of one cone, drawn from ``rng`` (lengths in metres, z from the ground)."""
+    shape = "delineator" if h >= 0.7 and rng.random() < 0.15 else "cone"
+    colour_name = _choice(rng, CONE_COLOURS)
+    rgb = np.array(CONE_COLOURS[colour_name][0], float) * rng.uniform(0.92, 1.0) + rng.normal(0, 6, 3)
+    base_shape = "square" if rng.random() < 0.7 else "round"
+    base_colour = _choice(rng, {"black": 0.45, "body": 0.45, "grey": 0.1})
+    if shape == "cone":
+        base_half = h * rng.uniform(0.24, 0.33)
+        base_h = h * rng.uniform(0.03, 0.06)
+        r_bottom = min(h * rng.uniform(0.15, 0.21), base_half * 0.9)
+        r_top = h * rng.uniform(0.025, 0.05)
+        n_bands = int(rng.choice(4, p=[0.15, 0.37, 0.38, 0.10]))
+        lo, hi = 0.18, 0.88  # bands lie on this part of the body (fraction of the body height)
+        w_range = {1: (0.14, 0.28), 2: (0.09, 0.2), 3: (0.07, 0.12)}.get(n_bands, (0, 0))
+    else:
+        base_half = h * rng.uniform(0.18, 0.25)
+        base_h = h * rng.uniform(0.05, 0.08)
+        r_bottom = h * rng.uniform(0.04, 0.06)
+        r_top = r_bottom * rng.uniform(0.75, 0.95)
+        n_bands = int(rng.choice([1, 2, 3], p=[0.2, 0.5, 0.3]))
+        lo, hi = 0.45, 0.95
+        w_range = (0.05, 0.1)
+        base_colour = "black" if rng.random() < 0.8 else base_colour
+    body_h = h - base_h
+    bands = []
+    if n_bands:
+        slot = (hi - lo) / n_bands
+        for i in range(n_bands):  # one band per slot (non-overlapping), jittered inside it
+            w = min(rng.uniform(*w_range), slot * 0.8)
+            c = lo + slot * (i + 0.5) + rng.uniform(-1, 1) * (slot - w) * 0.3
+            bands.append((base_h + body_h * (c - w / 2), base_h + body_h * (c + w / 2)))
+    band_colour = "white" if rng.random() < 0.75 else "silver"
+    return {
+        "shape": shape,
+        "colour": colour_name,
+        "colour_rgb": [float(x) for x in np.clip(rgb, 0, 255)],
+        "base_shape": base_shape,
+        "base_colour": base_colour,
+        "base_half_width_m": float(base_half),
+        "base_height_m": float(base_h),
+        "body_bottom_radius_m": float(r_bottom),
+        "top_radius_m": float(r_top),
+        "band_colour": band_colour,
+        "bands_z_m": [[float(a), float(b)] for a, b in bands],
+        "dirt": float(rng.uniform(0.05, 0.45) if rng.random() < 0.35 else 0.0),  # most real cones are clean
+        "wear_seed": int(rng.integers(2**31 - 1)),
+    }
+
+
+def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image:
+    """The cone's texture image: base colour patch at the bottom rows, the body above it with v linear in height,
+    bands where ``p['bands_z_m']`` says, slight colour noise, dirt (darker, desaturated blotches, more near the
+    ground) and scuffs; ``texture`` (a photo), when given, modulates the grime."""
+    rng = np.random.default_rng(p["wear_seed"])
+    tw, th = CONE_TEXTURE_SIZE
+    v = 1.0 - (np.arange(th) + 0.5) / th  # row -> v (image row 0 is v = 1)
+    zb = p["base_height_m"]
+    z = zb + (v - _V_BODY[0]) / (_V_BODY[1] - _V_BODY[0]) * (h - zb)  # row -> height on the body
+    body = np.asarray(p["colour_rgb"], float) / 255.0
+    img = np.empty((th, tw, 3))
+    img[:] = body
+    band = np.zeros(th, bool)
+    for a, b in p["bands_z_m"]:
+        band |= (z >= a) & (z <= b)
+    band &= v >= _V_BODY[0]
+    white = np.array([0.96, 0.96, 0.95]) if p["band_colour"] == "white" else np.array([0.84, 0.85, 0.86])
+    img[band] = white
+    base_rgb = {"black": np.array([0.07, 0.07, 0.07]), "grey": np.array([0.22, 0.22, 0.23]), "body": body * 0.85}[
+        p["base_colour"]
+    ]
+    img[v < (_V_BASE[1] + _V_BODY[0]) / 2] = base_rgb
+    # slight colour noise: smooth low-frequency plus fine grain (retroreflective bands get a sparkle grain)
+    low = _wrapped_blur(rng.normal(0, 1, (th // 8, tw // 8)), 2.0)
+    low = cv2.resize(low / max(low.std(), 1e-9), (tw, th))  # eps: flat noise
+    grain = rng.normal(0, 1, (th, tw))
+    img *= (1 + 0.04 * low + 0.015 * grain)[..., None]
+    img[band] *= (1 + 0.03 * rng.normal(0, 1, (int(band.sum()), tw)))[..., None]
+    if p["dirt"] > 0:
+        blot = _wrapped_blur(rng.normal(0, 1, (th // 4, tw // 4)), 3.0)  # patchy, periodic around the cone
+        blot = cv2.resize(np.clip(blot / max(blot.std(), 1e-9) * 0.6 + 0.1, 0, 1), (tw, th))  # eps: flat noise
+        ground = np.clip(1.2 - (z - zb) / (0.5 * (h - zb)), 0.2, 1.0)[:, None]  # dirtier near the ground
+        if texture is not None:
+            photo = np.asarray(texture.convert("L").resize((tw, th)), float) / 255.0
+            blot = blot * (0.5 + photo)
+        d = np.clip(p["dirt"] * blot * ground, 0, 0.85)[..., None]
+        grime = np.array([0.28, 0.24, 0.2])  # brownish road dirt
+        grey = img.mean(-1, keepdims=True)
+        img = (img * (1 - 0.5 * d) + grey * 0.5 * d) * (1 - 0.45 * d) + grime * 0.15 * d  # desaturate, darken
+        for _ in range(int(p["dirt"] * 40)):  # scuffs: short dark horizontal streaks
+            r0, c0 = rng.integers(th), rng.integers(tw)
+            ln, wd = rng.integers(4, 30), rng.integers(1, 3)
+            img[r0 : r0 + wd, c0 : c0 + ln] *= rng.uniform(0.55, 0.85)
+    return Image.fromarray(np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8))
+
+
+def make_traffic_cone(
+    rng: np.random.Generator, height_m: float, texture: Image.Image | None = None, segments: int = 64
+) -> trimesh.Trimesh:
+    """One traffic cone (or, for tall draws, sometimes a slim delineator post) of total height ``height_m``: a
+    smooth surface of revolution on a square (rounded-corner) or round base, with a drawn texture. All parameters
+    come from ``rng`` and are stored in ``mesh.metadata['procedural_params']`` (band heights in metres above the
+    ground contact). ``texture``: an optional photo that modulates the dirt."""
+    h = float(height_m)
+    p = _cone_params(rng, h)
+    zb, a, r0, rt = p["base_height_m"], p["base_half_width_m"], p["body_bottom_radius_m"], p["top_radius_m"]
+    n_base = 8.0 if p["base_shape"] == "square" else 2.0
+    vb = _V_BASE[1] * 0.5  # base rows of the texture
+    body_v = lambda z: _V_BODY[0] + (z - zb) / (h - zb) * (_V_BODY[1] - _V_BODY[0])  # noqa: E731
+    edge = min(0.004 * h / 0.7, zb * 0.3)  # small bevel on the base's top edge
+    base = [
+        [(0.0, 0.0, n_base, vb), (0.0, a, n_base, vb)],  # bottom face
+        [(0.0, a, n_base, vb), (zb - edge, a, n_base, vb), (zb, a - edge, n_base, vb)],  # side, bevel
+        [(zb, a - edge, n_base, vb), (zb, r0 * 1.02, 2.0, vb)],
+    ]  # top face, out to the body
+    # body: a slight concave flare at the bottom (real cones widen into the base), then straight to the cap
+    cap_h = rt * (1.0 if p["shape"] == "cone" else 0.9)
+    z_cap = h - cap_h
+    flare_h = min(0.06 * (h - zb), 0.3 * (z_cap - zb))
+    zs = [zb, zb + 0.25 * flare_h, zb + flare_h] + list(np.linspace(zb + flare_h, z_cap, 12)[1:])
+    rs = [r0 * 1.02, r0 * 1.0 + 0.0, r0 * 0.985]
+    slope = (r0 * 0.985 - rt) / max(z_cap - (zb + flare_h), 1e-9)
+    rs += [r0 * 0.985 - slope * (zz - zb - flare_h) for zz in zs[3:]]
+    body = [(zz, rr, 2.0, body_v(zz)) for zz, rr in zip(zs, rs)]
+    phi = np.linspace(0, np.pi / 2, 7)[1:]  # rounded top: a quarter ellipse from the side to the tip
+    body += [
+        (z_cap + cap_h * np.sin(f), rt * np.cos(f) if f < np.pi / 2 else 0.0, 2.0, body_v(z_cap + cap_h * np.sin(f)))
+        for f in phi
+    ]
+    verts, faces, normals, uv = _loft(base + [body], segments)
+    img = _cone_texture(p, h, texture)
+    mat = trimesh.visual.material.SimpleMaterial(image=img, diffuse=np.array([255, 255, 255, 255], np.uint8))
+    m = trimesh.Trimesh(
+        verts, faces, vertex_normals=normals, process=False, visual=trimesh.visual.TextureVisuals(uv=uv, material=mat)
+    )
+    m.metadata["procedural_params"] = {**p, "height_m": h, "segments": int(segments)}
+    return m
+
+
+GENERATORS = {
+    "stone": make_stone,
+    "concrete_block": make_concrete_block,
+    "crumpled_sheet": make_crumpled_sheet,
+    "traffic_cone": make_traffic_cone,
+}
+
+#: Generators that need no photo texture, per category: ``asset_source="procedural"`` draws a new one per object.
+CATEGORY_SPECS: dict[str, ProceduralSpec] = {
+    "traffic_cone": ProceduralSpec("traffic_cone", "traffic_cone", (0.3, 1.0)),
+}
+
+
+def generate(
+    spec: ProceduralSpec, rng: np.random.Generator, texture: Image.Image | None = None, name: str | None = None
+) -> Asset:
+    """One procedural asset in the canonical frame, its height drawn uniformly from the spec's range."""
+    if spec.generator not in GENERATORS:
+        raise ValueError(f"unknown generator {spec.generator!r}; known: {sorted(GENERATORS)}")
+    lo, hi = spec.height_range_m
+    height = float(rng.uniform(lo, hi))
+    mesh = GENERATORS[spec.generator](rng, height, texture)
+    params = mesh.metadata.pop("procedural_params", {})  # generators that record their draws (traffic_cone)
+    parts = normalise_meshes([mesh], crease_deg=None)  # analytic normals (smooth within a section) kept
+    return Asset(
+        name or f"procedural {spec.generator}",
+        spec.category,
+        parts,
+        f"procedural:{spec.generator}",
+        licence="generated (textures: see meta)",
+        procedural=True,
+        meta={**params, "generator": spec.generator, "height_m": height, "textured": texture is not None},
+    )
+
+
+def procedural_asset(category: str, rng: np.random.Generator) -> Asset:
+    """A new procedural asset of ``category`` (see :data:`CATEGORY_SPECS`) from its own generator, seeded by one draw
+    of ``rng``; the seed is in ``meta['seed']``, so ``generate(spec, default_rng(seed))`` rebuilds it exactly."""
+    spec = CATEGORY_SPECS[category]
+    seed = int(rng.integers(2**63 - 1))
+    a = generate(spec, np.random.default_rng(seed))
+    return Asset(a.name, a.category, a.meshes, a.source, a.licence, True, {**a.meta, "seed": seed})

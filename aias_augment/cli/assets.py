@@ -1,0 +1,221 @@
+"""``aias-assets``: import | list | show | thumbnails for the asset bank.
+
+aias-assets import [--sidecar DIR ...] [--force]      # load, validate and cache every mesh; writes the catalog
+aias-assets list [--category traffic_cone] [--status rejected]
+aias-assets show "sh3f:Scopia#cone"
+aias-assets thumbnails --out out/assets/contact_sheet.png [--category dog rock] [--per-category 2]
+aias-assets from-labels --yolo DIR --class-names cone --category traffic_cone --out BANK   # your own instances
+aias-assets from-labels --input train.json --images DIR --label cone --category traffic_cone --out BANK
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from aias_augment.assets.bank import AssetBank, catalog_path, discover_records, get_bank, import_records
+from aias_augment.assets.bank.cache import MeshCache, default_cache_dir
+from aias_augment.assets.bank.catalog import save_catalog
+from aias_augment.assets.bank.sh3f import DEFAULT_SH3F_DIR
+from aias_augment.assets.bank.taxonomy import load_taxonomy
+
+
+def _cmd_import(a) -> int:
+    t0 = time.perf_counter()
+    records, skipped = discover_records(
+        sh3f_dir=a.sh3f_dir, gazebo_dir=a.gazebo_dir or "default", sidecar_dirs=tuple(a.sidecar), procedural=True
+    )
+    if a.limit:
+        records = records[: a.limit]
+    t_discover = time.perf_counter() - t0
+    cache = MeshCache(a.cache_dir)
+    out = import_records(records, cache, load_taxonomy(), force=a.force, progress=not a.quiet)
+    t_total = time.perf_counter() - t0
+    path = save_catalog(out, catalog_path(cache.root))
+    status = collections.Counter(r.status for r in out)
+    by_cat = collections.Counter(r.category for r in out if r.usable)
+    summary = {
+        "records": len(out),
+        "status": dict(status),
+        "skipped_entries": skipped,
+        "usable_by_importer": dict(collections.Counter(r.importer for r in out if r.usable)),
+        "textured": sum(bool(r.textured) for r in out if r.usable),
+        "triangles_total": sum(r.triangle_count or 0 for r in out if r.usable),
+        "categories": dict(by_cat.most_common()),
+        "rejected": {r.id: r.notes[0] if r.notes else "" for r in out if r.status == "rejected"},
+        "seconds_discover": round(t_discover, 3),
+        "seconds_total": round(t_total, 3),
+        "catalog": str(path),
+    }
+    print(json.dumps({k: v for k, v in summary.items() if k not in ("categories", "rejected")}, indent=1))
+    print(f"{len(by_cat)} categories; rejected {status.get('rejected', 0)}; catalog -> {path}")
+    if a.report:
+        Path(a.report).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.report).write_text(json.dumps(summary, indent=1))
+    return 0
+
+
+def _bank(a) -> AssetBank:
+    return get_bank(a.cache_dir)
+
+
+def _fmt_dims(d) -> str:
+    return "-" if d is None else "x".join(f"{v:.2f}" for v in d)
+
+
+def _cmd_list(a) -> int:
+    recs = _bank(a).records(a.category, usable_only=False)
+    if a.status:
+        recs = [r for r in recs if r.status == a.status]
+    if a.json:
+        print(json.dumps([r.to_json() for r in recs], indent=1))
+        return 0
+    for r in sorted(recs, key=lambda r: (r.category, r.id)):
+        print(
+            f"{r.category:16s} {_fmt_dims(r.dimensions_m):>17s} m  tris={r.triangle_count or '-':>7} "
+            f"tex={'y' if r.textured else 'n'} {r.status:8s} {r.id}"
+        )
+    print(f"{len(recs)} assets", file=sys.stderr)
+    return 0
+
+
+def _cmd_show(a) -> int:
+    bank = _bank(a)
+    r = bank.record(a.id)
+    print(json.dumps(r.to_json(), indent=1))
+    asset = bank.load(a.id, np.random.default_rng(0))
+    print(f"loaded: {len(asset.meshes)} parts, {asset.triangle_count} triangles, extents {asset.extents_m.round(3)} m")
+    return 0
+
+
+def _cmd_thumbnails(a) -> int:
+    from aias_augment.assets.bank.thumbnails import contact_sheet
+
+    bank = _bank(a)
+    cats = a.category or bank.categories()
+    ids = []
+    for c in cats:
+        ids += [r.id for r in sorted(bank.records(c), key=lambda r: r.id)][: a.per_category]
+    ids = ids[: a.limit]
+    t0 = time.perf_counter()
+    sheet, n_ok = contact_sheet(bank, ids, tile_px=a.size, columns=a.columns)
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    import cv2
+
+    cv2.imwrite(str(a.out), sheet[..., ::-1])
+    print(f"{n_ok}/{len(ids)} thumbnails in {time.perf_counter() - t0:.1f}s -> {a.out}")
+    return 0
+
+
+def _cmd_from_labels(a) -> int:
+    """Lift the labelled instances of one class into a bank folder (``aias_augment.assets.bank.lift``)."""
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.assets.bank.lift import LiftConfig, lift_instances
+    from aias_augment.cli.offline import items_from_coco, items_from_yolo, read_rgb, resolve_yolo_boxes
+
+    try:
+        items = items_from_yolo(a.yolo, class_names=a.class_names) if a.yolo else items_from_coco(a.input, a.images)
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    label = a.label or (a.class_names[0] if a.class_names else a.category)
+    skipped = collections.Counter()
+
+    def labelled():
+        for it in items:
+            if it.invalid:
+                skipped[it.invalid.split(":")[0]] += 1
+                continue
+            try:
+                image = read_rgb(it.path)
+            except ValueError:
+                skipped["unreadable image"] += 1
+                continue
+            resolve_yolo_boxes(it, image, a.class_names)
+            boxes = [[x, y, x + w, y + h] for (x, y, w, h), lab in zip(it.bboxes_xywh, it.labels) if lab == label]
+            others = [[x, y, x + w, y + h] for (x, y, w, h), lab in zip(it.bboxes_xywh, it.labels) if lab != label]
+            if boxes:
+                yield it.path, image, np.array(boxes, float), np.array(others, float).reshape(-1, 4)
+
+    t0 = time.perf_counter()
+    cfg = LiftConfig(min_box_px=a.min_box_px)
+    _, report = lift_instances(labelled(), a.category, a.out, cfg, height_m=a.height_m, mode=a.mode)
+    summary = {
+        "lifted": report.lifted,
+        "rejected": dict(report.rejected),
+        "images_skipped": dict(skipped),
+        "seconds": round(time.perf_counter() - t0, 1),
+        "bank": str(a.out),
+    }
+    print(json.dumps(summary, indent=1))
+    if not report.lifted:
+        print("error: no instance could be lifted (see 'rejected')", file=sys.stderr)
+        return 1
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="aias-assets", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--cache-dir", type=Path, default=None, help=f"default $AIAS_CACHE or {default_cache_dir()}")
+    p.add_argument("-v", "--verbose", action="store_true")
+    sub = p.add_subparsers(dest="cmd", required=True)
+    s = sub.add_parser("import", help="import, validate and cache every source; writes the catalog")
+    s.add_argument("--sh3f-dir", type=Path, default=DEFAULT_SH3F_DIR)
+    s.add_argument("--gazebo-dir", type=Path, default=None, help="default $AIAS_DATA/meshes/gazebo_models")
+    s.add_argument("--sidecar", type=Path, nargs="*", default=[], help="folders of meshes with YAML sidecars")
+    s.add_argument("--force", action="store_true", help="re-import even when cached")
+    s.add_argument("--limit", type=int, default=0, help="only the first N records (debugging)")
+    s.add_argument("--report", type=Path, default=None, help="write the import summary JSON here")
+    s.add_argument("--quiet", action="store_true")
+    s = sub.add_parser("list", help="list catalog records")
+    s.add_argument("--category", default=None)
+    s.add_argument("--status", default=None, choices=["pending", "ok", "repaired", "rejected"])
+    s.add_argument("--json", action="store_true")
+    s = sub.add_parser("show", help="one record, and load its mesh")
+    s.add_argument("id")
+    s = sub.add_parser("thumbnails", help="contact sheet of rendered thumbnails")
+    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--category", nargs="*", default=None)
+    s.add_argument("--per-category", type=int, default=1)
+    s.add_argument("--limit", type=int, default=120)
+    s.add_argument("--size", type=int, default=160)
+    s.add_argument("--columns", type=int, default=10)
+    s = sub.add_parser("from-labels", help="lift your own labelled instances of one class into insertable assets")
+    src = s.add_mutually_exclusive_group(required=True)
+    src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
+    src.add_argument("--input", help="COCO json (with --images)")
+    s.add_argument("--images", help="image folder for --input")
+    s.add_argument("--class-names", nargs="*", default=None, help="YOLO class names by index")
+    s.add_argument("--label", default=None, help="the label to lift (default: the first class name, or --category)")
+    s.add_argument("--category", required=True, help="the category the assets are inserted as (e.g. traffic_cone)")
+    s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json")
+    s.add_argument(
+        "--mode",
+        choices=("revolution", "card"),
+        default=None,
+        help="default: revolution for cones, drums, bollards, posts, barrels; card otherwise",
+    )
+    s.add_argument("--height-m", type=float, default=None, help="default: the middle of the category's height range")
+    s.add_argument("--min-box-px", type=int, default=24)
+    a = p.parse_args(argv)
+    if a.cmd == "from-labels" and a.input and not a.images:
+        p.error("--input needs --images")
+    logging.basicConfig(level=logging.INFO if a.verbose else logging.ERROR, format="%(levelname)s %(message)s")
+    return {
+        "import": _cmd_import,
+        "list": _cmd_list,
+        "show": _cmd_show,
+        "thumbnails": _cmd_thumbnails,
+        "from-labels": _cmd_from_labels,
+    }[a.cmd](a)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,430 @@
+"""``aias-augment``: offline augmentation of a COCO or YOLO dataset, a folder of unlabelled images, or one posed clip.
+
+aias-augment --input train.json --images train/ --categories traffic_cone --per-image 2 --out train_aug/
+aias-augment --images backgrounds/ --assets crate=meshes/crate.glb --per-image 2 --out bg_aug/
+aias-augment --input clip.mp4 --camera calib.txt --poses poses.txt --categories traffic_cone --out clip_aug/
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+from aias_augment.cli.offline import (
+    IMAGE_SUFFIXES,
+    coco_categories,
+    items_from_coco,
+    items_from_images,
+    items_from_yolo,
+    run,
+)
+from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M
+from aias_augment.pipeline.image import PRESETS, load_preset
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="aias-augment", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    src = ap.add_mutually_exclusive_group()
+    src.add_argument(
+        "--input",
+        help="COCO json of the dataset (with --images), or a clip: a video file or a folder "
+        "of frames (with --camera and --poses)",
+    )
+    src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
+    ap.add_argument(
+        "--images",
+        metavar="DIR",
+        help="image folder for --input; alone: a folder of unlabelled background images "
+        "(the output holds only the inserted objects)",
+    )
+    ap.add_argument("--class-names", nargs="*", default=None, help="YOLO class names by index")
+    ap.add_argument(
+        "--categories",
+        nargs="+",
+        default=None,
+        help="categories to insert (default: those of --config, else of --assets/--assets-bank, else traffic_cone)",
+    )
+    ap.add_argument(
+        "--per-image",
+        type=int,
+        default=None,
+        help="maximum objects inserted per image (default: --config's max_objects, else 2)",
+    )
+    ap.add_argument("--preset", choices=PRESETS, default="balanced")
+    ap.add_argument(
+        "--config",
+        metavar="FILE",
+        default=None,
+        help="YAML of InsertionConfig fields (nested placement_cfg etc.) applied over --preset; "
+        "--categories and --per-image apply over it",
+    )
+    ap.add_argument(
+        "--assets",
+        nargs="+",
+        metavar="CATEGORY=PATH",
+        default=None,
+        help="your own meshes: PATH a mesh file (.glb .gltf .obj .dae .ply .stl .off), a folder of them "
+        "or a gazebo model folder; a category may repeat; it need not be a built-in one",
+    )
+    ap.add_argument(
+        "--assets-bank",
+        metavar="DIR",
+        default=None,
+        help="a folder written by `aias-assets from-labels` (its bank.json): its assets per category",
+    )
+    ap.add_argument(
+        "--sun-from",
+        metavar="LAT,LON,UTC,HEADING",
+        default=None,
+        help="the sun from position and time for every image: degrees, ISO UTC time, camera heading "
+        "in degrees clockwise from north (e.g. 48.1,11.6,2024-06-01T12:00:00Z,90)",
+    )
+    ap.add_argument(
+        "--envmap",
+        metavar="FILE",
+        default=None,
+        help="an equirectangular HDR/EXR of the scene's light for every image (the camera looks level at "
+        "its centre column): its brightest compact light is the sun, the rest the ambient",
+    )
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--limit", type=int, default=None, help="process only the first N images")
+    ap.add_argument(
+        "--backend",
+        choices=("local", "ray"),
+        default="local",
+        help="local: this process or a pool of --workers; ray: Ray tasks (pip install 'aias-augment[ray]')"
+        ", same outputs",
+    )
+    ap.add_argument("--address", default=None, help="--backend ray: an existing cluster (default: a local instance)")
+    ap.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the run in --out when its manifest differs (default: refuse; the same run resumes)",
+    )
+    ap.add_argument(
+        "--boxes",
+        choices=("clip", "drop"),
+        default="clip",
+        help="input boxes crossing the image border: clipped to it or dropped (counted in report.json)",
+    )
+    ap.add_argument(
+        "--max-megapixels",
+        type=float,
+        default=4.0,
+        help="larger images are augmented at this size (INTER_AREA; recorded per image); 0: no bound",
+    )
+    ap.add_argument(
+        "--scene-cache",
+        default=None,
+        help="folder of scene analyses (camera, ground, region, lighting) reused across runs and workers",
+    )
+    clip = ap.add_argument_group("clip (--input is a video file or a frame folder)")
+    clip.add_argument("--camera", help="KITTI calib.txt, pyslam KITTI*.yaml, or a yaml with fx, fy, cx, cy")
+    clip.add_argument("--poses", help="one pose per frame: KITTI (12 numbers) or TUM (tx ty tz qx qy qz qw) lines")
+    clip.add_argument("--colour", action="store_true", help="KITTI calib.txt: the colour camera (P2)")
+    clip.add_argument("--start", type=int, default=0, help="first frame")
+    clip.add_argument("--stride", type=int, default=1)
+    clip.add_argument("--max-frames", type=int, default=None)
+    clip.add_argument("--camera-height", type=float, default=CAMERA_HEIGHT_PRIOR_M, help="metres above the ground")
+    clip.add_argument("--lighting", choices=("clip", "ambient"), default="clip")
+    clip.add_argument(
+        "--harmonize",
+        default="fast",
+        choices=("none", "reinhard", "camera", "fast", "network"),
+        help="clip harmonization ('fast': one colour transform for the whole clip)",
+    )
+    clip.add_argument(
+        "--flow-refine",
+        action="store_true",
+        help="track the ground under the object (KLT) and correct drifting poses per frame",
+    )
+    a = ap.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    if not (a.input or a.yolo or a.images):
+        ap.error("one of --input, --yolo or --images (a folder of unlabelled images) is required")
+    if a.yolo and a.images:
+        ap.error("--images goes with --input (a COCO json) or alone (unlabelled images), not with --yolo")
+    if a.input and (a.camera or a.poses):
+        if not (a.camera and a.poses):
+            ap.error("a clip needs both --camera and --poses")
+        given = [
+            f
+            for f, v in (
+                ("--config", a.config),
+                ("--assets", a.assets),
+                ("--assets-bank", a.assets_bank),
+                ("--sun-from", a.sun_from),
+                ("--envmap", a.envmap),
+            )
+            if v
+        ]
+        if given:
+            ap.error(f"{', '.join(given)}: for image datasets, not clips")
+        from aias_augment.cli.clip import ClipJob, augment_clip
+
+        record = augment_clip(
+            ClipJob(
+                a.input,
+                a.camera,
+                a.poses,
+                a.out,
+                tuple(a.categories or ["traffic_cone"]),
+                a.seed,
+                a.start,
+                a.max_frames,
+                a.stride,
+                a.colour,
+                a.camera_height,
+                lighting=a.lighting,
+                flow_refine=a.flow_refine,
+                harmonize=a.harmonize,
+            )
+        )
+        print({k: record[k] for k in ("category", "asset", "frames", "visible_frames", "wall_s")})
+        return 0
+    if a.input and not a.images:
+        ap.error("--input needs --images")
+    from aias_augment.adapters.boundary import InputError, check_categories
+    from aias_augment.cli.manifest import ManifestMismatch
+
+    if (
+        (a.per_image is not None and a.per_image < 0)
+        or a.workers < 1
+        or (a.limit is not None and a.limit < 1)
+        or a.max_megapixels < 0
+    ):
+        ap.error("--per-image >= 0, --workers >= 1, --limit >= 1 and --max-megapixels >= 0 please")
+    try:
+        # Every option is checked here, before any image is read or any record written.
+        options = {"boxes": a.boxes}
+        paths = asset_paths(a.assets, a.assets_bank)
+        bank = None
+        if paths:
+            from aias_augment.assets.asset import AssetError, PathAssets
+
+            try:
+                bank = PathAssets(paths)
+            except (AssetError, ValueError) as e:
+                raise InputError(f"--assets: {e}") from None
+            options["assets"] = asset_fingerprint(paths)  # a rerun with other meshes never reuses records
+        facts = sun_facts(a.sun_from) if a.sun_from else {}
+        if facts:
+            options["sun_from"] = {k: str(v) for k, v in facts.items()}
+        if a.envmap:
+            from aias_augment.cli.manifest import file_hash
+
+            facts["envmap"] = envmap_fact(a.envmap)
+            options["envmap"] = [a.envmap, file_hash(a.envmap)]
+        cfg = insertion_config(a.preset, a.config, a.categories, a.per_image, paths)
+        # Categories your --assets give need not be built-in ones (as InsertObjects(assets=...)).
+        unknown = [c for c in cfg.categories if c not in (paths or {})]
+        if unknown:
+            check_categories(unknown)
+        if a.input:
+            items = items_from_coco(a.input, a.images, box_policy=a.boxes)
+        elif a.yolo:
+            items = items_from_yolo(a.yolo, class_names=a.class_names, box_policy=a.boxes)
+        else:  # unlabelled background images: no boxes, the output holds only the inserted objects
+            items = items_from_images(a.images)
+        items = items[: a.limit] if a.limit else items
+        if not items:
+            raise InputError(f"no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in {a.yolo or a.images}")
+        for it in items:
+            it.meta.update(facts)
+        summary = run(
+            items,
+            cfg,
+            a.seed,
+            a.out,
+            workers=a.workers,
+            class_names=a.class_names,
+            scene_cache=a.scene_cache,
+            preset=a.preset,
+            overwrite=a.overwrite,
+            max_pixels=int(a.max_megapixels * 1e6) or None,
+            options=options,
+            backend=a.backend,
+            ray_address=a.address,
+            categories=coco_categories(a.input) if a.input else None,
+            bank=bank,
+        )
+    except (InputError, ManifestMismatch) as e:
+        print(f"aias-augment: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # an unwritable or full --out, a path through a file: one line that says what to do
+        where = f" ({e.filename})" if e.filename else ""
+        print(
+            f"aias-augment: error: {e.strerror or e}{where}: check that --out is a writable folder with free "
+            "space; a rerun of the same command resumes",
+            file=sys.stderr,
+        )
+        return 2
+    print(summary)
+    if not summary["written"]:  # an empty dataset is a failure, whatever the reasons
+        print(
+            f"aias-augment: error: no image written: all {summary['images']} images were skipped; see "
+            f"{a.out}/report.json",
+            file=sys.stderr,
+        )
+        return 1
+    if summary["skipped"]:
+        print(
+            f"aias-augment: {summary['skipped']} of {summary['images']} images skipped; see {a.out}/report.json",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def asset_paths(specs: list[str] | None, bank_dir: str | None = None) -> dict[str, list[str]] | None:
+    """``--assets CATEGORY=PATH ...`` and ``--assets-bank DIR`` as :class:`aias_augment.assets.asset.PathAssets` takes
+    them: {category: [mesh file or gazebo model folder, ...]}; a folder of meshes gives each mesh file in it (sorted,
+    recursively). A malformed spec, a missing path, an unsupported file or a folder without meshes: InputError."""
+    from pathlib import Path
+
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.assets.asset import MESH_SUFFIXES
+
+    out: dict[str, list[str]] = {}
+    kinds = ", ".join(sorted(MESH_SUFFIXES))
+    for spec in specs or ():
+        cat, sep, path = spec.partition("=")
+        cat, path = cat.strip(), path.strip()
+        if not sep or not cat or not path:
+            raise InputError(f"--assets {spec!r}: expected CATEGORY=PATH (a mesh file or a folder of meshes)")
+        p = Path(path)
+        if p.is_dir() and (p / "model.sdf").is_file():  # a gazebo model folder is one asset
+            files = [p]
+        elif p.is_dir():
+            files = sorted(f for f in p.rglob("*") if f.is_file() and f.suffix.lower() in MESH_SUFFIXES)
+            if not files:
+                raise InputError(f"--assets {spec}: no mesh files ({kinds}) in the folder {p}")
+        elif p.is_file():
+            if p.suffix.lower() not in MESH_SUFFIXES:
+                raise InputError(f"--assets {spec}: {p} is not a mesh file ({kinds})")
+            files = [p]
+        else:
+            raise InputError(f"--assets {spec}: no such file or folder: {p}")
+        out.setdefault(cat, []).extend(str(f) for f in files)
+    if bank_dir:
+        from aias_augment.assets.bank.lift import bank_paths
+
+        try:
+            got = bank_paths(bank_dir)
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            raise InputError(f"--assets-bank {bank_dir}: {e}") from None
+        missing = [q for qs in got.values() for q in qs if not Path(q).is_file()]
+        if missing:
+            raise InputError(f"--assets-bank {bank_dir}: bank.json names missing files: {missing[:3]}")
+        for cat, qs in got.items():
+            out.setdefault(cat, []).extend(qs)
+    return out or None
+
+
+def asset_fingerprint(paths: dict[str, list[str]]) -> dict[str, list[list[str]]]:
+    """{category: [[path, sha256 of its bytes], ...]} for the run manifest (a folder asset: of every file under it,
+    by relative path), so that changed meshes make another run, never a resumed one."""
+    import hashlib
+    from pathlib import Path
+
+    from aias_augment.cli.manifest import file_hash
+
+    def digest(p: Path) -> str:
+        if not p.is_dir():
+            return file_hash(p)
+        h = hashlib.sha256()
+        for f in sorted(q for q in p.rglob("*") if q.is_file()):
+            h.update(f"{f.relative_to(p).as_posix()}\0{file_hash(f)}\0".encode())
+        return h.hexdigest()
+
+    return {cat: [[p, digest(Path(p))] for p in ps] for cat, ps in sorted(paths.items())}
+
+
+def sun_facts(spec: str) -> dict:
+    """``--sun-from LAT,LON,UTC,HEADING`` as scene facts (``meta`` keys lat, lon, utc, heading_deg), checked by
+    :meth:`aias_augment.core.scene_inputs.SceneInputs.checked` (ranges, an ISO time the solar position parses)."""
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.core.scene_inputs import SceneInputs
+
+    parts = [p.strip() for p in spec.split(",")]
+    if len(parts) != 4:
+        raise InputError(
+            f"--sun-from {spec!r}: expected LAT,LON,UTC,HEADING (degrees, an ISO UTC time, the camera "
+            "heading in degrees clockwise from north), e.g. 48.1,11.6,2024-06-01T12:00:00Z,90"
+        )
+
+    def number(v: str):
+        try:
+            return float(v)
+        except ValueError:
+            return v  # SceneInputs names it: "must be a number"
+
+    try:
+        facts = SceneInputs(
+            lat=number(parts[0]), lon=number(parts[1]), utc=parts[2], heading_deg=number(parts[3])
+        ).checked((1, 1))
+    except ValueError as e:
+        raise InputError(f"--sun-from {spec!r}: {e}") from None
+    return facts.as_meta()
+
+
+def envmap_fact(path: str):
+    """``--envmap FILE`` as the scene fact ``envmap``: an :class:`EnvironmentMap` placed for a single image (whose
+    world is the camera frame): the camera looks level at the map's centre column (env +x), env z up."""
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.analyse.lighting.envmap import EnvironmentMap, cam_from_env_look
+    from aias_augment.core.scene_inputs import SceneInputs
+
+    try:
+        env = EnvironmentMap.from_file(path, world_from_env=cam_from_env_look(0.0))
+        return SceneInputs(envmap=env).checked((1, 1)).envmap
+    except (OSError, ValueError) as e:
+        raise InputError(f"--envmap {path}: {' '.join(str(e).split())}") from None
+
+
+def insertion_config(preset: str, config_file: str | None, categories, per_image: int | None, asset_paths=None):
+    """The run's :class:`InsertionConfig`: ``preset``, then ``config_file``'s fields (YAML; nested configs as
+    mappings of some of their fields), then ``--categories`` / ``--per-image``. Checked by the typed config checker:
+    an error names the file and the field (InputError)."""
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.core.config import ConfigError
+
+    data: dict = {}
+    if config_file:
+        import yaml
+
+        try:
+            with open(config_file) as f:
+                data = yaml.safe_load(f) or {}
+        except OSError as e:
+            raise InputError(f"--config {config_file}: cannot read it ({e.strerror or e})") from None
+        except yaml.YAMLError as e:
+            raise InputError(f"--config {config_file}: not valid YAML ({' '.join(str(e).split())})") from None
+        if not isinstance(data, dict):
+            raise InputError(
+                f"--config {config_file}: expected a mapping of InsertionConfig fields, got {type(data).__name__}"
+            )
+    flags: dict = {}
+    if categories:
+        flags["categories"] = tuple(categories)
+    elif "categories" not in data:
+        flags["categories"] = tuple(sorted(asset_paths)) if asset_paths else ("traffic_cone",)
+    per = per_image if per_image is not None else (None if "max_objects" in data else 2)
+    if per is not None:
+        flags["max_objects"] = per
+        m = data.get("min_objects", 1)
+        flags["min_objects"] = min(m, per) if isinstance(m, int) and not isinstance(m, bool) else m
+    try:
+        return load_preset(preset, **{**data, **flags})
+    except ConfigError as e:
+        raise InputError(str(e.from_source(config_file) if config_file else e)) from None
+    except (TypeError, ValueError) as e:
+        raise InputError(f"--config {config_file}: {e}" if config_file else str(e)) from None
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

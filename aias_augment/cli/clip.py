@@ -1,0 +1,299 @@
+"""Offline augmentation of one posed clip: ``aias-augment --input clip.mp4 --camera calib --poses poses.txt``.
+
+The clip path of the paper: one object pose in the WORLD for the whole clip (:func:`aias_augment.pipeline.clip.
+insert_into_clip`), one sun fused over the clip's frames in world coordinates (:func:`aias_augment.analyse.lighting.
+estimate_lighting_clip`), every frame rendered through its own K [R | t]. Inputs:
+
+* frames: a video file (anything OpenCV decodes) or a folder of images (sorted by name);
+* camera: a KITTI ``calib.txt`` (P0, or P2 with ``colour``), a pyslam/OpenCV ``KITTI*.yaml`` (``Camera.fx`` ...), or
+  a plain YAML ``{fx, fy, cx, cy}``;
+* poses: KITTI lines (12 numbers, world_from_cam, row-major 3x4) or TUM-style lines (``tx ty tz qx qy qz qw``, with
+  or without a leading timestamp); one per frame of the clip (after ``start`` and ``stride``).
+* ground: the camera ``camera_height_m`` above level ground (vehicle rigs), the same camera-relative plane for every
+  frame (see ``choose_world_contact``).
+
+Outputs in ``out``: ``frames/NNNNNN.jpg`` (augmented), ``annotations.json`` (COCO, one ``track_id`` per inserted
+object, validated by pycocotools), ``record.json`` (everything needed to replay: seed, asset, world pose, contact,
+modules used), ``side_by_side.mp4`` (original | augmented with boxes) and ``contact_sheet.jpg``. Every file is
+written atomically; a finished clip (``record.json`` present with the same arguments) is not redone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from aias_augment.analyse.ground import prior_ground_plane
+from aias_augment.cli.offline import read_rgb, write_rgb
+from aias_augment.core.coco_io import CocoBuilder, atomic_write_json
+from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics, invert_rigid
+from aias_augment.core.viz import contact_sheet, draw_boxes
+
+log = logging.getLogger(__name__)
+
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+
+
+@dataclass(frozen=True)
+class ClipJob:
+    """Everything that decides the output of one clip (it is stored in ``record.json``)."""
+
+    input: str
+    camera: str
+    poses: str
+    out: str
+    categories: tuple[str, ...] = ("traffic_cone",)
+    seed: int = 0
+    start: int = 0  # first frame of the input used
+    max_frames: int | None = None
+    stride: int = 1
+    colour: bool = False  # KITTI calib.txt: use P2 (colour camera) instead of P0
+    camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
+    lookahead_frames: int | None = None  # the object stands beside where the camera is at this frame; None: the last
+    lateral_offset_m: float = 2.5
+    lighting: str = "clip"  # "clip": one sun fused over the clip; "ambient": grey-world ambient only
+    flow_refine: bool = False  # KLT stabilisation of the contact (for drifting poses)
+    harmonize: str = "fast"  # harmonize.METHODS; "fast": one colour transform for the clip (median over frames)
+    fps: float = 10.0
+
+    def __post_init__(self):
+        if self.lighting not in ("clip", "ambient"):
+            raise ValueError(f"lighting must be 'clip' or 'ambient', got {self.lighting!r}")
+        if self.stride < 1 or self.start < 0 or (self.max_frames is not None and self.max_frames < 1):
+            raise ValueError("need stride >= 1, start >= 0 and max_frames >= 1")
+        if not self.categories:
+            raise ValueError("at least one category")
+        from aias_augment.apply.harmonize import METHODS
+
+        if self.harmonize not in METHODS:
+            raise ValueError(f"harmonize must be one of {METHODS}, got {self.harmonize!r}")
+        if not (np.isfinite(self.camera_height_m) and self.camera_height_m > 0):
+            raise ValueError(f"camera_height_m must be positive, got {self.camera_height_m}")
+
+
+# ------------------------------------------------------------------------------------------------------------ inputs
+def is_video_input(path: str | Path) -> bool:
+    return Path(path).suffix.lower() in VIDEO_SUFFIXES
+
+
+def read_clip_frames(
+    path: str | Path, start: int = 0, max_frames: int | None = None, stride: int = 1
+) -> tuple[list[np.ndarray], list[str]]:
+    """(RGB uint8 frames, names) of a video file or an image folder: frames start, start+stride, ..."""
+    p = Path(path)
+    if p.is_dir():
+        files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES)
+        files = files[start::stride][:max_frames]
+        if not files:
+            raise ValueError(f"{p}: no images (from frame {start})")
+        frames = [read_rgb(str(f)) for f in files]
+        return frames, [f.stem for f in files]
+    if not p.is_file():
+        raise FileNotFoundError(f"no such video or folder: {p}")
+    from aias_augment.scenes.video import read_video
+
+    n = None if max_frames is None else start + max_frames * stride
+    frames = read_video(str(p), max_frames=n)[start::stride][:max_frames]
+    if not frames:
+        raise ValueError(f"{p}: no frames from frame {start}")
+    return frames, [f"{start + i * stride:06d}" for i in range(len(frames))]
+
+
+def read_camera(path: str | Path, width: int, height: int, *, colour: bool = False) -> Intrinsics:
+    """Intrinsics from a KITTI calib.txt, a pyslam ``Camera.fx`` yaml, or a plain yaml with fx, fy, cx, cy."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"no such camera file: {p}")
+    if p.suffix.lower() in (".yaml", ".yml"):
+        text = p.read_text()
+        if "Camera.fx" in text:
+            from aias_augment.scenes.kitti import read_pyslam_yaml
+
+            v = read_pyslam_yaml(p)
+            keys = ("Camera.fx", "Camera.fy", "Camera.cx", "Camera.cy")
+        else:
+            v = yaml.safe_load(text) or {}
+            keys = ("fx", "fy", "cx", "cy")
+        missing = [k for k in keys if k not in v]
+        if missing:
+            raise ValueError(f"{p}: missing {missing} (need fx, fy, cx, cy)")
+        return Intrinsics(*(float(v[k]) for k in keys), width, height)
+    from aias_augment.scenes.kitti import read_projection_matrices
+
+    mats = read_projection_matrices(p)
+    key = "P2" if colour else "P0"
+    if key not in mats:
+        raise ValueError(f"{p}: no {key} projection matrix (found {sorted(mats)})")
+    return Intrinsics.from_matrix(mats[key][:, :3], width, height)
+
+
+def read_cams_from_world(path: str | Path) -> np.ndarray:
+    """(N, 4, 4) OpenCV cam_from_world from KITTI (12 numbers) or TUM (7, or 8 with a timestamp) pose lines."""
+    from aias_augment.scenes.kitti import read_kitti_poses
+    from aias_augment.scenes.nyu import read_tum_poses
+
+    p = Path(path)
+    rows = np.loadtxt(p, dtype=np.float64, ndmin=2, comments="#")
+    if rows.shape[1] == 12:
+        world_from_cams = read_kitti_poses(p)
+    elif rows.shape[1] in (7, 8):
+        if rows.shape[1] == 8:  # drop the timestamp column
+            tmp = p.with_name(p.name + ".tum7.tmp")
+            try:
+                np.savetxt(tmp, rows[:, 1:])
+                world_from_cams = read_tum_poses(tmp)
+            finally:
+                tmp.unlink(missing_ok=True)
+        else:
+            world_from_cams = read_tum_poses(p)
+    else:
+        raise ValueError(f"{p}: {rows.shape[1]} numbers per line; expected KITTI (12) or TUM (7 or 8)")
+    return np.stack([invert_rigid(T) for T in world_from_cams])
+
+
+# ------------------------------------------------------------------------------------------------------------- run
+def _job_dict(job: ClipJob) -> dict:
+    return json.loads(json.dumps(dataclasses.asdict(job)))
+
+
+def augment_clip(job: ClipJob) -> dict:
+    """Insert one object of ``job.categories[0..]`` (drawn with the seed) into the clip; returns the record."""
+    from aias_augment.analyse.lighting.estimate import estimate_lighting_clip
+    from aias_augment.pipeline.clip import VideoInsertionConfig, insert_into_clip
+    from aias_augment.pipeline.config import InsertionConfig
+    from aias_augment.plan.insertion import choose_asset
+
+    out = Path(job.out)
+    record_path = out / "record.json"
+    if record_path.exists():
+        old = json.loads(record_path.read_text())
+        if old.get("job") == _job_dict(job):
+            log.info("%s: already done with the same arguments, nothing to do", out)
+            return old
+    t0 = time.perf_counter()
+    frames, names = read_clip_frames(job.input, job.start, job.max_frames, job.stride)
+    h, w = frames[0].shape[:2]
+    if any(f.shape != frames[0].shape for f in frames):
+        raise ValueError(f"{job.input}: frames differ in size")
+    intr = read_camera(job.camera, w, h, colour=job.colour)
+    all_poses = read_cams_from_world(job.poses)
+    idx = np.arange(job.start, job.start + job.stride * len(frames), job.stride)
+    if idx[-1] >= len(all_poses):
+        raise ValueError(f"{job.poses}: {len(all_poses)} poses, but frame {idx[-1]} of {job.input} is used")
+    poses = all_poses[idx]
+    rng = np.random.default_rng([job.seed, 0])
+    category = job.categories[int(rng.integers(len(job.categories)))]
+    asset = choose_asset(category, rng, InsertionConfig(categories=(category,)))
+    lighting, lighting_note = None, "ambient (requested)"
+    if job.lighting == "clip":
+        try:
+            lighting = estimate_lighting_clip(frames, intr, poses, rng=rng.spawn(1)[0])
+            lighting_note = f"one sun fused over {len(frames)} frames ({lighting[0].source})"
+        except (ValueError, np.linalg.LinAlgError) as e:  # a clip the estimator cannot read: ambient, said why
+            log.warning("clip lighting failed (%s): ambient light only", e)
+            lighting_note = f"skipped: {e}"
+    last = len(frames) - 1
+    cfg = VideoInsertionConfig(
+        lookahead_frames=last if job.lookahead_frames is None else min(job.lookahead_frames, last),
+        lateral_offset_m=job.lateral_offset_m,
+        flow_refine=job.flow_refine,
+    )
+    res = insert_into_clip(
+        frames,
+        intr,
+        poses,
+        rng,
+        cfg,
+        asset=asset,
+        ground_in_cam0=prior_ground_plane(job.camera_height_m),
+        lighting=lighting,
+    )
+
+    if job.harmonize != "none":
+        from aias_augment.apply.harmonize import harmonize_clip
+
+        res.frames = harmonize_clip(res.frames, res.masks, job.harmonize, rng.spawn(1)[0])
+        harmonize_note = (
+            f"{job.harmonize}: one colour transform for the clip (median of the per-frame predictions)"
+            if job.harmonize == "fast"
+            else f"{job.harmonize}, frame by frame"
+        )
+    else:
+        harmonize_note = "skipped: --harmonize none"
+    # A grey clip (KITTI image_0/image_l) stays grey: an orange cone in a grey frame would be a give-away.
+    grey = all(np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2]) for f in frames)
+    if grey:
+        res.frames = [np.repeat(cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2) for f in res.frames]
+    coco = CocoBuilder({category: 1})
+    drawn = []
+    for i, (name, img) in enumerate(zip(names, res.frames)):
+        file_name = f"frames/{name}.jpg"
+        write_rgb(out / file_name, img)
+        image_id = coco.add_image(file_name, w, h, frame_index=int(idx[i]))
+        box = res.boxes_xywh[i]
+        if box is not None:
+            coco.add_box(
+                image_id,
+                category,
+                box,
+                inserted=True,
+                track_id=1,
+                amodal_bbox=[float(v) for v in res.amodal_boxes_xywh[i]],
+            )
+        boxes = [box] if box is not None else []
+        drawn.append(draw_boxes(img, boxes, [category] * len(boxes), inserted=[True] * len(boxes)))
+    coco.write(out / "annotations.json")
+    _write_side_by_side(out / "side_by_side.mp4", frames, drawn, job.fps)
+    picks = np.unique(np.linspace(0, len(drawn) - 1, min(6, len(drawn))).astype(int))
+    sheet = contact_sheet([drawn[i] for i in picks], cols=3, titles=[names[i] for i in picks])
+    write_rgb(out / "contact_sheet.jpg", sheet)
+    record = {
+        "job": _job_dict(job),
+        "category": category,
+        "asset": asset.name,
+        "asset_height_m": float(asset.height_m),
+        "frames": len(frames),
+        "frame_indices": idx.tolist(),
+        "intrinsics": [intr.fx, intr.fy, intr.cx, intr.cy, w, h],
+        "world_from_object": res.world_from_object.tolist(),
+        "contact_in_world": res.contact_in_world.tolist(),
+        "visible_frames": int(sum(b is not None for b in res.boxes_xywh)),
+        "modules": {
+            **res.modules,
+            "lighting": lighting_note,
+            "harmonize": harmonize_note,
+            "colour": "grey clip: output converted to grey" if grey else "colour clip",
+        },
+        "wall_s": round(time.perf_counter() - t0, 1),
+    }
+    atomic_write_json(record_path, record)  # last: its presence marks the clip as done
+    log.info("%s: %d frames, object visible in %d, %.1fs", out, len(frames), record["visible_frames"], record["wall_s"])
+    return record
+
+
+def _write_side_by_side(path: Path, originals: list[np.ndarray], augmented: list[np.ndarray], fps: float) -> None:
+    """Original | augmented, one row per frame, as an mp4 (written to a temporary name, then renamed)."""
+    h, w = originals[0].shape[:2]
+    scale = min(1.0, 960 / (2 * w))
+    size = (int(2 * w * scale) // 2 * 2, int(h * scale) // 2 * 2)
+    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
+    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+    if not writer.isOpened():
+        raise OSError(f"cannot open a video writer for {path}")
+    try:
+        for a, b in zip(originals, augmented):
+            pair = cv2.resize(np.concatenate([a, b], 1), size, interpolation=cv2.INTER_AREA)
+            writer.write(np.ascontiguousarray(pair[..., ::-1]))
+    finally:
+        writer.release()
+    os.replace(tmp, path)

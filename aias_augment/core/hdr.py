@@ -1,0 +1,216 @@
+"""High dynamic range helpers: sRGB <-> linear, inverse tone mapping, EXR / Radiance .hdr input and output.
+
+Conventions:
+- "linear" images are float32 (H, W, 3) RGB with the sRGB / Rec.709 primaries, in relative radiance units (an 8-bit
+  value of 255 maps to 1.0 before any highlight expansion). Nothing here knows absolute exposure.
+- EXR files are read and written with the OpenEXR bindings (``OpenEXR.File``); Radiance ``.hdr`` with OpenCV, which
+  reads and writes RGBE. Both return / accept RGB (not OpenCV's BGR).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+__all__ = [
+    "srgb_to_linear",
+    "linear_to_srgb",
+    "luminance",
+    "InverseToneMapParams",
+    "inverse_tone_map",
+    "tone_map_to_uint8",
+    "read_exr",
+    "write_exr",
+    "read_radiance_hdr",
+    "write_radiance_hdr",
+    "read_hdr_image",
+    "write_hdr_image",
+    "HDR_SUFFIXES",
+]
+
+#: Rec.709 / sRGB luminance weights for linear RGB.
+LUMINANCE_WEIGHTS = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+HDR_SUFFIXES = (".exr", ".hdr")
+
+
+def _as_unit_float(image: np.ndarray) -> np.ndarray:
+    """uint8 -> [0, 1] float32; float input is taken as already in [0, 1] (clipped there)."""
+    img = np.asarray(image)
+    if img.dtype == np.uint8:
+        return img.astype(np.float32) / 255.0
+    if not np.issubdtype(img.dtype, np.floating):
+        raise ValueError(f"expected uint8 or float image, got {img.dtype}")
+    return np.clip(np.nan_to_num(img.astype(np.float32), nan=0.0), 0.0, 1.0)
+
+
+def srgb_to_linear(image: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values (uint8, or float in [0, 1]) -> linear float32 in [0, 1] (IEC 61966-2-1 curve)."""
+    c = _as_unit_float(image)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
+    """Linear float -> sRGB-encoded float in [0, 1] (values are clipped to [0, 1] first; NaN -> 0)."""
+    c = np.clip(np.nan_to_num(np.asarray(linear, dtype=np.float32), nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055).astype(np.float32)
+
+
+def luminance(rgb_linear: np.ndarray) -> np.ndarray:
+    """Rec.709 luminance of linear RGB, (*, 3) -> (*,)."""
+    return np.asarray(rgb_linear, dtype=np.float32) @ LUMINANCE_WEIGHTS
+
+
+def tone_map_to_uint8(linear: np.ndarray, exposure: float | None = None, percentile: float = 99.0) -> np.ndarray:
+    """Display helper: scale linear radiance so that ``percentile`` maps to 1 (or multiply by ``exposure``), sRGB encode."""
+    lin = np.nan_to_num(np.asarray(linear, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+    if exposure is None:
+        ref = float(np.percentile(luminance(lin), percentile))
+        exposure = 1.0 / max(ref, 1e-8)
+    return np.round(linear_to_srgb(lin * exposure) * 255.0).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class InverseToneMapParams:
+    """Expansion of clipped highlights (an "expand map" in the spirit of Banterle et al. 2008).
+
+    A pixel is clipped when its largest sRGB channel is >= ``clip_level``. Inside each clipped region the linear value is
+    multiplied by ``1 + (max_gain - 1) * s``, where ``s`` in [0, 1] grows with the distance from the region border
+    (``s = min(1, dist_px / core_radius_px) ** gamma``) and is smoothed by a Gaussian of ``smooth_sigma_px`` so that the
+    boost has no seam. ``max_gain`` is what a saturated sun core is assumed to exceed the clip level by (LDR footage of
+    the sun is clipped by 10^3..10^5; the default is conservative and leaves the sun direction to other estimators).
+    """
+
+    clip_level: float = 250.0 / 255.0
+    max_gain: float = 50.0
+    core_radius_px: float = 6.0
+    gamma: float = 2.0
+    smooth_sigma_px: float = 1.5
+
+    def __post_init__(self):
+        if not 0.0 < self.clip_level <= 1.0:
+            raise ValueError(f"clip_level must be in (0, 1], got {self.clip_level}")
+        if not self.max_gain >= 1.0:
+            raise ValueError(f"max_gain must be >= 1, got {self.max_gain}")
+        if self.core_radius_px <= 0 or self.gamma <= 0 or self.smooth_sigma_px < 0:
+            raise ValueError("core_radius_px and gamma must be > 0, smooth_sigma_px >= 0")
+
+
+def inverse_tone_map(image: np.ndarray, params: InverseToneMapParams = InverseToneMapParams()) -> np.ndarray:
+    """LDR image (uint8 or float in [0, 1], sRGB-encoded, (H, W, 3)) -> linear HDR float32 (H, W, 3), >= 0, finite.
+
+    Unclipped pixels are exactly :func:`srgb_to_linear`; clipped ones are expanded (see :class:`InverseToneMapParams`).
+    An all-white image is one clipped region and gets the full gain in its interior; an all-black one stays 0.
+    """
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"inverse_tone_map: expected (H, W, 3), got {img.shape}")
+    unit = _as_unit_float(img)
+    linear = srgb_to_linear(unit)
+    clipped = unit.max(axis=2) >= params.clip_level
+    if not clipped.any() or params.max_gain == 1.0:
+        return linear
+    # Distance to the nearest unclipped pixel; an image that is clipped everywhere counts its border as the edge.
+    padded = np.pad(clipped, 1, constant_values=False)
+    dist = ndimage.distance_transform_edt(padded)[1:-1, 1:-1]
+    s = np.clip(dist / params.core_radius_px, 0.0, 1.0) ** params.gamma
+    if params.smooth_sigma_px > 0:
+        s = ndimage.gaussian_filter(s, params.smooth_sigma_px, mode="nearest")
+    s = np.where(clipped, s, 0.0)
+    gain = 1.0 + (params.max_gain - 1.0) * s
+    return (linear * gain[..., None].astype(np.float32)).astype(np.float32)
+
+
+# ----------------------------------------------------------------------------------------------------------- file IO
+
+
+def read_exr(path: str | Path) -> np.ndarray:
+    """Read an OpenEXR file's RGB as float32 (H, W, 3). Accepts a packed 'RGB'/'RGBA' channel or separate R, G, B."""
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"EXR not found: {path}")
+    with OpenEXR.File(str(path)) as f:
+        channels = f.channels()
+        if "RGB" in channels:
+            rgb = np.asarray(channels["RGB"].pixels)
+        elif "RGBA" in channels:
+            rgb = np.asarray(channels["RGBA"].pixels)[..., :3]
+        elif all(c in channels for c in "RGB"):
+            rgb = np.stack([np.asarray(channels[c].pixels) for c in "RGB"], axis=-1)
+        elif "Y" in channels:
+            y = np.asarray(channels["Y"].pixels)
+            rgb = np.stack([y, y, y], axis=-1)
+        else:
+            raise ValueError(f"{path}: no RGB or Y channels (found {sorted(channels)})")
+    return np.ascontiguousarray(rgb, dtype=np.float32)
+
+
+def write_exr(path: str | Path, rgb: np.ndarray, half: bool = False) -> None:
+    """Write float RGB (H, W, 3) as a ZIP-compressed scanline EXR (float32, or half with ``half=True``)."""
+    import OpenEXR
+
+    rgb = np.asarray(rgb)
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError(f"write_exr: expected (H, W, 3), got {rgb.shape}")
+    if not np.all(np.isfinite(rgb)):
+        raise ValueError("write_exr: image contains NaN or Inf")
+    data = np.ascontiguousarray(rgb, dtype=np.float16 if half else np.float32)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with OpenEXR.File(header, {"RGB": data}) as f:
+        f.write(str(path))
+
+
+def read_radiance_hdr(path: str | Path) -> np.ndarray:
+    """Read a Radiance RGBE ``.hdr`` file as float32 RGB (H, W, 3) with OpenCV."""
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"HDR not found: {path}")
+    bgr = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise ValueError(f"{path}: OpenCV could not decode it as Radiance HDR")
+    return np.ascontiguousarray(bgr[..., ::-1], dtype=np.float32)
+
+
+def write_radiance_hdr(path: str | Path, rgb: np.ndarray) -> None:
+    """Write float RGB (H, W, 3) as Radiance RGBE (8-bit mantissa: ~1% relative precision; negatives are clipped to 0)."""
+    import cv2
+
+    rgb = np.asarray(rgb, dtype=np.float32)
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError(f"write_radiance_hdr: expected (H, W, 3), got {rgb.shape}")
+    if not np.all(np.isfinite(rgb)):
+        raise ValueError("write_radiance_hdr: image contains NaN or Inf")
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(path), np.ascontiguousarray(np.clip(rgb, 0, None)[..., ::-1])):
+        raise OSError(f"OpenCV failed to write {path}")
+
+
+def read_hdr_image(path: str | Path) -> np.ndarray:
+    """Read an EXR or Radiance .hdr by suffix; negative values (compression noise) are clipped to 0."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".exr":
+        rgb = read_exr(path)
+    elif suffix == ".hdr":
+        rgb = read_radiance_hdr(path)
+    else:
+        raise ValueError(f"unsupported HDR file type {suffix!r} for {path}; expected one of {HDR_SUFFIXES}")
+    if not np.all(np.isfinite(rgb)):
+        raise ValueError(f"{path}: contains NaN or Inf pixels")
+    return np.clip(rgb, 0.0, None)
+
+
+def write_hdr_image(path: str | Path, rgb: np.ndarray) -> None:
+    suffix = Path(path).suffix.lower()
+    if suffix == ".exr":
+        write_exr(path, rgb)
+    elif suffix == ".hdr":
+        write_radiance_hdr(path, rgb)
+    else:
+        raise ValueError(f"unsupported HDR file type {suffix!r} for {path}; expected one of {HDR_SUFFIXES}")

@@ -1,0 +1,279 @@
+"""Video object insertion (the paper's video path): one object pose in WORLD coordinates for the whole clip.
+
+``insert_into_clip`` chooses the contact point once, in the world: the ground under where the camera will be at
+frame ``start + lookahead_frames`` (shifted sideways by ``lateral_offset_m`` so the object is beside the camera
+path, not under it), or a ground pixel sampled in the first frame and lifted to the world. The point is projected
+through K [R | t] of every frame (:func:`aias_augment.analyse.ground.project_world_point_track`). Per frame, when depth is
+given, the ground is re-fitted locally around the projected contact (:func:`aias_augment.plan.placement.
+refit_local_ground`); the median of those per-frame height offsets corrects the ONE world pose (per-frame poses
+would jitter). Each frame is rendered with that world pose, shaded with the frame's estimate of ONE clip
+lighting (same sun in the world, e.g. ``estimate_lighting_clip``; default a uniform ambient), composited against
+the frame's depth, and annotated (COCO xywh of the visible part). The object casts its shadow in every frame with the image pipeline's
+shadow catcher (:func:`aias_augment.pipeline.image.object_shadow_ratio`): the ONE world pose and the ONE clip sun make it
+a fixed patch of the world ground. With ``flow_refine`` the ground patch under the contact is tracked with KLT
+(:mod:`aias_augment.plan.stabilize`) and each frame's object pose slides on its ground so the contact stays on the
+tracked pixel: drifting poses (visual odometry) no longer make the object skate.
+
+Poses: ``cams_from_world`` (N, 4, 4) OpenCV ``cam_from_world`` (KITTI poses inverted, DGP world poses, or
+:func:`aias_augment.scenes.video.estimate_video_motion`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from aias_augment.analyse.ground import GroundFitError, GroundPlane, project_world_point_track
+from aias_augment.analyse.lighting.estimate import LightingEstimate
+from aias_augment.apply import composite as comp
+from aias_augment.apply.annotate import annotate_object
+from aias_augment.apply.render import render_object
+from aias_augment.apply.shading import shade_object
+from aias_augment.assets.asset import Asset
+from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, project_points, transform_points
+from aias_augment.plan.placement import (
+    PlacementConfig,
+    box_of_points,
+    ground_band_points,
+    object_pose_on_ground,
+    refit_local_ground,
+)
+from aias_augment.plan.stabilize import FlowRefineConfig, refined_cam_from_object, track_contact_with_flow
+
+__all__ = ["VideoInsertionConfig", "ClipInsertion", "choose_world_contact", "insert_into_clip"]
+
+
+@dataclass(frozen=True)
+class VideoInsertionConfig:
+    lookahead_frames: int = 10  # T: the object stands where the camera will be at frame start + T ...
+    lateral_offset_m: float = 2.5  # ... shifted this far to the camera's right (negative: left)
+    contact: str = "lookahead"  # "lookahead" | "sampled" (a ground pixel of the first frame)
+    height_m: float | None = None  # object height; None: the asset's own
+    local_refit: bool = True  # per-frame local ground refit (needs depths)
+    ssaa: int = 1
+    shadow: bool = True  # cast shadow from the frame's sun (contact occlusion only without one)
+    flow_refine: bool = False  # KLT-track the ground under the contact and slide the object per frame
+    flow_cfg: FlowRefineConfig = FlowRefineConfig()
+    placement_cfg: PlacementConfig = PlacementConfig()
+
+    def __post_init__(self):
+        if self.contact not in ("lookahead", "sampled"):
+            raise ValueError(f"contact must be 'lookahead' or 'sampled', got {self.contact!r}")
+        if self.lookahead_frames < 0 or self.ssaa < 1:
+            raise ValueError("lookahead_frames must be >= 0 and ssaa >= 1")
+
+
+@dataclass
+class ClipInsertion:
+    frames: list[np.ndarray]  # (H, W, 3) uint8 per frame
+    boxes_xywh: list[tuple | None]  # visible COCO box per frame (None: not visible)
+    amodal_boxes_xywh: list[tuple | None]  # full projected silhouette box per frame
+    contact_in_world: np.ndarray  # (3,) after the refit correction
+    world_from_object: np.ndarray  # (4, 4), the same for every frame
+    contact_track_uv: np.ndarray  # (N, 2) projection of contact_in_world, NaN behind the camera
+    contact_visible: np.ndarray  # (N,) bool
+    refit_offsets_m: list[float | None] = field(default_factory=list)  # per frame: local ground - world contact
+    masks: list[np.ndarray | None] = field(default_factory=list)  # per frame: the object's visible soft alpha
+    modules: dict[str, str] = field(default_factory=dict)
+
+    def coco_annotations(self, category: str, first_image_id: int = 0) -> list[dict]:
+        """One COCO annotation per frame where the object is visible (image_id = first_image_id + frame index)."""
+        return [
+            {
+                "image_id": first_image_id + i,
+                "category": category,
+                "bbox": list(b),
+                "area": float(b[2] * b[3]),
+                "iscrowd": 0,
+            }
+            for i, b in enumerate(self.boxes_xywh)
+            if b is not None
+        ]
+
+
+def _world_ground(ground_in_cam0: GroundPlane, cam0_from_world: np.ndarray) -> GroundPlane:
+    return ground_in_cam0.transformed(invert_rigid(cam0_from_world))
+
+
+def choose_world_contact(
+    cams_from_world: np.ndarray,
+    ground_in_cam0: GroundPlane,
+    intrinsics: Intrinsics,
+    rng: np.random.Generator,
+    cfg: VideoInsertionConfig = VideoInsertionConfig(),
+    start: int = 0,
+) -> tuple[np.ndarray, GroundPlane]:
+    """(contact point (3,), ground plane) in the world.
+
+    "lookahead": the camera centre of frame j = start + T (clamped to the clip), moved lateral_offset_m along that
+    camera's x axis, dropped onto the ground as camera j sees it: ``ground_in_cam0`` taken as camera-relative (a
+    vehicle camera keeps its height and tilt over the road, while the road itself climbs and turns). "sampled": a
+    random below-horizon pixel of frame ``start`` (2..40 m) lifted to its ground, then to the world.
+    """
+    poses = np.asarray(cams_from_world, float)
+    if cfg.contact == "lookahead":
+        j = min(start + cfg.lookahead_frames, len(poses) - 1)
+        world_from_cam = invert_rigid(poses[j])
+        world_ground = _world_ground(ground_in_cam0, poses[j])
+        p = world_from_cam[:3, 3] + cfg.lateral_offset_m * world_from_cam[:3, 0]
+        return world_ground.project_to_plane(p), world_ground
+    world_ground = _world_ground(ground_in_cam0, poses[start])
+    for _ in range(200):
+        uv = np.array([rng.uniform(0, intrinsics.width), rng.uniform(intrinsics.cy, intrinsics.height)])
+        p = ground_in_cam0.intersect_pixels(uv, intrinsics)
+        if np.all(np.isfinite(p)) and 2.0 < np.linalg.norm(p) < 40.0:
+            return transform_points(invert_rigid(poses[start]), p), world_ground
+    raise ValueError("choose_world_contact: no ground pixel 2..40 m away in the first frame")
+
+
+def insert_into_clip(
+    frames,
+    intrinsics: Intrinsics,
+    cams_from_world,
+    rng: np.random.Generator,
+    cfg: VideoInsertionConfig = VideoInsertionConfig(),
+    *,
+    asset: Asset,
+    ground_in_cam0: GroundPlane,
+    depths=None,
+    lighting: list[LightingEstimate] | None = None,
+    start: int = 0,
+    yaw_rad: float | None = None,
+) -> ClipInsertion:
+    """Insert ``asset`` into every frame with one world pose (see module docstring).
+
+    frames: N (H, W, 3) uint8 RGB. cams_from_world: (N, 4, 4). ground_in_cam0: ground of frame ``start`` in its
+    camera. depths: None or N (H, W) z-depth maps (0 = unknown): per-frame refit and occlusion. lighting: None
+    (uniform grey-world ambient of frame ``start``, no sun) or N per-frame estimates of ONE clip lighting, e.g.
+    :func:`aias_augment.analyse.lighting.estimate.estimate_lighting_clip`.
+    """
+    poses = np.asarray(cams_from_world, dtype=np.float64)
+    n = len(frames)
+    if poses.shape != (n, 4, 4):
+        raise ValueError(f"need one 4x4 cam_from_world per frame: {n} frames, poses {poses.shape}")
+    for T in poses:
+        check_rigid(T, "cam_from_world")
+    if depths is not None and len(depths) != n:
+        raise ValueError(f"{len(depths)} depth maps for {n} frames")
+    if lighting is not None and len(lighting) != n:
+        raise ValueError(f"{len(lighting)} lighting estimates for {n} frames")
+    if not 0 <= start < n:
+        raise ValueError(f"start {start} outside the clip of {n} frames")
+    for f in frames:
+        if np.asarray(f).shape != (intrinsics.height, intrinsics.width, 3) or np.asarray(f).dtype != np.uint8:
+            raise ValueError("frames must be (H, W, 3) uint8 matching the intrinsics")
+    mods: dict[str, str] = {}
+    contact_w, world_ground = choose_world_contact(poses, ground_in_cam0, intrinsics, rng, cfg, start)
+    up_w = world_ground.normal
+    yaw = float(rng.uniform(-np.pi, np.pi)) if yaw_rad is None else float(yaw_rad)
+    scale = 1.0 if cfg.height_m is None else cfg.height_m / max(asset.height_m, 1e-9)  # eps: degenerate asset
+    obj = asset.scaled(scale) if scale != 1.0 else asset
+
+    # Per-frame local ground refit around the projected contact: signed offset of the local ground along up.
+    offsets: list[float | None] = [None] * n
+    if depths is not None and cfg.local_refit:
+        refit_rng = rng.spawn(1)[0]
+        for i in range(n):
+            if depths[i] is None:
+                continue
+            g_i = world_ground.transformed(poses[i])
+            c_i = transform_points(poses[i], contact_w)
+            if c_i[2] <= 0.5:
+                continue
+            band = ground_band_points(
+                g_i, intrinsics, refit_rng, depth=np.asarray(depths[i], np.float32), cfg=cfg.placement_cfg
+            )
+            try:
+                local, _ = refit_local_ground(band, g_i, c_i, refit_rng, cfg.placement_cfg)
+            except GroundFitError:
+                continue
+            offsets[i] = -float(local.signed_distance(c_i))  # > 0: the measured ground is above the contact
+        measured = [o for o in offsets if o is not None]
+        if measured:
+            shift = float(np.median(measured))
+            contact_w = contact_w + shift * up_w
+            mods["refit"] = f"local ground in {len(measured)}/{n} frames, median offset {shift * 100:.1f} cm applied"
+        else:
+            mods["refit"] = "no frame had a local ground around the contact: plane of the first frame kept"
+    else:
+        mods["refit"] = "skipped: no depth (or disabled); plane of the first frame"
+
+    # One world pose: object z = world up, yaw about it (reference axis: first camera's x on the ground).
+    cam0_from_obj = object_pose_on_ground(
+        transform_points(poses[start], contact_w), world_ground.transformed(poses[start]), yaw
+    )
+    world_from_object = invert_rigid(poses[start]) @ cam0_from_obj
+    track_uv, visible = project_world_point_track(contact_w, intrinsics, poses)
+
+    if lighting is None:
+        E = np.asarray(comp.ExposureMatch.from_image(frames[start]).irradiance_rgb)
+        sh = np.zeros((9, 3))
+        sh[0] = E / (np.pi * 0.886227)  # constant SH radiance L00 Y00 has irradiance pi * 0.886227 * L00
+        light0 = LightingEstimate(
+            None, np.zeros(3), sh, 0.0, False, 0.0, "none", world_ground.transformed(poses[start]).normal
+        )
+        lights = [light0] * n
+        mods["lighting"] = "uniform grey-world ambient of the first frame (no sun)"
+    else:
+        lights = list(lighting)
+        mods["lighting"] = f"given per frame ({lights[start].source})"
+
+    if cfg.shadow:
+        from aias_augment.pipeline.image import (
+            object_shadow_ratio,  # lazy: the pipeline module imports the whole image path
+        )
+
+        mods["shadow"] = (
+            "shadow catcher per frame (one world pose, one sun)"
+            if lights[start].dominant_sun
+            else "contact occlusion only: no dominant sun"
+        )
+    else:
+        mods["shadow"] = "skipped: disabled"
+    grounds = [world_ground.transformed(T) for T in poses]
+    flow = None
+    if cfg.flow_refine:
+        flow = track_contact_with_flow(
+            frames, track_uv, grounds, intrinsics, rng.spawn(1)[0], poses, start, cfg.flow_cfg
+        )
+        used = sum(st == "flow" for st in flow.status)
+        mods["stabilize"] = f"KLT ground tracking: contact corrected in {used}/{n - 1} frames"
+    else:
+        mods["stabilize"] = "skipped: poses trusted (flow_refine off)"
+    out_frames, boxes, amodal, masks = [], [], [], []
+    for i in range(n):
+        cam_from_object = poses[i] @ world_from_object
+        if flow is not None and flow.status[i] == "flow":
+            cam_from_object = refined_cam_from_object(
+                cam_from_object, transform_points(poses[i], contact_w), flow.uv[i], grounds[i], intrinsics
+            )
+        uvc, z = project_points(transform_points(cam_from_object, obj.corners_m()), intrinsics.K)
+        img = np.asarray(frames[i])
+        if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
+            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
+            continue
+        b = box_of_points(uvc)
+        if b[2] < 0 or b[3] < 0 or b[0] > intrinsics.width or b[1] > intrinsics.height:
+            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
+            continue
+        rl = render_object(obj, cam_from_object, intrinsics, ssaa=cfg.ssaa)
+        if rl.alpha.max() <= 0.5:
+            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
+            continue
+        shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lights[i])
+        depth_i = None if depths is None else depths[i]
+        vis = rl.alpha * comp.visible_fraction_against_depth(rl.depth, depth_i)
+        bg = comp.to_linear(img)
+        if cfg.shadow:
+            bg = comp.apply_shadow(bg, object_shadow_ratio(obj, cam_from_object, intrinsics, lights[i], depth_i))
+        out_frames.append(comp.to_uint8(comp.alpha_over(bg, shaded, vis)))
+        masks.append(np.clip(vis, 0.0, 1.0).astype(np.float32))
+        ann = annotate_object(obj.category, rl.alpha, vis)
+        boxes.append(ann.visible_box_xywh)
+        amodal.append(ann.amodal_box_xywh)
+    if flow is not None:  # the contact track the frames were rendered with
+        track_uv = np.where(np.array([st == "flow" for st in flow.status])[:, None], flow.uv, track_uv)
+    return ClipInsertion(
+        out_frames, boxes, amodal, contact_w, world_from_object, track_uv, visible, offsets, masks, mods
+    )

@@ -1,0 +1,145 @@
+"""The insertion config and its presets (``configs/presets/<name>.yaml``)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, is_dataclass, replace
+from typing import Literal
+
+from aias_augment.analyse.lighting.estimate import LightingConfig
+from aias_augment.core.config import CONFIG_DIR, ConfigValueError, UnknownConfigKeys, checked_config, load_config
+from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M
+from aias_augment.plan.placement import PlacementConfig
+
+PRESETS = ("fast", "balanced", "accurate")
+
+#: ``harmonize.api.METHODS`` (tests/aias_augment/insertion/test_config.py checks they agree).
+HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
+
+
+# Every field is checked at construction against its type hint and these bounds (config.checked_config): a wrong
+# type or a value out of range raises, naming the field, instead of a skip on every call.
+@checked_config(
+    {
+        "min_objects": "[0, inf)",
+        "max_objects": "[0, inf)",
+        "ssaa": "[1, inf)",
+        "analysis_max_width": "[0, inf)",  # and 0 or >= 64 (__post_init__)
+        "camera_height_m": "(0, inf)",
+        "max_camera_pitch_deg": "[0, 90]",
+        "max_camera_roll_deg": "[0, 180]",
+        "default_hfov_deg": "(0, 180)",
+        "naive_height_frac_range": "(0, 1] lo<=hi",
+        "naive_height_frac_samples": "(0, 1]",
+    },
+    orders=["min_objects <= max_objects"],
+)
+@dataclass(frozen=True)
+class InsertionConfig:
+    categories: tuple[str, ...] = ("traffic_cone",)
+    min_objects: int = 1
+    max_objects: int = 3
+    # Stages (ablation switches). naive_paste=True is 3D Copy-Paste's "random insertion": a plain render pasted at a
+    # random position and scale, no geometry, lighting, shadow or harmonization.
+    placement: bool = True
+    shadow: bool = True
+    lighting: bool = True
+    harmonize: bool = True
+    naive_paste: bool = False
+    harmonize_method: HarmonizeMethod = "camera"
+    harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~2-6x faster)
+    # What the harmonizer may change on the objects: "full" (its output as is) or "luminance" (its brightness and
+    # contrast, per pixel, with the chromaticity the lighting gave the object kept): a learnt harmonizer pulls an
+    # object toward its context's colour, and among orange cones or beside a red truck that turns white bands pink
+    # (scripts/eval_neutral_whites.py, results/lighting/neutral_whites: white bands against the same photos' real
+    # white sleeves, R/G 1.30 with "full", 1.03 with "luminance"; with the neutral ambient the paired deviation fell
+    # by 0.10 in max |log R/G|, |log B/G| [0.04, 0.17], 24 TraCon train photos).
+    harmonize_colour: Literal["full", "luminance"] = "luminance"
+    # After the colour harmonizer: camera-pipeline matching of blur, noise and JPEG (quality and chroma subsampling
+    # read from the source image) against the object's surroundings (harmonize.api.match_camera; its noise drawn
+    # from a generator seeded by the plan's harmonize_seed, so a replay gives the same bytes). Part of the
+    # harmonization stage: off with it. Redundant (skipped) when harmonize_method is "camera".
+    camera_match: bool = False
+    # Where the objects come from: "default": the shared-data model per category, the bank for others; "bank": all
+    # from the bank; "procedural": a new seeded procedural asset per object where the category has a generator
+    # (traffic_cone), else as "default".
+    asset_source: Literal["default", "bank", "procedural"] = "default"
+    ssaa: int = 2  # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
+    # Sun visibility on the ground: "catcher" (GL shadow map: ground patch rendered with/without the object) or
+    # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL
+    # call; tests/aias_augment/insertion/test_projected_shadow.py: IoU >= 0.95 vs exact ray casting).
+    shadow_method: Literal["catcher", "projected"] = "catcher"
+    # Object layers: "full" (a GL render of the asset at the sample's pose) or "view_cache" (the asset's view for the
+    # sample's view bin, rendered once per process and warped into the image, no GL call on a hit; poses the cache
+    # does not cover fall back to "full": insertion/view_cache.py, tests/aias_augment/insertion/test_view_cache.py).
+    render_method: Literal["full", "view_cache"] = "full"
+    # Cheap analysis (the fast preset's lighting estimate for a new image): the camera (vanishing lines) and the
+    # lighting are estimated on a copy at most this many pixels wide (0: the image as given); the record says so.
+    analysis_max_width: int = 0
+    # Priors when the scene does not say.
+    camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
+    estimate_camera: bool = True  # horizon/pitch/roll (and focal when unknown) from vanishing lines
+    max_camera_pitch_deg: float = 25.0  # estimates beyond these bounds fall back to the level-camera prior
+    max_camera_roll_deg: float = 10.0
+    default_hfov_deg: float = 60.0
+    naive_height_frac_range: tuple[float, float] = (0.05, 0.4)
+    naive_height_frac_samples: tuple[float, ...] = ()  # when set, naive paste draws its heights from these instead
+    placement_cfg: PlacementConfig = PlacementConfig()
+    lighting_cfg: LightingConfig = LightingConfig()  # thresholds and analysis resolutions of estimate_lighting
+
+    def __post_init__(self):  # after the checks of every field's type and bounds (checked_config)
+        if not self.categories:
+            raise ConfigValueError(("InsertionConfig", "categories"), "must not be empty")
+        if 0 < self.analysis_max_width < 64:
+            raise ConfigValueError(
+                ("InsertionConfig", "analysis_max_width"), f"must be 0 (off) or >= 64, got {self.analysis_max_width}"
+            )
+
+    def effective(self) -> "InsertionConfig":
+        """naive_paste switches the geometry, lighting, shadow and harmonization stages off."""
+        if self.naive_paste:
+            return replace(self, placement=False, shadow=False, lighting=False, harmonize=False)
+        return self
+
+    def analysis_fields(self) -> dict:
+        """The fields :func:`aias_augment.analyse.analyse_scene` reads (part of the scene cache key)."""
+        c = self.effective()
+        out = {
+            k: getattr(c, k)
+            for k in (
+                "placement",
+                "lighting",
+                "estimate_camera",
+                "camera_height_m",
+                "max_camera_pitch_deg",
+                "max_camera_roll_deg",
+                "default_hfov_deg",
+                "lighting_cfg",
+            )
+        }
+        if c.analysis_max_width:  # only when set: the keys of full-resolution analyses stay what they were
+            out["analysis_max_width"] = c.analysis_max_width
+        return out
+
+
+def load_preset(name: str, **overrides) -> InsertionConfig:
+    """``configs/presets/<name>.yaml`` (fast | balanced | accurate) with keyword overrides.
+
+    Every value is checked (type, bounds) as in any construction. A nested config (``placement_cfg``,
+    ``lighting_cfg``) may be given as a mapping of some of its fields: they update the preset's, e.g.
+    ``load_preset("accurate", placement_cfg={"sizes_from_existing": True})`` keeps the preset's ``max_tries``.
+    """
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}; choose from {PRESETS}")
+    cfg = load_config(InsertionConfig, CONFIG_DIR / "presets" / f"{name}.yaml")
+    if not overrides:
+        return cfg
+    allowed = {f.name for f in fields(InsertionConfig)}
+    unknown = sorted(set(overrides) - allowed)
+    if unknown:
+        raise UnknownConfigKeys(("InsertionConfig",), f"unknown config keys {unknown}; allowed: {sorted(allowed)}")
+    for key, value in overrides.items():
+        nested = getattr(cfg, key)
+        if is_dataclass(nested) and isinstance(value, Mapping):  # on top of the preset's nested config
+            overrides[key] = {**{f.name: getattr(nested, f.name) for f in fields(nested)}, **value}
+    return replace(cfg, **overrides)

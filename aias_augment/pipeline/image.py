@@ -1,0 +1,186 @@
+"""The insertion pipeline for one image: scene -> placement -> lighting -> render -> composite -> harmonize -> annotate.
+
+``insert_into_image`` is the one-call form used by the albumentations transform, the offline CLI, the demo and the
+detection study: a thin wrapper over the three steps of :mod:`aias_augment.analyse`, :mod:`aias_augment.plan` and :mod:`aias_augment.apply` (``analyse_scene`` ->
+``plan_insertion`` -> ``apply_plan``). Every stage records what it used and which modules it skipped and why, so any
+insertion can be replayed from its :class:`InsertionRecord`.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from aias_augment.analyse.analysis import scene_geometry, scene_lighting  # noqa: F401  (old names, kept importable)
+from aias_augment.analyse.cache import SceneCache
+from aias_augment.analyse.lighting.estimate import LightingEstimate
+from aias_augment.apply.annotate import ObjectAnnotation, box_visibility_under_cover
+from aias_augment.apply.stages import apply_plan, object_shadow_ratio  # noqa: F401
+from aias_augment.core.frame import Frame
+from aias_augment.core.geometry import Intrinsics
+from aias_augment.core.scene_inputs import SceneInputs, scene_meta
+from aias_augment.pipeline.config import PRESETS, InsertionConfig, load_preset  # noqa: F401
+from aias_augment.pipeline.replay import placement_from_dict
+from aias_augment.pipeline.working import WorkingResolution
+from aias_augment.plan.insertion import plan_insertion
+from aias_augment.plan.placement import Placement
+
+log = logging.getLogger(__name__)
+
+_object_shadow = object_shadow_ratio  # the name scripts/eval_lighting_kitti.py uses
+
+
+@dataclass
+class InsertionRecord:
+    """What was done to one image: enough to replay it (placements are frozen records) and to debug it."""
+
+    placements: list[Placement] = field(default_factory=list)
+    annotations: list[ObjectAnnotation] = field(default_factory=list)
+    lighting: LightingEstimate | None = None
+    modules: dict[str, str] = field(default_factory=dict)  # stage -> what was used, or "skipped: why"
+    placement_reports: list[dict] = field(default_factory=list)
+    existing_visibility: list[float] = field(default_factory=list)
+    harmonize_seed: int | None = None  # the plan's harmonizer seed (with the placements: enough to replay)
+    # the analysis and plan ran on a smaller copy of the image (the bounded door); None: on the image itself
+    working_resolution: WorkingResolution | None = None
+
+    def to_dict(self) -> dict:
+        return {
+            "harmonize_seed": self.harmonize_seed,
+            "working_resolution": None if self.working_resolution is None else self.working_resolution.to_dict(),
+            "placements": [asdict(p) for p in self.placements],
+            "annotations": [a.to_dict() for a in self.annotations],
+            "lighting": self.lighting.to_dict() if self.lighting else None,
+            "modules": self.modules,
+            "placement_reports": self.placement_reports,
+            "existing_visibility": self.existing_visibility,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "InsertionRecord":
+        """The record :meth:`to_dict` wrote (e.g. read back from JSON): ``from_dict(r.to_dict()).to_dict()`` equals
+        ``r.to_dict()``. A record without ``working_resolution`` (written before it was recorded) was analysed on
+        the image itself."""
+        wr = d.get("working_resolution")
+        return cls(
+            [placement_from_dict(p) for p in d["placements"]],
+            [ObjectAnnotation.from_dict(a) for a in d["annotations"]],
+            None if d["lighting"] is None else LightingEstimate.from_dict(d["lighting"]),
+            dict(d["modules"]),
+            list(d["placement_reports"]),
+            list(d["existing_visibility"]),
+            d["harmonize_seed"],
+            None if wr is None else WorkingResolution.from_dict(wr),
+        )
+
+
+@dataclass
+class InsertionResult:
+    image: np.ndarray  # (H, W, 3) uint8
+    bboxes: np.ndarray  # (M, 4) COCO xywh: kept existing boxes then inserted ones
+    labels: list  # matching labels (existing labels kept, inserted = category names)
+    inserted_bboxes: np.ndarray  # (K, 4) xywh of the inserted objects' visible parts
+    inserted_labels: list[str]
+    keep_existing: np.ndarray  # (N,) bool: existing boxes that stay visible enough
+    record: InsertionRecord
+
+
+def insert_into_image(
+    image: np.ndarray,
+    bboxes_xywh=None,
+    labels=None,
+    rng: np.random.Generator | None = None,
+    cfg: InsertionConfig = InsertionConfig(),
+    *,
+    intrinsics=None,
+    depth=None,
+    meta: dict | None = None,
+    min_visibility: float = 0.0,
+    bank=None,
+    n_objects: int | None = None,
+    scene_cache: SceneCache | None = None,
+    view_cache=None,
+    scene: SceneInputs | None = None,
+) -> InsertionResult:
+    """Insert 1..k objects into ``image`` and return the new image, boxes and a replayable record.
+
+    image: (H, W, 3) uint8 RGB. bboxes_xywh: (N, 4) COCO boxes already in the image, labels their labels.
+    intrinsics: Intrinsics or 3x3 K (None: FOV prior). depth: (H, W) metres (0/NaN unknown) or None.
+    min_visibility: existing boxes whose visible fraction under the inserted objects drops below it are dropped.
+    scene: typed scene facts (:class:`~aias_augment.core.scene_inputs.SceneInputs`: placeable mask, measured points,
+        existing 3D boxes, position/time/orientation for the sun, ...), checked against the image before anything
+        runs. meta: the same facts as a dict (its keys are SceneInputs' field names, e.g. 'placeable_mask',
+        'lidar_points_in_cam', 'lat'/'lon'/'utc') plus free-form provenance the pipeline carries but does not
+        read; a misspelt fact name raises. Facts come from one of the two.
+    scene_cache: where the scene analysis is looked up / kept (None: computed for this call only). The analysis
+        draws from its own fixed-seed generator, so ``rng`` only drives the plan (objects, placements, harmonizer).
+    view_cache: the :class:`~aias_augment.apply.view_cache.ViewCache` of ``render_method="view_cache"`` (None:
+        the process-wide one); like the scene cache it changes when views are rendered, never the pixels.
+    """
+    if rng is None:
+        raise ValueError("insert_into_image needs an explicit numpy Generator (rng) for reproducibility")
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError(f"image must be (H, W, 3) uint8 RGB, got {img.shape} {img.dtype}")
+    h, w = img.shape[:2]
+    boxes = np.zeros((0, 4)) if bboxes_xywh is None else np.asarray(bboxes_xywh, float).reshape(-1, 4)
+    labels = [] if labels is None else list(labels)
+    if len(labels) != len(boxes):
+        raise ValueError(f"{len(boxes)} boxes but {len(labels)} labels")
+    if depth is not None:
+        depth = np.asarray(depth, np.float32)
+        if depth.shape != (h, w):
+            raise ValueError(f"depth must be {(h, w)}, got {depth.shape}")
+    if intrinsics is not None and not isinstance(intrinsics, Intrinsics):
+        intrinsics = Intrinsics.from_matrix(np.asarray(intrinsics), w, h)
+    meta = scene_meta(meta, scene, (h, w))
+    frame = Frame(img, intrinsics, depth=depth, meta=meta)
+    cache = scene_cache if scene_cache is not None else SceneCache(max_items=0)
+    analysis = cache.get(frame, cfg)
+    existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
+    plan = plan_insertion(
+        analysis, cfg, rng, existing_boxes_xyxy=existing_xyxy, depth=depth, meta=meta, bank=bank, n_objects=n_objects
+    )
+    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
+    return assemble_result(analysis, plan, applied, boxes, labels, min_visibility)
+
+
+def assemble_result(
+    analysis,
+    plan,
+    applied,
+    boxes: np.ndarray,
+    labels: list,
+    min_visibility: float,
+    *,
+    working_resolution: WorkingResolution | None = None,
+) -> InsertionResult:
+    """The result of one insertion from its three steps' records: the inserted objects' visible boxes appended to the
+    input boxes that stay visible enough under what was drawn over them (``boxes`` xywh, in the output's pixels).
+    ``working_resolution``: the smaller copy the analysis and plan ran on (recorded for replay), None: the image."""
+    record = InsertionRecord(
+        list(applied.placements),
+        list(applied.annotations),
+        analysis.lighting,
+        {**analysis.modules, **plan.modules, **applied.modules},
+        list(plan.placement_reports) + list(applied.dropped),
+        harmonize_seed=plan.harmonize_seed,
+        working_resolution=working_resolution,
+    )
+    inserted_boxes, inserted_labels = [], []
+    for placement, ann in zip(applied.placements, applied.annotations):
+        if ann.visible_box_xywh is not None:
+            inserted_boxes.append(ann.visible_box_xywh)
+            inserted_labels.append(placement.category)
+    existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
+    existing_vis = box_visibility_under_cover(
+        existing_xyxy, applied.cover_window, applied.window[:2], applied.image.shape[:2]
+    )
+    keep = existing_vis >= min_visibility
+    record.existing_visibility = existing_vis.tolist()
+    ins = np.array(inserted_boxes, float).reshape(-1, 4)
+    all_boxes = np.concatenate([boxes[keep], ins], axis=0)
+    all_labels = [lab for lab, k in zip(labels, keep) if k] + inserted_labels
+    return InsertionResult(applied.image, all_boxes, all_labels, ins, inserted_labels, keep, record)

@@ -1,0 +1,225 @@
+"""Step 2: every random draw of one insertion, as a frozen record: how many objects, which category and asset,
+where each stands (a frozen :class:`~aias_augment.plan.placement.Placement`), and the harmonizer's seed.
+
+:func:`plan_insertion` reads the :class:`SceneAnalysis` and the sample's generator only; :func:`apply_plan` then
+draws nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from aias_augment.analyse.analysis import SceneAnalysis
+from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
+from aias_augment.core.geometry import Intrinsics, make_rigid, project_points, transform_points
+from aias_augment.pipeline.config import InsertionConfig
+from aias_augment.plan.collision import OrientedBox
+from aias_augment.plan.placement import (
+    Placement,
+    box_of_points,
+    draw_box_height_target,
+    sample_placement,
+    scaled_ground,
+    scene_scale_for_sizes,
+)
+
+
+@dataclass(frozen=True, eq=False)
+class PlannedObject:
+    """One object to insert: the placement record and the (scaled) asset it renders."""
+
+    placement: Placement
+    asset: Asset
+
+    @property
+    def cam_from_object(self) -> np.ndarray:
+        return self.placement.cam_from_object_matrix
+
+
+@dataclass(frozen=True, eq=False)
+class InsertionPlan:
+    """What :func:`apply_plan` does, drawn once. ``placement_reports``: per requested object, the placement
+    search's report (rejections by reason). ``harmonize_seed``: seeds the harmonizer's own generator."""
+
+    objects: tuple[PlannedObject, ...]
+    harmonize_seed: int
+    n_requested: int
+    placement_reports: tuple[dict, ...] = ()
+    modules: dict = field(default_factory=dict)  # e.g. 'collision': which 3D checks ran
+
+    def to_dict(self) -> dict:
+        return {
+            "n_requested": self.n_requested,
+            "harmonize_seed": self.harmonize_seed,
+            "placements": [asdict(o.placement) for o in self.objects],
+            "placement_reports": list(self.placement_reports),
+            "modules": dict(self.modules),
+        }
+
+
+def plan_insertion(
+    analysis: SceneAnalysis,
+    cfg: InsertionConfig,
+    rng: np.random.Generator,
+    *,
+    existing_boxes_xyxy: np.ndarray | None = None,
+    depth: np.ndarray | None = None,
+    meta: dict | None = None,
+    bank=None,
+    n_objects: int | None = None,
+) -> InsertionPlan:
+    """Draw the insertion: ``k`` objects (``n_objects`` or uniform in [min_objects, max_objects]), each a category,
+    an asset and a placement that avoids ``existing_boxes_xyxy`` (N, 4), earlier objects and, with ``meta``
+    'lidar_points_in_cam' / 'boxes_in_cam', the scene's 3D points and boxes. ``depth`` (H, W) metres or None."""
+    if rng is None:
+        raise ValueError("plan_insertion needs an explicit numpy Generator (rng) for reproducibility")
+    cfg = cfg.effective()
+    meta = meta or {}
+    intr, ground, region = analysis.intrinsics, analysis.ground, analysis.region
+    k = int(n_objects if n_objects is not None else rng.integers(cfg.min_objects, cfg.max_objects + 1))
+    taken = [] if existing_boxes_xyxy is None else [np.asarray(b, float) for b in existing_boxes_xyxy]
+    # DGP-style 3D scene info (meta "lidar_points_in_cam" (N, 3), "boxes_in_cam" [OrientedBox]): candidates must not
+    # intersect LiDAR clusters, existing 3D boxes, or the objects inserted before them.
+    scene_points = meta.get("lidar_points_in_cam")
+    boxes_3d = list(meta.get("boxes_in_cam") or [])
+    mods = {}
+    if cfg.placement and (scene_points is not None or boxes_3d):
+        mods["collision"] = (
+            f"3D checks: {0 if scene_points is None else len(scene_points)} scene points, "
+            f"{len(boxes_3d)} existing 3D boxes, earlier insertions"
+        )
+    pcfg = scene_sized_placement(cfg.placement_cfg, taken, analysis.image_shape[0])
+    if pcfg is not cfg.placement_cfg:
+        mods["sizes"] = f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes"
+    object_cfgs = [pcfg] * k
+    targets = None
+    if cfg.placement and pcfg.scene_scale_from_sizes and k:
+        # The image's targets drawn first; its scale is set by the largest (the smaller ones fit farther away).
+        targets = [draw_box_height_target(pcfg, rng) for _ in range(k)]
+        targets = None if targets[0] is None else targets
+    objects, reports = [], []
+    for i in range(k):
+        category = cfg.categories[int(rng.integers(len(cfg.categories)))]
+        base = choose_asset(category, rng, cfg, bank)
+        if cfg.placement:
+            if targets is not None and i == 0:
+                hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.height_m, base.height_m))
+                scale, mods["scene_scale"] = scene_scale_for_sizes(
+                    ground, intr, rng, pcfg, float(np.mean(hr)), max(targets), region.mask
+                )
+                if scale != 1.0:  # the scene scaled about the camera: its distance limits with it
+                    ground = scaled_ground(ground, scale)
+                    pcfg = replace(
+                        pcfg, min_distance_m=pcfg.min_distance_m * scale, max_distance_m=pcfg.max_distance_m * scale
+                    )
+                object_cfgs = [replace(pcfg, box_height_frac_samples=(t,), box_height_jitter=0.0) for t in targets]
+            placement, report = sample_placement(
+                base,
+                ground,
+                intr,
+                rng,
+                existing_boxes_xyxy=np.array(taken),
+                depth=depth,
+                cfg=object_cfgs[i],
+                region_mask=region.mask,
+                height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
+                points_in_cam=scene_points,
+                existing_objects=boxes_3d if "collision" in mods else None,
+            )
+            reports.append(report.to_dict())
+            if placement is None:
+                continue
+            asset = base.scaled(placement.scale)
+        else:
+            hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.height_m, base.height_m))
+            asset = base.scaled(rng.uniform(*hr) / base.height_m)
+            cam_from_object, yaw = naive_pose(asset, intr, rng, cfg)
+            uvc, _ = project_points(transform_points(cam_from_object, asset.corners_m()), intr.K)
+            placement = Placement(
+                category,
+                asset.name,
+                asset.source,
+                float(asset.meta.get("scale", 1.0)),
+                asset.height_m,
+                float(yaw),
+                tuple(map(float, cam_from_object[:3, 3])),
+                (float("nan"), float("nan")),
+                tuple(tuple(map(float, r)) for r in cam_from_object),
+                tuple(map(float, box_of_points(uvc))),
+                (0.0, -1.0, 0.0),
+                0.0,
+                "none",
+            )
+        if asset.procedural:
+            placement = replace(placement, asset_meta=_json_safe(asset.meta))
+        objects.append(PlannedObject(placement, asset))
+        taken.append(np.array(placement.amodal_box_xyxy))
+        if "collision" in mods:
+            boxes_3d.append(
+                OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m), category)
+            )
+    harmonize_seed = int(rng.integers(0, 2**63 - 1))
+    return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods)
+
+
+def scene_sized_placement(pcfg, existing_xyxy: list, image_height: int):
+    """``pcfg`` with its box-height samples taken from the existing boxes (heights / image height) when
+    ``pcfg.sizes_from_existing`` and the image has boxes of positive height; else ``pcfg`` itself."""
+    if not pcfg.sizes_from_existing or not existing_xyxy:
+        return pcfg
+    b = np.asarray(existing_xyxy, float).reshape(-1, 4)
+    fr = (b[:, 3] - b[:, 1]) / float(image_height)
+    fr = fr[np.isfinite(fr) & (fr > 0) & (fr <= 1)]
+    return pcfg if len(fr) == 0 else replace(pcfg, box_height_frac_samples=tuple(float(f) for f in fr))
+
+
+def _json_safe(x):
+    """``x`` with numpy scalars/arrays and tuples turned into plain JSON types (an asset's meta for the record)."""
+    if isinstance(x, dict):
+        return {str(k): _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_json_safe(v) for v in x]
+    return x.item() if isinstance(x, np.generic) else x
+
+
+def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tuple[np.ndarray, float]:
+    """Random 2D position and size with no scene geometry: the object stands upright facing the camera at the
+    depth that gives the sampled pixel height, centred on a random pixel."""
+    if cfg.naive_height_frac_samples:  # the same empirical size distribution the placement targets use
+        base = cfg.naive_height_frac_samples[int(rng.integers(len(cfg.naive_height_frac_samples)))]
+        h_px = (
+            float(np.clip(base * np.exp(rng.normal(0.0, cfg.placement_cfg.box_height_jitter)), 1e-3, 1.0)) * intr.height
+        )
+    else:
+        h_px = rng.uniform(*cfg.naive_height_frac_range) * intr.height
+    z = intr.fy * asset.height_m / h_px
+    u = rng.uniform(0.1, 0.9) * intr.width
+    v = rng.uniform(0.1, 0.9) * intr.height
+    yaw = rng.uniform(-np.pi, np.pi)
+    c, s = np.cos(yaw), np.sin(yaw)
+    R_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)  # object z (up) -> camera -y
+    R_yaw = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    centre_cam = np.array([(u - intr.cx) * z / intr.fx, (v - intr.cy) * z / intr.fy, z])
+    t = centre_cam - R_up @ R_yaw @ np.array([0, 0, asset.height_m / 2])
+    return make_rigid(R_up @ R_yaw, t), yaw
+
+
+def choose_asset(category: str, rng, cfg: InsertionConfig, bank=None) -> Asset:
+    """The caller's asset source, else a new seeded procedural asset (asset_source "procedural", categories with a
+    generator: :data:`aias_augment.assets.bank.procedural.CATEGORY_SPECS`), else the shared-data default of the category
+    (asset_source "default"; "procedural" for other categories), else the asset bank (``aias_augment.assets.bank``:
+    sweethome3d catalogs, gazebo models, procedural debris), real-size jittered."""
+    if bank is not None:
+        return bank.sample(category, rng)
+    if cfg.asset_source == "procedural":
+        from aias_augment.assets.bank.procedural import CATEGORY_SPECS, procedural_asset
+
+        if category in CATEGORY_SPECS:  # a new seeded one per object (one draw of rng: its seed)
+            return procedural_asset(category, rng)
+    if cfg.asset_source in ("default", "procedural") and category in DEFAULT_ASSETS:
+        return default_asset(category)
+    from aias_augment.assets.bank import get_bank  # lazy: the bank catalog is only read when a category needs it
+
+    return get_bank().sample(category, rng)

@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+
+from aias_augment.analyse.lighting import ratio
+from aias_augment.core.geometry import Intrinsics
+
+
+def _ground(r_true, with_shadow=True, seed=0):
+    rng = np.random.default_rng(seed)
+    albedo = 0.2 * np.exp(rng.normal(0, 0.08, (120, 160)))  # asphalt-like texture
+    vis = np.ones((120, 160))
+    if with_shadow:
+        vis[30:60, 20:140] = 0.0  # a cast shadow band
+        vis[80:90, 40:100] = 0.0
+    sky = np.array([0.8, 0.9, 1.1])  # bluish sky light
+    sun = np.array([1.0, 0.95, 0.85])
+    E = sky[None, None] + r_true * sun[None, None] * vis[..., None] * (1.0 / sun.mean()) * sky.mean()
+    return (albedo[..., None] * E * 0.3).astype(np.float32)
+
+
+@pytest.mark.parametrize("r_true", [1.5, 4.0, 8.0])
+def test_ratio_recovered_on_synthetic_ground(r_true):
+    img = _ground(r_true)
+    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool), rng=np.random.default_rng(0))
+    assert m.dominant_sun
+    assert m.sun_sky_ratio == pytest.approx(r_true, rel=0.1)
+
+
+def test_overcast_ground_has_no_dominant_sun():
+    img = _ground(0.0, with_shadow=False)
+    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool), rng=np.random.default_rng(0))
+    assert not m.dominant_sun
+
+
+def test_too_few_pixels_and_black():
+    img = _ground(3.0)
+    assert ratio.measure_lit_shadow(img, np.zeros(img.shape[:2], bool), rng=np.random.default_rng(0)) is None
+    assert (
+        ratio.measure_lit_shadow(np.zeros_like(img), np.ones(img.shape[:2], bool), rng=np.random.default_rng(0)) is None
+    )
+    with pytest.raises(ValueError):
+        ratio.measure_lit_shadow(img, np.ones((3, 3), bool), rng=np.random.default_rng(0))
+
+
+def test_ground_region_is_below_horizon_and_in_front():
+    K = Intrinsics(707.0912, 707.0912, 601.8873, 183.1104, 1226, 370)
+    m = ratio.ground_region_mask(K, np.array([0.0, -1.0, 0.0]), 1.65, (-1.5, 1.5), (5.0, 20.0))
+    v, u = np.nonzero(m)
+    # Rows: ground 20 m ahead projects to cy + f h / 20, 5 m ahead below the image bottom.
+    assert v.min() == pytest.approx(183.1104 + 707.0912 * 1.65 / 20, abs=1.5)
+    assert v.max() == 369
+    assert abs(u.mean() - 601.9) < 30
+
+
+def test_shadow_axis_of_pole_shadow_bands():
+    # Thin, broken shadow bands at 30 deg from the lateral axis on a ground grid: the axis is recovered.
+    xs, ys = np.meshgrid(np.linspace(-2, 2, 200), np.linspace(5, 20, 300))
+    ground = np.stack([xs, ys], axis=-1)
+    region = np.ones(xs.shape, bool)
+    th = np.deg2rad(30.0)
+    normal = np.array([-np.sin(th), np.cos(th)])
+    dist = ground @ normal
+    shadow = (np.abs(dist - 7.0) < 0.05) | (np.abs(dist - 11.0) < 0.05)
+    shadow &= np.random.default_rng(0).random(xs.shape) > 0.3  # fragmented
+    angle, strength = ratio.shadow_axis_on_ground(shadow, region, ground)
+    assert abs(np.rad2deg(angle) - 30.0) < 4.0 and strength > 0.5
+    assert ratio.shadow_axis_on_ground(np.zeros_like(shadow), region, ground) == (0.0, 0.0)

@@ -1,0 +1,174 @@
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+from aias_augment.assets.bank.procedural import CATEGORY_SPECS, GENERATORS, ProceduralSpec, generate
+
+
+@pytest.mark.parametrize("gen", sorted(GENERATORS))
+def test_generators_are_labelled_sized_and_deterministic(gen):
+    spec = ProceduralSpec(gen, "debris", (0.05, 0.3))
+    tex = Image.fromarray(np.random.default_rng(0).integers(0, 255, (32, 32, 3)).astype(np.uint8))
+    a = generate(spec, np.random.default_rng(7), tex)
+    b = generate(spec, np.random.default_rng(7), tex)
+    c = generate(spec, np.random.default_rng(8), tex)
+    assert a.procedural and a.source == f"procedural:{gen}" and a.meta["textured"]
+    assert a.height_m == pytest.approx(a.meta["height_m"], rel=1e-6)
+    assert 0.05 <= a.height_m <= 0.3
+    assert abs(a.bounds_m[0, 2]) < 1e-9
+    np.testing.assert_array_equal(a.meshes[0].vertices, b.meshes[0].vertices)
+    assert a.meshes[0].vertices.shape != c.meshes[0].vertices.shape or not np.allclose(
+        a.meshes[0].vertices, c.meshes[0].vertices
+    )
+    m = a.meshes[0]
+    assert np.all(np.isfinite(m.vertices)) and m.visual.uv is not None and len(m.visual.uv) == len(m.vertices)
+    assert np.all(m.area_faces > 0)
+
+
+def test_untextured_fallback_and_unknown_generator():
+    a = generate(ProceduralSpec("stone", "rock", (0.1, 0.2)), np.random.default_rng(0), None)
+    assert a.meshes[0].visual.uv is None and not a.meta["textured"]
+    with pytest.raises(ValueError, match="unknown generator"):
+        generate(ProceduralSpec("blob", "rock", (0.1, 0.2)), np.random.default_rng(0))
+
+
+# --- the traffic-cone family --------------------------------------------------------------------------------------
+
+CONE = CATEGORY_SPECS["traffic_cone"]
+
+
+def _cone(seed):
+    return generate(CONE, np.random.default_rng(seed))
+
+
+def _hsv(rgb_uint8):
+    rgb = np.asarray(rgb_uint8, float)[..., :3] / 255.0
+    mx, mn = rgb.max(-1), rgb.min(-1)
+    return mx, (mx - mn) / np.maximum(mx, 1e-9)  # value, saturation
+
+
+def test_cone_same_seed_same_mesh_texture_and_meta():
+    a, b = _cone(3), _cone(3)
+    ma, mb = a.meshes[0], b.meshes[0]
+    np.testing.assert_array_equal(ma.vertices, mb.vertices)
+    np.testing.assert_array_equal(ma.faces, mb.faces)
+    np.testing.assert_array_equal(ma.visual.uv, mb.visual.uv)
+    np.testing.assert_array_equal(np.asarray(ma.visual.material.image), np.asarray(mb.visual.material.image))
+    assert a.meta == b.meta and a.meta["generator"] == "traffic_cone"
+    c = _cone(4)
+    assert c.meta != a.meta
+    assert not np.array_equal(np.asarray(c.meshes[0].visual.material.image), np.asarray(ma.visual.material.image))
+
+
+def test_cone_seeds_vary_within_the_real_ranges():
+    metas = [_cone(s).meta for s in range(60)]
+    heights = np.array([m["height_m"] for m in metas])
+    assert heights.min() >= 0.3 and heights.max() <= 1.0 and heights.std() > 0.1
+    n_bands = [len(m["bands_z_m"]) for m in metas]
+    assert set(n_bands) <= {0, 1, 2, 3} and {1, 2, 3} <= set(n_bands)
+    colours = [m["colour"] for m in metas]
+    assert colours.count("orange") == max(colours.count(c) for c in set(colours))  # orange dominates
+    assert len(set(colours)) >= 3
+    assert {m["base_shape"] for m in metas} == {"square", "round"}
+    assert len({m["base_colour"] for m in metas}) >= 2
+    for m in metas:  # bands lie on the body, in order, without overlap
+        z = np.array(m["bands_z_m"]).ravel()
+        assert np.all(np.diff(z) > 0) and (len(z) == 0 or (z[0] > m["base_height_m"] and z[-1] < m["height_m"]))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 5])
+def test_cone_is_closed_outward_and_smooth(seed):
+    a = _cone(seed)
+    m = a.meshes[0]
+    merged = trimesh.Trimesh(m.vertices, m.faces, process=True)  # creases/UV seam share positions, not vertices
+    assert merged.is_watertight and merged.is_winding_consistent
+    assert merged.volume > 0  # faces wound outward
+    assert np.all(m.area_faces > 0)
+    # stored vertex normals agree with the faces' outward normals
+    vn = m.vertex_normals
+    assert np.all(np.einsum("fkj,fj->fk", vn[m.faces], m.face_normals) > 0)
+    # smooth (not faceted) on the body, seam included: each normal's horizontal part points radially outward at
+    # its own vertex (a flat 64-gon facet's normal is off by up to 2.8 deg, cos = 0.9988)
+    p = a.meta
+    z = m.vertices[:, 2]
+    body = (z > p["base_height_m"] + 0.01) & (z < p["height_m"] - 2 * p["top_radius_m"])
+    xy, nxy = m.vertices[body, :2], vn[body, :2]
+    cos = np.sum(xy * nxy, 1) / np.linalg.norm(xy, axis=1) / np.linalg.norm(nxy, axis=1)
+    assert body.sum() > 200 and cos.min() > 0.9995
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_cone_size_matches_its_draws(seed):
+    a = _cone(seed)
+    v = a.meshes[0].vertices
+    p = a.meta
+    assert np.ptp(v[:, 2]) == pytest.approx(p["height_m"], abs=1e-9) and v[:, 2].min() == pytest.approx(0, abs=1e-12)
+    foot = v[v[:, 2] < 1e-9]  # the contact face: the base outline
+    assert np.abs(foot[:, 0]).max() == pytest.approx(p["base_half_width_m"], rel=1e-6)
+    r_diag = np.linalg.norm(foot[:, :2], axis=1).max()
+    if p["base_shape"] == "square":  # rounded square: corners reach out past the side
+        assert r_diag > 1.15 * p["base_half_width_m"]
+    else:
+        assert r_diag == pytest.approx(p["base_half_width_m"], rel=1e-6)
+
+
+@pytest.mark.parametrize("seed", [0, 3, 7, 11])
+def test_cone_bands_are_where_the_meta_says_in_the_texture(seed):
+    a = _cone(seed)
+    m, p = a.meshes[0], a.meta
+    col = trimesh.visual.color.uv_to_color(m.visual.uv, m.visual.material.image)
+    z = m.vertices[:, 2]
+    on_body = (z > p["base_height_m"] + 1e-6) & (z < p["height_m"] - 1e-6)
+    inside = np.zeros(len(z), bool)
+    near = np.zeros(len(z), bool)
+    for z0, z1 in p["bands_z_m"]:
+        inside |= (z > z0 + 0.005) & (z < z1 - 0.005)
+        near |= (z > z0 - 0.01) & (z < z1 + 0.01)
+    val, sat = _hsv(col)
+    if p["bands_z_m"]:
+        assert inside.any() and np.all(sat[inside] < 0.15) and np.all(val[inside] > 0.6)
+    body = on_body & ~near
+    dirty = p["dirt"] > 0
+    assert np.mean(sat[body] > 0.6) > (0.8 if dirty else 0.99)  # the body colour is saturated
+
+
+def test_cone_bands_render_where_the_meta_says():
+    """End to end through pyrender's UV convention: a far, long-lens side view; the pixel column through the axis
+    is white at each band's middle height and saturated between bands."""
+    from aias_augment.apply.render import render_object
+    from aias_augment.core.geometry import Intrinsics, make_rigid
+
+    seed = next(s for s in range(50) if len(_cone(s).meta["bands_z_m"]) >= 2 and _cone(s).meta["dirt"] == 0)
+    a = _cone(seed)
+    p, h, d = a.meta, a.height_m, 30.0
+    f = 300.0 * d / h  # the cone is ~300 px tall
+    K = Intrinsics(f, f, 80.0, 200.0, 161, 400)
+    R_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)  # object z -> camera -y
+    pose = make_rigid(R_up, np.array([0.0, h / 2, d]))
+    L = render_object(a, pose, K, ssaa=1, with_normals=False)
+    row = lambda zz: int(round(K.cy - f * (zz - h / 2) / d))  # noqa: E731  (the axis point at height zz)
+    px = lambda zz: L.albedo_linear[row(zz), 80]  # noqa: E731
+    bands = p["bands_z_m"]
+    for z0, z1 in bands:
+        c = px((z0 + z1) / 2)
+        assert c.min() > 0.5 and c.max() - c.min() < 0.15, c
+    for (_, z1), (z0, _) in zip(bands[:-1], bands[1:]):  # between two bands: the body colour
+        c = px((z1 + z0) / 2)
+        assert c.max() > 0.4 and c.min() < 0.25 * c.max(), c
+
+
+def test_choose_asset_procedural_draws_a_new_seeded_cone_per_object():
+    from aias_augment.pipeline.config import InsertionConfig
+    from aias_augment.plan.insertion import choose_asset
+
+    cfg = InsertionConfig(asset_source="procedural")
+    rng = np.random.default_rng(9)
+    a, b = choose_asset("traffic_cone", rng, cfg), choose_asset("traffic_cone", rng, cfg)
+    a2 = choose_asset("traffic_cone", np.random.default_rng(9), cfg)
+    assert a.procedural and a.source == "procedural:traffic_cone" and a.meta["seed"] != b.meta["seed"]
+    np.testing.assert_array_equal(a.meshes[0].vertices, a2.meshes[0].vertices)
+    rebuilt = generate(CONE, np.random.default_rng(a.meta["seed"]))  # the recorded seed rebuilds it
+    np.testing.assert_array_equal(a.meshes[0].vertices, rebuilt.meshes[0].vertices)
+    with pytest.raises(ValueError, match="asset_source"):
+        InsertionConfig(asset_source="procedurally")

@@ -1,0 +1,128 @@
+"""aias-augment on a posed clip (KITTI 06 frames, GT poses): COCO track, analytic contact, pose formats, resume."""
+
+import json
+
+import numpy as np
+import pytest
+from pycocotools.coco import COCO
+from scipy.spatial.transform import Rotation
+
+from aias_augment.cli.augment import main
+from aias_augment.cli.clip import ClipJob, read_camera, read_cams_from_world
+from aias_augment.core.config import data_root
+
+SEQ = data_root() / "kitti06_seq"
+N = 8
+
+
+@pytest.fixture(scope="module")
+def clip_run(tmp_path_factory):
+    if not SEQ.exists():
+        pytest.skip("shared KITTI data not available")
+    out = tmp_path_factory.mktemp("clip")
+    args = [
+        "--input",
+        str(SEQ / "image_l"),
+        "--camera",
+        str(SEQ / "calib.txt"),
+        "--poses",
+        str(SEQ / "poses.txt"),
+        "--max-frames",
+        str(N),
+        "--lighting",
+        "ambient",
+        "--seed",
+        "3",
+        "--out",
+        str(out),
+    ]
+    assert main(args) == 0
+    return out, args
+
+
+def test_clip_boxes_follow_the_analytic_projection_of_one_world_point(clip_run):
+    out, _ = clip_run
+    rec = json.loads((out / "record.json").read_text())
+    coco = COCO(str(out / "annotations.json"))
+    assert len(coco.getImgIds()) == N and rec["frames"] == N
+    anns = coco.loadAnns(coco.getAnnIds())
+    assert len(anns) >= N // 2 and {a["track_id"] for a in anns} == {1}  # it leaves the view beside the last camera
+    # Independent projection: KITTI P0 and the world_from_cam lines of poses.txt, by hand.
+    P0 = np.array(
+        [float(v) for v in (SEQ / "calib.txt").read_text().splitlines()[0].split() if not v.endswith(":")]
+    ).reshape(3, 4)
+    rows = np.loadtxt(SEQ / "poses.txt")[:N].reshape(N, 3, 4)
+    c_w = np.array(rec["contact_in_world"])
+    for a in anns:
+        i = a["image_id"] - 1
+        R, t = rows[i, :, :3], rows[i, :, 3]
+        p = R.T @ (c_w - t)  # cam_from_world applied to the contact
+        u, v = P0[0, 0] * p[0] / p[2] + P0[0, 2], P0[1, 1] * p[1] / p[2] + P0[1, 2]
+        x, y, w, h = a["amodal_bbox"]
+        assert x - 1 <= u <= x + w + 1, (i, u, a["amodal_bbox"])  # the base centre is under the object ...
+        height = coco.loadImgs(a["image_id"])[0]["height"]
+        if y + h < height - 1:  # ... at its bottom edge
+            assert abs(v - (y + h)) <= 0.15 * h + 2, (i, v, a["amodal_bbox"])
+        else:  # ... or below the image when the box is cut by the bottom border
+            assert v >= y + h - 0.15 * h - 2, (i, v, a["amodal_bbox"])
+    img = out / coco.loadImgs(1)[0]["file_name"]
+    assert img.exists() and (out / "side_by_side.mp4").stat().st_size > 0 and (out / "contact_sheet.jpg").exists()
+    assert rec["modules"]["harmonize"].startswith("fast: one colour transform")
+
+
+def test_grey_clip_stays_grey(clip_run):
+    import cv2
+
+    out, _ = clip_run
+    im = cv2.imread(str(sorted((out / "frames").glob("*.jpg"))[0]), cv2.IMREAD_COLOR)
+    assert np.abs(im.astype(int) - im[..., :1].astype(int)).max() <= 2  # JPEG chroma noise only
+
+
+def test_rerun_with_same_arguments_does_not_rewrite(clip_run):
+    out, args = clip_run
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
+    assert main(args) == 0
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()} == before
+
+
+def test_tum_poses_read_as_the_same_cameras(tmp_path):
+    if not SEQ.exists():
+        pytest.skip("shared KITTI data not available")
+    kitti = read_cams_from_world(SEQ / "poses.txt")[:N]
+    rows = np.loadtxt(SEQ / "poses.txt")[:N].reshape(N, 3, 4)
+    lines = [
+        " ".join(f"{v:.9f}" for v in [float(i), *r[:, 3], *Rotation.from_matrix(r[:, :3]).as_quat()])
+        for i, r in enumerate(rows)
+    ]
+    (tmp_path / "tum.txt").write_text("# timestamp tx ty tz qx qy qz qw\n" + "\n".join(lines) + "\n")
+    tum = read_cams_from_world(tmp_path / "tum.txt")
+    assert np.allclose(tum, kitti, atol=1e-6)
+
+
+def test_bad_clip_inputs_raise(tmp_path):
+    (tmp_path / "cam.yaml").write_text("fx: 500\nfy: 500\ncx: 320\n")
+    with pytest.raises(ValueError, match="cy"):
+        read_camera(tmp_path / "cam.yaml", 640, 480)
+    (tmp_path / "poses.txt").write_text("1 2 3 4 5\n")
+    with pytest.raises(ValueError, match="KITTI"):
+        read_cams_from_world(tmp_path / "poses.txt")
+    with pytest.raises(ValueError, match="lighting"):
+        ClipJob("a", "b", "c", "d", lighting="sunny")
+    if SEQ.exists():
+        short = tmp_path / "short.txt"
+        short.write_text("\n".join((SEQ / "poses.txt").read_text().splitlines()[:3]) + "\n")
+        with pytest.raises(ValueError, match="poses"):
+            main(
+                [
+                    "--input",
+                    str(SEQ / "image_l"),
+                    "--camera",
+                    str(SEQ / "calib.txt"),
+                    "--poses",
+                    str(short),
+                    "--max-frames",
+                    "5",
+                    "--out",
+                    str(tmp_path / "o"),
+                ]
+            )

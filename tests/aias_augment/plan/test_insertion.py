@@ -1,0 +1,137 @@
+import json
+
+import numpy as np
+
+from aias_augment.analyse.analysis import analyse_scene
+from aias_augment.core.frame import Frame
+from aias_augment.plan.insertion import plan_insertion
+from tests.aias_augment.analyse.test_analysis import CFG, K, road_image
+from tests.aias_augment.analyse.test_cache import OneAsset
+from tests.aias_augment.fixtures import box_asset
+
+
+def test_same_generator_same_plan_and_json_record():
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    bank = OneAsset(box_asset())
+    a = plan_insertion(an, CFG, np.random.default_rng(1), bank=bank, n_objects=3)
+    b = plan_insertion(an, CFG, np.random.default_rng(1), bank=bank, n_objects=3)
+    c = plan_insertion(an, CFG, np.random.default_rng(2), bank=bank, n_objects=3)
+    assert len(a.objects) == 3
+    assert json.dumps(a.to_dict()) == json.dumps(b.to_dict())
+    assert json.dumps(a.to_dict()) != json.dumps(c.to_dict())
+
+
+def test_objects_stand_in_the_region_and_avoid_existing_boxes():
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    existing = np.array([[0.0, 240.0, 320.0, 480.0]])  # the lower-left quarter is taken
+    p = plan_insertion(
+        an, CFG, np.random.default_rng(4), bank=OneAsset(box_asset()), n_objects=3, existing_boxes_xyxy=existing
+    )
+    assert p.objects
+    for o in p.objects:
+        u, v = o.placement.contact_pixel
+        assert an.region.mask[int(round(v)), int(round(u))]
+        x0, y0, x1, y1 = o.placement.amodal_box_xyxy
+        inter = max(0.0, min(x1, 320) - max(x0, 0)) * max(0.0, min(y1, 480) - max(y0, 240))
+        assert inter < 0.5 * (x1 - x0) * (y1 - y0)
+
+
+def test_sizes_from_existing_boxes_make_objects_the_scene_objects_size():
+    """With placement_cfg.sizes_from_existing, objects are drawn at the existing boxes' heights (the scene's own
+    objects of that kind), against the analytic box height of the planned pose; without boxes, the config's own
+    distribution; off, sizes follow the geometry alone."""
+    from dataclasses import replace
+
+    from aias_augment.plan.insertion import scene_sized_placement
+
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    bank = OneAsset(box_asset(extents=(0.3, 0.3, 0.7)))
+    existing = np.array([[600.0, 300.0, 630.0, 380.0], [10.0, 320.0, 40.0, 400.0]])  # two 80 px tall objects
+    # at the assumed camera height (a scaled scene sees the box from lower, its top face differently)
+    cfg = replace(
+        CFG,
+        placement_cfg=replace(
+            CFG.placement_cfg,
+            sizes_from_existing=True,
+            box_height_tolerance=0.1,
+            box_height_jitter=0.0,
+            scene_scale_from_sizes=False,
+        ),
+    )
+    heights = []
+    for s in range(6):
+        p = plan_insertion(an, cfg, np.random.default_rng(s), bank=bank, n_objects=2, existing_boxes_xyxy=existing)
+        assert p.modules["sizes"].startswith("box heights drawn from the image's 2 existing boxes")
+        heights += [o.placement.amodal_box_xyxy[3] - o.placement.amodal_box_xyxy[1] for o in p.objects]
+    assert len(heights) >= 6
+    # the box of a standing 0.7 m object whose vertical extent is predicted at 80 px (+-10 %; the box adds the
+    # object's depth extent under perspective, a few px)
+    # (+ the box's top face under perspective, ~10-20 % for this box seen from above); without the flag the same
+    # draws give 17 ... 119 px on this scene
+    assert all(70 <= h <= 110 for h in heights) and max(heights) / min(heights) < 1.3, heights
+    pc = cfg.placement_cfg
+    assert scene_sized_placement(pc, [], 480) is pc
+    assert (
+        scene_sized_placement(replace(pc, sizes_from_existing=False), list(existing), 480).box_height_frac_samples == ()
+    )
+    assert scene_sized_placement(pc, list(existing), 480).box_height_frac_samples == (80 / 480, 80 / 480)
+
+
+def _analytic_height_px(placement, height_m, intr):
+    """Image height of a vertical segment of ``height_m`` standing at the placement's contact point on its plane."""
+    base = np.asarray(placement.contact_point_in_cam)
+    top = base + height_m * np.asarray(placement.ground_normal_in_cam)
+    v = [intr.fy * p[1] / p[2] + intr.cy for p in (base, top)]
+    return abs(v[0] - v[1])
+
+
+def test_scene_scale_from_sizes_hosts_targets_the_assumed_camera_height_cannot():
+    """A level camera 1.65 m up with f = 500 px sees a 0.7 m object on the ground at most ~102 px tall (its nearest
+    visible ground, the bottom row, is 500 * 1.65 / 240 = 3.4 m away). A 216 px target (0.45 of the frame) needs
+    the assumed-scale scene scaled about the camera: every object then stands on the one scaled plane, at the
+    target size by the analytic projection of its contact point, and the camera height lies in the allowed range."""
+    from dataclasses import replace
+
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    assert an.ground.source.split(":")[0] in ("prior", "single_image")
+    bank = OneAsset(box_asset(extents=(0.3, 0.3, 0.7)))
+    sized = replace(CFG.placement_cfg, box_height_frac_samples=(0.45,), box_height_jitter=0.0, box_height_tolerance=0.1)
+    off = replace(CFG, placement_cfg=replace(sized, scene_scale_from_sizes=False))
+    on = replace(CFG, placement_cfg=sized)  # the default
+    for s in range(4):
+        p_off = plan_insertion(an, off, np.random.default_rng(s), bank=bank, n_objects=1)
+        assert all(_analytic_height_px(o.placement, 0.7, K) < 110 for o in p_off.objects)
+        p = plan_insertion(an, on, np.random.default_rng(s), bank=bank, n_objects=2)
+        assert p.objects and p.modules["scene_scale"].startswith("camera ")
+        d = {o.placement.ground_d for o in p.objects}
+        assert len(d) == 1 and 0.4 <= d.pop() < 1.65 * 0.8
+        for o in p.objects:
+            assert abs(_analytic_height_px(o.placement, 0.7, K) / 216 - 1) <= 0.1 + 1e-6
+            assert o.placement.ground_source.endswith(":scaled")
+
+
+def test_scene_scale_keeps_measured_grounds_and_the_camera_height_range():
+    from aias_augment.analyse.ground import GroundPlane
+    from aias_augment.plan.placement import PlacementConfig, scene_scale_for_sizes
+
+    up = np.array([0.0, -1.0, 0.0])
+    cfg = PlacementConfig(scene_scale_from_sizes=True, camera_height_range_m=(1.2, 2.0))
+    k, why = scene_scale_for_sizes(GroundPlane(up, 1.65, "depth"), K, np.random.default_rng(0), cfg, 0.7, 0.45)
+    assert k == 1.0 and why.startswith("measured ground")
+    # 0.45 of the frame needs a camera ~0.6 m up: outside 1.2-2.0 m, the nearest allowed height is used and said
+    k, why = scene_scale_for_sizes(GroundPlane(up, 1.65, "prior"), K, np.random.default_rng(0), cfg, 0.7, 0.45)
+    assert abs(k * 1.65 - 1.2) < 1e-9 and "outside" in why
+    # a small target is hosted near the horizon at the assumed height or a higher one
+    k, why = scene_scale_for_sizes(
+        GroundPlane(up, 1.65, "prior"),
+        K,
+        np.random.default_rng(0),
+        PlacementConfig(scene_scale_from_sizes=True),
+        0.7,
+        0.05,
+    )
+    assert 0.4 <= k * 1.65 <= 4.0 and why.startswith("camera ")
+    import pytest
+
+    with pytest.raises(ValueError, match="camera_height_range_m"):
+        PlacementConfig(camera_height_range_m=(2.0, 1.0))
