@@ -2,7 +2,7 @@
 """Placement stabilisation: contact-pixel error of a world-fixed object under pose drift, pose-only vs KLT-refined.
 
 A synthetic drive over a textured ground (exact perspective frames, so the true track is analytic; the fixture of
-``tests/aias_augment/test_stabilize.py``) is seen through poses with a drift that grows per frame (yaw + sideways);
+``tests/aias_augment/plan/test_stabilize.py``) is seen through poses with a drift that grows per frame (yaw + sideways);
 the contact's pixel error against the true projection is reported per drift level, for the pose-predicted track and
 for ``stabilize.track_contact_with_flow``, with the tracking time per frame.
 

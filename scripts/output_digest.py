@@ -245,7 +245,7 @@ def write_table(digests: dict) -> None:
         "digests.",
         "",
         "Replay: `insertion.replay.replay` of an `insert_bounded` record on the 1920x1080 frame is byte-identical (fast and",
-        "balanced, `tests/aias_augment/test_replay_bounded.py`): the record keeps the working resolution the door used",
+        "balanced, `tests/aias_augment/pipeline/test_replay_bounded.py`): the record keeps the working resolution the door used",
         "(`working_resolution`: image size, analysis size, bound) and replay analyses the same <= 2 MP copy the same way",
         "(`insertion.working.WorkingResolution.analyse`). A record without the field replays as before, analysing the full",
         "frame (fast, seed 0: 29 204 pixels differ from the door's output, at most 8 levels; balanced: 46 250, at most 81).",

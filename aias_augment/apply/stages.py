@@ -17,6 +17,7 @@ from aias_augment.analyse.analysis import SceneAnalysis
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window
+from aias_augment.apply.layers import ObjectLayer, apply_layer_stages
 from aias_augment.apply.projected_shadow import projected_ground
 from aias_augment.apply.render import render_ground_shadow, render_object_window
 from aias_augment.apply.shading import shade_object, shade_pixels
@@ -42,7 +43,8 @@ class AppliedPlan:
     """The result of :func:`apply_plan`: the new image (H, W, 3) uint8, one annotation per object that rendered to a
     pixel (with its placement), ``cover_window`` float32 over ``window`` (x0, y0, x1, y1): the union of the objects'
     visible coverage (what hides existing boxes; 0 outside the window; :attr:`cover` is it on the whole frame), and
-    per stage what was done ('shadow', 'harmonize') and which planned objects were dropped."""
+    per stage what was done ('shadow', 'harmonize') and which planned objects were dropped. ``layer_params``: the
+    layer stages' parameters of the objects that rendered (aligned with ``placements``)."""
 
     image: np.ndarray
     placements: tuple[Placement, ...]
@@ -51,6 +53,7 @@ class AppliedPlan:
     window: tuple[int, int, int, int]
     modules: dict = field(default_factory=dict)
     dropped: tuple[dict, ...] = ()
+    layer_params: tuple[dict, ...] = ()
 
     @property
     def cover(self) -> np.ndarray:
@@ -82,7 +85,7 @@ def apply_plan(
     mods: dict = {}
     rendered, dropped = [], []
     n_cached = 0
-    for obj in plan.objects:
+    for k, obj in enumerate(plan.objects):
         warped = None
         if cfg.render_method == "view_cache":
             warped = warp_from_view_cache(obj.asset, obj.cam_from_object, intr, view_cache)
@@ -100,7 +103,11 @@ def apply_plan(
             shaded[warped.inside] = shade_pixels(warped.albedo, warped.normals, lighting)
         else:
             shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, alpha > 0, lighting)
-        rendered.append((obj, roi, alpha, odepth, shaded))
+        params = plan.layer_params[k] if k < len(plan.layer_params) else {}
+        if params:
+            lay = apply_layer_stages(ObjectLayer(roi, alpha, odepth, shaded), params, (h, w))
+            roi, alpha, odepth, shaded = lay.roi, lay.alpha, lay.depth, lay.rgb
+        rendered.append((obj, roi, alpha, odepth, shaded, params))
     if cfg.render_method == "view_cache":
         mods["render"] = (
             f"view cache: {n_cached} of {len(plan.objects)} objects warped from their view bin's "
@@ -137,7 +144,7 @@ def apply_plan(
     # Each object's coverage and depth placed in the common window (its shading stays in its own window).
     layers = [
         (obj, _in_window(wshape, win, roi, alpha), _in_window(wshape, win, roi, odepth), (roi, alpha, odepth, shaded))
-        for obj, roi, alpha, odepth, shaded in rendered
+        for obj, roi, alpha, odepth, shaded, _ in rendered
     ]
 
     bg = comp.to_linear(img[Y0:Y1, X0:X1])
@@ -214,7 +221,14 @@ def apply_plan(
         for (obj, alpha, _, _), vis_w in zip(layers, vis_alphas)
     ]
     return AppliedPlan(
-        result, tuple(o.placement for o, _, _, _ in layers), tuple(annotations), cover_w, win, mods, tuple(dropped)
+        result,
+        tuple(o.placement for o, _, _, _ in layers),
+        tuple(annotations),
+        cover_w,
+        win,
+        mods,
+        tuple(dropped),
+        tuple(p for *_, p in rendered),
     )
 
 
@@ -452,7 +466,7 @@ def _harmonize_window(
     side ``context x`` the component's longer side, centred on it and clipped to the image. Every component lies in
     the mask's box B, so every crop lies in B grown by ``max context / 2 x`` B's longer side: a window holding that
     (clipped to the image where the crops are clipped too) gives the same crops, the same predictions, the same
-    pixels (``tests/aias_augment/insertion/test_apply.py``). ``mask_box``: B when the caller has it (``mask`` is then
+    pixels (``tests/aias_augment/apply/test_stages.py``). ``mask_box``: B when the caller has it (``mask`` is then
     not read); ``image_hw``: the image's size (default: the mask's)."""
     if cfg.harmonize_method != "fast":
         return None, None

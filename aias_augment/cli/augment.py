@@ -183,6 +183,7 @@ def main(argv=None) -> int:
                 lighting=a.lighting,
                 flow_refine=a.flow_refine,
                 harmonize=a.harmonize,
+                preset=a.preset,
             )
         )
         print({k: record[k] for k in ("category", "asset", "frames", "visible_frames", "wall_s")})

@@ -64,6 +64,7 @@ class ClipJob:
     lighting: str = "clip"  # "clip": one sun fused over the clip; "ambient": grey-world ambient only
     flow_refine: bool = False  # KLT stabilisation of the contact (for drifting poses)
     harmonize: str = "fast"  # harmonize.METHODS; "fast": one colour transform for the clip (median over frames)
+    preset: str = "balanced"  # the image door's preset whose layer stages (e.g. motion blur) the object gets
     fps: float = 10.0
 
     def __post_init__(self):
@@ -77,6 +78,10 @@ class ClipJob:
 
         if self.harmonize not in METHODS:
             raise ValueError(f"harmonize must be one of {METHODS}, got {self.harmonize!r}")
+        from aias_augment.pipeline.config import PRESETS
+
+        if self.preset not in PRESETS:
+            raise ValueError(f"preset must be one of {PRESETS}, got {self.preset!r}")
         if not (np.isfinite(self.camera_height_m) and self.camera_height_m > 0):
             raise ValueError(f"camera_height_m must be positive, got {self.camera_height_m}")
 
@@ -169,8 +174,9 @@ def _job_dict(job: ClipJob) -> dict:
 def augment_clip(job: ClipJob) -> dict:
     """Insert one object of ``job.categories[0..]`` (drawn with the seed) into the clip; returns the record."""
     from aias_augment.analyse.lighting.estimate import estimate_lighting_clip
+    from aias_augment.apply.layers import draw_layer_params
     from aias_augment.pipeline.clip import VideoInsertionConfig, insert_into_clip
-    from aias_augment.pipeline.config import InsertionConfig
+    from aias_augment.pipeline.config import InsertionConfig, load_preset
     from aias_augment.plan.insertion import choose_asset
 
     out = Path(job.out)
@@ -203,6 +209,7 @@ def augment_clip(job: ClipJob) -> dict:
             log.warning("clip lighting failed (%s): ambient light only", e)
             lighting_note = f"skipped: {e}"
     last = len(frames) - 1
+    layer_params = draw_layer_params(load_preset(job.preset), job.seed, 1)[0]  # own generators: rng untouched
     cfg = VideoInsertionConfig(
         lookahead_frames=last if job.lookahead_frames is None else min(job.lookahead_frames, last),
         lateral_offset_m=job.lateral_offset_m,
@@ -217,6 +224,7 @@ def augment_clip(job: ClipJob) -> dict:
         asset=asset,
         ground_in_cam0=prior_ground_plane(job.camera_height_m),
         lighting=lighting,
+        layer_params=layer_params,
     )
 
     if job.harmonize != "none":
@@ -267,6 +275,7 @@ def augment_clip(job: ClipJob) -> dict:
         "intrinsics": [intr.fx, intr.fy, intr.cx, intr.cy, w, h],
         "world_from_object": res.world_from_object.tolist(),
         "contact_in_world": res.contact_in_world.tolist(),
+        "layer_params": layer_params,
         "visible_frames": int(sum(b is not None for b in res.boxes_xywh)),
         "modules": {
             **res.modules,

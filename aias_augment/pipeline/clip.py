@@ -28,6 +28,7 @@ from aias_augment.analyse.ground import GroundFitError, GroundPlane, project_wor
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.apply.annotate import annotate_object
+from aias_augment.apply.layers import ObjectLayer, apply_layer_stages
 from aias_augment.apply.render import render_object
 from aias_augment.apply.shading import shade_object
 from aias_augment.assets.asset import Asset
@@ -140,13 +141,16 @@ def insert_into_clip(
     lighting: list[LightingEstimate] | None = None,
     start: int = 0,
     yaw_rad: float | None = None,
+    layer_params: dict | None = None,
 ) -> ClipInsertion:
     """Insert ``asset`` into every frame with one world pose (see module docstring).
 
     frames: N (H, W, 3) uint8 RGB. cams_from_world: (N, 4, 4). ground_in_cam0: ground of frame ``start`` in its
     camera. depths: None or N (H, W) z-depth maps (0 = unknown): per-frame refit and occlusion. lighting: None
     (uniform grey-world ambient of frame ``start``, no sun) or N per-frame estimates of ONE clip lighting, e.g.
-    :func:`aias_augment.analyse.lighting.estimate.estimate_lighting_clip`.
+    :func:`aias_augment.analyse.lighting.estimate.estimate_lighting_clip`. layer_params: the object's layer stages
+    and their parameters (:func:`aias_augment.apply.layers.draw_layer_params`), applied in every frame with the
+    object's image motion there (the contact track's central difference, px per frame).
     """
     poses = np.asarray(cams_from_world, dtype=np.float64)
     n = len(frames)
@@ -262,18 +266,35 @@ def insert_into_clip(
             out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
             continue
         shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lights[i])
+        alpha, odepth = rl.alpha, rl.depth
+        if layer_params:
+            lay = ObjectLayer((0, 0, intrinsics.width, intrinsics.height), alpha, odepth, shaded)
+            lay = apply_layer_stages(lay, layer_params, img.shape[:2], _image_motion(track_uv, i))
+            alpha, odepth, shaded = lay.alpha, lay.depth, lay.rgb
         depth_i = None if depths is None else depths[i]
-        vis = rl.alpha * comp.visible_fraction_against_depth(rl.depth, depth_i)
+        vis = alpha * comp.visible_fraction_against_depth(odepth, depth_i)
         bg = comp.to_linear(img)
         if cfg.shadow:
             bg = comp.apply_shadow(bg, object_shadow_ratio(obj, cam_from_object, intrinsics, lights[i], depth_i))
         out_frames.append(comp.to_uint8(comp.alpha_over(bg, shaded, vis)))
         masks.append(np.clip(vis, 0.0, 1.0).astype(np.float32))
-        ann = annotate_object(obj.category, rl.alpha, vis)
+        ann = annotate_object(obj.category, alpha, vis)
         boxes.append(ann.visible_box_xywh)
         amodal.append(ann.amodal_box_xywh)
+    if layer_params:
+        mods["layers"] = ", ".join(f"{k} {v}" for k, v in layer_params.items())
     if flow is not None:  # the contact track the frames were rendered with
         track_uv = np.where(np.array([st == "flow" for st in flow.status])[:, None], flow.uv, track_uv)
     return ClipInsertion(
         out_frames, boxes, amodal, contact_w, world_from_object, track_uv, visible, offsets, masks, mods
     )
+
+
+def _image_motion(track_uv: np.ndarray, i: int) -> np.ndarray | None:
+    """The contact's image motion at frame ``i`` (px per frame): central difference of the track, one-sided at the
+    ends; None where a neighbour is behind the camera or the clip has one frame."""
+    lo, hi = max(i - 1, 0), min(i + 1, len(track_uv) - 1)
+    if hi == lo:
+        return None
+    d = (np.asarray(track_uv[hi], float) - np.asarray(track_uv[lo], float)) / (hi - lo)
+    return d if np.all(np.isfinite(d)) else None

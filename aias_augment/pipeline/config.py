@@ -13,7 +13,7 @@ from aias_augment.plan.placement import PlacementConfig
 
 PRESETS = ("fast", "balanced", "accurate")
 
-#: ``harmonize.api.METHODS`` (tests/aias_augment/insertion/test_config.py checks they agree).
+#: ``harmonize.api.METHODS`` (tests/aias_augment/pipeline/test_config.py checks they agree).
 HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
 
 
@@ -67,11 +67,11 @@ class InsertionConfig:
     ssaa: int = 2  # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Sun visibility on the ground: "catcher" (GL shadow map: ground patch rendered with/without the object) or
     # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL
-    # call; tests/aias_augment/insertion/test_projected_shadow.py: IoU >= 0.95 vs exact ray casting).
+    # call; tests/aias_augment/apply/test_projected_shadow.py: IoU >= 0.95 vs exact ray casting).
     shadow_method: Literal["catcher", "projected"] = "catcher"
     # Object layers: "full" (a GL render of the asset at the sample's pose) or "view_cache" (the asset's view for the
     # sample's view bin, rendered once per process and warped into the image, no GL call on a hit; poses the cache
-    # does not cover fall back to "full": insertion/view_cache.py, tests/aias_augment/insertion/test_view_cache.py).
+    # does not cover fall back to "full": apply/view_cache.py, tests/aias_augment/apply/test_view_cache.py).
     render_method: Literal["full", "view_cache"] = "full"
     # Cheap analysis (the fast preset's lighting estimate for a new image): the camera (vanishing lines) and the
     # lighting are estimated on a copy at most this many pixels wide (0: the image as given); the record says so.

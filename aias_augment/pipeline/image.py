@@ -45,6 +45,8 @@ class InsertionRecord:
     harmonize_seed: int | None = None  # the plan's harmonizer seed (with the placements: enough to replay)
     # the analysis and plan ran on a smaller copy of the image (the bounded door); None: on the image itself
     working_resolution: WorkingResolution | None = None
+    # per placement, the layer stages' parameters drawn in the plan (aias_augment.apply.layers)
+    layer_params: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return {
@@ -56,6 +58,7 @@ class InsertionRecord:
             "modules": self.modules,
             "placement_reports": self.placement_reports,
             "existing_visibility": self.existing_visibility,
+            "layer_params": self.layer_params,
         }
 
     @classmethod
@@ -73,6 +76,7 @@ class InsertionRecord:
             list(d["existing_visibility"]),
             d["harmonize_seed"],
             None if wr is None else WorkingResolution.from_dict(wr),
+            [dict(x) for x in d.get("layer_params", ())],
         )
 
 
@@ -168,6 +172,7 @@ def assemble_result(
         list(plan.placement_reports) + list(applied.dropped),
         harmonize_seed=plan.harmonize_seed,
         working_resolution=working_resolution,
+        layer_params=list(applied.layer_params),
     )
     inserted_boxes, inserted_labels = [], []
     for placement, ann in zip(applied.placements, applied.annotations):

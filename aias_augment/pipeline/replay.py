@@ -60,5 +60,6 @@ def replay(
     for d in record["placements"]:
         p = placement_from_dict(d)
         objects.append(PlannedObject(p, assets(p).scaled(p.scale)))
-    plan = InsertionPlan(tuple(objects), int(record["harmonize_seed"]), len(objects))
+    layer_params = tuple(dict(x) for x in record.get("layer_params", ()))
+    plan = InsertionPlan(tuple(objects), int(record["harmonize_seed"]), len(objects), layer_params=layer_params)
     return apply_plan(frame, analysis, plan, cfg)

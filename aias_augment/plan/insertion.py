@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from aias_augment.analyse.analysis import SceneAnalysis
+from aias_augment.apply.layers import draw_layer_params
 from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
 from aias_augment.core.geometry import Intrinsics, make_rigid, project_points, transform_points
 from aias_augment.pipeline.config import InsertionConfig
@@ -41,13 +42,15 @@ class PlannedObject:
 @dataclass(frozen=True, eq=False)
 class InsertionPlan:
     """What :func:`apply_plan` does, drawn once. ``placement_reports``: per requested object, the placement
-    search's report (rejections by reason). ``harmonize_seed``: seeds the harmonizer's own generator."""
+    search's report (rejections by reason). ``harmonize_seed``: seeds the harmonizer's own generator and the layer
+    stages' draws. ``layer_params``: per object, ``{layer stage: its parameters}`` (:mod:`aias_augment.apply.layers`)."""
 
     objects: tuple[PlannedObject, ...]
     harmonize_seed: int
     n_requested: int
     placement_reports: tuple[dict, ...] = ()
     modules: dict = field(default_factory=dict)  # e.g. 'collision': which 3D checks ran
+    layer_params: tuple[dict, ...] = ()
 
     def to_dict(self) -> dict:
         return {
@@ -56,6 +59,7 @@ class InsertionPlan:
             "placements": [asdict(o.placement) for o in self.objects],
             "placement_reports": list(self.placement_reports),
             "modules": dict(self.modules),
+            "layer_params": list(self.layer_params),
         }
 
 
@@ -161,7 +165,8 @@ def plan_insertion(
                 OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m), category)
             )
     harmonize_seed = int(rng.integers(0, 2**63 - 1))
-    return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods)
+    layer_params = draw_layer_params(cfg, harmonize_seed, len(objects))
+    return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods, layer_params)
 
 
 def scene_sized_placement(pcfg, existing_xyxy: list, image_height: int):

@@ -1,4 +1,4 @@
-"""Insertion variants (insertion/variants.py, ``InsertObjects(variants_per_image=K)``): a variant is the full
+"""Insertion variants (adapters/variants.py, ``InsertObjects(variants_per_image=K)``): a variant is the full
 pipeline's output for its own generator (the pasted window reproduces it byte for byte), a cached variant and a
 computed one give the same bytes (memory, disk, a fresh transform, warm), an image shows at most K insertions, and
 the key follows what the insertion reads."""

@@ -1,4 +1,4 @@
-"""The view cache (insertion/view_cache.py): accuracy against the full render, no GL call when warm, same bytes
+"""The view cache (apply/view_cache.py): accuracy against the full render, no GL call when warm, same bytes
 whether a view was cached or not, and across fresh processes."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The fast harmonizer's NumPy inference (harmonize/fast_infer.py) against the torch model it was trained as: each
+"""The fast harmonizer's NumPy inference (apply/harmonize/fast_infer.py) against the torch model it was trained as: each
 op (conv, area pooling, quantiles) and the whole forward agree to float32 rounding, the npz export round-trips and a
 stale one is refused, and a fast-preset insertion runs without importing torch."""
 
