@@ -31,6 +31,7 @@ HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
         "default_hfov_deg": "(0, 180)",
         "naive_height_frac_range": "(0, 1] lo<=hi",
         "naive_height_frac_samples": "(0, 1]",
+        "motion_blur_px": "[0, inf) lo<=hi",
     },
     orders=["min_objects <= max_objects"],
 )
@@ -60,6 +61,9 @@ class InsertionConfig:
     # from a generator seeded by the plan's harmonize_seed, so a replay gives the same bytes). Part of the
     # harmonization stage: off with it. Redundant (skipped) when harmonize_method is "camera".
     camera_match: bool = False
+    # Motion blur of each object (apply/layer_stages/motion_blur.py): streak length range in output pixels, drawn
+    # per object in the plan; (0, 0): off.
+    motion_blur_px: tuple[float, float] = (0.0, 0.0)
     # Where the objects come from: "default": the shared-data model per category, the bank for others; "bank": all
     # from the bank; "procedural": a new seeded procedural asset per object where the category has a generator
     # (traffic_cone), else as "default".
