@@ -103,11 +103,11 @@ def side_by_side(pairs, outputs, methods, path: Path, n: int = 5, tile: int = 16
 
 def network_stage_table(pairs, checkpoint, base_fmse):
     """fMSE of the network stopped after each of its stages, with one view and with the test-time views."""
-    from aias_augment.apply.harmonize.api import _checkpoint
+    from aias_augment.apply.harmonize.api import checkpoint_path
     from aias_augment.apply.harmonize.color import to_float, to_uint8
     from aias_augment.apply.harmonize.network import STAGES, load_generator, run_network, up_to_stage
 
-    gen = load_generator(_checkpoint("network", checkpoint))
+    gen = load_generator(checkpoint_path("network", checkpoint))
     names = STAGES if gen.global_stage is not None else STAGES[1:]
     rows = []
     for i, last in enumerate(names):

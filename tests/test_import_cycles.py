@@ -52,6 +52,18 @@ def test_no_module_imports_another_modules_private_name():
         assert tool.private_reaches(package) == [], package
 
 
+def test_the_study_scripts_and_benchmarks_use_only_public_names_of_the_package():
+    import ast
+
+    found = []
+    for folder in ("detection_eval", "scripts", "benchmarks"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("aias_augment"):
+                    found += [f"{path.name}:{node.lineno} {a.name}" for a in node.names if a.name[:1] == "_"]
+    assert [f for f in found if "__" not in f.split()[-1][:2]] == []
+
+
 def test_the_tool_finds_a_private_name_imported_from_another_module(tmp_path):
     """Relative and absolute forms are both found; a module's own private names and dunders are not reaches."""
     pkg = tmp_path / "pkg"

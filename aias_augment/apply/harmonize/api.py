@@ -83,7 +83,7 @@ def _validate(composite: np.ndarray, fg_mask: np.ndarray, method: str) -> np.nda
     return fg_mask.astype(np.float32)
 
 
-def _checkpoint(method: str, checkpoint: str | Path | None) -> Path:
+def checkpoint_path(method: str, checkpoint: str | Path | None) -> Path:
     path = Path(checkpoint) if checkpoint is not None else DEFAULT_CHECKPOINTS[method]
     if not path.is_file():
         raise FileNotFoundError(
@@ -121,11 +121,11 @@ def harmonize(
             run_fast,
         )
 
-        result = run_fast(load_fast_np(_checkpoint(method, checkpoint)), image, hard, tta=test_time_views)
+        result = run_fast(load_fast_np(checkpoint_path(method, checkpoint)), image, hard, tta=test_time_views)
     else:
         from aias_augment.apply.harmonize.network import load_generator, run_network
 
-        result = run_network(load_generator(_checkpoint(method, checkpoint)), image, hard, tta=test_time_views)
+        result = run_network(load_generator(checkpoint_path(method, checkpoint)), image, hard, tta=test_time_views)
     m = soft[..., None]
     blended = to_uint8(image * (1.0 - m) + result * m)
     return np.where(m > 0, blended, composite_rgb_uint8)
@@ -219,7 +219,7 @@ def harmonize_clip(
         return out
     from aias_augment.apply.harmonize.fast_infer import apply_affine_np, load_fast_np, predict_affine
 
-    model = load_fast_np(_checkpoint(method, checkpoint))
+    model = load_fast_np(checkpoint_path(method, checkpoint))
     affine = np.median(np.stack([predict_affine(model, to_float(frames[i]), softs[i] > 0) for i in visible]), axis=0)
     for i in visible:
         image = to_float(frames[i])

@@ -32,10 +32,13 @@ from pathlib import Path
 from typing import Literal
 from urllib.parse import quote, unquote
 
-from fastapi import FastAPI, HTTPException, Request
-from fastapi.responses import FileResponse, JSONResponse, Response
-from fastapi.staticfiles import StaticFiles
-from pydantic import BaseModel, ConfigDict, Field
+try:
+    from fastapi import FastAPI, HTTPException, Request
+    from fastapi.responses import FileResponse, JSONResponse, Response
+    from fastapi.staticfiles import StaticFiles
+    from pydantic import BaseModel, ConfigDict, Field
+except ImportError as exc:  # the web app's dependencies are an extra: the pipeline does not need them
+    raise ImportError(f"the A/B study server needs its extra: pip install 'aias-augment[abstudy]' ({exc})") from exc
 
 from aias_augment.evaluation.abstudy.build import MEDIA_TYPES, PAIR_ID_RE, load_study
 from aias_augment.evaluation.abstudy.report import compute_report, results_csv, votes_csv
