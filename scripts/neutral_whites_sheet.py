@@ -48,7 +48,11 @@ def main(argv=None) -> int:
     stems = sorted(p.stem for p in (root / "labels/train").glob("*.txt") if p.stat().st_size > 0)
     stems = [stems[i] for i in np.random.default_rng(a.seed).permutation(len(stems))]
     new = load_preset("balanced")
-    old = replace(new, harmonize_colour="full", lighting_cfg=replace(new.lighting_cfg, ambient_colour="scene"))
+    old = replace(
+        new,
+        harmonize_colour="full",
+        lighting_cfg=replace(new.lighting_cfg, ambient_colour="scene", ground_white_balance=0.75),
+    )
     rows = []
     for stem in stems:
         if len(rows) >= a.photos:

@@ -282,7 +282,11 @@ class LightingConfig:
     #: the light). Without it the Preetham fill of the unseen sky makes the camera-facing side of an object 1.5-2.3x
     #: bluer in B than in R (white bands came out lavender, orange brown). The value is the strength (0: off; 0.75:
     #: three quarters of the way in log, since some roads are not grey); gains clamped to [1/2, 2], luminance kept.
-    ground_white_balance: float = 0.75
+    #: Off by default: the neutral ambient takes the light's colour from the photo's grey surfaces, and a ground that
+    #: is not grey (grass, a warm floor) pulled it yellow (inserted white bands against the same photos' real white
+    #: sleeves, 27 TraCon train photos: 37 % within 0.94-1.06 in R/G and B/G off, 15 % at 0.75; paired deviation
+    #: -0.159 [-0.276, -0.067]; results/lighting/neutral_whites). Useful with ``ambient_colour="scene"``.
+    ground_white_balance: float = 0.0
     #: Colour of the fill for the sky the camera did not see ("white stays white"): "seen" keeps the
     #: Preetham model's brightness distribution but takes its chroma from the sky the camera saw above the horizon
     #: (its median; the ground's when too little is seen): the photo went through the camera's white balance, the
@@ -418,6 +422,20 @@ def neutral_ambient(sh: np.ndarray, up_in_cam: np.ndarray, colour: np.ndarray | 
     if not np.all(np.isfinite(c)) or c.min() <= 0 or lum <= 0:
         return sh
     return luminance(sh)[:, None] * (c / lum)[None, :]
+
+
+def sky_part_of_neutral(sh: np.ndarray, up_in_cam: np.ndarray, sun_sky_rgb: np.ndarray) -> np.ndarray:
+    """The neutral ambient's colour taken back to the sky's own. The photo's grey surfaces show the light they
+    receive, mostly sky plus sun (E_sky,c (1 + r_c), r_c = E_sun,c cos z / E_sky,c per channel from lit against
+    shadowed ground), so that colour is the ambient's only without a sun: with one, the sky's is that colour over
+    (1 + r_c), and the sun added on top of it gives a sunlit white the grey surfaces' colour again instead of the
+    sun's colour twice (a yellow cast wherever the sun is warmer than the sky)."""
+    sh = np.asarray(sh, np.float64)
+    r = np.asarray(sun_sky_rgb, np.float64)
+    dc = sh[0]
+    if not np.all(np.isfinite(r)) or r.min() < 0 or dc.min() <= 0:
+        return sh
+    return neutral_ambient(sh, up_in_cam, dc / (1.0 + r))
 
 
 @dataclass
@@ -707,6 +725,9 @@ def _finish(
         # Per channel: lit / shadow - 1 = E_sun,c cos(z) / E_sky,c.
         r_rgb = np.clip(measurement.lit_rgb / np.maximum(measurement.shadow_rgb, 1e-6) - 1.0, 0.0, None)
         ratio = measurement.sun_sky_ratio
+        if config.ambient_colour == "neutral":
+            sh = sky_part_of_neutral(sh, up_in_cam, r_rgb)
+            e_sky = sh_irradiance(sh, up_in_cam)
     else:
         r_rgb = np.full(3, config.default_sun_sky_ratio)
         ratio = config.default_sun_sky_ratio

@@ -109,3 +109,29 @@ def test_neutral_ambient_keeps_the_brightness_in_every_direction_and_has_one_col
     chroma_up = sh_irradiance(sh, up[None])[0] / luminance(sh_irradiance(sh, up[None]))[0]
     assert np.allclose(e_new[pos] / luminance(e_new[pos])[:, None], chroma_up, rtol=1e-5)
     assert np.ptp(e_old[pos, 0] / e_old[pos, 1]) > 1.0  # the input did vary in colour
+
+
+
+def test_a_sunlit_white_takes_the_colour_of_the_photos_grey_surfaces():
+    """The photo's grey surfaces (a sunlit road, white-balanced by the camera) show sky plus sun, E_sky,c (1 + r_c),
+    with r_c = E_sun,c cos z / E_sky,c per channel (lit over shadowed ground, minus 1). The neutral ambient took that
+    colour; once the sun is added as its own light, a white facing up in the sun must receive the grey surfaces'
+    colour again, E_sky,c (1 + r_c), not that colour times the sun's (here warm: r_R > r_B)."""
+    from aias_augment.analyse.lighting.estimate import neutral_ambient, sky_part_of_neutral
+    from aias_augment.analyse.lighting.sh import sh_irradiance
+
+    up = np.array([0.0, -1.0, 0.0])
+    rng = np.random.default_rng(1)
+    grey_surfaces = np.array([0.9, 1.0, 1.1])  # the colour the camera's balance left on its grey surfaces
+    radiance_sh = rng.uniform(-0.1, 0.1, size=(9, 3))
+    radiance_sh[0] = 1.0  # a light brighter than its variation: positive in every direction
+    sh = neutral_ambient(radiance_sh, up, grey_surfaces)
+    r = np.array([5.0, 4.0, 2.5])  # the sun warmer than the sky
+    sky = sky_part_of_neutral(sh, up, r)
+    e_sky = sh_irradiance(sky, up)
+    total_up = e_sky * (1.0 + r)  # sky plus the sun at r_c E_sky,c
+    assert np.allclose(total_up / total_up[1], grey_surfaces / grey_surfaces[1], rtol=1e-5)
+    # Brightness of every coefficient kept; without the correction the sunlit white would be yellow.
+    assert np.allclose(sky @ [0.2126, 0.7152, 0.0722], sh @ [0.2126, 0.7152, 0.0722])
+    before = sh_irradiance(sh, up) * (1.0 + r)
+    assert before[2] / before[0] < 0.75 * grey_surfaces[2] / grey_surfaces[0]

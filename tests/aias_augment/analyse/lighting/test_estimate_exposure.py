@@ -156,7 +156,7 @@ def test_white_balance_brings_the_light_colour_to_the_truth():
         return e[2] / e[0]
 
     # the ground balance alone, on the ambient with the photo's colours (ambient_colour "scene")
-    on = blue_over_red(LightingConfig(ambient_colour="scene"))
+    on = blue_over_red(LightingConfig(ambient_colour="scene", ground_white_balance=0.75))
     off = blue_over_red(LightingConfig(ambient_colour="scene", ground_white_balance=0.0))
     # the default neutral ambient takes the grey ground's colour: the truth within 5 %
     assert abs(np.log(blue_over_red(LightingConfig()))) < 0.05
