@@ -28,7 +28,7 @@ from aias_augment.pipeline.config import InsertionConfig
 from aias_augment.scenes.single_image import SingleImageConfig, estimate_camera_from_image
 
 #: Bumped whenever what analyse_scene computes changes: on-disk cache entries of another version are not read.
-ANALYSIS_VERSION = "3"  # 2: single images get an image-evidence region (region.image_ground_region); 3: monochrome
+ANALYSIS_VERSION = "4"  # the record's format: a cached analysis of another version is computed again
 #                        cameras are recorded (modules["colour"]) and their insertions rendered as luminance
 #: Seed of the analysis' own generator (the analysis must not depend on the sample's random stream).
 ANALYSIS_SEED = 20240614
@@ -43,7 +43,8 @@ class SceneAnalysis:
     intrinsics: the camera used (given, estimated or prior). ground: the ground plane (None when placement is off).
     region: where objects may stand (None when placement is off). lighting: sun + SH ambient in the image's linear
     units. modules: per module ('mode', 'camera', 'ground', 'placement', 'region', 'lighting') what was used, or
-    "skipped: why". key: the frame's :func:`scene_key`.
+    "skipped: why", for people. key: the frame's :func:`scene_key`. monochrome: the frame comes from a monochrome
+    camera (inserted objects are written as its luminance).
     """
 
     key: str
@@ -53,6 +54,7 @@ class SceneAnalysis:
     region: PlaceableRegion | None
     lighting: LightingEstimate
     modules: dict = field(default_factory=dict)
+    monochrome: bool = False
 
     def to_dict(self) -> dict:
         """JSON-ready (the region mask is left out: :meth:`save` writes it beside)."""
@@ -78,10 +80,12 @@ class SceneAnalysis:
                 "inlier_ratio": g.inlier_ratio,
                 "rms_m": g.rms_m,
                 "num_inliers": g.num_inliers,
+                "assumed_scale": g.assumed_scale,
             },
             "region": None if self.region is None else self.region.to_dict(),
             "lighting": self.lighting.to_dict(),
             "modules": dict(self.modules),
+            "monochrome": self.monochrome,
         }
 
     def save(self, path: str | Path) -> None:
@@ -105,7 +109,13 @@ class SceneAnalysis:
             None
             if g is None
             else GroundPlane(
-                np.array(g["normal"]), g["d"], g["source"], g["inlier_ratio"], g["rms_m"], g["num_inliers"]
+                np.array(g["normal"]),
+                g["d"],
+                g["source"],
+                g["inlier_ratio"],
+                g["rms_m"],
+                g["num_inliers"],
+                g["assumed_scale"],
             )
         )
         r = d["region"]
@@ -133,6 +143,7 @@ class SceneAnalysis:
             region,
             lighting,
             d["modules"],
+            d["monochrome"],
         )
 
 
@@ -258,7 +269,8 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
                 cols = ((np.arange(sw_) + 0.5) * w / sw_).astype(int)
                 meta_s[k] = np.asarray(meta_s[k])[rows][:, cols]
         lighting = scene_lighting(lsmall, _scaled_intrinsics(intr, sw_, sh_), up_ground, rng, cfg, meta_s, mods)
-    if is_monochrome(img):
+    monochrome = is_monochrome(img)
+    if monochrome:
         mods["colour"] = (
             "monochrome camera (R = G = B in the image): inserted objects are written as luminance, "
             "as this camera sees them"
@@ -271,7 +283,7 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
             f"{cfg.analysis_max_width}), lighting on {lw} (lighting_cfg.min_input_width "
             f"{cfg.lighting_cfg.min_input_width}); region at full resolution"
         )
-    return SceneAnalysis(key or scene_key(frame, cfg), (h, w), intr, ground, region, lighting, mods)
+    return SceneAnalysis(key or scene_key(frame, cfg), (h, w), intr, ground, region, lighting, mods, monochrome)
 
 
 def is_monochrome(image: np.ndarray, tol: int = 2, min_fraction: float = 0.99) -> bool:

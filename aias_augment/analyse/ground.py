@@ -51,7 +51,9 @@ class GroundFitError(ValueError):
 
 @dataclass(frozen=True, eq=False)
 class GroundPlane:
-    """Plane ``normal . p + d = 0`` in one camera frame (OpenCV axes, metres); normal unit, pointing up."""
+    """Plane ``normal . p + d = 0`` in one camera frame (OpenCV axes, metres); normal unit, pointing up.
+    ``assumed_scale``: its distance ``d`` is a prior (an assumed camera height), not a measurement (depth, LiDAR,
+    poses), so a placement may rescale the scene about the camera."""
 
     normal: np.ndarray
     d: float
@@ -59,6 +61,7 @@ class GroundPlane:
     inlier_ratio: float = 1.0
     rms_m: float = 0.0
     num_inliers: int = field(default=0, compare=False)
+    assumed_scale: bool = False
 
     def __eq__(self, other):
         if not isinstance(other, GroundPlane):
@@ -69,6 +72,7 @@ class GroundPlane:
             and self.source == other.source
             and self.inlier_ratio == other.inlier_ratio
             and self.rms_m == other.rms_m
+            and self.assumed_scale == other.assumed_scale
         )
 
     __hash__ = None  # mutable-free but holds an ndarray: compare with ==, do not hash
@@ -134,7 +138,13 @@ class GroundPlane:
         T = check_rigid(cam2_from_cam1, "cam2_from_cam1")
         n2 = T[:3, :3] @ self.normal
         return GroundPlane(
-            n2, self.d - float(n2 @ T[:3, 3]), self.source, self.inlier_ratio, self.rms_m, self.num_inliers
+            n2,
+            self.d - float(n2 @ T[:3, 3]),
+            self.source,
+            self.inlier_ratio,
+            self.rms_m,
+            self.num_inliers,
+            self.assumed_scale,
         )
 
     def horizon_line(self, intrinsics: Intrinsics) -> np.ndarray:
@@ -184,7 +194,7 @@ def prior_ground_plane(
         raise ValueError(f"camera_height_m must be positive, got {camera_height_m}")
     # cam_from_level = Rz(roll) Rx(pitch): up (0,-1,0) of the level frame seen from the tilted camera.
     up = rotation_about_axis([0, 0, 1], roll_rad) @ rotation_about_axis([1, 0, 0], pitch_rad) @ np.array([0, -1.0, 0])
-    return GroundPlane(up, float(camera_height_m), "prior")
+    return GroundPlane(up, float(camera_height_m), "prior", assumed_scale=True)
 
 
 def _plane_from_svd(points: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:

@@ -209,7 +209,7 @@ def apply_plan(
             )
     else:
         mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
-    if analysis.modules.get("colour", "").startswith("monochrome"):
+    if analysis.monochrome:
         # A monochrome camera records luminance: the window's pixels (objects, shadows and the scene between them,
         # which is grey already and unchanged by this) as the camera's grey, R = G = B.
         grey = cv2.cvtColor(np.ascontiguousarray(result[Y0:Y1, X0:X1]), cv2.COLOR_RGB2GRAY)

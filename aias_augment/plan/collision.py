@@ -30,6 +30,7 @@ __all__ = [
     "existing_objects_collision",
     "depth_occlusion",
     "check_candidate",
+    "Rejection",
 ]
 
 #: Unit-cube corners (x, y, z in {-0.5, 0.5}).
@@ -126,9 +127,20 @@ def box_pixel_mask(box: OrientedBox, intrinsics: Intrinsics) -> np.ndarray | Non
     return mask.astype(bool)
 
 
+@dataclass(frozen=True)
+class Rejection:
+    """Why a candidate was refused: ``kind``, what the placement report counts, and ``detail``, its numbers."""
+
+    kind: str
+    detail: str = ""
+
+    def __str__(self) -> str:
+        return f"{self.kind}: {self.detail}" if self.detail else self.kind
+
+
 def scene_points_collision(
     box: OrientedBox, points_in_cam: np.ndarray | None, ground: GroundPlane, cfg: CollisionConfig = CollisionConfig()
-) -> str | None:
+) -> Rejection | None:
     if points_in_cam is None or len(points_in_cam) == 0:
         return None
     p = np.asarray(points_in_cam, dtype=np.float64)
@@ -136,23 +148,23 @@ def scene_points_collision(
     inside = points_inside_box(p[above], box, cfg.margin_m)
     n = int(inside.sum())
     if n >= cfg.min_points_inside:
-        return f"intersects scene points above the ground: {n} points"
+        return Rejection("intersects scene points above the ground", f"{n} points")
     return None
 
 
 def existing_objects_collision(
     box: OrientedBox, existing: list[OrientedBox] | None, cfg: CollisionConfig = CollisionConfig()
-) -> str | None:
+) -> Rejection | None:
     for other in existing or ():
         if boxes_intersect(box, other, cfg.margin_m):
-            return f"intersects an existing object: {other.label or '(unnamed)'}"
+            return Rejection("intersects an existing object", other.label or "(unnamed)")
     return None
 
 
 def depth_occlusion(
     box: OrientedBox, depth: np.ndarray | None, intrinsics: Intrinsics, cfg: CollisionConfig = CollisionConfig()
-) -> tuple[str | None, float]:
-    """(reason or None, occluded fraction) from a per-pixel test of the box's nearest depth against scene depth.
+) -> tuple[Rejection | None, float]:
+    """(rejection or None, occluded fraction) from a per-pixel test of the box's nearest depth against scene depth.
 
     The object's depth at a pixel is approximated by its nearest corner depth (conservative: calls a pixel
     occluded only when the scene is nearer than every part of the box). Unknown scene depth (0/NaN) is not
@@ -162,9 +174,9 @@ def depth_occlusion(
         return None, 0.0
     mask = box_pixel_mask(box, intrinsics)
     if mask is None:
-        return "object crosses the camera plane", 1.0
+        return Rejection("object crosses the camera plane"), 1.0
     if not mask.any():
-        return "object projects outside the image", 1.0
+        return Rejection("object projects outside the image"), 1.0
     scene = np.asarray(depth, dtype=np.float32)[mask]
     known = np.isfinite(scene) & (scene > 0)
     if not known.any():
@@ -172,7 +184,7 @@ def depth_occlusion(
     nearest = float(transform_points(np.eye(4), box.corners())[:, 2].min())
     occluded = float(np.mean(scene[known] < nearest - cfg.depth_margin_m))
     if occluded > cfg.max_occluded_frac:
-        return f"hidden behind nearer scene surfaces: {occluded:.0%} of its pixels", occluded
+        return Rejection("hidden behind nearer scene surfaces", f"{occluded:.0%} of its pixels"), occluded
     return None, occluded
 
 
@@ -185,8 +197,8 @@ def check_candidate(
     existing: list[OrientedBox] | None = None,
     depth: np.ndarray | None = None,
     cfg: CollisionConfig = CollisionConfig(),
-) -> str | None:
-    """First reason to reject the candidate box, or None when it passes every check."""
+) -> Rejection | None:
+    """The first reason to reject the candidate box, or None when it passes every check."""
     return (
         existing_objects_collision(box, existing, cfg)
         or scene_points_collision(box, points_in_cam, ground, cfg)

@@ -96,7 +96,7 @@ class PlacementConfig:
     # so an inserted object is as large as the same scene's own objects (a close-up's cones are close-up sized).
     sizes_from_existing: bool = False
     # A single photo's ground has no measured scale: its plane comes from a camera-height prior
-    # (``ASSUMED_SCALE_SOURCES``), and a level road camera 1.65 m up cannot see a cone on the ground taller than
+    # (``GroundPlane.assumed_scale``), and a level road camera 1.65 m up cannot see a cone on the ground taller than
     # ~0.25 of the frame, while close-ups and product shots are full of them. With ``scene_scale_from_sizes`` and a
     # size target, each image first draws a reference target and a ground pixel that can host it at a camera height
     # inside ``camera_height_range_m``, and the whole scene is scaled about the camera centre to that height (the
@@ -361,14 +361,6 @@ def candidates_for_box_height(
     return cand[nearest], f" (target {target:.0f} px not reachable in this scene: nearest sizes used)"
 
 
-# Ground sources whose metric scale is a prior (an assumed camera height), not a measurement.
-ASSUMED_SCALE_SOURCES = ("prior", "single_image")
-
-
-def has_assumed_scale(ground: GroundPlane) -> bool:
-    return ground.source.split(":")[0] in ASSUMED_SCALE_SOURCES
-
-
 def scene_scale_for_sizes(
     ground: GroundPlane,
     intrinsics: Intrinsics,
@@ -385,7 +377,7 @@ def scene_scale_for_sizes(
     an image, its smaller ones fit farther away. Scaling the scene by ``k`` shows an object of height ``h`` as the
     unscaled scene shows one of ``h / k``, which gives each pixel's ``k`` by a fixed-point iteration on the
     predicted box heights."""
-    if not has_assumed_scale(ground):
+    if not ground.assumed_scale:
         return 1.0, f"measured ground ({ground.source}): its scale is kept"
     cand = _GROUND_CANDIDATES.get(ground, intrinsics, region_mask, cfg.horizon_margin_px)["cand"]
     if len(cand) == 0 or not (ground.d > 0):
@@ -434,7 +426,13 @@ def scaled_ground(ground: GroundPlane, k: float) -> GroundPlane:
     if k == 1.0:
         return ground
     return GroundPlane(
-        ground.normal, ground.d * k, f"{ground.source}:scaled", ground.inlier_ratio, ground.rms_m, ground.num_inliers
+        ground.normal,
+        ground.d * k,
+        f"{ground.source}:scaled",
+        ground.inlier_ratio,
+        ground.rms_m,
+        ground.num_inliers,
+        ground.assumed_scale,
     )
 
 
@@ -658,7 +656,7 @@ def sample_placement(
                 cfg=collision_cfg if collision_cfg is not None else CollisionConfig(),
             )
             if reason is not None:
-                report.rejected[reason.split(":")[0]] += 1
+                report.rejected[reason.kind] += 1
                 continue
         report.chosen_because = (
             f"first candidate passing all checks (try {report.tries}): ground point at {dist:.1f} m on the "

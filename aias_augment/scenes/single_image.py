@@ -253,7 +253,7 @@ def estimate_camera_from_image(
     # up normal from the horizon: the ground side has l . x > 0 and n . K^-1 x < 0  =>  n ~ -K^T l
     n = -intrinsics.K.T @ horizon
     n /= np.linalg.norm(n)  # unit first: GroundPlane treats (n, d) as plane coefficients and rescales d with n
-    ground = GroundPlane(n, cfg.camera_height_m, f"single_image:{horizon_source}")
+    ground = GroundPlane(n, cfg.camera_height_m, f"single_image:{horizon_source}", assumed_scale=True)
     pitch, roll = ground.pitch_roll_rad()
     return SingleImageCamera(
         intrinsics=intrinsics,

@@ -111,7 +111,6 @@ def test_neutral_ambient_keeps_the_brightness_in_every_direction_and_has_one_col
     assert np.ptp(e_old[pos, 0] / e_old[pos, 1]) > 1.0  # the input did vary in colour
 
 
-
 def test_a_sunlit_white_takes_the_colour_of_the_photos_grey_surfaces():
     """The photo's grey surfaces (a sunlit road, white-balanced by the camera) show sky plus sun, E_sky,c (1 + r_c),
     with r_c = E_sun,c cos z / E_sky,c per channel (lit over shadowed ground, minus 1). The neutral ambient took that

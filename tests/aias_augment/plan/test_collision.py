@@ -52,9 +52,8 @@ def test_scene_points_cluster_collides_but_ground_points_do_not():
     ground_pts = np.column_stack([rng.uniform(-0.2, 0.2, 50), np.full(50, 1.5 - 0.02), rng.uniform(7.8, 8.2, 50)])
     assert scene_points_collision(box, ground_pts, GROUND) is None
     pole = np.column_stack([np.zeros(5), np.linspace(1.0, 0.7, 5), np.full(5, 8.0)])  # 0.5..0.8 m above ground
-    assert "intersects scene points above the ground: 5 points" == scene_points_collision(
-        box, np.vstack([ground_pts, pole]), GROUND
-    )
+    hit = scene_points_collision(box, np.vstack([ground_pts, pole]), GROUND)
+    assert (hit.kind, hit.detail) == ("intersects scene points above the ground", "5 points")
     assert scene_points_collision(box, pole[:2], GROUND) is None  # 2 points < min_points_inside: noise
 
 
@@ -64,13 +63,12 @@ def test_depth_occlusion_and_reasons():
     assert depth_occlusion(box, far_scene, INTR) == (None, 0.0)
     wall = np.full((480, 640), 5.0, np.float32)  # something 5 m away hides the object
     reason, frac = depth_occlusion(box, wall, INTR)
-    assert frac == 1.0 and "hidden" in reason
+    assert frac == 1.0 and reason.kind == "hidden behind nearer scene surfaces"
     assert depth_occlusion(box, np.zeros((480, 640), np.float32), INTR) == (None, 0.0)  # unknown != occluder
     behind = _box_at(0.0, -3.0)
-    assert depth_occlusion(behind, far_scene, INTR)[0] == "object crosses the camera plane"
-    assert "an existing object: car" in check_candidate(
-        box, GROUND, INTR, existing=[OrientedBox(box.cam_from_box, (4, 2, 1.5), "car")]
-    )
+    assert depth_occlusion(behind, far_scene, INTR)[0].kind == "object crosses the camera plane"
+    hit = check_candidate(box, GROUND, INTR, existing=[OrientedBox(box.cam_from_box, (4, 2, 1.5), "car")])
+    assert str(hit) == "intersects an existing object: car"
     assert check_candidate(box, GROUND, INTR, depth=far_scene) is None
 
 
