@@ -2,9 +2,9 @@
 
 Each arm is an ordinary ``aias-augment`` output folder (``images/``, ``records/``, ``annotations.json``), written by
 the same ``aias_augment.cli.offline.run`` that the CLI calls, on the same input list, so ``aias-abstudy build`` can pair
-the arms image by image. The arms are the stage switches of the realism ablation (``detection_eval.study.ARM_FLAGS``):
+the arms image by image. The arms are the detection study's (``detection_eval.study.ARM_FLAGS``, one table):
 
-    full         the whole pipeline (placement, lighting, shadow, harmonization)
+    inserted     the whole pipeline (placement, lighting, shadow, harmonization)
     naive_paste  a plain render pasted at a random position and scale (3D Copy-Paste's "random insertion")
     no_shadow    the whole pipeline without the cast shadow
 
@@ -20,14 +20,9 @@ from pathlib import Path
 
 from aias_augment.cli.offline import IMAGE_SUFFIXES, Item, run
 from aias_augment.pipeline.image import PRESETS, load_preset
+from detection_eval.study import ARM_FLAGS
 
-ARMS = {
-    "full": {},
-    "naive_paste": {"naive_paste": True},
-    "no_shadow": {"shadow": False},
-    "no_harmonize": {"harmonize": False},
-    "no_lighting": {"lighting": False},
-}
+ARMS = {arm: ARM_FLAGS[arm] for arm in ("inserted", "naive_paste", "no_shadow", "no_harmonize", "no_lighting")}
 
 
 def empty_road_images(images_dir: Path, labels_dir: Path, n: int) -> list[Path]:
@@ -47,7 +42,7 @@ def main(argv=None) -> int:
     ap.add_argument("--images", required=True, help="YOLO image folder (labels/ beside images/)")
     ap.add_argument("--labels", default=None, help="label folder (default: images -> labels)")
     ap.add_argument("--n", type=int, default=6, help="number of empty-road images")
-    ap.add_argument("--arms", nargs="+", default=["full", "naive_paste", "no_shadow"], choices=list(ARMS))
+    ap.add_argument("--arms", nargs="+", default=["inserted", "naive_paste", "no_shadow"], choices=list(ARMS))
     ap.add_argument("--preset", choices=PRESETS, default="balanced")
     ap.add_argument("--categories", nargs="+", default=["traffic_cone"])
     ap.add_argument("--per-image", type=int, default=2)
