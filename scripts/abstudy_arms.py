@@ -2,7 +2,7 @@
 
 Each arm is an ordinary ``aias-augment`` output folder (``images/``, ``records/``, ``annotations.json``), written by
 the same ``aias_augment.cli.offline.run`` that the CLI calls, on the same input list, so ``aias-abstudy build`` can pair
-the arms image by image. The arms are the detection study's (``detection_eval.study.ARM_FLAGS``, one table):
+the arms image by image. The arms are the detection study's (``detection_eval.study.arms.ARM_FLAGS``, one table):
 
     inserted     the whole pipeline (placement, lighting, shadow, harmonization)
     naive_paste  a plain render pasted at a random position and scale (3D Copy-Paste's "random insertion")
@@ -20,7 +20,7 @@ from pathlib import Path
 
 from aias_augment.cli.offline import IMAGE_SUFFIXES, Item, run
 from aias_augment.pipeline.image import PRESETS, load_preset
-from detection_eval.study import ARM_FLAGS
+from detection_eval.study.arms import ARM_FLAGS
 
 ARMS = {arm: ARM_FLAGS[arm] for arm in ("inserted", "naive_paste", "no_shadow", "no_harmonize", "no_lighting")}
 

@@ -47,7 +47,7 @@ def run(args) -> None:
     from detection_eval.data import load_yolo_dir
     from detection_eval.inference import evaluate_dataset
     from detection_eval.loader import cache_dataset
-    from detection_eval.study import thin_cone_images
+    from detection_eval.study.splits import thin_cone_images
     from detection_eval.train import train_detector
 
     torch.set_num_threads(args.threads)

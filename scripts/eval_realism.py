@@ -6,7 +6,7 @@
     # 2. the report: results/realism/report.md, report.json, contact_sheet.png
     taskset -c 0 python scripts/eval_realism.py report
 
-Pools are the study's generation (``detection_eval.study.generate_arm_set``: configs/study/tracon_cones_ablations.yaml
+Pools are the study's generation (``detection_eval.study.pools.generate_arm_set``: configs/study/tracon_cones_ablations.yaml
 with its cache moved to ``--cache-dir`` and ``pool_size`` = N), so copy j of every arm has the same background and
 random stream. Every box of a pool image is inserted (the backgrounds are TraCon's empty road images).
 
@@ -65,7 +65,7 @@ STUDY_POOLS = {
 
 
 def _study_cfg(cache_dir: str, n: int, preset: str | None = None):
-    from detection_eval.study import load_study_config
+    from detection_eval.study.config import load_study_config
 
     cfg = load_study_config(REPO / ABLATION_CONFIG)
     ic = dataclasses.replace(cfg.insertion, pool_size=n, **({"preset": preset} if preset else {}))
@@ -73,12 +73,15 @@ def _study_cfg(cache_dir: str, n: int, preset: str | None = None):
 
 
 def cmd_generate(args) -> None:
-    from detection_eval import study
     from detection_eval.data import load_yolo_dir
+    from detection_eval.study.arms import insertion_config_for_arm
+    from detection_eval.study.config import dataset_root
+    from detection_eval.study.pools import generate_arm_set
+    from detection_eval.study.splits import thin_cone_images
 
     cfg = _study_cfg(args.cache_dir, args.n, args.preset)
-    train = load_yolo_dir(study.dataset_root(cfg), cfg.train_split, cfg.class_names)
-    _, empty = study.thin_cone_images(train, cfg.keep_fraction, cfg.seeds[0])
+    train = load_yolo_dir(dataset_root(cfg), cfg.train_split, cfg.class_names)
+    _, empty = thin_cone_images(train, cfg.keep_fraction, cfg.seeds[0])
     fixes = set(FIXES) if args.fixes is None else set(args.fixes)
     if args.fixes_off:
         fixes = set()
@@ -98,14 +101,14 @@ def cmd_generate(args) -> None:
             cap_white_to_scene_percentile=d.cap_white_to_scene_percentile if "A" in fixes else None,
             ground_white_balance=d.ground_white_balance if "W" in fixes else 0.0,
         )
-        base = study.insertion_config_for_arm
-        study.insertion_config_for_arm = lambda c, a, t: dataclasses.replace(base(c, a, t), lighting_cfg=lcfg)
+        base = insertion_config_for_arm
+        insertion_config_for_arm = lambda c, a, t: dataclasses.replace(base(c, a, t), lighting_cfg=lcfg)
         log.info(
             "issue-15 fixes on: %s%s", sorted(fixes) or "none", " (A without the anchor)" if args.no_anchor else ""
         )
     for arm in args.arms:
         t0 = time.perf_counter()
-        study.generate_arm_set(cfg, arm, train, empty)
+        generate_arm_set(cfg, arm, train, empty)
         log.info("%s: %d copies in %.0f s", arm, args.n, time.perf_counter() - t0)
 
 
@@ -309,13 +312,13 @@ def cached_features(extractor, feature_size: int, cache: Path):
 
 def cmd_report(args) -> None:
     from aias_augment.evaluation.realism.features import Lite0Features
-    from detection_eval import study
     from detection_eval.data import load_yolo_dir
+    from detection_eval.study.config import dataset_root
 
     t_start = time.perf_counter()
     ccfg = CropConfig(context=args.context)
     cfg = _study_cfg(args.cache_dir, 1)
-    root = study.dataset_root(cfg)
+    root = dataset_root(cfg)
     train = load_yolo_dir(root, cfg.train_split, cfg.class_names)
     val = load_yolo_dir(root, cfg.val_split, cfg.class_names)
     seed = 0

@@ -16,7 +16,7 @@ Photos: TraCon train + val images with cones that are road scenes (not stock sho
 ``eval_realism.is_stock_photo``), downscaled to the study's ``max_side_px`` (640), split by a seeded permutation
 into two disjoint halves. Half A gives the real reference (crops of its real cones); half B gives the backgrounds:
 each arm inserts 1-3 cones into each B photo with the study's ablation insertion config
-(``detection_eval.study.insertion_config_for_arm``, configs/study/tracon_cones_ablations.yaml), the photo's real
+(``detection_eval.study.arms.insertion_config_for_arm``, configs/study/tracon_cones_ablations.yaml), the photo's real
 cone boxes passed as existing boxes; copy j uses ``default_rng([pool_seed, 7, j])`` in every arm (paired). Only the
 inserted boxes are cropped. No photo contributes to both classes of a test, so nothing leaks across folds.
 Floor: the real cones of the B photos against A (what a perfect inserter would score). Control: the full arm's crop
@@ -97,10 +97,10 @@ def road_photo_halves(cfg, seed: int = 0, swap: bool = False) -> tuple[list[Phot
     """Road-scene cone photos of TraCon train + val, split into halves A (reference) and B (backgrounds) by a seeded
     permutation of the photos (sorted by key first, so the split does not depend on listing order); ``swap``: the
     halves exchanged (the replication with roles reversed)."""
-    from detection_eval import study
     from detection_eval.data import load_yolo_dir
+    from detection_eval.study.config import dataset_root
 
-    root = study.dataset_root(cfg)
+    root = dataset_root(cfg)
     photos = []
     for split in (cfg.train_split, cfg.val_split):
         for rec in load_yolo_dir(root, split, cfg.class_names).records:
@@ -126,23 +126,24 @@ def _arm_dir(cache_dir: str, arm: str) -> Path:
 
 def cmd_generate(args) -> None:
     from aias_augment.pipeline.image import insert_into_image
-    from detection_eval import study
     from detection_eval.data import load_yolo_dir, write_yolo_sample
+    from detection_eval.study.arms import ARM_FLAGS, insertion_config_for_arm
+    from detection_eval.study.config import dataset_root
 
     cfg = _study_cfg(args.cache_dir, args.n)
-    train = load_yolo_dir(study.dataset_root(cfg), cfg.train_split, cfg.class_names)
+    train = load_yolo_dir(dataset_root(cfg), cfg.train_split, cfg.class_names)
     _, half_b = road_photo_halves(cfg, swap=args.swap)
     photos = half_b[: args.n]
     log.info("%d B photos (of %d)", len(photos), len(half_b))
     for arm in args.arms:
         out = _arm_dir(args.cache_dir, arm)
-        ins_cfg = study.insertion_config_for_arm(cfg, arm, train)  # the study's insertion config for this arm
+        ins_cfg = insertion_config_for_arm(cfg, arm, train)  # the study's insertion config for this arm
         params = json.loads(
             json.dumps(
                 {
                     "arm": arm,
                     "insertion": dataclasses.asdict(cfg.insertion),
-                    "flags": study.ARM_FLAGS[arm],
+                    "flags": ARM_FLAGS[arm],
                     "split_seed": SPLIT_SEED,
                     **({"swap": True} if args.swap else {}),
                 }

@@ -120,13 +120,13 @@ def main(argv=None) -> int:
     from eval_realism import _pool_copies, _study_cfg
 
     from aias_augment.evaluation.realism.features import Lite0Features
-    from detection_eval import study
     from detection_eval.data import load_yolo_dir
+    from detection_eval.study.config import dataset_root
 
     t0 = time.perf_counter()
     ccfg = CropConfig()
     cfg = _study_cfg(args.cache_dir, 1)
-    root = study.dataset_root(cfg)
+    root = dataset_root(cfg)
     seed = 0  # the report's seeds: reference [0, 1], floor [0, 2], arms [0, 3]
     sets = {
         "real TraCon train (reference)": crops_with_boxes(

@@ -6,18 +6,10 @@ import numpy as np
 import pytest
 
 from detection_eval.data import DetectionRecord, DetectionSet
-from detection_eval.study import (
-    ARM_FLAGS,
-    InsertionStudyConfig,
-    StudyConfig,
-    load_study_config,
-    mean_ci95,
-    pool_backgrounds,
-    pool_share,
-    real_box_height_fractions,
-    summarize,
-    thin_cone_images,
-)
+from detection_eval.study.arms import ARM_FLAGS
+from detection_eval.study.config import InsertionStudyConfig, StudyConfig, load_study_config
+from detection_eval.study.report import mean_ci95, summarize
+from detection_eval.study.splits import pool_backgrounds, pool_share, real_box_height_fractions, thin_cone_images
 
 
 def _set(n_with, n_without):
@@ -122,7 +114,7 @@ def test_study_configs_load_and_name_known_arms():
 
 
 def test_closeup_crop_is_a_slice_with_the_target_height_and_exact_boxes():
-    from detection_eval.study import closeup_crop
+    from detection_eval.study.pools import closeup_crop
 
     rng = np.random.default_rng(0)
     img = rng.integers(0, 256, (360, 640, 3), dtype=np.uint8)
@@ -150,13 +142,13 @@ def test_closeup_crop_is_a_slice_with_the_target_height_and_exact_boxes():
 
 
 def test_closeup_arm_is_a_study_flag_not_an_insertion_override():
-    from detection_eval.study import STUDY_FLAGS
+    from detection_eval.study.arms import STUDY_FLAGS
 
     assert ARM_FLAGS["inserted_closeup"] == {"closeup_crop": True} and "closeup_crop" in STUDY_FLAGS
 
 
 def test_dev_split_is_fixed_disjoint_and_of_the_asked_size():
-    from detection_eval.study import split_dev
+    from detection_eval.study.splits import split_dev
 
     ds = _set(200, 199)
     rest, dev = split_dev(ds, 50, 50, seed=0)
@@ -194,7 +186,7 @@ def test_copy_paste_pool_uses_only_the_seeds_own_instances(tmp_path):
     import json
 
     from detection_eval.data import load_yolo_dir
-    from detection_eval.study import generate_arm_set
+    from detection_eval.study.pools import generate_arm_set
 
     _yolo_cones(tmp_path / "data", 4, 6)
     train = load_yolo_dir(tmp_path / "data", "train", ("cone",))

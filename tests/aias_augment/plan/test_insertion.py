@@ -119,7 +119,9 @@ def test_scene_scale_keeps_measured_grounds_and_the_camera_height_range():
     k, why = scene_scale_for_sizes(GroundPlane(up, 1.65, "depth"), K, np.random.default_rng(0), cfg, 0.7, 0.45)
     assert k == 1.0 and why.startswith("measured ground")
     # 0.45 of the frame needs a camera ~0.6 m up: outside 1.2-2.0 m, the nearest allowed height is used and said
-    k, why = scene_scale_for_sizes(GroundPlane(up, 1.65, "prior", assumed_scale=True), K, np.random.default_rng(0), cfg, 0.7, 0.45)
+    k, why = scene_scale_for_sizes(
+        GroundPlane(up, 1.65, "prior", assumed_scale=True), K, np.random.default_rng(0), cfg, 0.7, 0.45
+    )
     assert abs(k * 1.65 - 1.2) < 1e-9 and "outside" in why
     # a small target is hosted near the horizon at the assumed height or a higher one
     k, why = scene_scale_for_sizes(

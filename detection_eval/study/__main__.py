@@ -1,0 +1,3 @@
+from detection_eval.study.cli import main
+
+main()

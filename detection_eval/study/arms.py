@@ -1,0 +1,108 @@
+"""The study's arms, one table: each arm's switches of the insertion config, or the study's own flags."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from typing import TYPE_CHECKING
+
+from detection_eval.data import DetectionSet
+from detection_eval.study.splits import real_box_height_fractions
+
+if TYPE_CHECKING:  # the config checks its arms against this table
+    from detection_eval.study.config import StudyConfig
+
+log = logging.getLogger("detection_eval.study")
+
+
+# Stage switches of aias_augment.pipeline.image.InsertionConfig per arm; None = no insertion.
+ARM_FLAGS: dict[str, dict | None] = {
+    "original": None,
+    "inserted": {},
+    "naive_paste": {"naive_paste": True},
+    "no_placement": {"placement": False},
+    "no_shadow": {"shadow": False},
+    "no_lighting": {"lighting": False},
+    "no_harmonize": {"harmonize": False},
+    "inserted_online": {},
+    "inserted_procedural": {"asset_source": "procedural"},  # a new seeded procedural cone per object
+    # The inserted image cropped, without resampling, around its largest object so that object's box height matches
+    # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
+    # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
+    "inserted_closeup": {"closeup_crop": True},
+    # Placement fitted to the photo (issue 15's matched-background protocol: TraCon's close-ups got cones half the
+    # size of their own and a third cut by the frame): box heights from the photo's own cones, objects in frame.
+    "inserted_scene_sizes": {"placement_cfg": {"sizes_from_existing": True}},
+    "inserted_in_frame": {"placement_cfg": {"min_in_image_frac": 1.0}},
+    "inserted_scene_sizes_in_frame": {"placement_cfg": {"sizes_from_existing": True, "min_in_image_frac": 1.0}},
+    # The photo's unknown metric scale (a single photo's camera height is a prior) drawn per image so that the real
+    # boxes' sizes stand on its visible ground (PlacementConfig.scene_scale_from_sizes): ground contact, perspective
+    # and shadows as in ``inserted``, sizes as in ``naive_paste``.
+    "inserted_scene_scale": {"placement_cfg": {"scene_scale_from_sizes": True}},
+    # Its ablation: the assumed camera height kept, so sizes are what that height lets the visible ground host.
+    "inserted_fixed_scale": {"placement_cfg": {"scene_scale_from_sizes": False}},
+    # The seed's thinned subset's own real instances (aias_augment.assets.bank.lift): pasted at random positions and sizes
+    # (Simple Copy-Paste, masks from the boxes by GrabCut), or lifted into 3D and inserted by the full pipeline
+    # (placed on the ground, lit, shadowed, harmonized: the pipeline with the data's own appearance).
+    "copy_paste": {"copy_paste": True},
+    "lifted": {"lifted": True},
+}
+
+
+# Flags the study applies itself (not insertion-config overrides).
+STUDY_FLAGS = ("closeup_crop", "copy_paste", "lifted")
+
+
+# Arms whose pool is made per seed from that seed's thinned real subset (no other seed's real images leak in).
+PER_SEED_ARMS = ("copy_paste", "lifted")
+
+
+# Arms whose insertions happen inside the training loop (``InsertObjects`` on each sample, new draws every epoch)
+# instead of coming from the offline pool.
+ONLINE_ARMS = ("inserted_online",)
+
+
+def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
+    from aias_augment.pipeline.image import load_preset
+
+    ic = cfg.insertion
+    flags = {k: v for k, v in ARM_FLAGS[arm].items() if k not in STUDY_FLAGS}
+    placement_flags = flags.pop("placement_cfg", {})  # fields of the placement config, on top of the preset's
+    overrides = dict(
+        categories=tuple(ic.categories),
+        min_objects=ic.min_objects,
+        max_objects=ic.max_objects,
+        harmonize_method=ic.harmonize_method,
+        **flags,
+    )
+    base = load_preset(ic.preset).placement_cfg
+    if ic.match_real_sizes:
+        fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
+        overrides["placement_cfg"] = dataclasses.replace(base, box_height_frac_samples=fracs)
+        if ARM_FLAGS[arm].get("naive_paste") or ARM_FLAGS[arm].get("placement") is False:
+            # random 2D positions (naive paste, no placement) draw their sizes from the same distribution
+            overrides["naive_height_frac_samples"] = fracs
+    if placement_flags:
+        overrides["placement_cfg"] = dataclasses.replace(overrides.get("placement_cfg", base), **placement_flags)
+    return load_preset(ic.preset, **overrides)
+
+
+def run_name(arm: str, seed: int, amount: int | None) -> str:
+    return f"{arm}_seed{seed}" if amount is None else f"{arm}_n{amount}_seed{seed}"
+
+
+def uses_pool(arm: str) -> bool:
+    return ARM_FLAGS[arm] is not None and arm not in ONLINE_ARMS
+
+
+def available_arms(arms) -> list[str]:
+    """Arms whose insertion interface exists; the rest are skipped with a logged reason."""
+    try:
+        from aias_augment.pipeline.image import insert_into_image, load_preset  # noqa: F401
+
+        return list(arms)
+    except ImportError as exc:
+        skipped = [a for a in arms if ARM_FLAGS[a] is not None]
+        if skipped:
+            log.warning("skipping arms %s: aias_augment.pipeline.image is not available (%s)", skipped, exc)
+        return [a for a in arms if ARM_FLAGS[a] is None]

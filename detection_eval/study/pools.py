@@ -1,0 +1,341 @@
+"""Pools of inserted images per arm: generated once through the image door, cached, shared by the seeds."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from aias_augment.core.config import REPO_ROOT
+from detection_eval.data import DetectionSet, load_yolo_dir, read_image_rgb, write_classes, write_yolo_sample
+from detection_eval.study.arms import ARM_FLAGS, PER_SEED_ARMS, insertion_config_for_arm
+from detection_eval.study.config import StudyConfig, repo_path
+from detection_eval.study.splits import pool_backgrounds, real_box_height_fractions
+
+log = logging.getLogger("detection_eval.study")
+
+
+def closeup_crop(
+    image: np.ndarray,
+    boxes_xyxy: np.ndarray,
+    target_fracs,
+    rng: np.random.Generator,
+    *,
+    min_side_px: int = 128,
+    min_visible: float = 0.5,
+) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Crop ``image`` (no resampling: the crop's pixels are the image's) around its tallest box so that the box's
+    height fraction becomes a target drawn from ``target_fracs``: the frame a nearer camera or a longer lens would
+    have seen, at the photo's own sharpness (the detector letterboxes every image to its input size anyway).
+
+    The crop keeps the image's aspect, is at least ``min_side_px`` on its short side and holds the tallest box whole;
+    other boxes are clipped to it and kept when at least ``min_visible`` of their area is inside. A target at or
+    below the current size leaves the image as it is. Returns (crop, boxes in crop pixels, info)."""
+    h, w = image.shape[:2]
+    boxes = np.asarray(boxes_xyxy, np.float64).reshape(-1, 4)
+    info = {"zoom": 1.0, "dropped_boxes": 0}
+    if len(boxes) == 0 or len(target_fracs) == 0:
+        return image, boxes, info
+    k = int(np.argmax(boxes[:, 3] - boxes[:, 1]))
+    bx0, by0, bx1, by1 = boxes[k]
+    target = float(target_fracs[int(rng.integers(len(target_fracs)))])
+    zoom = target / max((by1 - by0) / h, 1e-9)
+    zoom = min(zoom, min(h, w) / min_side_px, w / max(bx1 - bx0 + 2.0, 1.0), h / max(by1 - by0 + 2.0, 1.0))
+    if zoom <= 1.0 + 1e-6:
+        return image, boxes, info
+    cw, ch = min(w, int(round(w / zoom))), min(h, int(round(h / zoom)))
+    # Origins that keep the tallest box whole, drawn uniformly (integers: the crop is a slice of the image).
+    x_lo, x_hi = max(0, int(np.ceil(bx1)) - cw), min(int(np.floor(bx0)), w - cw)
+    y_lo, y_hi = max(0, int(np.ceil(by1)) - ch), min(int(np.floor(by0)), h - ch)
+    x0 = int(rng.integers(x_lo, x_hi + 1)) if x_hi >= x_lo else max(0, min(w - cw, int(round(bx0))))
+    y0 = int(rng.integers(y_lo, y_hi + 1)) if y_hi >= y_lo else max(0, min(h - ch, int(round(by0))))
+    crop = image[y0 : y0 + ch, x0 : x0 + cw].copy()
+    moved = boxes - [x0, y0, x0, y0]
+    clipped = np.c_[np.clip(moved[:, [0, 2]], 0, cw), np.clip(moved[:, [1, 3]], 0, ch)][:, [0, 2, 1, 3]]
+    area = np.prod(np.maximum(boxes[:, 2:] - boxes[:, :2], 1e-9), axis=1)
+    inside = np.prod(np.maximum(clipped[:, 2:] - clipped[:, :2], 0.0), axis=1)
+    keep = inside / area >= min_visible
+    keep[k] = True
+    info = {"zoom": float(w / cw), "dropped_boxes": int((~keep).sum()), "crop_xywh": [x0, y0, cw, ch]}
+    return crop, clipped[keep], info
+
+
+def generate_arm_set(
+    cfg: StudyConfig,
+    arm: str,
+    train: DetectionSet,
+    empty: list[int],
+    seed: int | None = None,
+    base: DetectionSet | None = None,
+) -> Path:
+    """Render the arm's pool of ``insertion.pool_size`` inserted copies into a YOLO folder, once for all seeds.
+    Resumable: finished copies are listed in ``progress.jsonl`` and kept when a run with the same parameters is
+    restarted; ``done.json`` marks a complete pool and is reused while its parameters match."""
+    if ARM_FLAGS[arm].get("closeup_crop"):
+        return derive_closeup_pool(cfg, arm, train, empty)
+    ic = cfg.insertion
+    per_seed = arm in PER_SEED_ARMS
+    if per_seed and (seed is None or base is None):
+        raise ValueError(f"{arm}: its pool is made from the seed's own real instances: pass seed and base")
+    out = repo_path(cfg.cache_dir) / arm / (f"seed{seed}/pool" if per_seed else "pool")
+    done, progress = out / "done.json", out / "progress.jsonl"
+    backgrounds = pool_backgrounds(empty, ic.pool_seed, ic.pool_size)
+    wanted = {
+        "arm": arm,
+        "backgrounds": [Path(train.records[i].image_path).name for i in backgrounds],
+        "insertion": dataclasses.asdict(ic),
+        "flags": ARM_FLAGS[arm],
+    }
+    if per_seed:  # the instances of this seed's thinned subset only: no real data of other seeds leaks in
+        wanted["seed"] = seed
+        wanted["sources"] = [Path(r.image_path).name for r in base.records if len(r.labels)]
+    wanted = json.loads(json.dumps(wanted))  # as it reads back from json (tuples become lists)
+    if done.exists():
+        prev = json.loads(done.read_text())
+        if all(prev.get(k) == v for k, v in wanted.items()):
+            log.info("%s: using cached pool %s (%d images)", arm, out, prev["num_images"])
+            return out
+        log.info("%s: pool parameters changed, regenerating", arm)
+        done.unlink()
+        progress.unlink(missing_ok=True)
+    params_file = out / "params.json"
+    if params_file.exists() and json.loads(params_file.read_text()) != wanted:
+        progress.unlink(missing_ok=True)  # a partial pool made with other parameters is not resumed
+    out.mkdir(parents=True, exist_ok=True)
+    params_file.write_text(json.dumps(wanted))
+    finished = {}
+    if progress.exists():
+        for line in progress.read_text().splitlines():
+            try:
+                e = json.loads(line)
+            except json.JSONDecodeError:  # a line cut by a kill
+                continue
+            if (out / "images" / e["image"]).exists() or e.get("failed"):
+                finished[e["copy"]] = e
+    try:
+        make = pool_maker(cfg, arm, train, base, out)
+    except RuntimeError as exc:  # no usable instance in the subset: every copy fails with that reason (counted)
+        log.warning("%s: %s", arm, exc)
+
+        def make(image, rng, _exc=exc):
+            raise _exc
+
+    t0, n_new = time.perf_counter(), 0
+    with progress.open("a") as plog:
+        for j, i in enumerate(backgrounds):
+            if j in finished:
+                continue
+            rec = train.records[i]
+            image = read_image_rgb(rec.image_path)
+            scale = min(1.0, ic.max_side_px / max(image.shape[:2]))
+            if scale < 1:
+                image = cv2.resize(
+                    image, (round(image.shape[1] * scale), round(image.shape[0] * scale)), interpolation=cv2.INTER_AREA
+                )
+            rng = np.random.default_rng([ic.pool_seed, j])  # same draw stream for every arm: paired copies
+            t_img = time.perf_counter()
+            try:
+                new_image, boxes_xyxy, modules = make(image, rng)
+            except Exception as exc:  # logged and counted; the copy is left out, never written without its boxes
+                reason = f"{type(exc).__name__}: {exc}"[:200]
+                log.warning("%s: insertion failed on %s: %s", arm, rec.image_path, reason)
+                entry = {"copy": j, "background": Path(rec.image_path).name, "failed": reason}
+            else:
+                keep = (boxes_xyxy[:, 2] - boxes_xyxy[:, 0] >= 1) & (boxes_xyxy[:, 3] - boxes_xyxy[:, 1] >= 1)
+                boxes_xyxy = boxes_xyxy[keep]
+                stem = f"{j:04d}_{Path(rec.image_path).stem}__{arm}"
+                write_yolo_sample(out, stem, new_image, boxes_xyxy, np.zeros(len(boxes_xyxy), np.int64))
+                entry = {
+                    "copy": j,
+                    "background": Path(rec.image_path).name,
+                    "image": f"{stem}.jpg",
+                    "boxes": int(keep.sum()),
+                    "box_heights_frac": [float(x) for x in (boxes_xyxy[:, 3] - boxes_xyxy[:, 1]) / image.shape[0]],
+                    "seconds": time.perf_counter() - t_img,
+                    "modules": modules,
+                }
+            plog.write(json.dumps(entry) + "\n")
+            plog.flush()
+            finished[j] = entry
+            n_new += 1
+            if n_new % 10 == 0:
+                log.info(
+                    "%s: %d/%d pool images, %.1f s/image",
+                    arm,
+                    len(finished),
+                    len(backgrounds),
+                    (time.perf_counter() - t0) / n_new,
+                )
+    entries = [finished[j] for j in sorted(finished)]
+    ok = [e for e in entries if not e.get("failed")]
+    failures: dict[str, int] = {}
+    for e in entries:
+        if e.get("failed"):
+            failures[e["failed"]] = failures.get(e["failed"], 0) + 1
+    write_classes(out, cfg.class_names)
+    (out / "manifest.json").write_text(json.dumps(entries, indent=1))
+    seconds = [e["seconds"] for e in ok]
+    done.write_text(
+        json.dumps(
+            {
+                **wanted,
+                "code_commit": git_head(),
+                "num_images": len(ok),
+                "num_boxes": sum(e["boxes"] for e in ok),
+                "failures": failures,
+                "seconds_per_image": float(np.median(seconds)) if seconds else None,
+            },
+            indent=1,
+        )
+    )
+    log.info("%s: pool of %d images, %d inserted boxes", arm, len(ok), sum(e["boxes"] for e in ok))
+    return out
+
+
+def derive_closeup_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: list[int]) -> Path:
+    """The ``inserted`` pool's copies, each cropped by :func:`closeup_crop` (copy j with ``default_rng([pool_seed,
+    j, 17])``) to a height drawn from the real train boxes: the same insertions, framed closer, so the paired
+    difference to ``inserted`` measures the framing alone. No rendering: seconds for the whole pool."""
+    src = generate_arm_set(cfg, "inserted", train, empty)
+    src_done = json.loads((src / "done.json").read_text())
+    out = repo_path(cfg.cache_dir) / arm / "pool"
+    done = out / "done.json"
+    wanted = json.loads(
+        json.dumps(
+            {
+                "arm": arm,
+                "flags": ARM_FLAGS[arm],
+                "insertion": dataclasses.asdict(cfg.insertion),
+                "source": {k: src_done.get(k) for k in ("code_commit", "num_images", "num_boxes")},
+            }
+        )
+    )
+    if done.exists() and all(json.loads(done.read_text()).get(k) == v for k, v in wanted.items()):
+        log.info("%s: using cached pool %s", arm, out)
+        return out
+    done.unlink(missing_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
+    fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
+    pool = load_yolo_dir(src, names=cfg.class_names)
+    by_name = {Path(r.image_path).name: r for r in pool.records}
+    entries = []
+    for e in json.loads((src / "manifest.json").read_text()):
+        if e.get("failed"):
+            entries.append(e)
+            continue
+        r = by_name[e["image"]]
+        image = read_image_rgb(r.image_path)
+        crop, boxes, info = closeup_crop(
+            image, r.boxes_xyxy, fracs, np.random.default_rng([cfg.insertion.pool_seed, e["copy"], 17])
+        )
+        stem = Path(e["image"]).stem.replace("__inserted", f"__{arm}")
+        write_yolo_sample(out, stem, crop, boxes, np.zeros(len(boxes), np.int64))
+        entries.append(
+            {
+                **e,
+                "image": f"{stem}.jpg",
+                "boxes": int(len(boxes)),
+                "closeup": info,
+                "box_heights_frac": [float(x) for x in (boxes[:, 3] - boxes[:, 1]) / crop.shape[0]],
+            }
+        )
+    ok = [e for e in entries if not e.get("failed")]
+    write_classes(out, cfg.class_names)
+    (out / "manifest.json").write_text(json.dumps(entries, indent=1))
+    done.write_text(
+        json.dumps(
+            {
+                **wanted,
+                "code_commit": git_head(),
+                "num_images": len(ok),
+                "num_boxes": sum(e["boxes"] for e in ok),
+                "failures": src_done.get("failures", {}),
+                "seconds_per_image": src_done.get("seconds_per_image"),
+                "median_zoom": float(np.median([e["closeup"]["zoom"] for e in ok])) if ok else None,
+            },
+            indent=1,
+        )
+    )
+    log.info(
+        "%s: %d close-up copies of %s, median zoom %.2f",
+        arm,
+        len(ok),
+        src,
+        json.loads(done.read_text())["median_zoom"] or 1.0,
+    )
+    return out
+
+
+def git_head() -> str:
+    import subprocess
+
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=REPO_ROOT, capture_output=True, text=True, timeout=10
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def pool_maker(cfg: StudyConfig, arm: str, train: DetectionSet, base: DetectionSet | None, out: Path):
+    """``make(background, rng) -> (image, boxes_xyxy, modules)`` of the arm: the pipeline (with the lifted instances
+    of the seed's subset as its assets for ``lifted``), or copy-paste of the subset's real instances."""
+    from aias_augment.pipeline.image import insert_into_image
+
+    flags = ARM_FLAGS[arm]
+    if flags.get("copy_paste") or flags.get("lifted"):
+        from aias_augment.assets.bank.lift import LiftedAssets, cut_out, lift_instances
+
+        items = [(r.image_path, read_image_rgb(r.image_path), r.boxes_xyxy) for r in base.records if len(r.labels)]
+        category = cfg.insertion.categories[0]
+        if flags.get("lifted"):
+            assets, report = lift_instances(items, category, out / "assets")
+            log.info(
+                "%s: lifted %d instances of %d images (rejected: %s)",
+                arm,
+                report.lifted,
+                len(items),
+                dict(report.rejected),
+            )
+            if not assets:
+                raise RuntimeError(f"no instance of the subset could be lifted: {dict(report.rejected)}")
+            bank = LiftedAssets({category: assets})
+        else:
+            from detection_eval.copy_paste import paste_instances
+
+            cutouts, rejected = [], {}
+            for path, image, boxes in items:
+                for k, box in enumerate(boxes):
+                    cut, reason = cut_out(image, box, [b for i, b in enumerate(boxes) if i != k], source=path)
+                    if cut is None:
+                        rejected[reason] = rejected.get(reason, 0) + 1
+                    else:
+                        cutouts.append(cut)
+            (out / "cutouts.json").write_text(json.dumps({"cut": len(cutouts), "rejected": rejected}))
+            log.info("%s: %d instances cut out of %d images (rejected: %s)", arm, len(cutouts), len(items), rejected)
+            if not cutouts:
+                raise RuntimeError(f"no instance of the subset could be cut out: {rejected}")
+            fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
+            ic = cfg.insertion
+
+            def make_paste(image, rng):
+                n = int(rng.integers(ic.min_objects, ic.max_objects + 1))
+                new, boxes = paste_instances(image, cutouts, rng, fracs, n)
+                return new, boxes, {"mode": f"copy-paste of {len(cutouts)} real instances"}
+
+            return make_paste
+    else:
+        bank = None
+    ins_cfg = insertion_config_for_arm(cfg, "inserted" if flags.get("lifted") else arm, train)
+
+    def make_insert(image, rng):
+        res = insert_into_image(image, np.zeros((0, 4)), [], rng, ins_cfg, bank=bank)
+        b = np.asarray(res.bboxes, np.float64).reshape(-1, 4)
+        return res.image, np.c_[b[:, :2], b[:, :2] + b[:, 2:]], dict(res.record.modules)
+
+    return make_insert
