@@ -1,8 +1,9 @@
-"""``aias-augment``: offline augmentation of a COCO or YOLO dataset, a folder of unlabelled images, or one posed clip.
+"""``aias-augment``: offline augmentation of a COCO or YOLO dataset, a folder of unlabelled images, or one clip.
 
 aias-augment --input train.json --images train/ --categories traffic_cone --per-image 2 --out train_aug/
 aias-augment --images backgrounds/ --assets crate=meshes/crate.glb --per-image 2 --out bg_aug/
 aias-augment --input clip.mp4 --camera calib.txt --poses poses.txt --categories traffic_cone --out clip_aug/
+aias-augment --input tripod.avi --camera-height 4 --out clip_aug/     # a static camera: no poses (checked)
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from pathlib import Path
 
 from aias_augment.cli.offline import (
     IMAGE_SUFFIXES,
@@ -31,7 +33,7 @@ def main(argv=None) -> int:
     src.add_argument(
         "--input",
         help="COCO json of the dataset (with --images), or a clip: a video file or a folder "
-        "of frames (with --camera and --poses)",
+        "of frames (with --camera and --poses; a static camera's clip needs neither)",
     )
     src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
     ap.add_argument(
@@ -124,7 +126,11 @@ def main(argv=None) -> int:
         help="folder of scene analyses (camera, ground, region, lighting) reused across runs and workers",
     )
     clip = ap.add_argument_group("clip (--input is a video file or a frame folder)")
-    clip.add_argument("--camera", help="KITTI calib.txt, pyslam KITTI*.yaml, or a yaml with fx, fy, cx, cy")
+    clip.add_argument(
+        "--camera",
+        help="KITTI calib.txt, pyslam KITTI*.yaml, or a yaml with fx, fy, cx, cy (default for a static camera: "
+        "estimated from the first frame)",
+    )
     clip.add_argument("--poses", help="one pose per frame: KITTI (12 numbers) or TUM (tx ty tz qx qy qz qw) lines")
     clip.add_argument("--colour", action="store_true", help="KITTI calib.txt: the colour camera (P2)")
     clip.add_argument("--start", type=int, default=0, help="first frame")
@@ -149,9 +155,11 @@ def main(argv=None) -> int:
         ap.error("one of --input, --yolo or --images (a folder of unlabelled images) is required")
     if a.yolo and a.images:
         ap.error("--images goes with --input (a COCO json) or alone (unlabelled images), not with --yolo")
-    if a.input and (a.camera or a.poses):
-        if not (a.camera and a.poses):
-            ap.error("a clip needs both --camera and --poses")
+    from aias_augment.cli.clip import is_video_input
+
+    if a.input and (a.camera or a.poses or is_video_input(a.input) or Path(a.input).is_dir()):  # a COCO json or a clip
+        if a.poses and not a.camera:
+            ap.error("--poses needs --camera (a static camera's clip needs neither)")
         given = [
             f
             for f, v in (
@@ -285,7 +293,6 @@ def asset_paths(specs: list[str] | None, bank_dir: str | None = None) -> dict[st
     """``--assets CATEGORY=PATH ...`` and ``--assets-bank DIR`` as :class:`aias_augment.assets.asset.PathAssets` takes
     them: {category: [mesh file or gazebo model folder, ...]}; a folder of meshes gives each mesh file in it (sorted,
     recursively). A malformed spec, a missing path, an unsupported file or a folder without meshes: InputError."""
-    from pathlib import Path
 
     from aias_augment.adapters.boundary import InputError
     from aias_augment.assets.asset import MESH_SUFFIXES
@@ -330,7 +337,6 @@ def asset_fingerprint(paths: dict[str, list[str]]) -> dict[str, list[list[str]]]
     """{category: [[path, sha256 of its bytes], ...]} for the run manifest (a folder asset: of every file under it,
     by relative path), so that changed meshes make another run, never a resumed one."""
     import hashlib
-    from pathlib import Path
 
     from aias_augment.cli.manifest import file_hash
 

@@ -49,8 +49,8 @@ class ClipJob:
     """Everything that decides the output of one clip (it is stored in ``record.json``)."""
 
     input: str
-    camera: str
-    poses: str
+    camera: str | None  # None: estimated from the first frame (a static camera only)
+    poses: str | None  # None: the clip must come from a static camera (checked), which is then the world
     out: str
     categories: tuple[str, ...] = ("traffic_cone",)
     seed: int = 0
@@ -191,12 +191,16 @@ def augment_clip(job: ClipJob) -> dict:
     h, w = frames[0].shape[:2]
     if any(f.shape != frames[0].shape for f in frames):
         raise ValueError(f"{job.input}: frames differ in size")
-    intr = read_camera(job.camera, w, h, colour=job.colour)
-    all_poses = read_cams_from_world(job.poses)
     idx = np.arange(job.start, job.start + job.stride * len(frames), job.stride)
-    if idx[-1] >= len(all_poses):
-        raise ValueError(f"{job.poses}: {len(all_poses)} poses, but frame {idx[-1]} of {job.input} is used")
-    poses = all_poses[idx]
+    if job.poses is None:
+        intr, poses, ground0, camera_note = static_camera_clip(frames, job)
+    else:
+        intr = read_camera(job.camera, w, h, colour=job.colour)
+        all_poses = read_cams_from_world(job.poses)
+        if idx[-1] >= len(all_poses):
+            raise ValueError(f"{job.poses}: {len(all_poses)} poses, but frame {idx[-1]} of {job.input} is used")
+        poses = all_poses[idx]
+        ground0, camera_note = prior_ground_plane(job.camera_height_m), "given camera and poses"
     rng = np.random.default_rng([job.seed, 0])
     category = job.categories[int(rng.integers(len(job.categories)))]
     asset = choose_asset(category, rng, InsertionConfig(categories=(category,)))
@@ -213,6 +217,7 @@ def augment_clip(job: ClipJob) -> dict:
     cfg = VideoInsertionConfig(
         lookahead_frames=last if job.lookahead_frames is None else min(job.lookahead_frames, last),
         lateral_offset_m=job.lateral_offset_m,
+        contact="lookahead" if job.poses is not None else "sampled",  # a static camera goes nowhere: a seen ground
         flow_refine=job.flow_refine,
     )
     res = insert_into_clip(
@@ -222,7 +227,7 @@ def augment_clip(job: ClipJob) -> dict:
         rng,
         cfg,
         asset=asset,
-        ground_in_cam0=prior_ground_plane(job.camera_height_m),
+        ground_in_cam0=ground0,
         lighting=lighting,
         layer_params=layer_params,
     )
@@ -279,6 +284,7 @@ def augment_clip(job: ClipJob) -> dict:
         "visible_frames": int(sum(b is not None for b in res.boxes_xywh)),
         "modules": {
             **res.modules,
+            "camera": camera_note,
             "lighting": lighting_note,
             "harmonize": harmonize_note,
             "colour": "grey clip: output converted to grey" if grey else "colour clip",
@@ -288,6 +294,29 @@ def augment_clip(job: ClipJob) -> dict:
     atomic_write_json(record_path, record)  # last: its presence marks the clip as done
     log.info("%s: %d frames, object visible in %d, %.1fs", out, len(frames), record["visible_frames"], record["wall_s"])
     return record
+
+
+def static_camera_clip(frames: list[np.ndarray], job: ClipJob):
+    """(intrinsics, identity poses, ground in the camera, note) of a clip without poses, which must come from a static
+    camera (:func:`aias_augment.scenes.video.static_camera_check`; a moving one raises, saying how far it moved).
+    K is ``job.camera``'s or estimated from the first frame, the ground from its horizon at ``job.camera_height_m``.
+    Its own generator: the insertion's draws are those of a posed clip with the same seed."""
+    from aias_augment.analyse.ground import GroundPlane
+    from aias_augment.scenes.single_image import estimate_camera_from_image
+    from aias_augment.scenes.video import static_camera_check
+
+    check = static_camera_check(frames)
+    if not check.static:
+        raise ValueError(f"{job.input}: {check.reason()}; a moving camera needs --camera and --poses (one per frame)")
+    h, w = frames[0].shape[:2]
+    given = None if job.camera is None else read_camera(job.camera, w, h, colour=job.colour)
+    cam = estimate_camera_from_image(frames[0], np.random.default_rng([job.seed, 1]), intrinsics=given)
+    ground = GroundPlane(cam.ground.normal, job.camera_height_m, cam.ground.source, assumed_scale=True)
+    note = (
+        f"{check.reason()}: one camera for the clip, K {cam.focal_source}, horizon {cam.horizon_source}, "
+        f"camera {job.camera_height_m} m above the ground (assumed)"
+    )
+    return cam.intrinsics, np.repeat(np.eye(4)[None], len(frames), axis=0), ground, note
 
 
 def _write_side_by_side(path: Path, originals: list[np.ndarray], augmented: list[np.ndarray], fps: float) -> None:

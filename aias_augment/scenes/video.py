@@ -18,7 +18,16 @@ import numpy as np
 
 from aias_augment.core.geometry import Intrinsics, invert_rigid, make_rigid
 
-__all__ = ["VideoMotionConfig", "VideoMotion", "track_pair", "relative_pose", "estimate_video_motion", "read_video"]
+__all__ = [
+    "VideoMotionConfig",
+    "VideoMotion",
+    "StaticCameraCheck",
+    "track_pair",
+    "relative_pose",
+    "estimate_video_motion",
+    "static_camera_check",
+    "read_video",
+]
 
 
 @dataclass(frozen=True)
@@ -141,6 +150,43 @@ def estimate_video_motion(
         inliers.append(n)
         status.append(st)
     return VideoMotion(intrinsics, np.stack(poses), tuple(inliers), tuple(status), focal_source)
+
+
+@dataclass(frozen=True)
+class StaticCameraCheck:
+    """Whether a clip's camera stands still: the median motion of the first frame's corners, tracked to frames spread
+    over the clip (``frames``, their indices), against ``threshold_px``."""
+
+    static: bool
+    frames: tuple[int, ...]
+    median_flow_px: tuple[float, ...]
+    threshold_px: float
+
+    def reason(self) -> str:
+        worst = max(self.median_flow_px) if self.median_flow_px else float("nan")
+        verdict = "static camera" if self.static else "moving camera"
+        return (
+            f"{verdict}: the first frame's corners move {worst:.2f} px (median, worst of {len(self.frames)} frames "
+            f"spread over the clip) against {self.threshold_px} px"
+        )
+
+
+def static_camera_check(
+    frames: list[np.ndarray], cfg: VideoMotionConfig = VideoMotionConfig(), samples: int = 8
+) -> StaticCameraCheck:
+    """A camera is static when, from the first frame to every sampled later one, the median displacement of the
+    tracked corners stays under ``cfg.static_flow_px``: people and cars moving through the view are a minority of
+    the corners, the background holds the median. Frames with fewer than 20 tracked corners count as moving (no
+    evidence of standing still)."""
+    if len(frames) < 2:
+        raise ValueError("need at least 2 frames")
+    picks = np.unique(np.linspace(1, len(frames) - 1, min(samples, len(frames) - 1)).round().astype(int))
+    flows = []
+    for i in picks:
+        p0, p1 = track_pair(frames[0], frames[int(i)], cfg)
+        flows.append(float(np.median(np.linalg.norm(p1 - p0, axis=1))) if len(p0) >= 20 else float("inf"))
+    static = all(f <= cfg.static_flow_px for f in flows)
+    return StaticCameraCheck(static, tuple(int(i) for i in picks), tuple(flows), cfg.static_flow_px)
 
 
 def trajectory_errors(est_cams_from_world: np.ndarray, gt_cams_from_world: np.ndarray) -> dict:

@@ -126,3 +126,38 @@ def test_bad_clip_inputs_raise(tmp_path):
                     str(tmp_path / "o"),
                 ]
             )
+
+
+VTEST = data_root() / "video" / "vtest.avi"
+
+
+def test_the_static_check_tells_a_tripod_from_a_drive():
+    """vtest.avi is filmed from a fixed camera (people walk through it); KITTI 06 from a driving car."""
+    if not (VTEST.exists() and SEQ.exists()):
+        pytest.skip("shared video data not available")
+    from aias_augment.cli.clip import read_clip_frames
+    from aias_augment.scenes.video import static_camera_check
+
+    tripod, _ = read_clip_frames(VTEST, 0, 12, 5)
+    drive, _ = read_clip_frames(SEQ / "image_l", 0, 12, 1)
+    still, moving = static_camera_check(tripod), static_camera_check(drive)
+    assert still.static and max(still.median_flow_px) < 0.2
+    assert not moving.static and min(moving.median_flow_px) > 2.0
+    assert moving.reason().startswith("moving camera")
+
+
+def test_a_static_cameras_clip_needs_no_poses_and_its_object_stays_put(tmp_path):
+    """With a static camera the world is the camera: one object standing on the ground projects to the same pixels in
+    every frame, so its box is the same in every frame, to the last digit."""
+    if not (VTEST.exists() and SEQ.exists()):
+        pytest.skip("shared video data not available")
+    out = tmp_path / "vtest"
+    args = ["--input", str(VTEST), "--max-frames", "6", "--stride", "10", "--camera-height", "3"]
+    assert main(args + ["--lighting", "ambient", "--seed", "1", "--out", str(out)]) == 0
+    record = json.loads((out / "record.json").read_text())
+    assert record["modules"]["camera"].startswith("static camera")
+    coco = COCO(str(out / "annotations.json"))
+    boxes = [tuple(a["bbox"]) for a in coco.dataset["annotations"]]
+    assert len(boxes) == record["frames"] == 6 and len(set(boxes)) == 1
+    with pytest.raises(ValueError, match="moving camera"):
+        main(["--input", str(SEQ / "image_l"), "--max-frames", "6", "--out", str(tmp_path / "drive")])
