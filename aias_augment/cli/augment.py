@@ -137,6 +137,14 @@ def main(argv=None) -> int:
     clip.add_argument("--stride", type=int, default=1)
     clip.add_argument("--max-frames", type=int, default=None)
     clip.add_argument("--camera-height", type=float, default=CAMERA_HEIGHT_PRIOR_M, help="metres above the ground")
+    clip.add_argument("--fps", type=float, default=10.0, help="frame rate of the clip as read (after --stride)")
+    clip.add_argument(
+        "--object-speed",
+        type=float,
+        default=0.0,
+        metavar="M_PER_S",
+        help="the object moves along its heading at this speed (a car driving, a cart crossing); 0: it stands",
+    )
     clip.add_argument("--lighting", choices=("clip", "ambient"), default="clip")
     clip.add_argument(
         "--harmonize",
@@ -192,6 +200,8 @@ def main(argv=None) -> int:
                 flow_refine=a.flow_refine,
                 harmonize=a.harmonize,
                 preset=a.preset,
+                fps=a.fps,
+                object_speed_mps=a.object_speed,
             )
         )
         print({k: record[k] for k in ("category", "asset", "frames", "visible_frames", "wall_s")})

@@ -65,7 +65,8 @@ class ClipJob:
     flow_refine: bool = False  # KLT stabilisation of the contact (for drifting poses)
     harmonize: str = "fast"  # harmonize.METHODS; "fast": one colour transform for the clip (median over frames)
     preset: str = "balanced"  # the image door's preset whose layer stages (e.g. motion blur) the object gets
-    fps: float = 10.0
+    fps: float = 10.0  # frames per second of the clip as read (after --stride): the mp4's rate and the speed's clock
+    object_speed_mps: float = 0.0  # the object moves along its heading at this speed (0: it stands)
 
     def __post_init__(self):
         if self.lighting not in ("clip", "ambient"):
@@ -82,6 +83,10 @@ class ClipJob:
 
         if self.preset not in PRESETS:
             raise ValueError(f"preset must be one of {PRESETS}, got {self.preset!r}")
+        if not (np.isfinite(self.fps) and self.fps > 0 and np.isfinite(self.object_speed_mps)):
+            raise ValueError(f"need fps > 0 and a finite object speed, got {self.fps}, {self.object_speed_mps}")
+        if self.object_speed_mps != 0 and self.flow_refine:
+            raise ValueError("--flow-refine tracks the ground under a standing object: not with --object-speed")
         if not (np.isfinite(self.camera_height_m) and self.camera_height_m > 0):
             raise ValueError(f"camera_height_m must be positive, got {self.camera_height_m}")
 
@@ -219,6 +224,7 @@ def augment_clip(job: ClipJob) -> dict:
         lateral_offset_m=job.lateral_offset_m,
         contact="lookahead" if job.poses is not None else "sampled",  # a static camera goes nowhere: a seen ground
         flow_refine=job.flow_refine,
+        speed_m_per_frame=job.object_speed_mps / job.fps,
     )
     res = insert_into_clip(
         frames,

@@ -1,7 +1,7 @@
 """``make demo``: insert traffic cones into real KITTI frames (known K, depth from the stereo pair) and TraCon
 empty-road images (unknown camera: priors); writes images, a validated COCO json, per-image records and a contact
 sheet under ``out/demo/``; then one cone through 16 posed KITTI frames (``out/demo/clip/``: side-by-side video,
-COCO track, contact sheet)."""
+COCO track, contact sheet) and a car driving through a static camera's clip without poses (``out/demo/moving/``)."""
 
 from __future__ import annotations
 
@@ -93,6 +93,29 @@ def main(argv=None) -> int:
         print(
             f"demo: clip of {rec['frames']} frames, object in {rec['visible_frames']}, {rec['wall_s']} s: "
             f"{out}/clip/side_by_side.mp4, {out}/clip/contact_sheet.jpg, {out}/clip/annotations.json"
+        )
+    tripod = data_root() / "video" / "vtest.avi"
+    if a.clip_frames > 0 and tripod.exists():  # a static camera without poses, a car driving through
+        from aias_augment.cli.clip import ClipJob, augment_clip
+
+        rec = augment_clip(
+            ClipJob(
+                str(tripod),
+                None,
+                None,
+                str(out / "moving"),
+                ("car",),
+                a.seed,
+                max_frames=a.clip_frames,
+                stride=3,
+                camera_height_m=8.0,  # a camera on a first floor
+                fps=8.0,
+                object_speed_mps=2.0,
+            )
+        )
+        print(
+            f"demo: a car driving through a static camera's clip, {rec['frames']} frames, in view in "
+            f"{rec['visible_frames']}, {rec['wall_s']} s: {out}/moving/side_by_side.mp4, {out}/moving/contact_sheet.jpg"
         )
     return 0
 

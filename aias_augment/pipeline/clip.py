@@ -14,6 +14,9 @@ a fixed patch of the world ground. With ``flow_refine`` the ground patch under t
 (:mod:`aias_augment.plan.stabilize`) and each frame's object pose slides on its ground so the contact stays on the
 tracked pixel: drifting poses (visual odometry) no longer make the object skate.
 
+A moving object (``speed_m_per_frame``) goes along its heading on the world ground from frame ``start`` on: its pose,
+contact track and shadow move with it (no refit of a ground it leaves, no flow refinement of one).
+
 Poses: ``cams_from_world`` (N, 4, 4) OpenCV ``cam_from_world`` (KITTI poses inverted, DGP world poses, or
 :func:`aias_augment.scenes.video.estimate_video_motion`).
 """
@@ -55,6 +58,9 @@ class VideoInsertionConfig:
     ssaa: int = 1
     shadow: bool = True  # cast shadow from the frame's sun (contact occlusion only without one)
     flow_refine: bool = False  # KLT-track the ground under the contact and slide the object per frame
+    # A moving object: metres per frame along its heading (its own x axis on the ground; the yaw draws it), from
+    # frame ``start`` on (before it, where it came from). 0: standing.
+    speed_m_per_frame: float = 0.0
     flow_cfg: FlowRefineConfig = FlowRefineConfig()
     placement_cfg: PlacementConfig = PlacementConfig()
 
@@ -63,6 +69,10 @@ class VideoInsertionConfig:
             raise ValueError(f"contact must be 'lookahead' or 'sampled', got {self.contact!r}")
         if self.lookahead_frames < 0 or self.ssaa < 1:
             raise ValueError("lookahead_frames must be >= 0 and ssaa >= 1")
+        if not np.isfinite(self.speed_m_per_frame):
+            raise ValueError(f"speed_m_per_frame must be finite, got {self.speed_m_per_frame}")
+        if self.speed_m_per_frame != 0 and self.flow_refine:
+            raise ValueError("flow_refine tracks the ground under a standing object: not with speed_m_per_frame")
 
 
 @dataclass
@@ -71,12 +81,13 @@ class ClipInsertion:
     boxes_xywh: list[tuple | None]  # visible COCO box per frame (None: not visible)
     amodal_boxes_xywh: list[tuple | None]  # full projected silhouette box per frame
     contact_in_world: np.ndarray  # (3,) after the refit correction
-    world_from_object: np.ndarray  # (4, 4), the same for every frame
-    contact_track_uv: np.ndarray  # (N, 2) projection of contact_in_world, NaN behind the camera
+    world_from_object: np.ndarray  # (4, 4) at frame ``start`` (a standing object: in every frame)
+    contact_track_uv: np.ndarray  # (N, 2) projection of the contact in each frame, NaN behind the camera
     contact_visible: np.ndarray  # (N,) bool
     refit_offsets_m: list[float | None] = field(default_factory=list)  # per frame: local ground - world contact
     masks: list[np.ndarray | None] = field(default_factory=list)  # per frame: the object's visible soft alpha
     modules: dict[str, str] = field(default_factory=dict)
+    contact_track_in_world: np.ndarray | None = None  # (N, 3) the contact per frame (a moving object moves it)
 
     def coco_annotations(self, category: str, first_image_id: int = 0) -> list[dict]:
         """One COCO annotation per frame where the object is visible (image_id = first_image_id + frame index)."""
@@ -173,6 +184,14 @@ def insert_into_clip(
     yaw = float(rng.uniform(-np.pi, np.pi)) if yaw_rad is None else float(yaw_rad)
     scale = 1.0 if cfg.height_m is None else cfg.height_m / max(asset.height_m, 1e-9)  # eps: degenerate asset
     obj = asset.scaled(scale) if scale != 1.0 else asset
+    # A moving object goes along its heading (its x axis on the ground, which the yaw sets): step k frames from start.
+    heading_w = (
+        invert_rigid(poses[start])[:3, :3]
+        @ object_pose_on_ground(transform_points(poses[start], contact_w), world_ground.transformed(poses[start]), yaw)[
+            :3, 0
+        ]
+    )
+    steps = (np.arange(n) - start) * cfg.speed_m_per_frame
 
     # Per-frame local ground refit around the projected contact: signed offset of the local ground along up.
     offsets: list[float | None] = [None] * n
@@ -182,7 +201,7 @@ def insert_into_clip(
             if depths[i] is None:
                 continue
             g_i = world_ground.transformed(poses[i])
-            c_i = transform_points(poses[i], contact_w)
+            c_i = transform_points(poses[i], contact_w + steps[i] * heading_w)
             if c_i[2] <= 0.5:
                 continue
             band = ground_band_points(
@@ -208,7 +227,14 @@ def insert_into_clip(
         transform_points(poses[start], contact_w), world_ground.transformed(poses[start]), yaw
     )
     world_from_object = invert_rigid(poses[start]) @ cam0_from_obj
-    track_uv, visible = project_world_point_track(contact_w, intrinsics, poses)
+    contacts_w = contact_w[None, :] + steps[:, None] * heading_w[None, :]
+    if cfg.speed_m_per_frame == 0:
+        track_uv, visible = project_world_point_track(contact_w, intrinsics, poses)
+    else:
+        tracks = [project_world_point_track(c, intrinsics, poses[i : i + 1]) for i, c in enumerate(contacts_w)]
+        track_uv = np.concatenate([uv for uv, _ in tracks])
+        visible = np.concatenate([v for _, v in tracks])
+        mods["motion"] = f"moving {cfg.speed_m_per_frame:.3f} m per frame along its heading"
 
     if lighting is None:
         E = np.asarray(comp.ExposureMatch.from_image(frames[start]).irradiance_rgb)
@@ -247,7 +273,9 @@ def insert_into_clip(
         mods["stabilize"] = "skipped: poses trusted (flow_refine off)"
     out_frames, boxes, amodal, masks = [], [], [], []
     for i in range(n):
-        cam_from_object = poses[i] @ world_from_object
+        world_from_object_i = world_from_object.copy()
+        world_from_object_i[:3, 3] += steps[i] * heading_w
+        cam_from_object = poses[i] @ world_from_object_i
         if flow is not None and flow.status[i] == "flow":
             cam_from_object = refined_cam_from_object(
                 cam_from_object, transform_points(poses[i], contact_w), flow.uv[i], grounds[i], intrinsics
@@ -286,7 +314,7 @@ def insert_into_clip(
     if flow is not None:  # the contact track the frames were rendered with
         track_uv = np.where(np.array([st == "flow" for st in flow.status])[:, None], flow.uv, track_uv)
     return ClipInsertion(
-        out_frames, boxes, amodal, contact_w, world_from_object, track_uv, visible, offsets, masks, mods
+        out_frames, boxes, amodal, contact_w, world_from_object, track_uv, visible, offsets, masks, mods, contacts_w
     )
 
 
