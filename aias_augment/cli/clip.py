@@ -12,9 +12,10 @@ estimate_lighting_clip`), every frame rendered through its own K [R | t]. Inputs
 * ground: the camera ``camera_height_m`` above level ground (vehicle rigs), the same camera-relative plane for every
   frame (see ``choose_world_contact``).
 
-Outputs in ``out``: ``frames/NNNNNN.jpg`` (augmented), ``annotations.json`` (COCO, one ``track_id`` per inserted
-object, validated by pycocotools), ``record.json`` (everything needed to replay: seed, asset, world pose, contact,
-modules used), ``side_by_side.mp4`` (original | augmented with boxes) and ``contact_sheet.jpg``. Every file is
+Outputs in ``out``: ``frames/NNNNNN.jpg`` (augmented), ``annotations.json`` (COCO-video: ``videos``, each image's
+``video_id`` and ``frame_id``, one ``track_id`` per inserted object with its visible mask as RLE and its amodal box;
+validated by pycocotools), ``mot.txt`` (MOTChallenge: frame, id, x, y, w, h, 1, -1, -1, -1, frames from 1),
+``record.json`` (everything needed to replay: seed, asset, world pose, contact, modules used), ``side_by_side.mp4`` (original | augmented with boxes) and ``contact_sheet.jpg``. Every file is
 written atomically; a finished clip (``record.json`` present with the same arguments) is not redone.
 """
 
@@ -33,8 +34,9 @@ import numpy as np
 import yaml
 
 from aias_augment.analyse.ground import prior_ground_plane
+from aias_augment.apply.annotate import encode_rle
 from aias_augment.cli.offline import read_rgb, write_rgb
-from aias_augment.core.coco_io import CocoBuilder, atomic_write_json
+from aias_augment.core.coco_io import CocoBuilder, atomic_write_json, atomic_write_text
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics, invert_rigid
 from aias_augment.core.viz import contact_sheet, draw_boxes
 
@@ -254,24 +256,30 @@ def augment_clip(job: ClipJob) -> dict:
     if grey:
         res.frames = [np.repeat(cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2) for f in res.frames]
     coco = CocoBuilder({category: 1})
-    drawn = []
+    coco.videos.append({"id": 1, "name": Path(job.input).name, "width": w, "height": h, "fps": job.fps})
+    drawn, mot = [], []
     for i, (name, img) in enumerate(zip(names, res.frames)):
         file_name = f"frames/{name}.jpg"
         write_rgb(out / file_name, img)
-        image_id = coco.add_image(file_name, w, h, frame_index=int(idx[i]))
+        image_id = coco.add_image(file_name, w, h, frame_index=int(idx[i]), video_id=1, frame_id=i)
         box = res.boxes_xywh[i]
         if box is not None:
+            visible = res.masks[i] > 0.5
             coco.add_box(
                 image_id,
                 category,
                 box,
+                segmentation=encode_rle(visible),
+                area=float(visible.sum()),
                 inserted=True,
                 track_id=1,
                 amodal_bbox=[float(v) for v in res.amodal_boxes_xywh[i]],
             )
+            mot.append(f"{i + 1},1,{box[0]:.2f},{box[1]:.2f},{box[2]:.2f},{box[3]:.2f},1,-1,-1,-1")
         boxes = [box] if box is not None else []
         drawn.append(draw_boxes(img, boxes, [category] * len(boxes), inserted=[True] * len(boxes)))
     coco.write(out / "annotations.json")
+    atomic_write_text(out / "mot.txt", "".join(line + "\n" for line in mot))
     _write_side_by_side(out / "side_by_side.mp4", frames, drawn, job.fps)
     picks = np.unique(np.linspace(0, len(drawn) - 1, min(6, len(drawn))).astype(int))
     sheet = contact_sheet([drawn[i] for i in picks], cols=3, titles=[names[i] for i in picks])

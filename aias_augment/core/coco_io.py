@@ -12,12 +12,17 @@ from pycocotools.coco import COCO
 
 def atomic_write_json(path: str | Path, obj, indent: int | None = None) -> None:
     """Write JSON through a temporary file and rename, so a killed run never leaves a truncated file."""
+    atomic_write_text(path, json.dumps(obj, indent=indent))
+
+
+def atomic_write_text(path: str | Path, text: str) -> None:
+    """Write ``text`` through a temporary file and rename, so a killed run never leaves a truncated file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
     try:
         with os.fdopen(fd, "w") as f:
-            json.dump(obj, f, indent=indent)
+            f.write(text)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -32,6 +37,7 @@ class CocoBuilder:
         self.categories: dict[str, int] = dict(categories or {})
         self.images: list[dict] = []
         self.annotations: list[dict] = []
+        self.videos: list[dict] = []  # COCO-video: images then carry video_id and frame_id
 
     def category_id(self, name: str) -> int:
         if name not in self.categories:
@@ -64,11 +70,14 @@ class CocoBuilder:
         self.annotations.append(ann)
 
     def to_dict(self) -> dict:
-        return {
+        out = {
             "images": self.images,
             "annotations": self.annotations,
             "categories": [{"id": i, "name": n} for n, i in sorted(self.categories.items(), key=lambda t: t[1])],
         }
+        if self.videos:
+            out["videos"] = self.videos
+        return out
 
     def write(self, path: str | Path) -> COCO:
         """Write and re-load with pycocotools (raises if the file is not a valid COCO dataset)."""

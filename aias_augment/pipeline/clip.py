@@ -15,7 +15,8 @@ a fixed patch of the world ground. With ``flow_refine`` the ground patch under t
 tracked pixel: drifting poses (visual odometry) no longer make the object skate.
 
 A moving object (``speed_m_per_frame``) goes along its heading on the world ground from frame ``start`` on: its pose,
-contact track and shadow move with it (no refit of a ground it leaves, no flow refinement of one).
+contact track and shadow move with it; the local refit is measured under each frame's contact, and flow refinement
+(which tracks the ground under a standing object) is refused.
 
 Poses: ``cams_from_world`` (N, 4, 4) OpenCV ``cam_from_world`` (KITTI poses inverted, DGP world poses, or
 :func:`aias_augment.scenes.video.estimate_video_motion`).

@@ -161,3 +161,27 @@ def test_a_static_cameras_clip_needs_no_poses_and_its_object_stays_put(tmp_path)
     assert len(boxes) == record["frames"] == 6 and len(set(boxes)) == 1
     with pytest.raises(ValueError, match="moving camera"):
         main(["--input", str(SEQ / "image_l"), "--max-frames", "6", "--out", str(tmp_path / "drive")])
+
+
+def test_clip_outputs_are_coco_video_with_masks_and_motchallenge(clip_run):
+    """pycocotools reads the COCO-video file; each visible mask (RLE) has the annotation's box as its own bounding box
+    and its pixel count as the area; mot.txt has MOTChallenge's ten columns, frames from 1, the same boxes."""
+    from pycocotools import mask as mask_utils
+
+    out, _ = clip_run
+    coco = COCO(str(out / "annotations.json"))
+    assert coco.dataset["videos"][0]["id"] == 1
+    frame_of = {im["id"]: im["frame_id"] for im in coco.dataset["images"]}
+    assert sorted(frame_of.values()) == list(range(N)) and all(im["video_id"] == 1 for im in coco.dataset["images"])
+    by_frame = {}
+    for a in coco.dataset["annotations"]:
+        m = coco.annToMask(a)
+        ys, xs = np.nonzero(m)
+        assert a["area"] == m.sum() == mask_utils.area(a["segmentation"])
+        assert np.allclose(a["bbox"], [xs.min(), ys.min(), xs.max() + 1 - xs.min(), ys.max() + 1 - ys.min()], atol=1)
+        by_frame[frame_of[a["image_id"]] + 1] = a["bbox"]
+    rows = [line.split(",") for line in (out / "mot.txt").read_text().splitlines()]
+    assert rows and all(len(r) == 10 and r[1] == "1" and r[6:] == ["1", "-1", "-1", "-1"] for r in rows)
+    assert {int(r[0]): [float(v) for v in r[2:6]] for r in rows}.keys() == by_frame.keys()
+    for r in rows:
+        assert np.allclose([float(v) for v in r[2:6]], by_frame[int(r[0])], atol=0.01)
