@@ -13,8 +13,23 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-ARMS = ["original", "naive_paste", "no_placement", "inserted_fixed_scale", "inserted_scene_scale"]
+ARMS = [
+    "original",
+    "naive_paste",
+    "copy_paste",
+    "lifted",
+    "no_placement",
+    "inserted_fixed_scale",
+    "inserted_scene_scale",
+    "inserted",
+]
 PAIRS = [
+    ("lifted", "naive_paste"),
+    ("copy_paste", "naive_paste"),
+    ("lifted", "copy_paste"),
+    ("inserted", "naive_paste"),
+    ("inserted", "copy_paste"),
+    ("inserted", "inserted_scene_scale"),
     ("inserted_scene_scale", "inserted_fixed_scale"),
     ("inserted_scene_scale", "naive_paste"),
     ("inserted_scene_scale", "original"),
@@ -35,6 +50,8 @@ def main(folder: str) -> int:
     for a in ARMS:
         v = [ap.get((a, s), {}).get("val") for s in seeds]
         got = [x for x in v if x is not None]
+        if not got:
+            continue
         print(
             f"| {a} | "
             + " | ".join("—" if x is None else f"{x:.3f}" for x in v)
@@ -45,11 +62,14 @@ def main(folder: str) -> int:
     print("|---|---|---|---|---|")
     for a, b in PAIRS:
         both = [s for s in seeds if (a, s) in ap and (b, s) in ap]
+        if not both:
+            continue
         cells = []
         for split in ("val", "dev"):
             d = np.array([ap[(a, s)][split] - ap[(b, s)][split] for s in both])
             h = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else float("nan")
-            cells.append(f"{d.mean():+.3f} [{d.mean() - h:+.3f}, {d.mean() + h:+.3f}]")
+            ci = f" [{d.mean() - h:+.3f}, {d.mean() + h:+.3f}]" if len(d) > 1 else " (one seed)"
+            cells.append(f"{d.mean():+.3f}{ci}")
         per = " / ".join(f"{ap[(a, s)]['val'] - ap[(b, s)]['val']:+.3f}" for s in both)
         print(f"| {a} − {b} | {len(both)} | {per} | {cells[0]} | {cells[1]} |")
     return 0
