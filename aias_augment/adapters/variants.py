@@ -42,7 +42,7 @@ log = logging.getLogger(__name__)
 
 #: Bump when what an insertion computes changes: it is part of every key (so of each variant's generator: a bump
 #: changes which insertions the variants are).
-VARIANT_FORMAT = 1
+VARIANT_FORMAT = 2
 #: Bump when how a variant is stored in its file changes: files of another version are not read (computed again).
 FILE_FORMAT = 3
 #: A variant file's first bytes; then the header's length (4 bytes, little-endian), the header (JSON) and the

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from aias_augment.assets.texture import pad_mesh_textures
 from aias_augment.core.config import data_root
 from aias_augment.core.errors import InputError
 
@@ -303,6 +304,7 @@ def load_mesh_file(
     meshes = _flatten(loaded, path)
     for m in meshes:
         _renderable_textures(m.visual, path)
+    pad_mesh_textures(meshes)  # no atlas background bleeding in at the UV islands' borders
     s = file_scale * (1.0 if scale is None else scale)
     R = axis_rotation_to_z_up(up_axis or file_up)
     for m in meshes:
