@@ -297,7 +297,10 @@ def test_plain_image_key_is_the_variant_key_of_the_documented_stream():
 
     img = _image()
     p = variant_key_prefix(load_preset("fast"), seed=3)
-    stream = xxhash.xxh3_128(b"aias-variant v1 package " + __import__("aias_augment").__version__.encode() + b" seed 3")
+    from aias_augment.adapters.variants import VARIANT_FORMAT
+
+    version = __import__("aias_augment").__version__
+    stream = xxhash.xxh3_128(f"aias-variant v{VARIANT_FORMAT} package {version} seed 3".encode())
     for name, v in (("cfg", repr(load_preset("fast"))), ("assets", repr([]))):
         stream.update(name.encode())
         from aias_augment.analyse.analysis import hash_value
