@@ -53,6 +53,9 @@ def training_set(
     by_copy = {e["copy"]: e for e in manifest if not e.get("failed")}
     amount = cfg.amounts[0] if amount is None else amount
     share = [j for j in pool_share(cfg.insertion.pool_size, amount, seed) if j in by_copy]
+    if not by_copy:  # e.g. a thinned subset none of whose instances can be lifted: say why, train nothing
+        reasons = sorted({str(e.get("failed")) for e in manifest})[:3]
+        raise ValueError(f"{arm} seed {seed}: its pool {folder} has no image (every copy failed: {reasons})")
     pool = load_yolo_dir(folder, names=cfg.class_names)
     by_name = {Path(r.image_path).name: r for r in pool.records}
     extra = DetectionSet(tuple(by_name[by_copy[j]["image"]] for j in share), pool.category_names)
