@@ -4,7 +4,7 @@ render at full size) and, with ``--unbounded``, without the bound (the issue-16 
 
   python benchmarks/bench_offline_transform_huge.py --out results/bench/offline_huge.json [--unbounded]
   python benchmarks/bench_offline_transform_huge.py --width 1920 --height 1216 --presets fast balanced accurate \
-      --out results/bench/worker_rss_1920.json     # issue 14's worker bound (<= 1 GiB on a 1920x1216 frame)
+      --out results/bench/worker_rss_1920.json     # the worker bound (<= 1 GiB on a 1920x1216 frame)
 
 Also reported, after the calls: the process's private memory (its own heap and arrays) and its shared library pages
 (/proc/self/smaps_rollup): RSS counts both, and the shared ones are mapped once for every DataLoader worker.

@@ -27,7 +27,7 @@ REPO = Path(__file__).resolve().parents[1]
 REALISM = {
     "fast": (
         "results/realism/stop20/report.json",
-        "inserted, stop 20 (crease normals, seen-sky fill, 320 px lighting, tempered-sun shading)",
+        "inserted, fast preset (crease normals, seen-sky fill, 320 px lighting, tempered-sun shading)",
     ),
     "balanced": ("results/realism/report.json", "inserted, balanced preset"),
     "accurate": None,

@@ -9,7 +9,7 @@ Three measurements per map:
 3. Image cues: perspective crops with a known camera (pinhole, level roll, yaw all around the sun, pitch and field of
    view drawn per seed), exposed like a camera (median metering, clip, sRGB, 8 bit), run through
    ``sun.sun_cue_from_image``; azimuth error against the map's sun; single frames and all crops of a map fused in world
-   coordinates (``sun.fuse_sun_cues``). Each crop is scored twice: the sky cue alone (as before) and the production
+   coordinates (``sun.fuse_sun_cues``). Each crop is scored twice: the sky cue alone and the production
    estimator ``estimate.estimate_sun_direction`` (what ``estimate_lighting`` uses: tempered sky, cast-shadow axis,
    walls and shadow ends of ``sun_side``), the clip with ``estimate_sun_direction_clip``. Crops are made of the maps whose brightest light is a compact source above the
    horizon (< 0.05 sr, elevation > 0) and that are not named with ``--sunless`` (indoor lamps, street lights at night:

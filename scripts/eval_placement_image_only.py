@@ -231,7 +231,7 @@ def evaluate_scene(path: Path, args, out: Path) -> dict:
         single = Frame(frame.image, None if args.unknown_k else frame.intrinsics)
         analysis = analyse_scene(single, cfg)
         intr = analysis.intrinsics
-        before = placeable_region(intr, analysis.ground)  # the region without the image (before issue 15)
+        before = placeable_region(intr, analysis.ground)  # the region from the ground prior alone
         variants = {"before": dataclasses.replace(analysis, region=before), "after": analysis}
         cols = np.array([intr.cx])
         row = {

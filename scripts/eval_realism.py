@@ -1,4 +1,4 @@
-"""Realism report (issue 15): real TraCon cones vs inserted ones, per arm, with Lite0-FID/KID and two-sample AUCs.
+"""Realism report: real TraCon cones vs inserted ones, per arm, with Lite0-FID/KID and two-sample AUCs.
 
     # 1. generate small paired pools (same backgrounds and draws as the study's first N copies) for the ablation arms
     taskset -c 0 python scripts/eval_realism.py generate --n 40 --arms inserted no_placement no_shadow no_lighting \
@@ -442,7 +442,7 @@ def cmd_report(args) -> None:
 
 
 def _reading(rep: dict) -> list[str]:
-    """The targets of issue 15 against the measured rows, in words (only rows that exist)."""
+    """The realism targets (Lite0-KID <= 0.03, AUC <= 0.70) against the measured rows, in words (only rows that exist)."""
     a = rep["arms"]
     need = ["inserted", "naive_paste", "inserted, fixes off", CONTROL]
     if not all(k in a for k in need):
@@ -455,7 +455,7 @@ def _reading(rep: dict) -> list[str]:
         "",
         "## Reading",
         "",
-        f"- Targets (issue 15): Lite0-KID <= 0.03 and AUC <= 0.70. Full pipeline: KID {kid['inserted']:.3f}, "
+        f"- Targets: Lite0-KID <= 0.03 and AUC <= 0.70. Full pipeline: KID {kid['inserted']:.3f}, "
         f"AUC {auc['inserted']:.3f}; floor KID {kid[floor]:.3f}. Missed by ~{kid['inserted'] / 0.03:.0f}x in "
         "KID; the classifiers separate every arm almost perfectly.",
         f"- Full vs naive paste: KID {kid['inserted']:.3f} vs {kid['naive_paste']:.3f}, AUC {auc['inserted']:.3f} "
@@ -489,7 +489,7 @@ def _reading(rep: dict) -> list[str]:
 def render_markdown(rep: dict, args) -> str:
     ref = rep["reference"]
     lines = [
-        "# Realism: real TraCon cones vs inserted (issue 15)",
+        "# Realism: real TraCon cones vs inserted",
         "",
         f"Written by `{rep['command']}` ({rep['seconds'] / 60:.0f} min on one CPU core). Protocol and code: "
         "`scripts/eval_realism.py`, `aias_augment/realism/`.",

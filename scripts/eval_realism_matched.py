@@ -1,4 +1,4 @@
-"""Realism with matched backgrounds (issue 15): cones inserted into TraCon's own road-scene cone photos, compared with
+"""Realism with matched backgrounds: cones inserted into TraCon's own road-scene cone photos, compared with
 the real cones of other road-scene cone photos, so the crops around inserted and real cones differ by the object,
 not by the scene.
 
@@ -478,7 +478,7 @@ def _reading(rep: dict) -> list[str]:
         "",
         "## Reading",
         "",
-        f"- Targets (issue 15), full pipeline in the matched protocol: Lite0-KID {kid[full]:.3f} "
+        f"- Targets, full pipeline in the matched protocol: Lite0-KID {kid[full]:.3f} "
         f"(target <= 0.03: {met(kid[full] <= 0.03)}), logistic AUC {auc[full]:.3f} (target <= 0.70: "
         f"{met(auc[full] <= 0.70)})"
         + (f", CNN AUC {a[full]['auc_cnn']['auc']:.3f}" if "auc_cnn" in a[full] else "")
@@ -540,7 +540,7 @@ def _paragraph(text: str) -> list[str]:
 def render_markdown(rep: dict, args) -> str:
     ph = rep["photos"]
     lines = [
-        "# Realism with matched backgrounds: real vs inserted cones in TraCon road-scene cone photos (issue 15)",
+        "# Realism with matched backgrounds: real vs inserted cones in TraCon road-scene cone photos",
         "",
         f"Written by `{rep['command']}` ({rep['seconds'] / 60:.0f} min on one CPU core) after "
         f"`python scripts/eval_realism_matched.py generate --n {ph['B_used']}"

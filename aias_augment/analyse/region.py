@@ -82,7 +82,7 @@ class RegionConfig:
     max_depth_m: float = 60.0
     # Single image (``image_ground_region``). Tolerances are in 8-bit CIELAB units (OpenCV), at the analysis width.
     # Chosen on KITTI 06 (grey) and checked on DGP (colour): results/placement/image_only.md.
-    image_region: bool = True  # False: a single image gets the below-horizon prior (as before)
+    image_region: bool = True  # False: a single image gets the below-horizon prior only
     image_width_px: int = 640  # the image is analysed at most this wide
     image_seed_rows: tuple[float, float] = (0.35, 0.9)  # seed zone: fraction of the rows horizon -> bottom ...
     image_seed_cols: tuple[float, float] = (0.25, 0.75)  # ... and of the columns

@@ -30,7 +30,7 @@ ARM_FLAGS: dict[str, dict | None] = {
     # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
     # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
     "inserted_closeup": {"closeup_crop": True},
-    # Placement fitted to the photo (issue 15's matched-background protocol: TraCon's close-ups got cones half the
+    # Placement fitted to the photo (in the matched-background protocol TraCon's close-ups got cones half the
     # size of their own and a third cut by the frame): box heights from the photo's own cones, objects in frame.
     "inserted_scene_sizes": {"placement_cfg": {"sizes_from_existing": True}},
     "inserted_in_frame": {"placement_cfg": {"min_in_image_frac": 1.0}},

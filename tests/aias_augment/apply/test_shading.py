@@ -72,7 +72,7 @@ def test_fluorescent_gain_only_on_saturated_orange_and_never_above_white():
     assert np.allclose(out[1, 0], np.minimum(albedo[1, 0] * FLUORESCENT_GAIN, 1.0) * out[2, 0], rtol=1e-5)
 
 
-# --- Shading consistent with the cast shadow (issue 15, section 2) --------------------------------------------------
+# --- Shading consistent with the cast shadow --------------------------------------------------
 # A barrel 8 m ahead of a level camera 1.65 m above the ground, lit by a known sun IN FRONT of the camera (behind the
 # barrel as seen from it), 30 deg high and 20 deg to the right: its shadow falls toward the camera, to the left. The
 # light is built as the estimator builds an image-cue sun of low confidence (``temper_sun`` with keep = 0.2, what

@@ -93,7 +93,7 @@ def test_path_assets_missing_path_and_unit_guess(tmp_path):
     assert np.isclose(a.height_m, 1.87) and "centimetres" in a.meta["unit_guess"]
 
 
-# --- crease-angle vertex normals (issue 15: the cone's side was faceted) -------------------------------------------
+# --- crease-angle vertex normals (a smooth cone side, a sharp base rim) -------------------------------------------
 
 
 def _faceted_frustum(n_seg: int, r0: float, r1: float, h: float):

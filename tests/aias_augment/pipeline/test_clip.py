@@ -25,20 +25,27 @@ def kitti_clip():
     return seq, frames, poses
 
 
-def test_clip_contact_track_is_the_projection_and_size_is_smooth(kitti_clip):
+def _box_on_kitti(kitti_clip, yaw_rad: float, layer_params=None, **cfg_fields):
+    """A 1 m box beside the camera of frame 15, 2.5 m to its right, on the 1.65 m level prior, seed 0."""
     seq, frames, poses = kitti_clip
-    K = seq.intrinsics
-    cfg = VideoInsertionConfig(lookahead_frames=15, lateral_offset_m=2.5, height_m=1.0)
-    res = insert_into_clip(
+    cfg = VideoInsertionConfig(lookahead_frames=15, lateral_offset_m=2.5, height_m=1.0, **cfg_fields)
+    return insert_into_clip(
         frames,
-        K,
+        seq.intrinsics,
         poses,
         np.random.default_rng(0),
         cfg,
         asset=box_asset(),
         ground_in_cam0=prior_ground_plane(1.65),
-        yaw_rad=0.3,
+        yaw_rad=yaw_rad,
+        layer_params=layer_params,
     )
+
+
+def test_clip_contact_track_is_the_projection_and_size_is_smooth(kitti_clip):
+    seq, frames, poses = kitti_clip
+    K = seq.intrinsics
+    res = _box_on_kitti(kitti_clip, 0.3)
     c_w = res.contact_in_world
     # Contact: under camera 15, 2.5 m to its right, 1.65 m below it (the camera-relative level prior).
     cam15 = np.linalg.inv(poses[15])
@@ -204,23 +211,9 @@ def test_clip_motion_blur_streaks_each_frame_along_the_objects_motion(kitti_clip
     """Convolving a coverage with a normalised line adds the line's variance (L^2 / 12) along the line and keeps the
     coverage's mass: measured per frame on the visible mask, with the direction from the analytic contact track."""
     seq, frames, poses = kitti_clip
-    cfg = VideoInsertionConfig(lookahead_frames=15, lateral_offset_m=2.5, height_m=1.0)
     length = 12.0
-
-    def run(layer_params):
-        return insert_into_clip(
-            frames,
-            seq.intrinsics,
-            poses,
-            np.random.default_rng(0),
-            cfg,
-            asset=box_asset(),
-            ground_in_cam0=prior_ground_plane(1.65),
-            yaw_rad=0.3,
-            layer_params=layer_params,
-        )
-
-    plain, blurred = run(None), run({"motion_blur_px": {"length_px": length, "angle_deg": 0.0}})
+    plain = _box_on_kitti(kitti_clip, 0.3)
+    blurred = _box_on_kitti(kitti_clip, 0.3, {"motion_blur_px": {"length_px": length, "angle_deg": 0.0}})
     assert "motion_blur_px" in blurred.modules["layers"] and "layers" not in plain.modules
     checked = 0
     for i in range(1, 12):
@@ -246,17 +239,7 @@ def test_a_moving_object_follows_its_heading_at_its_speed_and_stands_on_its_proj
     each frame's contact pixel is K [R | t] of that point, and the rendered object stands on it."""
     seq, frames, poses = kitti_clip
     K = seq.intrinsics
-    cfg = VideoInsertionConfig(lookahead_frames=15, lateral_offset_m=2.5, height_m=1.0, speed_m_per_frame=0.25)
-    res = insert_into_clip(
-        frames,
-        K,
-        poses,
-        np.random.default_rng(0),
-        cfg,
-        asset=box_asset(),
-        ground_in_cam0=prior_ground_plane(1.65),
-        yaw_rad=1.2,
-    )
+    res = _box_on_kitti(kitti_clip, 1.2, speed_m_per_frame=0.25)
     track = res.contact_track_in_world
     step = np.diff(track, axis=0)
     heading = res.world_from_object[:3, 0]

@@ -313,7 +313,7 @@ def test_kitti_clip_sun_is_on_the_left_and_one_world_direction():
     assert all(np.rad2deg(np.arccos(np.clip(w @ worlds[0], -1, 1))) < 0.1 for w in worlds)
 
 
-# --- Fallback ground boxes (issue 15, section 2): a lit lane with the street's shadows on the verge ----------------
+# --- Fallback ground boxes: a lit lane with the street's shadows on the verge ----------------
 # Ray-cast scenes (synthetic_scene: geometry and Lambert's law only). Poles on the left verge, a sun from the right
 # 35 deg high: their shadows fall on the verge (x < -1.8 m), none on the lane box (-1.5..1.5 m). Truth: the sun/sky
 # ratio on the ground is sun_irradiance sin(el) / sky_irradiance = 6 sin 35 deg.
@@ -334,7 +334,7 @@ def test_shadows_on_the_verge_give_a_sun_when_the_lane_has_none():
     lane_only = estimate_lighting(
         img, _KS, config=LightingConfig(fallback_ground_boxes_m=()), rng=np.random.default_rng(0)
     )
-    assert not lane_only.dominant_sun  # before: the lane box alone saw no cast shadow
+    assert not lane_only.dominant_sun  # the lane box alone sees no cast shadow
     e = estimate_lighting(img, _KS, rng=np.random.default_rng(0))
     _finite(e)
     assert e.dominant_sun
