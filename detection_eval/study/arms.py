@@ -39,6 +39,17 @@ ARM_FLAGS: dict[str, dict | None] = {
     # boxes' sizes stand on its visible ground (PlacementConfig.scene_scale_from_sizes): ground contact, perspective
     # and shadows as in ``inserted``, sizes as in ``naive_paste``.
     "inserted_scene_scale": {"placement_cfg": {"scene_scale_from_sizes": True}},
+    # Close-ups as the data has them: objects up to the full frame height, cut by the frame's sides or top
+    # (half of the box may leave the image), the camera as low as 0.1 m and objects as near as 0.5 m, so that the
+    # largest real box heights (a tenth of TraCon's cones are over 0.6 of the frame) stand on visible ground.
+    "inserted_closeup_sizes": {
+        "placement_cfg": {
+            "max_box_height_frac": 1.0,
+            "min_in_image_frac": 0.5,
+            "min_distance_m": 0.5,
+            "camera_height_range_m": (0.1, 4.0),
+        }
+    },
     # Its ablation: the assumed camera height kept, so sizes are what that height lets the visible ground host.
     "inserted_fixed_scale": {"placement_cfg": {"scene_scale_from_sizes": False}},
     # The seed's thinned subset's own real instances (aias_augment.assets.bank.lift): pasted at random positions and sizes
