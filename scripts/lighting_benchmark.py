@@ -40,6 +40,9 @@ def main(argv=None) -> int:
     ap.add_argument("--labels", type=Path, default=Path("results/lighting/benchmark/labels.csv"))
     ap.add_argument("--out", type=Path, default=Path("results/lighting/benchmark"))
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--sun-decision", choices=("evidence", "cues"), default="evidence", help="LightingConfig.sun_decision"
+    )
     a = ap.parse_args(argv)
     rows = list(csv.DictReader(open(a.labels)))
     root = data_root()
@@ -51,7 +54,8 @@ def main(argv=None) -> int:
             if s < 1:
                 img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
         for preset in PRESETS:
-            est = analyse_scene(Frame(img, None), load_preset(preset)).lighting
+            cfg = load_preset(preset, lighting_cfg={"sun_decision": a.sun_decision})
+            est = analyse_scene(Frame(img, None), cfg).lighting
             r[f"{preset}_sun"] = int(est.dominant_sun)
             r[f"{preset}_confidence"] = round(float(est.confidence), 4)
             r[f"{preset}_source"] = est.source

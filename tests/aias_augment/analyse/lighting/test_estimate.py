@@ -331,11 +331,14 @@ def test_shadows_on_the_verge_give_a_sun_when_the_lane_has_none():
 
     s = sun_direction(0.0, 35.0)
     img, _ = render(_verge_poles(), s, _KS, rng=np.random.default_rng(0))
+    # The cue decision (a measured lit/shadow pair) is what these verges test; the synthetic sky is a clear
+    # Preetham sky even without a sun, which the evidence decision reads as sunny.
+    cues = LightingConfig(sun_decision="cues")
     lane_only = estimate_lighting(
-        img, _KS, config=LightingConfig(fallback_ground_boxes_m=()), rng=np.random.default_rng(0)
+        img, _KS, config=LightingConfig(fallback_ground_boxes_m=(), sun_decision="cues"), rng=np.random.default_rng(0)
     )
     assert not lane_only.dominant_sun  # the lane box alone sees no cast shadow
-    e = estimate_lighting(img, _KS, rng=np.random.default_rng(0))
+    e = estimate_lighting(img, _KS, config=cues, rng=np.random.default_rng(0))
     _finite(e)
     assert e.dominant_sun
     # 4.8 against 3.4: the poles' own shaded faces (sky light on a vertical face: half the ground's) stand in the same
@@ -344,7 +347,7 @@ def test_shadows_on_the_verge_give_a_sun_when_the_lane_has_none():
     assert 0.8 * truth < e.sun_sky_ratio < 1.5 * truth
     assert e.sun_direction_in_cam @ e.up_in_cam > 0  # (its azimuth comes from the sky and side cues, not the verge)
     overcast, _ = render(_verge_poles(), s, _KS, sun_irradiance=0.0, rng=np.random.default_rng(0))
-    assert not estimate_lighting(overcast, _KS, rng=np.random.default_rng(0)).dominant_sun
+    assert not estimate_lighting(overcast, _KS, config=cues, rng=np.random.default_rng(0)).dominant_sun
 
 
 def test_a_bright_strip_on_a_dark_verge_is_not_a_sun():
@@ -357,7 +360,8 @@ def test_a_bright_strip_on_a_dark_verge_is_not_a_sun():
         Box((-2.4, 1.645, 3.0), (-1.5, 1.65, 25.0), albedo=(0.06, 0.06, 0.06)),
     ]
     img, _ = render(verge, sun_direction(0.0, 35.0), _KS, sun_irradiance=0.0, rng=np.random.default_rng(0))
-    assert not estimate_lighting(img, _KS, rng=np.random.default_rng(0)).dominant_sun
+    cues = LightingConfig(sun_decision="cues")  # the cue decision's measurement is under test (see above)
+    assert not estimate_lighting(img, _KS, config=cues, rng=np.random.default_rng(0)).dominant_sun
     from aias_augment.analyse.lighting.estimate import fallback_measurement_ok
     from aias_augment.analyse.lighting.ratio import ground_region_mask, measure_lit_shadow
     from aias_augment.core.hdr import srgb_to_linear
