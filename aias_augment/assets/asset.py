@@ -186,6 +186,12 @@ class Asset:
     def height_m(self) -> float:
         return float(self.extents_m[2])
 
+    @property
+    def reference_height_m(self) -> float:
+        """The height a category's size range refers to: the height, or for a deformed variant (a crushed cone, a
+        cone on its side) its source's (``meta["reference_height_m"]``, see :mod:`aias_augment.assets.deform`)."""
+        return float(self.meta.get("reference_height_m", self.height_m))
+
     def corners_m(self) -> np.ndarray:
         """(8, 3) corners of the axis-aligned bounding box in the object frame (read-only; made once per asset)."""
         c = self.__dict__.get("_corners_m")
@@ -208,7 +214,15 @@ class Asset:
             self.source,
             self.licence,
             self.procedural,
-            {**self.meta, "scale": self.meta.get("scale", 1.0) * factor},
+            {
+                **self.meta,
+                "scale": self.meta.get("scale", 1.0) * factor,
+                **(
+                    {"reference_height_m": self.meta["reference_height_m"] * factor}
+                    if "reference_height_m" in self.meta
+                    else {}
+                ),
+            },
             root,
             self.render_scale * float(factor),
         )
@@ -501,6 +515,27 @@ def load_asset(
     return Asset(name or path.stem, category, normalise_meshes(meshes), str(path), licence)
 
 
+def bank_entry_meta(path: str | Path) -> dict:
+    """What a bank folder's ``bank.json`` (written by ``aias-assets from-labels`` / ``deform``) records about the
+    mesh file ``path``: its source, its deformation and the height its size range refers to (a cone lying on its
+    side is a cone of its source's height); {} for a file outside such a folder. The index is JSON: read, never run."""
+    import json
+
+    path = Path(path)
+    index = path.parent / "bank.json"
+    if not index.is_file():
+        return {}
+    try:
+        entries = json.loads(index.read_text())["report"]["assets"]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise AssetError(f"{index}: unreadable bank index ({e})") from None
+    keys = ("source_image", "source_box_xyxy", "lift_mode", "deformation", "reference_height_m")
+    for e in entries:
+        if e.get("file") == path.name:
+            return {k: e[k] for k in keys if k in e}
+    return {}
+
+
 _CACHE: dict[tuple, Asset] = {}
 
 
@@ -558,6 +593,7 @@ class PathAssets:
                     log.warning("%s: %s", p, warning)
                     asset = load_asset(p, category=category, scale=s, up_axis=self.up_axes.get(p))
                     asset.meta["unit_guess"] = warning
+            asset.meta.update(bank_entry_meta(p))
             self._loaded[p] = asset
         return self._loaded[p]
 

@@ -6,6 +6,7 @@ aias-assets show "sh3f:Scopia#cone"
 aias-assets thumbnails --out out/assets/contact_sheet.png [--category dog rock] [--per-category 2]
 aias-assets from-labels --yolo DIR --class-names cone --category traffic_cone --out BANK   # your own instances
 aias-assets from-labels --input train.json --images DIR --label cone --category traffic_cone --out BANK
+aias-assets deform --category traffic_cone --count 8 --seed 0 --out BANK --sheet sheet.png   # dented, crushed...
 """
 
 from __future__ import annotations
@@ -161,6 +162,56 @@ def _cmd_from_labels(a) -> int:
     return 0
 
 
+def _cmd_deform(a) -> int:
+    import cv2
+
+    from aias_augment.assets.asset import AssetError, default_asset, load_asset
+    from aias_augment.assets.deform import DeformConfig, apply_deformation, sample_deformation, write_variants
+
+    t0 = time.perf_counter()
+    try:
+        source = load_asset(a.asset, category=a.category) if a.asset else default_asset(a.category)
+        cfg = DeformConfig(kinds=tuple(a.kinds or ()))
+    except (AssetError, KeyError, ValueError, OSError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    rng = np.random.default_rng(a.seed)
+    params = [sample_deformation(source, rng, cfg) for _ in range(a.count)]
+    entries = write_variants(source, params, a.out)
+    if a.sheet:
+        from aias_augment.assets.bank.thumbnails import render_thumbnail
+
+        tiles = [(render_thumbnail(source, a.size), f"source {source.height_m:.2f} m")]
+        for p, e in zip(params, entries):
+            v = apply_deformation(source, p)
+            tiles.append((render_thumbnail(v, a.size), f"{e['file'][:4]} {p.kind} {v.height_m:.2f} m"))
+        cols = min(len(tiles), 9)
+        rows = -(-len(tiles) // cols)
+        sheet = np.full((rows * (a.size + 16), cols * a.size, 3), 255, np.uint8)
+        for i, (tile, text) in enumerate(tiles):
+            r, c = divmod(i, cols)
+            y, x = r * (a.size + 16), c * a.size
+            sheet[y : y + a.size, x : x + a.size] = tile
+            cv2.putText(
+                sheet, text, (x + 3, y + a.size + 12), cv2.FONT_HERSHEY_SIMPLEX, 0.33, (40, 40, 40), 1, cv2.LINE_AA
+            )
+        Path(a.sheet).parent.mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(a.sheet), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
+    kinds = collections.Counter(p.kind for p in params)
+    print(
+        json.dumps(
+            {
+                "variants": len(entries),
+                "kinds": dict(kinds),
+                "bank": str(a.out),
+                "seconds": round(time.perf_counter() - t0, 1),
+            },
+            indent=1,
+        )
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="aias-assets", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--cache-dir", type=Path, default=None, help=f"default $AIAS_CACHE or {default_cache_dir()}")
@@ -204,7 +255,18 @@ def main(argv: list[str] | None = None) -> int:
     )
     s.add_argument("--height-m", type=float, default=None, help="default: the middle of the category's height range")
     s.add_argument("--min-box-px", type=int, default=24)
+    s = sub.add_parser("deform", help="seeded dented, crushed, bent or knocked-over variants of a mesh into a bank")
+    s.add_argument("--category", required=True, help="the category (its default mesh unless --asset)")
+    s.add_argument("--asset", default=None, help="a mesh file or gazebo model folder to deform")
+    s.add_argument("--kinds", nargs="*", default=None, help="dent crush bend knocked_over (default: the category's)")
+    s.add_argument("--count", type=int, default=8)
+    s.add_argument("--seed", type=int, required=True, help="the seed of the draws (a variant replays from its record)")
+    s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")
+    s.add_argument("--sheet", type=Path, default=None, help="write a contact sheet (source + variants) here")
+    s.add_argument("--size", type=int, default=160, help="contact sheet tile size (px)")
     a = p.parse_args(argv)
+    if a.cmd == "deform" and a.count < 1:
+        p.error("--count >= 1 please")
     if a.cmd == "from-labels" and a.input and not a.images:
         p.error("--input needs --images")
     logging.basicConfig(level=logging.INFO if a.verbose else logging.ERROR, format="%(levelname)s %(message)s")
@@ -214,6 +276,7 @@ def main(argv: list[str] | None = None) -> int:
         "show": _cmd_show,
         "thumbnails": _cmd_thumbnails,
         "from-labels": _cmd_from_labels,
+        "deform": _cmd_deform,
     }[a.cmd](a)
 
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass, fields, is_dataclass, replace
 from typing import Literal
 
 from aias_augment.analyse.lighting.estimate import LightingConfig
+from aias_augment.assets.deform import DeformConfig
 from aias_augment.core.config import CONFIG_DIR, ConfigValueError, UnknownConfigKeys, checked_config, load_config
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M
 from aias_augment.plan.placement import PlacementConfig
@@ -32,6 +33,7 @@ HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
         "naive_height_frac_range": "(0, 1] lo<=hi",
         "naive_height_frac_samples": "(0, 1]",
         "motion_blur_px": "[0, inf) lo<=hi",
+        "deform_probability": "[0, 1]",
     },
     orders=["min_objects <= max_objects"],
 )
@@ -68,6 +70,11 @@ class InsertionConfig:
     # from the bank; "procedural": a new seeded procedural asset per object where the category has a generator
     # (traffic_cone), else as "default".
     asset_source: Literal["default", "bank", "procedural"] = "default"
+    # Share of objects inserted as a seeded physical variant of their asset (aias_augment/assets/deform.py: dented,
+    # crushed, bent, knocked over; kinds and ranges in ``deform_cfg``), drawn in the plan and recorded in the
+    # placement's ``asset_meta["deformation"]``, so a replay rebuilds the same variant. 0: off.
+    deform_probability: float = 0.0
+    deform_cfg: DeformConfig = DeformConfig()
     ssaa: int = 2  # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Sun visibility on the ground: "catcher" (GL shadow map: ground patch rendered with/without the object) or
     # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL

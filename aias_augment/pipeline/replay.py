@@ -13,6 +13,7 @@ from typing import Callable
 from aias_augment.analyse.cache import SceneCache
 from aias_augment.apply.stages import AppliedPlan, apply_plan
 from aias_augment.assets.asset import DEFAULT_ASSETS, Asset, default_asset
+from aias_augment.assets.deform import DeformParams, apply_deformation
 from aias_augment.core.config import data_root
 from aias_augment.core.frame import Frame
 from aias_augment.pipeline.config import InsertionConfig
@@ -59,7 +60,10 @@ def replay(
     objects = []
     for d in record["placements"]:
         p = placement_from_dict(d)
-        objects.append(PlannedObject(p, assets(p).scaled(p.scale)))
+        base = assets(p)
+        if "deformation" in p.asset_meta and "deformation" not in base.meta:  # rebuilt from its record
+            base = apply_deformation(base, DeformParams.from_dict(p.asset_meta["deformation"]))
+        objects.append(PlannedObject(p, base.scaled(p.scale)))
     layer_params = tuple(dict(x) for x in record.get("layer_params", ()))
     plan = InsertionPlan(tuple(objects), int(record["harmonize_seed"]), len(objects), layer_params=layer_params)
     return apply_plan(frame, analysis, plan, cfg)

@@ -14,6 +14,7 @@ import numpy as np
 from aias_augment.analyse.analysis import SceneAnalysis
 from aias_augment.apply.layers import draw_layer_params
 from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
+from aias_augment.assets.deform import apply_deformation, sample_deformation
 from aias_augment.core.geometry import Intrinsics, make_rigid, project_points, transform_points
 from aias_augment.pipeline.config import InsertionConfig
 from aias_augment.plan.collision import OrientedBox
@@ -107,9 +108,11 @@ def plan_insertion(
     for i in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
         base = choose_asset(category, rng, cfg, bank)
+        if cfg.deform_probability > 0 and rng.uniform() < cfg.deform_probability:
+            base = apply_deformation(base, sample_deformation(base, rng, cfg.deform_cfg))
         if cfg.placement:
             if targets is not None and i == 0:
-                hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.height_m, base.height_m))
+                hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
                 scale, mods["scene_scale"] = scene_scale_for_sizes(
                     ground, intr, rng, pcfg, float(np.mean(hr)), max(targets), region.mask
                 )
@@ -137,8 +140,8 @@ def plan_insertion(
                 continue
             asset = base.scaled(placement.scale)
         else:
-            hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.height_m, base.height_m))
-            asset = base.scaled(rng.uniform(*hr) / base.height_m)
+            hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
+            asset = base.scaled(rng.uniform(*hr) / base.reference_height_m)
             cam_from_object, yaw = naive_pose(asset, intr, rng, cfg)
             uvc, _ = project_points(transform_points(cam_from_object, asset.corners_m()), intr.K)
             placement = Placement(
@@ -158,6 +161,8 @@ def plan_insertion(
             )
         if asset.procedural:
             placement = replace(placement, asset_meta=_json_safe(asset.meta))
+        elif "deformation" in asset.meta:  # the variant's record: a replay deforms the same source again
+            placement = replace(placement, asset_meta=_json_safe({"deformation": asset.meta["deformation"]}))
         objects.append(PlannedObject(placement, asset))
         taken.append(np.array(placement.amodal_box_xyxy))
         if "collision" in mods:

@@ -554,7 +554,9 @@ def sample_placement(
     existing = (
         np.zeros((0, 4)) if existing_boxes_xyxy is None else np.asarray(existing_boxes_xyxy, float).reshape(-1, 4)
     )
-    hr = height_range_m or CATEGORY_HEIGHT_RANGE_M.get(asset.category, (asset.height_m, asset.height_m))
+    hr = height_range_m or CATEGORY_HEIGHT_RANGE_M.get(
+        asset.category, (asset.reference_height_m, asset.reference_height_m)
+    )
     report = PlacementReport()
     entry = _GROUND_CANDIDATES.get(ground, intrinsics, region_mask, cfg.horizon_margin_px)
     cand = entry["cand"]
@@ -619,7 +621,7 @@ def sample_placement(
                 report.rejected["scene depth disagrees with the ground plane (not free ground)"] += 1
                 continue
         target_h = rng.uniform(*hr)
-        scale = target_h / max(asset.height_m, 1e-9)
+        scale = target_h / max(asset.reference_height_m, 1e-9)
         yaw = rng.uniform(-np.pi, np.pi)
         cam_from_object = object_pose_on_ground(p, plane, yaw)
         corners = transform_points(cam_from_object, asset.corners_m() * scale)

@@ -450,7 +450,7 @@ class LiftedAssets:
         return cls({}, str(folder))
 
     def _load(self) -> None:
-        from aias_augment.assets.asset import load_asset
+        from aias_augment.assets.asset import bank_entry_meta, load_asset
 
         if self._assets or self.folder is None:
             return
@@ -458,7 +458,7 @@ class LiftedAssets:
         out: dict[str, list] = {}
         for e in bank["report"]["assets"]:
             a = load_asset(Path(self.folder) / e["file"], category=e["category"], scale=1.0)
-            a.meta.update({k: e[k] for k in ("source_image", "source_box_xyxy", "lift_mode")})
+            a.meta.update(bank_entry_meta(Path(self.folder) / e["file"]))
             out.setdefault(e["category"], []).append(a)
         self._assets = out
 

@@ -1,0 +1,318 @@
+"""Seeded physical variants of an asset: dented, crushed, bent or knocked over, textures and real size kept.
+
+Choosing (:func:`sample_deformation`, every random draw from the ``numpy.random.Generator`` passed in) is split from
+doing (:func:`apply_deformation`, pure): :class:`DeformParams` is a JSON-able record, so a variant replays byte for
+byte from it (an insertion record's ``asset_meta["deformation"]``, a bank's ``bank.json``).
+
+Every deformation moves vertices by a smooth function of their *position* alone (a rigid turn for ``knocked_over``),
+never of their index or normal. Vertices that a texture seam splits sit at one position, so they move together: a
+mesh whose geometry was closed stays closed, and the UVs, materials and faces are untouched. Nothing is scaled, so
+the variant keeps its source's metric size: a crush lowers the top by exactly its amount, a dent never moves a
+point by more than its depth.
+
+- ``dent``: 1-3 dents, each a compactly supported (Wendland C2) push of depth ``d`` into the surface along the
+  inward normal at a surface point, over a radius ``r`` (a barrel hit by a car, a kicked cone).
+- ``crush``: the top pressed down by ``amount`` of the height, more at the top than at the base (z' = z (1 - a z /
+  H)), the middle bulging sideways by ``bulge`` and the whole leaning by a shear (a flattened cone, a crushed car
+  roof).
+- ``bend``: the object bent about a horizontal axis by ``angle`` over its height, as a circular arc (a bent post).
+- ``knocked_over``: turned 90 deg about a horizontal axis and settled on the face of its convex hull that then
+  faces the ground (a cone lying on its side, a barrel on its flank).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from aias_augment.assets.asset import Asset, normalise_meshes
+from aias_augment.core.config import checked_config
+
+KINDS = ("dent", "crush", "bend", "knocked_over")
+
+#: What makes sense per category (a car does not bend or lie on its side in a road scene; a cone can do all).
+CATEGORY_KINDS: dict[str, tuple[str, ...]] = {
+    "traffic_cone": ("dent", "crush", "bend", "knocked_over"),
+    "barrel": ("dent", "crush", "knocked_over"),
+    "car": ("dent", "crush"),
+    "barrier": ("dent",),
+    "concrete_block": ("dent",),
+    "fire_hydrant": ("dent", "bend"),
+}
+
+
+@checked_config(
+    {
+        "dent_count": "[1, inf) lo<=hi",
+        "dent_radius_frac": "(0, 1] lo<=hi",
+        "dent_depth_frac": "(0, 1] lo<=hi",
+        "crush_amount": "[0, 0.8] lo<=hi",
+        "crush_bulge": "[0, 1] lo<=hi",
+        "crush_max_lean": "[0, 0.5]",
+        "bend_angle_deg": "[0, 90] lo<=hi",
+    }
+)
+@dataclass(frozen=True)
+class DeformConfig:
+    """Ranges the draws of :func:`sample_deformation` come from (uniform within each)."""
+
+    kinds: tuple[str, ...] = ()  # allowed kinds; empty: the category's (:data:`CATEGORY_KINDS`), else all
+    dent_count: tuple[int, int] = (1, 3)
+    dent_radius_frac: tuple[float, float] = (0.15, 0.35)  # of the object's largest extent
+    dent_depth_frac: tuple[float, float] = (0.15, 0.4)  # of the dent's radius
+    crush_amount: tuple[float, float] = (0.2, 0.5)  # of the height the top comes down
+    crush_bulge: tuple[float, float] = (0.1, 0.3)  # sideways growth at mid-height, relative
+    crush_max_lean: float = 0.15  # horizontal shift of the top, relative to the height
+    bend_angle_deg: tuple[float, float] = (10.0, 35.0)
+
+    def __post_init__(self):
+        bad = set(self.kinds) - set(KINDS)
+        if bad:
+            raise ValueError(f"DeformConfig.kinds: unknown {sorted(bad)}; choose from {KINDS}")
+
+
+@dataclass(frozen=True)
+class DeformParams:
+    """One drawn deformation, in the source's canonical frame (metres, z up, resting on z = 0)."""
+
+    kind: str
+    # dent: one (cx, cy, cz, nx, ny, nz, radius_m, depth_m) per dent; (nx, ny, nz) points into the object
+    dents: tuple[tuple[float, ...], ...] = ()
+    # crush: fraction of the height the top comes down, mid-height bulge, lean of the top (x, y) per metre of height
+    crush_amount: float = 0.0
+    crush_bulge: float = 0.0
+    lean: tuple[float, float] = (0.0, 0.0)
+    # bend: horizontal direction of the bend (radians from +x) and total angle over the height (radians)
+    bend_azimuth: float = 0.0
+    bend_angle: float = 0.0
+    # knocked_over: the rotation (row-major 3x3) applied before settling on z = 0
+    rotation: tuple[float, ...] = ()
+    source_height_m: float = 0.0  # the undeformed height: what the category's size range refers to
+    meta: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"DeformParams.kind {self.kind!r} not in {KINDS}")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("meta")
+        return {
+            k: (list(map(list, v)) if k == "dents" else list(v) if isinstance(v, tuple) else v) for k, v in d.items()
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> DeformParams:
+        return cls(
+            kind=str(d["kind"]),
+            dents=tuple(tuple(float(x) for x in dent) for dent in d.get("dents", ())),
+            crush_amount=float(d.get("crush_amount", 0.0)),
+            crush_bulge=float(d.get("crush_bulge", 0.0)),
+            lean=tuple(float(x) for x in d.get("lean", (0.0, 0.0))),
+            bend_azimuth=float(d.get("bend_azimuth", 0.0)),
+            bend_angle=float(d.get("bend_angle", 0.0)),
+            rotation=tuple(float(x) for x in d.get("rotation", ())),
+            source_height_m=float(d.get("source_height_m", 0.0)),
+        )
+
+
+def _merged_geometry(asset: Asset):
+    """All parts' triangles as one mesh with coincident vertices merged (texture seams closed)."""
+    import trimesh
+
+    verts = np.concatenate([np.asarray(m.vertices, np.float64) for m in asset.meshes])
+    offs = np.cumsum([0] + [len(m.vertices) for m in asset.meshes[:-1]])
+    faces = np.concatenate([np.asarray(m.faces) + o for m, o in zip(asset.meshes, offs)])
+    g = trimesh.Trimesh(verts, faces, process=False)
+    g.merge_vertices(digits_vertex=6)
+    return g
+
+
+def geometry_is_watertight(asset: Asset) -> bool:
+    """Whether the asset's surface is closed once texture seams (duplicated vertices) are merged."""
+    return bool(_merged_geometry(asset).is_watertight)
+
+
+def sample_deformation(
+    asset: Asset, rng: np.random.Generator, cfg: DeformConfig = DeformConfig(), kind: str | None = None
+) -> DeformParams:
+    """Draw one deformation of ``asset`` (``kind``, else one of ``cfg.kinds`` / the category's kinds)."""
+    kinds = cfg.kinds or CATEGORY_KINDS.get(asset.category, KINDS)
+    if kind is None:
+        kind = kinds[int(rng.integers(len(kinds)))]
+    elif kind not in KINDS:
+        raise ValueError(f"unknown deformation kind {kind!r}; choose from {KINDS}")
+    size = float(asset.extents_m.max())
+    h = asset.height_m
+    if kind == "dent":
+        g = _merged_geometry(asset)
+        n = int(rng.integers(cfg.dent_count[0], cfg.dent_count[1] + 1))
+        # surface points drawn by area, so a dent lands anywhere on the surface, not where vertices are dense
+        # faces that look down (the underside, a base plate) are not where a car or a kick hits
+        area = np.asarray(g.area_faces, float) * (np.asarray(g.face_normals)[:, 2] > -0.3)
+        fidx = rng.choice(len(area), size=n, p=area / area.sum())
+        ab = rng.uniform(size=(n, 2))
+        ab = np.where(ab.sum(axis=1, keepdims=True) > 1, 1 - ab, ab)  # uniform on the triangle
+        tri = np.asarray(g.triangles)[fidx]
+        pts = tri[:, 0] + ab[:, :1] * (tri[:, 1] - tri[:, 0]) + ab[:, 1:] * (tri[:, 2] - tri[:, 0])
+        dents = []
+        for p, fi in zip(pts, fidx):
+            normal = -np.asarray(g.face_normals[fi], float)  # inward
+            r = size * float(rng.uniform(*cfg.dent_radius_frac))
+            d = r * float(rng.uniform(*cfg.dent_depth_frac))
+            dents.append((*map(float, p), *map(float, normal), r, d))
+        return DeformParams("dent", dents=tuple(dents), source_height_m=h)
+    if kind == "crush":
+        phi = float(rng.uniform(-math.pi, math.pi))
+        lean = float(rng.uniform(0.0, cfg.crush_max_lean))
+        return DeformParams(
+            "crush",
+            crush_amount=float(rng.uniform(*cfg.crush_amount)),
+            crush_bulge=float(rng.uniform(*cfg.crush_bulge)),
+            lean=(lean * math.cos(phi), lean * math.sin(phi)),
+            source_height_m=h,
+        )
+    if kind == "bend":
+        return DeformParams(
+            "bend",
+            bend_azimuth=float(rng.uniform(-math.pi, math.pi)),
+            bend_angle=math.radians(float(rng.uniform(*cfg.bend_angle_deg))),
+            source_height_m=h,
+        )
+    phi = float(rng.uniform(-math.pi, math.pi))  # knocked over: fall towards a random horizontal direction
+    axis = np.array([-math.sin(phi), math.cos(phi), 0.0])
+    return DeformParams(
+        "knocked_over", rotation=tuple(_settle(asset, _axis_angle(axis, math.pi / 2)).ravel()), source_height_m=h
+    )
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+
+
+def _settle(asset: Asset, R: np.ndarray) -> np.ndarray:
+    """``R`` followed by the smallest turn that lays the convex-hull face nearest to facing down flat on the ground
+    (a rigid object at rest touches the ground with a face of its hull)."""
+    g = _merged_geometry(asset)
+    hull = g.convex_hull
+    normals = hull.face_normals @ R.T
+    down = np.array([0.0, 0.0, -1.0])
+    n = normals[int(np.argmax(normals @ down))]
+    axis = np.cross(n, down)
+    s = float(np.linalg.norm(axis))
+    if s < 1e-12:
+        return R
+    return _axis_angle(axis, math.atan2(s, float(n @ down))) @ R
+
+
+def _wendland(t: np.ndarray) -> np.ndarray:
+    t = np.clip(t, 0.0, 1.0)
+    return (1.0 - t) ** 4 * (4.0 * t + 1.0)
+
+
+def _displace(v: np.ndarray, p: DeformParams) -> np.ndarray:
+    """The deformation as a function of position: (N, 3) -> (N, 3)."""
+    v = np.asarray(v, np.float64)
+    if p.kind == "dent":
+        out = v.copy()
+        for cx, cy, cz, nx, ny, nz, r, d in p.dents:
+            dist = np.linalg.norm(v - np.array([cx, cy, cz]), axis=1)
+            out += _wendland(dist / r)[:, None] * (d * np.array([nx, ny, nz]))[None, :]
+        out[:, 2] = np.maximum(out[:, 2], np.minimum(v[:, 2], 0.0))  # nothing is pushed into the ground
+        return out
+    if p.kind == "crush":
+        H = max(p.source_height_m, 1e-9)
+        t = np.clip(v[:, 2] / H, 0.0, 1.0)
+        z = v[:, 2] * (1.0 - p.crush_amount * t)
+        grow = 1.0 + p.crush_bulge * p.crush_amount * np.sin(np.pi * t)
+        x = v[:, 0] * grow + p.lean[0] * z
+        y = v[:, 1] * grow + p.lean[1] * z
+        return np.c_[x, y, z]
+    if p.kind == "bend":
+        if abs(p.bend_angle) < 1e-9:
+            return v.copy()
+        H = max(p.source_height_m, 1e-9)
+        d = np.array([math.cos(p.bend_azimuth), math.sin(p.bend_azimuth), 0.0])
+        side = np.array([-d[1], d[0], 0.0])
+        u = v @ d  # offset along the bend direction
+        w = v @ side
+        R = H / p.bend_angle  # radius of the arc the axis follows
+        theta = p.bend_angle * v[:, 2] / H
+        u2 = R - (R - u) * np.cos(theta)
+        z2 = (R - u) * np.sin(theta)
+        return u2[:, None] * d[None, :] + w[:, None] * side[None, :] + z2[:, None] * np.array([0.0, 0.0, 1.0])
+    R = np.asarray(p.rotation, float).reshape(3, 3)
+    return v @ R.T
+
+
+def apply_deformation(asset: Asset, p: DeformParams) -> Asset:
+    """A new asset: ``asset`` deformed by ``p`` (pure; UVs, faces and materials kept), re-centred in x/y on its
+    bounding box and resting on z = 0. ``meta["deformation"]`` records ``p``; ``meta["reference_height_m"]`` is the
+    source's height, which the placement's size range refers to (a cone on its side is still a cone of that
+    height)."""
+    meshes = []
+    for m in asset.meshes:
+        c = m.copy()
+        c.vertices = _displace(np.asarray(m.vertices), p)
+        meshes.append(c)
+    ref = float(asset.meta.get("reference_height_m", asset.height_m))
+    return Asset(
+        f"{asset.name}_{p.kind}",
+        asset.category,
+        normalise_meshes(meshes),
+        asset.source,
+        asset.licence,
+        asset.procedural,
+        {**asset.meta, "deformation": p.to_dict(), "reference_height_m": ref},
+    )
+
+
+def write_variants(asset: Asset, params: list[DeformParams], out: str | Path) -> list[dict]:
+    """Write each variant of ``asset`` as ``NNNN.glb`` into the bank folder ``out`` and list it in its
+    ``bank.json`` (created, or appended to: the same folder :func:`aias_augment.assets.bank.lift.bank_paths`,
+    ``aias-augment --assets-bank`` and ``LiftedAssets.from_dir`` read). Returns the new entries."""
+    import trimesh
+
+    from aias_augment.assets.asset import axis_rotation_to_z_up
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    index = out / "bank.json"
+    bank = json.loads(index.read_text()) if index.is_file() else {"report": {"assets": [], "rejected": {}}}
+    taken = {e["file"] for e in bank["report"]["assets"]}
+    y_up = np.linalg.inv(axis_rotation_to_z_up("Y"))  # glTF is y-up
+    new = []
+    for p in params:
+        variant = apply_deformation(asset, p)
+        k = len(taken)
+        while f"{k:04d}.glb" in taken:
+            k += 1
+        name = f"{k:04d}.glb"
+        taken.add(name)
+        scene = trimesh.Scene()
+        for i, m in enumerate(variant.meshes):
+            c = m.copy()
+            c.apply_transform(y_up)
+            scene.add_geometry(c, geom_name=f"part{i}")
+        scene.export(out / name)
+        entry = {
+            "file": name,
+            "category": asset.category,
+            "height_m": round(variant.height_m, 4),
+            "reference_height_m": round(variant.reference_height_m, 4),
+            "source": asset.source,
+            "deformation": p.to_dict(),
+        }
+        bank["report"]["assets"].append(entry)
+        new.append(entry)
+    bank.setdefault("category", asset.category)
+    tmp = index.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(bank, indent=1))
+    tmp.replace(index)  # a reader never sees half a bank
+    return new

@@ -1,0 +1,172 @@
+"""Deformed variants: closed where the source was, UVs and faces kept, sizes as the physics says, replay exact."""
+
+import json
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+from aias_augment.assets.asset import Asset, PathAssets, normalise_meshes
+from aias_augment.assets.bank.lift import bank_paths
+from aias_augment.assets.deform import (
+    KINDS,
+    DeformConfig,
+    DeformParams,
+    apply_deformation,
+    geometry_is_watertight,
+    sample_deformation,
+    write_variants,
+)
+
+DATA = Path(os.environ.get("AIAS_DATA", "../shared/data"))
+
+
+def textured_cylinder(radius=0.2, height=0.8, sections=24) -> Asset:
+    """A closed cylinder with a cylindrical UV map; its texture seam splits vertices, so its raw mesh is open
+    (vertex-wise) while its geometry is closed."""
+    base = trimesh.creation.cylinder(radius=radius, height=height, sections=sections)
+    base.apply_translation([0, 0, height / 2])
+    tri = base.vertices[base.faces]  # unshared corners: every face keeps its own UVs (seams everywhere)
+    v = tri.reshape(-1, 3)
+    f = np.arange(len(v)).reshape(-1, 3)
+    uv = np.c_[(np.arctan2(v[:, 1], v[:, 0]) + np.pi) / (2 * np.pi), v[:, 2] / height]
+    tex = Image.fromarray(np.random.default_rng(0).integers(0, 255, (16, 16, 3), dtype=np.uint8))
+    m = trimesh.Trimesh(v, f, visual=trimesh.visual.TextureVisuals(uv=uv, image=tex), process=False)
+    return Asset("cylinder", "barrel", normalise_meshes([m]), "test")
+
+
+def corner_uvs(asset: Asset) -> list[np.ndarray]:
+    return [np.asarray(m.visual.uv)[np.asarray(m.faces)] for m in asset.meshes]
+
+
+@pytest.fixture(scope="module")
+def cylinder():
+    a = textured_cylinder()
+    assert not all(m.is_watertight for m in a.meshes)  # as loaded: the seams are open vertex-wise ...
+    assert geometry_is_watertight(a)  # ... the surface is closed
+    return a
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_variant_stays_closed_and_keeps_faces_and_uvs(cylinder, kind):
+    p = sample_deformation(cylinder, np.random.default_rng(3), kind=kind)
+    v = apply_deformation(cylinder, p)
+    assert geometry_is_watertight(v)
+    for a, b in zip(corner_uvs(cylinder), corner_uvs(v)):
+        assert np.array_equal(a, b)  # each face corner keeps its texture coordinate
+    assert sum(len(m.faces) for m in v.meshes) == sum(len(m.faces) for m in cylinder.meshes)
+    lo, hi = v.bounds_m
+    assert lo[2] == pytest.approx(0.0, abs=1e-9)  # rests on the ground
+    assert (lo[:2] + hi[:2]) == pytest.approx([0.0, 0.0], abs=1e-9)  # centred in x/y
+    assert v.reference_height_m == pytest.approx(cylinder.height_m)  # what the size range refers to
+
+
+def test_crush_lowers_the_top_by_its_amount(cylinder):
+    p = DeformParams("crush", crush_amount=0.3, crush_bulge=0.2, source_height_m=cylinder.height_m)
+    v = apply_deformation(cylinder, p)
+    assert v.height_m == pytest.approx(0.7 * cylinder.height_m, rel=1e-9)  # z' = z (1 - a z / H) at z = H
+    # the bulge: at mid-height the radius grows by 1 + bulge * amount * sin(pi / 2)
+    assert v.extents_m[0] <= cylinder.extents_m[0] * (1 + 0.2 * 0.3) + 1e-9
+
+
+def test_a_dent_moves_nothing_further_than_its_depth_nor_beyond_its_radius(cylinder):
+    c = np.array([0.2, 0.0, 0.4])  # on the side, mid-height
+    p = DeformParams("dent", dents=((*c, -1.0, 0.0, 0.0, 0.1, 0.03),), source_height_m=cylinder.height_m)
+    src = np.concatenate([m.vertices for m in cylinder.meshes])
+    out = np.concatenate([m.vertices for m in apply_deformation(cylinder, p).meshes])
+    # compare positions as sets (normals re-creased may reorder nothing, but vertices can be split): nearest match
+    from scipy.spatial import cKDTree
+
+    moved = cKDTree(src).query(out)[0]
+    assert moved.max() <= 0.03 + 1e-9
+    far = np.linalg.norm(out - c, axis=1) > 0.1 + 0.03
+    assert moved[far].max() < 1e-9
+
+
+def test_knocked_over_is_rigid_and_lies_on_a_face(cylinder):
+    p = sample_deformation(cylinder, np.random.default_rng(0), kind="knocked_over")
+    R = np.asarray(p.rotation).reshape(3, 3)
+    assert R @ R.T == pytest.approx(np.eye(3), abs=1e-9) and np.linalg.det(R) == pytest.approx(1.0)
+    v = apply_deformation(cylinder, p)
+    pts = np.concatenate([m.vertices for m in v.meshes])
+    # a 24-gon cylinder of radius 0.2 and height 0.8 on its flank: it lies on a side facet, so it stands
+    # 2 r cos(pi / 24) high, and its axis (R z) is horizontal and 0.8 long
+    axis = R[:, 2]
+    assert axis[2] == pytest.approx(0.0, abs=1e-9)
+    assert v.height_m == pytest.approx(0.4 * np.cos(np.pi / 24), abs=1e-6)
+    assert np.ptp(pts @ axis) == pytest.approx(0.8, abs=1e-6)
+    assert np.sum(np.abs(pts[:, 2]) < 1e-9) >= 3  # a face, not a point, on the ground
+
+
+def test_bend_keeps_the_axis_length(cylinder):
+    p = DeformParams("bend", bend_azimuth=0.3, bend_angle=np.radians(30), source_height_m=cylinder.height_m)
+    axis = np.c_[np.zeros(50), np.zeros(50), np.linspace(0, cylinder.height_m, 50)]
+    from aias_augment.assets.deform import _displace
+
+    bent = _displace(axis, p)
+    assert np.sum(np.linalg.norm(np.diff(bent, axis=0), axis=1)) == pytest.approx(cylinder.height_m, rel=1e-3)
+    tilt = np.degrees(np.arccos((bent[-1] - bent[-2])[2] / np.linalg.norm(bent[-1] - bent[-2])))
+    assert tilt == pytest.approx(30, abs=1.0)  # the top's tangent is turned by the bend angle
+
+
+def test_variant_replays_byte_for_byte_from_its_json_record(cylinder):
+    rng = np.random.default_rng(7)
+    for kind in KINDS:
+        p = sample_deformation(cylinder, rng, kind=kind)
+        again = DeformParams.from_dict(json.loads(json.dumps(p.to_dict())))
+        a, b = apply_deformation(cylinder, p), apply_deformation(cylinder, again)
+        for m, n in zip(a.meshes, b.meshes):
+            assert np.asarray(m.vertices).tobytes() == np.asarray(n.vertices).tobytes()
+
+
+def test_same_seed_same_draws_and_bad_config_refused(cylinder):
+    a = sample_deformation(cylinder, np.random.default_rng(5))
+    b = sample_deformation(cylinder, np.random.default_rng(5))
+    assert a.to_dict() == b.to_dict()
+    with pytest.raises(ValueError, match="unknown"):
+        DeformConfig(kinds=("melt",))
+    with pytest.raises(ValueError):
+        DeformConfig(crush_amount=(0.5, 0.2))
+    with pytest.raises(ValueError, match="kind"):
+        DeformParams("melt")
+
+
+def test_bank_round_trip_keeps_the_record_and_the_reference_height(cylinder, tmp_path):
+    rng = np.random.default_rng(1)
+    params = [sample_deformation(cylinder, rng, kind=k) for k in ("knocked_over", "crush")]
+    entries = write_variants(cylinder, params, tmp_path)
+    write_variants(cylinder, params[:1], tmp_path)  # appended, never overwritten
+    paths = bank_paths(tmp_path)["barrel"]
+    assert [Path(p).name for p in paths] == ["0000.glb", "0001.glb", "0002.glb"]
+    bank = PathAssets({"barrel": paths})
+    lying = bank._load("barrel", paths[0])
+    assert lying.meta["deformation"] == entries[0]["deformation"]
+    assert lying.reference_height_m == pytest.approx(cylinder.height_m, rel=1e-5)
+    assert lying.height_m == pytest.approx(apply_deformation(cylinder, params[0]).height_m, rel=1e-5)
+    # the placement's size range refers to the source's height: scaled to a 1 m barrel, the lying one is 1 m long
+    axis = np.asarray(params[0].rotation).reshape(3, 3)[:, 2]
+    pts = np.concatenate([m.vertices for m in lying.scaled(1.0 / lying.reference_height_m).meshes])
+    assert np.ptp(pts @ axis) == pytest.approx(1.0, rel=1e-4)
+
+
+@pytest.mark.skipif(not (DATA / "meshes").is_dir(), reason="AIAS_DATA missing")
+def test_deformed_insertion_replays_exactly():
+    from aias_augment import load_preset
+    from aias_augment.core.frame import Frame
+    from aias_augment.pipeline.bounded import insert_bounded
+    from aias_augment.pipeline.replay import replay
+
+    img = cv2.imread(str(DATA / "kitti06_color_snippet" / "kitti06-12-color.png"))
+    if img is None:
+        pytest.skip("KITTI frame missing")
+    img = np.ascontiguousarray(img[:, :, ::-1])
+    cfg = load_preset("fast", deform_probability=1.0, min_objects=2, max_objects=2)
+    res = insert_bounded(img, None, None, np.random.default_rng(2), cfg)
+    record = json.loads(json.dumps(res.record.to_dict()))
+    kinds = [p["asset_meta"]["deformation"]["kind"] for p in record["placements"]]
+    assert kinds and all(k in KINDS for k in kinds)
+    assert np.array_equal(replay(record, Frame(img, None), cfg).image, res.image)
