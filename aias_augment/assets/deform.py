@@ -22,7 +22,6 @@ point by more than its depth.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -274,45 +273,17 @@ def apply_deformation(asset: Asset, p: DeformParams) -> Asset:
 
 
 def write_variants(asset: Asset, params: list[DeformParams], out: str | Path) -> list[dict]:
-    """Write each variant of ``asset`` as ``NNNN.glb`` into the bank folder ``out`` and list it in its
-    ``bank.json`` (created, or appended to: the same folder :func:`aias_augment.assets.bank.lift.bank_paths`,
-    ``aias-augment --assets-bank`` and ``LiftedAssets.from_dir`` read). Returns the new entries."""
-    import trimesh
+    """Write each variant of ``asset`` into the bank folder ``out`` (:func:`aias_augment.assets.bank.folder.add_to_bank`:
+    ``NNNN.glb`` and its ``bank.json`` entry with the deformation record). Returns the new entries."""
+    from aias_augment.assets.bank.folder import add_to_bank
 
-    from aias_augment.assets.asset import axis_rotation_to_z_up
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    index = out / "bank.json"
-    bank = json.loads(index.read_text()) if index.is_file() else {"report": {"assets": [], "rejected": {}}}
-    taken = {e["file"] for e in bank["report"]["assets"]}
-    y_up = np.linalg.inv(axis_rotation_to_z_up("Y"))  # glTF is y-up
-    new = []
+    out_entries = []
     for p in params:
         variant = apply_deformation(asset, p)
-        k = len(taken)
-        while f"{k:04d}.glb" in taken:
-            k += 1
-        name = f"{k:04d}.glb"
-        taken.add(name)
-        scene = trimesh.Scene()
-        for i, m in enumerate(variant.meshes):
-            c = m.copy()
-            c.apply_transform(y_up)
-            scene.add_geometry(c, geom_name=f"part{i}")
-        scene.export(out / name)
         entry = {
-            "file": name,
-            "category": asset.category,
-            "height_m": round(variant.height_m, 4),
             "reference_height_m": round(variant.reference_height_m, 4),
             "source": asset.source,
             "deformation": p.to_dict(),
         }
-        bank["report"]["assets"].append(entry)
-        new.append(entry)
-    bank.setdefault("category", asset.category)
-    tmp = index.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(bank, indent=1))
-    tmp.replace(index)  # a reader never sees half a bank
-    return new
+        out_entries.append(add_to_bank(out, variant, entry))
+    return out_entries

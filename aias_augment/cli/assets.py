@@ -7,6 +7,7 @@ aias-assets thumbnails --out out/assets/contact_sheet.png [--category dog rock] 
 aias-assets from-labels --yolo DIR --class-names cone --category traffic_cone --out BANK   # your own instances
 aias-assets from-labels --input train.json --images DIR --label cone --category traffic_cone --out BANK
 aias-assets deform --category traffic_cone --count 8 --seed 0 --out BANK --sheet sheet.png   # dented, crushed...
+aias-assets reconstruct --views views.json --category traffic_cone --out BANK   # from posed photos (visual hull)
 """
 
 from __future__ import annotations
@@ -212,6 +213,40 @@ def _cmd_deform(a) -> int:
     return 0
 
 
+def _cmd_reconstruct(a) -> int:
+    from aias_augment.assets.bank.folder import add_to_bank
+    from aias_augment.assets.reconstruct import ReconstructConfig, load_views, reconstruct, search_box
+
+    t0 = time.perf_counter()
+    try:
+        views, ground_z = load_views(a.views)
+        lo, hi = search_box(views)
+        asset = reconstruct(
+            views,
+            lo,
+            hi,
+            category=a.category,
+            name=a.views.parent.name,
+            height_m=a.height_m,
+            ground_z=ground_z,
+            cfg=ReconstructConfig(resolution=a.resolution),
+        )
+    except (ValueError, OSError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    entry = add_to_bank(
+        a.out,
+        asset,
+        {
+            "source": f"reconstruction of {a.views}",
+            "views": len(views),
+            **{k: asset.meta[k] for k in ("resolution", "coloured_vertex_share")},
+        },
+    )
+    print(json.dumps({**entry, "bank": str(a.out), "seconds": round(time.perf_counter() - t0, 1)}, indent=1))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="aias-assets", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--cache-dir", type=Path, default=None, help=f"default $AIAS_CACHE or {default_cache_dir()}")
@@ -264,6 +299,12 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")
     s.add_argument("--sheet", type=Path, default=None, help="write a contact sheet (source + variants) here")
     s.add_argument("--size", type=int, default=160, help="contact sheet tile size (px)")
+    s = sub.add_parser("reconstruct", help="an asset from posed photos of an object (visual hull, textured)")
+    s.add_argument("--views", type=Path, required=True, help="views.json: images, masks or boxes, K, cam_from_object")
+    s.add_argument("--category", required=True)
+    s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")
+    s.add_argument("--height-m", type=float, default=None, help="scale to this height (default: the poses' metres)")
+    s.add_argument("--resolution", type=int, default=128, help="voxels along the longest side")
     a = p.parse_args(argv)
     if a.cmd == "deform" and a.count < 1:
         p.error("--count >= 1 please")
@@ -277,6 +318,7 @@ def main(argv: list[str] | None = None) -> int:
         "thumbnails": _cmd_thumbnails,
         "from-labels": _cmd_from_labels,
         "deform": _cmd_deform,
+        "reconstruct": _cmd_reconstruct,
     }[a.cmd](a)
 
 

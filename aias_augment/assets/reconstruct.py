@@ -1,0 +1,312 @@
+"""An asset from posed photos of an object: its visual hull, cleaned, textured from the views, in metres.
+
+1. :func:`visual_hull`: every view's silhouette becomes a signed distance (pixels to its boundary, positive
+   outside, by OpenCV's distance transform), turned into metres at each voxel's depth (``d_px * z / f``). A point
+   is inside the hull when it is inside every silhouette, so the field is the maximum over the views; its zero
+   level, found by marching cubes (scikit-image), is the hull's surface with sub-voxel accuracy. The grid is first
+   coarse over the box the caller gives, then fine over the occupied part.
+2. Cleaned: the largest connected component, holes filled, oriented outward, resting on z = 0.
+3. :func:`texture_from_views`: each vertex takes the colours of the views that see it (the hull's own depth,
+   rendered by :mod:`aias_augment.apply.render`, decides visibility), weighted by how squarely each view faces it.
+
+Poses in metres give a metric asset; otherwise ``height_m`` scales it. A visual hull cannot see concavities that
+no silhouette shows (the inside of a bowl, the hollow of a cone's base): convex-ish objects reconstruct well.
+Photo-consistency refinement is not done.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from aias_augment.assets.asset import Asset, normalise_meshes
+from aias_augment.core.config import checked_config
+from aias_augment.core.geometry import Intrinsics
+
+
+@dataclass(frozen=True)
+class View:
+    """One photo of the object: RGB uint8, its object mask, its camera (OpenCV ``cam_from_object``, metres)."""
+
+    image_rgb: np.ndarray
+    mask: np.ndarray
+    intrinsics: Intrinsics
+    cam_from_object: np.ndarray
+
+    def __post_init__(self):
+        h, w = self.mask.shape[:2]
+        if self.image_rgb.shape[:2] != (h, w) or self.image_rgb.dtype != np.uint8 or self.image_rgb.ndim != 3:
+            raise ValueError("View: image_rgb must be (H, W, 3) uint8 and the mask (H, W)")
+        if (self.intrinsics.width, self.intrinsics.height) != (w, h):
+            raise ValueError(f"View: intrinsics are {self.intrinsics.width}x{self.intrinsics.height}, image {w}x{h}")
+        if not np.asarray(self.mask, bool).any():
+            raise ValueError("View: empty mask (the object is not in this view)")
+
+
+@checked_config({"resolution": "[16, 512]", "coarse_resolution": "[8, 128]", "padding_voxels": "[1, 16]"})
+@dataclass(frozen=True)
+class ReconstructConfig:
+    resolution: int = 128  # voxels along the longest side of the occupied box
+    coarse_resolution: int = 32  # first pass over the search box
+    padding_voxels: int = 3
+
+
+def _signed_distance_px(mask: np.ndarray) -> np.ndarray:
+    """(H, W) float32: distance in pixels to the silhouette's boundary, negative inside, positive outside."""
+    m = np.asarray(mask, bool).astype(np.uint8)
+    inside = cv2.distanceTransform(m, cv2.DIST_L2, 5)
+    outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, 5)
+    # pixel centres: the boundary runs half a pixel from the outermost inside and innermost outside pixels
+    return (np.where(m > 0, 0.5 - inside, outside - 0.5)).astype(np.float32)
+
+
+def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``img`` (H, W[, C]) sampled at (u, v) (pixel centres at integers; clamped to the image), bilinearly."""
+    h, w = img.shape[:2]
+    u = np.clip(u, 0, w - 1)
+    v = np.clip(v, 0, h - 1)
+    u0 = np.minimum(np.floor(u).astype(int), w - 2)
+    v0 = np.minimum(np.floor(v).astype(int), h - 2)
+    fu, fv = u - u0, v - v0
+    if img.ndim == 3:
+        fu, fv = fu[:, None], fv[:, None]
+    top = img[v0, u0] * (1 - fu) + img[v0, u0 + 1] * fu
+    bot = img[v0 + 1, u0] * (1 - fu) + img[v0 + 1, u0 + 1] * fu
+    return top * (1 - fv) + bot * fv
+
+
+def _field(points: np.ndarray, views: list[View], sdfs: list[np.ndarray]) -> np.ndarray:
+    """(N,) max over views of the signed distance in metres of ``points`` (object frame) to each silhouette."""
+    out = np.full(len(points), -np.inf, np.float32)
+    for v, sd in zip(views, sdfs):
+        T = np.asarray(v.cam_from_object, float)
+        pc = points @ T[:3, :3].T + T[:3, 3]
+        z = np.maximum(pc[:, 2], 1e-6)
+        K = v.intrinsics
+        u = K.fx * pc[:, 0] / z + K.cx
+        w = K.fy * pc[:, 1] / z + K.cy
+        h, wd = sd.shape
+        uc, wc = np.clip(u, 0, wd - 1), np.clip(w, 0, h - 1)
+        # bilinear sample, plus how far the point projects beyond the image (outside the silhouette there)
+        val = _bilinear(sd, uc, wc) + np.hypot(u - uc, w - wc)
+        d_m = val * z / K.fx
+        d_m[pc[:, 2] <= 1e-6] = np.inf  # behind the camera: not seen, cannot be inside
+        out = np.maximum(out, d_m.astype(np.float32))
+    return out
+
+
+def _support(field: np.ndarray, points: np.ndarray, ground_z: float | None) -> np.ndarray:
+    """The hull cut by the support plane: nothing below z = ground_z (signed distance max(field, ground_z - z))."""
+    return field if ground_z is None else np.maximum(field, (ground_z - points[:, 2]).astype(np.float32))
+
+
+def _grid(lo: np.ndarray, hi: np.ndarray, n_long: int) -> tuple[np.ndarray, float, tuple[int, int, int]]:
+    step = float(np.max(hi - lo)) / n_long
+    shape = tuple(int(np.ceil((hi[i] - lo[i]) / step)) + 1 for i in range(3))
+    axes = [lo[i] + step * np.arange(shape[i]) for i in range(3)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return pts, step, shape
+
+
+def visual_hull(
+    views: list[View],
+    search_lo,
+    search_hi,
+    cfg: ReconstructConfig = ReconstructConfig(),
+    ground_z: float | None = 0.0,
+):
+    """The visual hull of ``views`` inside the box [search_lo, search_hi] (object frame, metres) as a trimesh:
+    largest component, holes filled, outward normals. ``ground_z``: the object stands on the plane z = ground_z of
+    the poses' frame (a ground or turntable); no view from above can carve what lies under the object, the support
+    plane does. None: no support plane."""
+    import trimesh
+    from skimage.measure import marching_cubes
+
+    if len(views) < 2:
+        raise ValueError("visual_hull needs at least two views")
+    sdfs = [_signed_distance_px(v.mask) for v in views]
+    lo, hi = np.asarray(search_lo, float), np.asarray(search_hi, float)
+    pts, step, shape = _grid(lo, hi, cfg.coarse_resolution)
+    inside = _support(_field(pts, views, sdfs), pts, ground_z) <= step  # generous: the fine grid loses nothing
+    if not inside.any():
+        raise ValueError("visual_hull: the silhouettes share no point inside the search box")
+    occ = pts[inside]
+    lo = np.maximum(occ.min(axis=0) - 2 * step, lo)
+    hi = np.minimum(occ.max(axis=0) + 2 * step, hi)
+    pts, step, shape = _grid(lo, hi, cfg.resolution)
+    field = _support(_field(pts, views, sdfs), pts, ground_z).reshape(shape)
+    pad = cfg.padding_voxels
+    field = np.pad(field, pad, constant_values=np.float32(step * pad))  # closes the surface at the box's faces
+    if not (field.min() < 0 < field.max()):
+        raise ValueError("visual_hull: no surface in the fine grid")
+    verts, faces, _, _ = marching_cubes(field, level=0.0, spacing=(step, step, step))
+    verts = verts + lo - pad * step
+    mesh = trimesh.Trimesh(verts, faces, process=True)
+    parts = mesh.split(only_watertight=False)
+    if len(parts) > 1:
+        mesh = max(parts, key=lambda p: p.area)
+    trimesh.repair.fill_holes(mesh)
+    trimesh.repair.fix_normals(mesh)
+    if mesh.is_watertight and mesh.volume < 0:  # outward: a closed surface encloses a positive volume
+        mesh.invert()
+    return mesh
+
+
+def texture_from_views(mesh, views: list[View], ssaa: int = 1):
+    """``mesh`` with vertex colours from the views that see each vertex (visibility by the mesh's own rendered
+    depth; weight cos^2 of the angle between the normal and the direction to the camera)."""
+    import trimesh
+
+    from aias_augment.apply.render import render_object
+
+    plain = Asset("hull", "object", (trimesh.Trimesh(mesh.vertices, mesh.faces, process=False),), "reconstruction")
+    V = np.asarray(mesh.vertices, float)
+    N = np.asarray(mesh.vertex_normals, float)
+    acc = np.zeros((len(V), 3))
+    wsum = np.zeros(len(V))
+    for v in views:
+        T = np.asarray(v.cam_from_object, float)
+        pc = V @ T[:3, :3].T + T[:3, 3]
+        K = v.intrinsics
+        u = K.fx * pc[:, 0] / pc[:, 2] + K.cx
+        w = K.fy * pc[:, 1] / pc[:, 2] + K.cy
+        cam = -T[:3, :3].T @ T[:3, 3]
+        to_cam = cam[None, :] - V
+        to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
+        cosang = np.einsum("ij,ij->i", N, to_cam)
+        depth = render_object(plain, T, K, ssaa=ssaa, znear=0.01, zfar=1000.0, with_normals=False).depth
+        h, wd = depth.shape
+        ui, wi = np.round(u).astype(int), np.round(w).astype(int)
+        ok = (cosang > 0.1) & (ui >= 0) & (ui < wd) & (wi >= 0) & (wi < h) & (pc[:, 2] > 0)
+        d = np.zeros(len(V))
+        d[ok] = depth[wi[ok], ui[ok]]
+        ok &= (d > 0) & (np.abs(d - pc[:, 2]) < 0.01 * pc[:, 2] + 0.005)
+        ok &= np.asarray(v.mask, bool)[np.clip(wi, 0, h - 1), np.clip(ui, 0, wd - 1)]
+        if not ok.any():
+            continue
+        col = _bilinear(v.image_rgb.astype(np.float32), u[ok], w[ok])
+        wgt = cosang[ok] ** 2
+        acc[ok] += wgt[:, None] * col
+        wsum[ok] += wgt
+    seen = wsum > 0
+    colours = np.full((len(V), 3), 128.0)
+    colours[seen] = acc[seen] / wsum[seen, None]
+    out = mesh.copy()
+    out.visual = trimesh.visual.ColorVisuals(
+        out, vertex_colors=np.c_[np.clip(colours + 0.5, 0, 255).astype(np.uint8), np.full(len(V), 255, np.uint8)]
+    )
+    return out, float(seen.mean())
+
+
+def reconstruct(
+    views: list[View],
+    search_lo,
+    search_hi,
+    *,
+    category: str,
+    name: str = "reconstructed",
+    height_m: float | None = None,
+    ground_z: float | None = 0.0,
+    cfg: ReconstructConfig = ReconstructConfig(),
+) -> Asset:
+    """A textured :class:`Asset` (canonical frame: metres, z up, on z = 0) from posed views of an object. The poses'
+    units are kept unless ``height_m`` is given (then the asset is scaled to it). ``meta`` records the number of
+    views, the grid and the share of vertices some view coloured."""
+    hull = visual_hull(views, search_lo, search_hi, cfg, ground_z)
+    textured, seen = texture_from_views(hull, views)
+    asset = Asset(
+        name,
+        category,
+        normalise_meshes([textured], crease_deg=None),
+        f"reconstruction from {len(views)} posed views",
+        "",
+        False,
+        {"views": len(views), "resolution": cfg.resolution, "coloured_vertex_share": round(seen, 4)},
+    )
+    if height_m is not None:
+        asset = asset.scaled(float(height_m) / asset.height_m)
+    return asset
+
+
+def search_box(views: list[View]) -> tuple[np.ndarray, np.ndarray]:
+    """A box that holds the object: centred where the views' optical axes pass closest (least squares), with a
+    half-size of the largest silhouette's reach (its half-diagonal in pixels times depth over focal), doubled."""
+    A = np.zeros((3, 3))
+    b = np.zeros(3)
+    reach = 0.0
+    for v in views:
+        T = np.asarray(v.cam_from_object, float)
+        R, t = T[:3, :3], T[:3, 3]
+        c = -R.T @ t
+        d = R.T @ np.array([0.0, 0.0, 1.0])
+        P = np.eye(3) - np.outer(d, d)
+        A += P
+        b += P @ c
+    centre = np.linalg.lstsq(A, b, rcond=None)[0]
+    for v in views:
+        T = np.asarray(v.cam_from_object, float)
+        z = float((T[:3, :3] @ centre + T[:3, 3])[2])
+        ys, xs = np.nonzero(np.asarray(v.mask, bool))
+        half_diag = 0.5 * float(np.hypot(xs.max() - xs.min() + 1, ys.max() - ys.min() + 1))
+        reach = max(reach, half_diag * abs(z) / v.intrinsics.fx)
+    return centre - 2 * reach, centre + 2 * reach
+
+
+def grabcut_mask(image_rgb: np.ndarray, box_xyxy, iterations: int = 5) -> np.ndarray:
+    """The object's mask inside ``box_xyxy`` by GrabCut initialised from the box (OpenCV; no learnt weights)."""
+    x0, y0, x1, y1 = (int(round(float(c))) for c in box_xyxy)
+    h, w = image_rgb.shape[:2]
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w - 1), min(y1, h - 1)
+    if x1 - x0 < 4 or y1 - y0 < 4:
+        raise ValueError(f"grabcut_mask: box {box_xyxy} is too small or outside the {w}x{h} image")
+    mask = np.zeros((h, w), np.uint8)
+    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    cv2.setRNGSeed(0)  # GrabCut's GMM initialisation draws from OpenCV's generator: fixed, so masks repeat
+    cv2.grabCut(
+        cv2.cvtColor(image_rgb, cv2.COLOR_RGB2BGR),
+        mask,
+        (x0, y0, x1 - x0, y1 - y0),
+        bgd,
+        fgd,
+        iterations,
+        cv2.GC_INIT_WITH_RECT,
+    )
+    return (mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)
+
+
+def load_views(path) -> tuple[list[View], float | None]:
+    """Views from a JSON file: ``{"ground_z": 0.0 | null, "views": [{"image": PATH, "mask": PATH | null, "box":
+    [x0, y0, x1, y1] | null, "K": 3x3, "cam_from_object": 4x4}, ...]}`` (paths relative to the file; a view
+    without a mask is segmented by GrabCut from its box). Bad entries: ValueError naming the view."""
+    import json
+    from pathlib import Path
+
+    path = Path(path)
+    spec = json.loads(path.read_text())
+    views = []
+    for i, e in enumerate(spec.get("views", [])):
+        try:
+            bgr = cv2.imread(str(path.parent / e["image"]), cv2.IMREAD_COLOR)
+            if bgr is None:
+                raise ValueError(f"cannot read {e['image']}")
+            rgb = np.ascontiguousarray(bgr[:, :, ::-1])
+            if e.get("mask"):
+                m = cv2.imread(str(path.parent / e["mask"]), cv2.IMREAD_GRAYSCALE)
+                if m is None:
+                    raise ValueError(f"cannot read {e['mask']}")
+                mask = m > 127
+            elif e.get("box"):
+                mask = grabcut_mask(rgb, e["box"])
+            else:
+                raise ValueError("needs a mask or a box")
+            K = np.asarray(e["K"], float)
+            h, w = mask.shape
+            intr = Intrinsics(K[0, 0], K[1, 1], K[0, 2], K[1, 2], w, h)
+            views.append(View(rgb, mask, intr, np.asarray(e["cam_from_object"], float)))
+        except (KeyError, ValueError, TypeError) as err:
+            raise ValueError(f"{path}: view {i}: {err}") from None
+    if len(views) < 2:
+        raise ValueError(f"{path}: needs at least two views, got {len(views)}")
+    return views, spec.get("ground_z", 0.0)
