@@ -36,6 +36,8 @@ PAIRS = [
     ("no_placement", "naive_paste"),
     ("inserted_fixed_scale", "naive_paste"),
     ("naive_paste", "original"),
+    ("inserted_closeup_sizes", "inserted_scene_scale"),
+    ("inserted_closeup_sizes", "naive_paste"),
 ]
 
 
