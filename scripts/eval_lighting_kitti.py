@@ -211,6 +211,7 @@ def main(argv=None) -> int:
         from aias_augment.apply import composite as comp
         from aias_augment.apply.render import render_object
         from aias_augment.apply.shading import shade_object
+        from aias_augment.apply.stages import object_shadow_ratio
         from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, default_asset
         from aias_augment.pipeline import image as pipeline
 
@@ -238,7 +239,7 @@ def main(argv=None) -> int:
                 cam_from_object[:3, 3] = [lateral, KITTI_CAMERA_HEIGHT_M, forward]
                 t = time.perf_counter()
                 rl = render_object(asset, cam_from_object, K, ssaa=2)
-                shadow_ratio = pipeline._object_shadow(asset, cam_from_object, K, lighting_road, None)
+                shadow_ratio = object_shadow_ratio(asset, cam_from_object, K, lighting_road, None)
                 bg = comp.apply_shadow(comp.to_linear(img), shadow_ratio)
                 shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lighting_road)
                 out_a = comp.to_uint8(comp.alpha_over(bg, shaded, rl.alpha))

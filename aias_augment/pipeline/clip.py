@@ -9,7 +9,7 @@ refit_local_ground`); the median of those per-frame height offsets corrects the 
 would jitter). Each frame is rendered with that world pose, shaded with the frame's estimate of ONE clip
 lighting (same sun in the world, e.g. ``estimate_lighting_clip``; default a uniform ambient), composited against
 the frame's depth, and annotated (COCO xywh of the visible part). The object casts its shadow in every frame with the image pipeline's
-shadow catcher (:func:`aias_augment.pipeline.image.object_shadow_ratio`): the ONE world pose and the ONE clip sun make it
+shadow catcher (:func:`aias_augment.apply.stages.object_shadow_ratio`): the ONE world pose and the ONE clip sun make it
 a fixed patch of the world ground. With ``flow_refine`` the ground patch under the contact is tracked with KLT
 (:mod:`aias_augment.plan.stabilize`) and each frame's object pose slides on its ground so the contact stays on the
 tracked pixel: drifting poses (visual odometry) no longer make the object skate.
@@ -251,9 +251,7 @@ def insert_into_clip(
         mods["lighting"] = f"given per frame ({lights[start].source})"
 
     if cfg.shadow:
-        from aias_augment.pipeline.image import (
-            object_shadow_ratio,  # lazy: the pipeline module imports the whole image path
-        )
+        from aias_augment.apply.stages import object_shadow_ratio  # lazy: the apply step imports the renderer
 
         mods["shadow"] = (
             "shadow catcher per frame (one world pose, one sun)"

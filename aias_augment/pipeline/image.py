@@ -17,7 +17,7 @@ from aias_augment.analyse.analysis import scene_geometry, scene_lighting  # noqa
 from aias_augment.analyse.cache import SceneCache
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply.annotate import ObjectAnnotation, box_visibility_under_cover
-from aias_augment.apply.stages import apply_plan, object_shadow_ratio  # noqa: F401
+from aias_augment.apply.stages import apply_plan
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.scene_inputs import SceneInputs, scene_meta
@@ -28,8 +28,6 @@ from aias_augment.plan.insertion import plan_insertion
 from aias_augment.plan.placement import Placement
 
 log = logging.getLogger(__name__)
-
-_object_shadow = object_shadow_ratio  # the name scripts/eval_lighting_kitti.py uses
 
 
 @dataclass
