@@ -220,7 +220,7 @@ def test_implausible_vanishing_line_camera_falls_back_to_level_prior():
         assert abs(np.degrees(np.arcsin(-n[2]))) <= 25.0 + 1e-6
 
 
-SUNNY_ROAD = Path(data_root()) / "tracon" / "images" / "train" / "cone (102).jpg"
+SUNNY_ROAD = Path(data_root()) / "tracon" / "images" / "train" / "imh_120_00000000.jpg"  # labelled direct sun
 _HISTORY_SCRIPT = r"""
 import hashlib, sys
 import albumentations as A
