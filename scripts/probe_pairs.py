@@ -21,6 +21,9 @@ ARMS = [
     "no_placement",
     "inserted_fixed_scale",
     "inserted_scene_scale",
+    "inserted_neutral_ambient",
+    "inserted_closeup_sizes",
+    "inserted_closeup",
     "inserted",
 ]
 PAIRS = [
@@ -36,8 +39,12 @@ PAIRS = [
     ("no_placement", "naive_paste"),
     ("inserted_fixed_scale", "naive_paste"),
     ("naive_paste", "original"),
-    ("inserted_closeup_sizes", "inserted_scene_scale"),
+    ("inserted", "inserted_neutral_ambient"),
+    ("inserted_neutral_ambient", "naive_paste"),
+    ("inserted_closeup_sizes", "inserted_neutral_ambient"),
     ("inserted_closeup_sizes", "naive_paste"),
+    ("inserted_closeup", "inserted"),
+    ("inserted_closeup", "naive_paste"),
 ]
 
 
