@@ -47,14 +47,6 @@ def _lum(rgb: np.ndarray) -> np.ndarray:
     return lin
 
 
-def _iou(a, b) -> float:
-    ix = max(0.0, min(a[2], b[2]) - max(a[0], b[0]))
-    iy = max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
-    inter = ix * iy
-    union = (a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter
-    return inter / union if union > 0 else 0.0
-
-
 def clip_metrics(out: Path, inputs: list[np.ndarray], poses: np.ndarray | None, model=None) -> dict:
     from pycocotools import mask as mask_utils
 
@@ -92,11 +84,21 @@ def clip_metrics(out: Path, inputs: list[np.ndarray], poses: np.ndarray | None, 
             residual = np.array([x + bw / 2 - uv[0], y + bh - uv[1]])
         found = None
         if model is not None:
+            import torch
+
+            from detection_eval.boxes import box_iou
             from detection_eval.inference import predict_images
 
             net, cfg = model
             det = predict_images(net, [outf], net.cfg.train.img_size, cfg)[0]
-            found = any(_iou(b, box) >= 0.5 for b in det["boxes"])
+            found = len(det["boxes"]) > 0 and bool(
+                (
+                    box_iou(
+                        torch.as_tensor(det["boxes"], dtype=torch.float64), torch.tensor([box], dtype=torch.float64)
+                    )
+                    >= 0.5
+                ).any()
+            )
         stats.append(
             {
                 "lum": np.log(lum(o) + 1e-6),
@@ -145,6 +147,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     root = data_root()
     seq, tripod = root / "kitti06_seq", root / "video" / "vtest.avi"
+    vtest = dict(max_frames=40, stride=3, camera_height_m=8.0, fps=8.0)  # a first-floor camera, 8 frames/s as read
     jobs = {
         "posed": ClipJob(
             str(seq / "image_l"),
@@ -155,30 +158,9 @@ def main(argv=None) -> int:
             a.seed,
             max_frames=20,
         ),
-        "static": ClipJob(
-            str(tripod),
-            None,
-            None,
-            str(a.work / "static"),
-            ("traffic_cone",),
-            a.seed,
-            max_frames=40,
-            stride=3,
-            camera_height_m=8.0,
-            fps=8.0,
-        ),
+        "static": ClipJob(str(tripod), None, None, str(a.work / "static"), ("traffic_cone",), a.seed, **vtest),
         "static, moving": ClipJob(
-            str(tripod),
-            None,
-            None,
-            str(a.work / "static_moving"),
-            ("car",),
-            a.seed,
-            max_frames=40,
-            stride=3,
-            camera_height_m=8.0,
-            fps=8.0,
-            object_speed_mps=2.0,
+            str(tripod), None, None, str(a.work / "static_moving"), ("car",), a.seed, object_speed_mps=2.0, **vtest
         ),
     }
     model = None

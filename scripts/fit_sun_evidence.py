@@ -23,13 +23,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from lighting_benchmark import precision_recall, split_halves  # noqa: E402  (this folder: the benchmark's split)
+
 from aias_augment.analyse.lighting.sun_evidence import FEATURES, SunEvidenceModel, sun_evidence_features  # noqa: E402
 from aias_augment.core.config import data_root  # noqa: E402
-
-
-def precision_recall(pred: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
-    tp = float(np.sum(pred & truth))
-    return tp / max(float(pred.sum()), 1.0), tp / max(float(truth.sum()), 1.0)
 
 
 def f_beta(p: float, r: float, beta: float) -> float:
@@ -74,8 +71,7 @@ def main(argv=None) -> int:
     seconds_per_photo = (time.perf_counter() - t0) / len(rows)
     X = np.array([[float(r[k]) for k in FEATURES] for r in rows])
     y = np.array([int(r["direct_sun"]) for r in rows])
-    perm = np.random.default_rng(a.seed).permutation(len(rows))
-    train, test = np.sort(perm[: len(rows) // 2]), np.sort(perm[len(rows) // 2 :])
+    train, test = split_halves(len(rows), a.seed)
 
     mean, scale = X[train].mean(axis=0), X[train].std(axis=0)
     Z = (X - mean) / scale

