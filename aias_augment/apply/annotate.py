@@ -19,9 +19,10 @@ class ObjectAnnotation:
     visibility: float  # visible pixels / amodal pixels
     area: float  # visible pixels
     rle: dict  # COCO RLE of the visible mask (counts as str)
+    decoy: bool = False  # inserted but not a label (the placement's decoy): left out of every box output
 
     def to_dict(self) -> dict:
-        return {
+        d = {
             "category": self.category,
             "visible_box_xywh": self.visible_box_xywh,
             "amodal_box_xywh": self.amodal_box_xywh,
@@ -29,6 +30,9 @@ class ObjectAnnotation:
             "area": self.area,
             "rle": self.rle,
         }
+        if self.decoy:
+            d["decoy"] = True
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "ObjectAnnotation":
@@ -41,6 +45,7 @@ class ObjectAnnotation:
             d["visibility"],
             d["area"],
             d["rle"],
+            bool(d.get("decoy", False)),
         )
 
 
@@ -110,6 +115,7 @@ def annotate_in_window(
     visible_w: np.ndarray,
     full_hw: tuple[int, int],
     threshold: float = 0.5,
+    decoy: bool = False,
 ) -> ObjectAnnotation:
     """:func:`annotate_object` of the full frame whose layers are 0 outside the window ``win`` (x0, y0, x1, y1),
     computed on the window: the same boxes (shifted by its origin), visibility, area and RLE."""
@@ -119,7 +125,13 @@ def annotate_in_window(
         return None if b is None else (b[0] + win[0], b[1] + win[1], b[2], b[3])
 
     return ObjectAnnotation(
-        category, shift(vbox), shift(abox), visibility, area, encode_rle_in_window(visible, win[0], win[1], full_hw)
+        category,
+        shift(vbox),
+        shift(abox),
+        visibility,
+        area,
+        encode_rle_in_window(visible, win[0], win[1], full_hw),
+        decoy,
     )
 
 

@@ -217,7 +217,7 @@ def apply_plan(
         mods["colour"] = "luminance only: monochrome camera"
 
     annotations = [
-        annotate_in_window(obj.placement.category, win, alpha, vis_w, full)
+        annotate_in_window(obj.placement.category, win, alpha, vis_w, full, decoy=obj.placement.decoy)
         for (obj, alpha, _, _), vis_w in zip(layers, vis_alphas)
     ]
     return AppliedPlan(

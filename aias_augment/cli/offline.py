@@ -285,7 +285,7 @@ def _run(
             extra = {}
             if ins:
                 a = next(inserted_anns)
-                while a["visible_box_xywh"] is None:
+                while a["visible_box_xywh"] is None or a.get("decoy"):
                     a = next(inserted_anns)
                 extra = {
                     "segmentation": a["rle"],

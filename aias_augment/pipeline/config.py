@@ -34,6 +34,7 @@ HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
         "naive_height_frac_samples": "(0, 1]",
         "motion_blur_px": "[0, inf) lo<=hi",
         "deform_probability": "[0, 1]",
+        "decoys": "[0, inf) lo<=hi",
     },
     orders=["min_objects <= max_objects"],
 )
@@ -75,6 +76,11 @@ class InsertionConfig:
     # placement's ``asset_meta["deformation"]``, so a replay rebuilds the same variant. 0: off.
     deform_probability: float = 0.0
     deform_cfg: DeformConfig = DeformConfig()
+    # Decoys: objects of ``decoy_categories`` inserted through the same stages (placement, lighting, shadow,
+    # harmonization) but not annotated, ``decoys`` = (lo, hi) per image, drawn uniformly. A detector trained on the
+    # output then cannot take the insertion itself (its edges, shadow, harmonization) as the sign of the class.
+    decoy_categories: tuple[str, ...] = ()
+    decoys: tuple[int, int] = (0, 0)
     ssaa: int = 2  # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Sun visibility on the ground: "catcher" (GL shadow map: ground patch rendered with/without the object) or
     # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL
@@ -104,6 +110,13 @@ class InsertionConfig:
         if 0 < self.analysis_max_width < 64:
             raise ConfigValueError(
                 ("InsertionConfig", "analysis_max_width"), f"must be 0 (off) or >= 64, got {self.analysis_max_width}"
+            )
+        if self.decoys[1] > 0 and not self.decoy_categories:
+            raise ConfigValueError(("InsertionConfig", "decoy_categories"), "must not be empty when decoys are drawn")
+        if set(self.decoy_categories) & set(self.categories):
+            raise ConfigValueError(
+                ("InsertionConfig", "decoy_categories"),
+                f"{sorted(set(self.decoy_categories) & set(self.categories))} are also annotated categories",
             )
 
     def effective(self) -> "InsertionConfig":

@@ -174,7 +174,7 @@ def assemble_result(
     )
     inserted_boxes, inserted_labels = [], []
     for placement, ann in zip(applied.placements, applied.annotations):
-        if ann.visible_box_xywh is not None:
+        if ann.visible_box_xywh is not None and not placement.decoy:
             inserted_boxes.append(ann.visible_box_xywh)
             inserted_labels.append(placement.category)
     existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]

@@ -105,23 +105,10 @@ def plan_insertion(
         targets = [draw_box_height_target(pcfg, rng) for _ in range(k)]
         targets = None if targets[0] is None else targets
     objects, reports = [], []
-    for i in range(k):
-        category = cfg.categories[int(rng.integers(len(cfg.categories)))]
-        base = choose_asset(category, rng, cfg, bank)
-        if cfg.deform_probability > 0 and rng.uniform() < cfg.deform_probability:
-            base = apply_deformation(base, sample_deformation(base, rng, cfg.deform_cfg))
+
+    def place(category: str, base: Asset, object_cfg, decoy: bool) -> None:
+        """Place ``base`` (or paste it, without placement) and append it to the plan; a failed search is reported."""
         if cfg.placement:
-            if targets is not None and i == 0:
-                hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
-                scale, mods["scene_scale"] = scene_scale_for_sizes(
-                    ground, intr, rng, pcfg, float(np.mean(hr)), max(targets), region.mask
-                )
-                if scale != 1.0:  # the scene scaled about the camera: its distance limits with it
-                    ground = scaled_ground(ground, scale)
-                    pcfg = replace(
-                        pcfg, min_distance_m=pcfg.min_distance_m * scale, max_distance_m=pcfg.max_distance_m * scale
-                    )
-                object_cfgs = [replace(pcfg, box_height_frac_samples=(t,), box_height_jitter=0.0) for t in targets]
             placement, report = sample_placement(
                 base,
                 ground,
@@ -129,7 +116,7 @@ def plan_insertion(
                 rng,
                 existing_boxes_xyxy=np.array(taken),
                 depth=depth,
-                cfg=object_cfgs[i],
+                cfg=object_cfg,
                 region_mask=region.mask,
                 height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
                 points_in_cam=scene_points,
@@ -137,7 +124,7 @@ def plan_insertion(
             )
             reports.append(report.to_dict())
             if placement is None:
-                continue
+                return
             asset = base.scaled(placement.scale)
         else:
             hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
@@ -163,12 +150,41 @@ def plan_insertion(
             placement = replace(placement, asset_meta=_json_safe(asset.meta))
         elif "deformation" in asset.meta:  # the variant's record: a replay deforms the same source again
             placement = replace(placement, asset_meta=_json_safe({"deformation": asset.meta["deformation"]}))
+        if decoy:
+            placement = replace(placement, decoy=True)
         objects.append(PlannedObject(placement, asset))
         taken.append(np.array(placement.amodal_box_xyxy))
         if "collision" in mods:
             boxes_3d.append(
                 OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m), category)
             )
+
+    for i in range(k):
+        category = cfg.categories[int(rng.integers(len(cfg.categories)))]
+        base = choose_asset(category, rng, cfg, bank)
+        if cfg.deform_probability > 0 and rng.uniform() < cfg.deform_probability:
+            base = apply_deformation(base, sample_deformation(base, rng, cfg.deform_cfg))
+        if cfg.placement and targets is not None and i == 0:
+            hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
+            scale, mods["scene_scale"] = scene_scale_for_sizes(
+                ground, intr, rng, pcfg, float(np.mean(hr)), max(targets), region.mask
+            )
+            if scale != 1.0:  # the scene scaled about the camera: its distance limits with it
+                ground = scaled_ground(ground, scale)
+                pcfg = replace(
+                    pcfg, min_distance_m=pcfg.min_distance_m * scale, max_distance_m=pcfg.max_distance_m * scale
+                )
+            object_cfgs = [replace(pcfg, box_height_frac_samples=(t,), box_height_jitter=0.0) for t in targets]
+        place(category, base, object_cfgs[i], decoy=False)
+    # Decoys: other categories through the same stages, never annotated. Drawn after the labelled objects, so these
+    # draw as they would without decoys; their box heights come from the same targets as the labelled objects'.
+    n_decoys = int(rng.integers(cfg.decoys[0], cfg.decoys[1] + 1)) if cfg.decoys[1] > 0 else 0
+    for _ in range(n_decoys):
+        category = cfg.decoy_categories[int(rng.integers(len(cfg.decoy_categories)))]
+        base = choose_asset(category, rng, cfg, bank)
+        target = draw_box_height_target(pcfg, rng) if cfg.placement else None
+        object_cfg = pcfg if target is None else replace(pcfg, box_height_frac_samples=(target,), box_height_jitter=0.0)
+        place(category, base, object_cfg, decoy=True)
     harmonize_seed = int(rng.integers(0, 2**63 - 1))
     layer_params = draw_layer_params(cfg, harmonize_seed, len(objects))
     return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods, layer_params)

@@ -133,6 +133,8 @@ class Placement:
     # A procedural asset's draws (``Asset.meta``: generator, seed, shape, colours, bands...), so the record says
     # which object was made; empty for mesh assets.
     asset_meta: dict = field(default_factory=dict, hash=False)
+    # A decoy is inserted like any object but not annotated (InsertionConfig.decoy_categories).
+    decoy: bool = False
 
     @property
     def cam_from_object_matrix(self) -> np.ndarray:

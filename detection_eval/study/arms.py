@@ -26,6 +26,12 @@ ARM_FLAGS: dict[str, dict | None] = {
     "no_harmonize": {"harmonize": False},
     "inserted_online": {},
     "inserted_procedural": {"asset_source": "procedural"},  # a new seeded procedural cone per object
+    # One to three decoys per image: other road objects through the same stages, never labelled, so the insertion
+    # itself (edges, shadow, harmonization) is not a sign of the class.
+    "inserted_decoys": {
+        "decoy_categories": ("barrel", "fire_hydrant", "concrete_block", "parking_block"),
+        "decoys": (1, 3),
+    },
     # The inserted image cropped, without resampling, around its largest object so that object's box height matches
     # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
     # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
