@@ -35,6 +35,8 @@ HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
         "motion_blur_px": "[0, inf) lo<=hi",
         "deform_probability": "[0, 1]",
         "decoys": "[0, inf) lo<=hi",
+        "arrangement_spacing_m": "(0, inf) lo<=hi",
+        "arrangement_cluster_radius_m": "(0.35, inf)",
     },
     orders=["min_objects <= max_objects"],
 )
@@ -81,6 +83,13 @@ class InsertionConfig:
     # output then cannot take the insertion itself (its edges, shadow, harmonization) as the sign of the class.
     decoy_categories: tuple[str, ...] = ()
     decoys: tuple[int, int] = (0, 0)
+    # How the labelled objects of one image stand together: "independent" (each placed on its own), "line" (a row at
+    # ``arrangement_spacing_m`` along the road or across it, as cones line a lane or close it), "cluster" (within
+    # ``arrangement_cluster_radius_m`` of the first), "mixed" (one of the three per image). The first object is
+    # placed as usual; the others stand where the arrangement puts them, at the size perspective gives them.
+    arrangement: Literal["independent", "line", "cluster", "mixed"] = "independent"
+    arrangement_spacing_m: tuple[float, float] = (1.0, 3.0)
+    arrangement_cluster_radius_m: float = 1.2
     ssaa: int = 2  # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Sun visibility on the ground: "catcher" (GL shadow map: ground patch rendered with/without the object) or
     # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL

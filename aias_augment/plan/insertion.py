@@ -106,8 +106,9 @@ def plan_insertion(
         targets = None if targets[0] is None else targets
     objects, reports = [], []
 
-    def place(category: str, base: Asset, object_cfg, decoy: bool) -> None:
-        """Place ``base`` (or paste it, without placement) and append it to the plan; a failed search is reported."""
+    def place(category: str, base: Asset, object_cfg, decoy: bool, near=None) -> None:
+        """Place ``base`` (or paste it, without placement) and append it to the plan; a failed search is reported.
+        ``near``: (H, W) bool, the ground pixels an arranged object may stand on (with the scene's region)."""
         if cfg.placement:
             placement, report = sample_placement(
                 base,
@@ -117,7 +118,7 @@ def plan_insertion(
                 existing_boxes_xyxy=np.array(taken),
                 depth=depth,
                 cfg=object_cfg,
-                region_mask=region.mask,
+                region_mask=region.mask if near is None else near & region.mask,
                 height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
                 points_in_cam=scene_points,
                 existing_objects=boxes_3d if "collision" in mods else None,
@@ -159,6 +160,12 @@ def plan_insertion(
                 OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m), category)
             )
 
+    arrangement, line = "independent", None
+    if cfg.arrangement != "independent" and cfg.placement and k > 1:
+        arrangement = cfg.arrangement
+        if arrangement == "mixed":
+            arrangement = ("independent", "line", "cluster")[int(rng.integers(3))]
+        line = draw_arrangement(arrangement, rng, cfg)
     for i in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
         base = choose_asset(category, rng, cfg, bank)
@@ -175,7 +182,20 @@ def plan_insertion(
                     pcfg, min_distance_m=pcfg.min_distance_m * scale, max_distance_m=pcfg.max_distance_m * scale
                 )
             object_cfgs = [replace(pcfg, box_height_frac_samples=(t,), box_height_jitter=0.0) for t in targets]
-        place(category, base, object_cfgs[i], decoy=False)
+        near = None
+        if arrangement != "independent" and i > 0 and objects and cfg.placement:
+            # the leader's ground (its local refit when there was one): the arrangement lies on it
+            near = arrangement_pixels(objects[0].placement, i, arrangement, line, intr, cfg, analysis.image_shape)
+            # size from perspective; a row seen along its length hides part of its members behind each other
+            object_cfg = replace(
+                pcfg,
+                box_height_frac_samples=(),
+                box_height_frac_range=None,
+                max_overlap_existing=max(pcfg.max_overlap_existing, 0.6),
+            )
+        else:
+            object_cfg = object_cfgs[i]
+        place(category, base, object_cfg, decoy=False, near=near)
     # Decoys: other categories through the same stages, never annotated. Drawn after the labelled objects, so these
     # draw as they would without decoys; their box heights come from the same targets as the labelled objects'.
     n_decoys = int(rng.integers(cfg.decoys[0], cfg.decoys[1] + 1)) if cfg.decoys[1] > 0 else 0
@@ -188,6 +208,77 @@ def plan_insertion(
     harmonize_seed = int(rng.integers(0, 2**63 - 1))
     layer_params = draw_layer_params(cfg, harmonize_seed, len(objects))
     return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods, layer_params)
+
+
+def draw_arrangement(kind: str, rng: np.random.Generator, cfg: InsertionConfig) -> dict | None:
+    """The draws of one arrangement. "line": objects at a spacing along a ground direction (its angle from the
+    camera's forward direction: within 20 deg of it, a row along the road going away from the camera, or with
+    probability 0.3 across it, a closure, to one side of the first), each one step from the last. "cluster": each object within
+    ``arrangement_cluster_radius_m`` of the first, in a direction of its own."""
+    if kind == "line":
+        across = rng.uniform() < 0.3
+        angle = np.deg2rad(rng.uniform(-20.0, 20.0) + (90.0 if across else 0.0))
+        return {
+            "angle_rad": float(angle),
+            "spacing_m": float(rng.uniform(*cfg.arrangement_spacing_m)),
+            "sign": float(rng.choice((-1.0, 1.0))) if across else 1.0,  # a row goes away from the camera
+        }
+    if kind == "cluster":
+        k = cfg.max_objects
+        return {
+            "angles_rad": [float(a) for a in rng.uniform(-np.pi, np.pi, k)],
+            "radii_m": [float(r) for r in rng.uniform(0.35, cfg.arrangement_cluster_radius_m, k)],
+        }
+    return None
+
+
+def arrangement_pixels(
+    leader: Placement, i: int, kind: str, params: dict, intr: Intrinsics, cfg: InsertionConfig, shape
+) -> np.ndarray:
+    """(H, W) bool: the pixels whose rays meet the leader's ground plane within a tenth of the spacing (0.1 m in a
+    cluster) of where the ``i``-th object of the arrangement stands (the nearest pixel when none is that close;
+    empty when the point is out of view). Tested on the ground, not in the image: a pixel covers metres of a road
+    seen at a grazing angle."""
+    n = np.asarray(leader.ground_normal_in_cam, float)
+    d_plane = float(leader.ground_d)
+    p0 = np.asarray(leader.contact_point_in_cam, float)
+    forward = np.array([0.0, 0.0, 1.0]) - n[2] * n  # the optical axis along the ground
+    forward /= max(float(np.linalg.norm(forward)), 1e-9)  # eps: a camera looking straight down has none
+    side = np.cross(n, forward)
+    if kind == "line":
+        a = params["angle_rad"]
+        step = params["sign"] * params["spacing_m"] * i
+        tol = 0.1 * params["spacing_m"]
+    else:
+        a = params["angles_rad"][i % len(params["angles_rad"])]
+        step = params["radii_m"][i % len(params["radii_m"])]
+        tol = 0.1
+    p = p0 + step * (np.cos(a) * forward + np.sin(a) * side)
+    h, w = shape
+    mask = np.zeros((h, w), bool)
+    if p[2] <= 0.1:
+        return mask
+    uv, _ = project_points(p[None], intr.K)
+    u, v = uv[0]
+    # the window holding every pixel within tol of p: tol's image size, stretched by the grazing angle
+    r = int(np.ceil(2.0 + tol * intr.fy / p[2] * max(1.0, p[2] / max(abs(d_plane), 1e-6))))  # eps: camera on plane
+    x0, x1, y0, y1 = max(0, int(u) - r), min(w, int(u) + r + 1), max(0, int(v) - r), min(h, int(v) + r + 1)
+    if x0 >= x1 or y0 >= y1:
+        return mask
+    uu, vv = np.meshgrid(np.arange(x0, x1, dtype=float), np.arange(y0, y1, dtype=float))
+    rays = np.stack([(uu - intr.cx) / intr.fx, (vv - intr.cy) / intr.fy, np.ones_like(uu)], -1)
+    denom = rays @ n
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -d_plane / denom
+    dist = np.linalg.norm(rays * t[..., None] - p, axis=-1)
+    dist[~(t > 0)] = np.inf
+    near = dist <= tol
+    if not near.any():
+        if not np.isfinite(dist.min()):
+            return mask
+        near = dist == dist.min()
+    mask[y0:y1, x0:x1] = near
+    return mask
 
 
 def scene_sized_placement(pcfg, existing_xyxy: list, image_height: int):

@@ -32,6 +32,9 @@ ARM_FLAGS: dict[str, dict | None] = {
         "decoy_categories": ("barrel", "fire_hydrant", "concrete_block", "parking_block"),
         "decoys": (1, 3),
     },
+    # The labelled objects of an image stand together as they do on roads: a row along the lane or across it, a
+    # cluster, or each on its own (one of the three per image, InsertionConfig.arrangement "mixed").
+    "inserted_arranged": {"arrangement": "mixed"},
     # The inserted image cropped, without resampling, around its largest object so that object's box height matches
     # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
     # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
