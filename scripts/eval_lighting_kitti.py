@@ -14,13 +14,13 @@ supersampling, a thin band's sides); inserted shadow/lit = median q over a core 
 the asphalt's albedo variation. Also reported: the real shadows' own estimator (``ratio.measure_lit_shadow``) on the
 output over the road pixels that were lit in the input, whose dark mode can only be the inserted shadow; its
 shadowed and lit pixels sit on different asphalt (+-5-7 % where the lighting is the road box's own). Three variants:
-"road_placement" stands the object just left of the road box (drawn per seed, like this street's poles) and runs the pipeline's own shading, shadow-catcher
-(``pipeline._object_shadow``) and compositing functions with ``estimate_lighting`` measured on the road box (the public
-``insert_into_image`` cannot be told to place on the road); "pipeline" is ``insert_into_image`` end to end (camera
-given, no depth), counted only when its shadow falls on the road box; "pipeline_sun_side" is ``insert_into_image``
-end to end again with the same seed (so the same lighting estimate, from the whole frame and the default ground box),
-told through ``meta['placeable_mask']`` to stand where the shadow of ITS OWN estimated sun lands on the road box
-(:func:`sun_side_strip`): the shadow depth is then measurable whatever side the pipeline put the sun on. A high sun
+"road_placement" stands the object just left of the road box (drawn per seed, like this street's poles) and applies
+that plan through the pipeline's apply door (``apply_plan``: shading, shadow, contact shadow, compositing; no
+harmonization) with ``estimate_lighting`` measured on the road box as the frame's lighting; "pipeline" is ``insert_into_image`` end to end (camera
+given, no depth), counted only when its shadow falls on the road box; "pipeline_sun_side" is the pipeline's
+steps again (``analyse_scene``, ``plan_insertion``, ``apply_plan``) with the same seed and the same frame analysis (so
+the same lighting estimate, from the whole frame and the default ground box), its placeable region narrowed to where
+the shadow of ITS OWN estimated sun lands on the road box (:func:`sun_side_strip`): the shadow depth is then measurable whatever side the pipeline put the sun on. A high sun
 casts shadows shorter than the contact zone excluded around the base, which stay unmeasurable.
 
 Usage: python scripts/eval_lighting_kitti.py --out results/lighting
@@ -125,22 +125,33 @@ def inserted_shadow(
     return out, umbra
 
 
-def pipeline_object_masks(res, cat: str, K: Intrinsics, shape) -> tuple[np.ndarray, np.ndarray]:
-    """The inserted objects' pixels (from the record's RLE masks) and the ground near their bases."""
+def objects_mask(annotations, shape) -> np.ndarray:
+    """The union of the annotations' visible masks (their RLEs)."""
     from pycocotools import mask as mask_utils
 
-    from aias_augment.assets.asset import default_asset
-
     obj = np.zeros(shape, bool)
-    for a in res.record.annotations:
+    for a in annotations:
         rle = dict(a.rle)
         rle["counts"] = rle["counts"].encode("ascii")
         obj |= mask_utils.decode(rle).astype(bool)
+    return obj
+
+
+def pipeline_object_masks(res, cat: str, K: Intrinsics, shape) -> tuple[np.ndarray, np.ndarray]:
+    """The inserted objects' pixels (from the record's RLE masks) and the ground near their bases."""
+
+    return objects_mask(res.record.annotations, shape), objects_near(res.record.placements, cat, K, shape)
+
+
+def objects_near(placements, cat: str, K: Intrinsics, shape) -> np.ndarray:
+    """The ground near the placed objects' bases (the pipeline's default asset of ``cat``)."""
+    from aias_augment.assets.asset import default_asset
+
     near = np.zeros(shape, bool)
-    for p in res.record.placements:
+    for p in placements:
         T = np.asarray(p.cam_from_object, dtype=np.float64)
-        near |= near_object(K, T, default_asset(cat).scaled(float(p.scale)))  # the pipeline's default asset
-    return obj, near
+        near |= near_object(K, T, default_asset(cat).scaled(float(p.scale)))
+    return near
 
 
 def sun_side_strip(K: Intrinsics, sun_in_cam: np.ndarray, cat: str) -> np.ndarray:
@@ -207,15 +218,22 @@ def main(argv=None) -> int:
         if args.skip_insertion:
             vis_rows.append(vis)
             continue
+        from aias_augment.analyse.analysis import analyse_scene
         from aias_augment.analyse.lighting.estimate import estimate_lighting
-        from aias_augment.apply import composite as comp
-        from aias_augment.apply.render import render_object
-        from aias_augment.apply.shading import shade_object
-        from aias_augment.apply.stages import object_shadow_ratio
+        from aias_augment.analyse.region import PlaceableRegion, below_horizon_mask
+        from aias_augment.apply.stages import apply_plan
         from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, default_asset
+        from aias_augment.core.frame import Frame
         from aias_augment.pipeline import image as pipeline
+        from aias_augment.plan.insertion import InsertionPlan, PlannedObject, plan_insertion
+        from aias_augment.plan.placement import placement_at
 
         lighting_road = estimate_lighting(img, K, meta={"ground_mask": road}, rng=np.random.default_rng(0))
+        # The road box's lighting in the frame's analysis: the steps after it (shading, shadow, composite) are the
+        # pipeline's own, through its apply door.
+        road_cfg = replace(pipeline.InsertionConfig(), harmonize=False, ssaa=2)
+        frame = Frame(img, K)
+        road_analysis = replace(analyse_scene(frame, road_cfg), lighting=lighting_road)
         report["frames"][idx]["estimate"] = lighting_road.to_dict()
         for cat in args.categories:
             for seed in args.seeds:
@@ -238,16 +256,14 @@ def main(argv=None) -> int:
                 cam_from_object[:3, :3] = R_up @ np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1.0]])
                 cam_from_object[:3, 3] = [lateral, KITTI_CAMERA_HEIGHT_M, forward]
                 t = time.perf_counter()
-                rl = render_object(asset, cam_from_object, K, ssaa=2)
-                shadow_ratio = object_shadow_ratio(asset, cam_from_object, K, lighting_road, None)
-                bg = comp.apply_shadow(comp.to_linear(img), shadow_ratio)
-                shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lighting_road)
-                out_a = comp.to_uint8(comp.alpha_over(bg, shaded, rl.alpha))
+                placement = placement_at(asset, cam_from_object, K, yaw, road_analysis.ground)
+                plan = InsertionPlan((PlannedObject(placement, asset),), harmonize_seed=seed, n_requested=1)
+                applied = apply_plan(frame, road_analysis, plan, road_cfg)
                 runs = [
                     (
                         "road_placement",
-                        out_a,
-                        rl.alpha > 0,
+                        applied.image,
+                        objects_mask(applied.annotations, img.shape[:2]),
                         lighting_road,
                         time.perf_counter() - t,
                         near_object(K, cam_from_object, asset),
@@ -264,28 +280,29 @@ def main(argv=None) -> int:
                 if res.record.annotations:
                     obj, near = pipeline_object_masks(res, cat, K, img.shape[:2])
                     runs.append(("pipeline", res.image, obj, res.record.lighting, dt, near))
-                # (c) "pipeline_sun_side": insert_into_image end to end again (same seed, so the same lighting
-                # estimate from the whole frame with the default ground box), but told through meta['placeable_mask']
-                # to stand where the shadow cast by ITS OWN estimated sun lands on the road box.
+                # (c) "pipeline_sun_side": the same frame analysis (so the same lighting estimate, from the whole
+                # frame with the default ground box) with its placeable region narrowed to where the shadow cast by
+                # ITS OWN estimated sun lands on the road box, then the pipeline's plan and apply steps. (A placeable
+                # mask given to insert_into_image is a measured ground region: the lighting would measure it.)
                 light1 = res.record.lighting
                 if light1 is not None and light1.dominant_sun and light1.sun_direction_in_cam is not None:
                     strip = sun_side_strip(K, np.asarray(light1.sun_direction_in_cam), cat)
                     t = time.perf_counter()
-                    res2 = pipeline.insert_into_image(
-                        img,
-                        rng=np.random.default_rng(seed),
-                        cfg=cfg,
-                        intrinsics=K,
-                        n_objects=1,
-                        meta={"placeable_mask": strip, "ground_mask": None},
+                    analysis = analyse_scene(frame, cfg)
+                    region = PlaceableRegion(
+                        strip & below_horizon_mask(analysis.ground, K), "given", float(strip.mean())
                     )
+                    analysis = replace(analysis, region=region)
+                    plan = plan_insertion(analysis, cfg, np.random.default_rng(seed), n_objects=1)
+                    applied2 = apply_plan(frame, analysis, plan, cfg)
                     dt = time.perf_counter() - t
-                    light2 = res2.record.lighting
+                    light2 = analysis.lighting
                     if not np.allclose(light2.sun_direction_in_cam, light1.sun_direction_in_cam):
-                        raise RuntimeError("the placeable mask changed the lighting estimate")
-                    if res2.record.annotations:
-                        obj2, near2 = pipeline_object_masks(res2, cat, K, img.shape[:2])
-                        runs.append(("pipeline_sun_side", res2.image, obj2, light2, dt, near2))
+                        raise RuntimeError("the frame analysis is not the one insert_into_image made")
+                    if applied2.annotations:
+                        obj2 = objects_mask(applied2.annotations, img.shape[:2])
+                        near2 = objects_near(applied2.placements, cat, K, img.shape[:2])
+                        runs.append(("pipeline_sun_side", applied2.image, obj2, light2, dt, near2))
                 for variant, out_img, obj, light, dt, near in runs:
                     meas, umbra = inserted_shadow(img, out_img, road, m.lit_mask, obj, near)
                     row = {

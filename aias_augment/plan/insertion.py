@@ -15,13 +15,13 @@ from aias_augment.analyse.analysis import SceneAnalysis
 from aias_augment.apply.layers import draw_layer_params
 from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
 from aias_augment.assets.deform import apply_deformation, sample_deformation
-from aias_augment.core.geometry import Intrinsics, make_rigid, project_points, transform_points
+from aias_augment.core.geometry import Intrinsics, make_rigid, project_points
 from aias_augment.pipeline.config import InsertionConfig
 from aias_augment.plan.collision import OrientedBox
 from aias_augment.plan.placement import (
     Placement,
-    box_of_points,
     draw_box_height_target,
+    placement_at,
     sample_placement,
     scaled_ground,
     scene_scale_for_sizes,
@@ -131,22 +131,7 @@ def plan_insertion(
             hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
             asset = base.scaled(rng.uniform(*hr) / base.reference_height_m)
             cam_from_object, yaw = naive_pose(asset, intr, rng, cfg)
-            uvc, _ = project_points(transform_points(cam_from_object, asset.corners_m()), intr.K)
-            placement = Placement(
-                category,
-                asset.name,
-                asset.source,
-                float(asset.meta.get("scale", 1.0)),
-                asset.height_m,
-                float(yaw),
-                tuple(map(float, cam_from_object[:3, 3])),
-                (float("nan"), float("nan")),
-                tuple(tuple(map(float, r)) for r in cam_from_object),
-                tuple(map(float, box_of_points(uvc))),
-                (0.0, -1.0, 0.0),
-                0.0,
-                "none",
-            )
+            placement = replace(placement_at(asset, cam_from_object, intr, yaw), category=category)
         if asset.procedural:
             placement = replace(placement, asset_meta=_json_safe(asset.meta))
         elif "deformation" in asset.meta:  # the variant's record: a replay deforms the same source again

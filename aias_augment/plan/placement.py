@@ -183,6 +183,42 @@ def box_of_points(uv: np.ndarray) -> np.ndarray:
     return np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
 
 
+def placement_at(
+    asset: Asset,
+    cam_from_object: np.ndarray,
+    intrinsics: Intrinsics,
+    yaw_rad: float,
+    ground: GroundPlane | None = None,
+) -> Placement:
+    """The record of ``asset`` (already scaled) at a pose chosen by the caller, not by the placement search: its
+    amodal box from the projected bounding-box corners; with ``ground``, the contact point and pixel (the object's
+    origin, on the ground) and the plane, else none (a paste without geometry)."""
+    T = np.asarray(cam_from_object, float)
+    uvc, _ = project_points(transform_points(T, asset.corners_m()), intrinsics.K)
+    contact = T[:3, 3]
+    if ground is None:
+        pixel, normal, d, source = (float("nan"), float("nan")), (0.0, -1.0, 0.0), 0.0, "none"
+    else:
+        uv, _ = project_points(contact[None], intrinsics.K)
+        pixel = (float(uv[0, 0]), float(uv[0, 1]))
+        normal, d, source = tuple(map(float, ground.normal)), float(ground.d), ground.source
+    return Placement(
+        asset.category,
+        asset.name,
+        asset.source,
+        float(asset.meta.get("scale", 1.0)),
+        asset.height_m,
+        float(yaw_rad),
+        tuple(map(float, contact)),
+        pixel,
+        tuple(tuple(map(float, r)) for r in T),
+        tuple(map(float, box_of_points(uvc))),
+        normal,
+        d,
+        source,
+    )
+
+
 def _overlap_frac(box: np.ndarray, others: np.ndarray) -> float:
     """Largest intersection area of ``box`` with any of ``others`` (xyxy), over the smaller of the two areas."""
     if len(others) == 0:
