@@ -26,6 +26,8 @@ ARM_FLAGS: dict[str, dict | None] = {
     "no_harmonize": {"harmonize": False},
     "inserted_online": {},
     "inserted_procedural": {"asset_source": "procedural"},  # a new seeded procedural cone per object
+    # Naive paste of the same family: the floor for a pipeline whose cones are procedural.
+    "naive_paste_procedural": {"naive_paste": True, "asset_source": "procedural"},
     # One to three decoys per image: other road objects through the same stages, never labelled, so the insertion
     # itself (edges, shadow, harmonization) is not a sign of the class.
     "inserted_decoys": {
