@@ -8,7 +8,14 @@ nearest-surface distance, 20 000 area-sampled points per surface) relative to th
 consistency (mean |n . n'| at nearest points, both directions), F-score at 1 % and 2 % of that extent, texture PSNR
 (sRGB, 4 held-out views at other azimuths and elevations, over the union of both silhouettes) and seconds.
 
-    python scripts/eval_reconstruction.py --out results/assets/reconstruct
+With ``--unposed``, each object is also reconstructed without its poses
+(:func:`aias_augment.assets.reconstruct.reconstruct_unposed`: COLMAP SfM, the ground plane's gauge, scaled to the
+true height as the reference size). The object then stands on a textured floor (a 3 m square of smooth random
+greys): SfM matches features, and a black backdrop gives none (with it no model registers). The reconstruction's
+rotation about the vertical, which SfM cannot know, is aligned to the truth's (a 1-degree search minimising the mean
+nearest-surface distance) before it is compared.
+
+    python scripts/eval_reconstruction.py --unposed --out results/assets/reconstruct
 """
 
 import argparse
@@ -25,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from aias_augment.apply.render import linear_to_srgb, render_object  # noqa: E402
 from aias_augment.assets.asset import Asset, default_asset, normalise_meshes  # noqa: E402
 from aias_augment.assets.bank.thumbnails import look_at_cam_from_object  # noqa: E402
-from aias_augment.assets.reconstruct import ReconstructConfig, View, reconstruct  # noqa: E402
+from aias_augment.assets.reconstruct import ReconstructConfig, View, reconstruct, reconstruct_unposed  # noqa: E402
 from aias_augment.core.geometry import Intrinsics  # noqa: E402
 
 SIZE, FOV = 320, 40.0
@@ -124,6 +131,56 @@ def psnr(truth: Asset, rec: Asset) -> tuple[float, list]:
     return float(10 * np.log10(1.0 / max(np.mean(errs), 1e-12))), pairs
 
 
+def floor_texture(rng: np.random.Generator, n: int = 512) -> np.ndarray:
+    """(n, n) uint8: smooth random greys at two scales, a floor SfM can match."""
+    fine = cv2.resize(rng.random((n // 8, n // 8)), (n, n), interpolation=cv2.INTER_CUBIC)
+    coarse = cv2.resize(rng.random((n // 32, n // 32)), (n, n), interpolation=cv2.INTER_CUBIC)
+    return np.clip((0.6 * fine + 0.4 * coarse) * 255, 0, 255).astype(np.uint8)
+
+
+def on_floor(view: View, tex: np.ndarray, extent_m: float = 3.0) -> np.ndarray:
+    """The view's image with the floor z = 0 (``tex`` over an ``extent_m`` square, tiled) behind the object."""
+    h, w = view.mask.shape
+    K, T = view.intrinsics, np.asarray(view.cam_from_object, float)
+    R, t = T[:3, :3], T[:3, 3]
+    uu, vv = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    rays = np.stack([(uu - K.cx) / K.fx, (vv - K.cy) / K.fy, np.ones_like(uu)], -1) @ R  # in the object frame
+    c = -R.T @ t
+    s = -c[2] / np.where(np.abs(rays[..., 2]) < 1e-9, 1e-9, rays[..., 2])  # eps: rays parallel to the floor
+    P = c + s[..., None] * rays
+    n = tex.shape[0]
+    g = tex[((P[..., 1] / extent_m + 0.5) * n).astype(int) % n, ((P[..., 0] / extent_m + 0.5) * n).astype(int) % n]
+    g = np.where(s > 0, g, 90)
+    img = view.image_rgb.copy()
+    img[~view.mask] = np.repeat(g[..., None], 3, -1)[~view.mask]
+    return img
+
+
+def rotated_about_z(asset: Asset, yaw: float) -> Asset:
+    c, s = np.cos(yaw), np.sin(yaw)
+    Rz = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    meshes = tuple(m.copy().apply_transform(Rz) for m in asset.meshes)
+    return Asset(asset.name, asset.category, meshes, asset.source, asset.licence, asset.procedural, asset.meta)
+
+
+def align_yaw(truth: Asset, rec: Asset, rng) -> tuple[Asset, float]:
+    """``rec`` turned about z to the yaw (1-degree search) with the least mean distance from its surface to the
+    truth's."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(surface_samples(truth, 5000, rng)[0])
+    pr = surface_samples(rec, 3000, rng)[0]
+    yaws = np.radians(np.arange(360.0))
+    cost = [tree.query(pr @ rotated_about_z_matrix(y).T)[0].mean() for y in yaws]
+    best = float(yaws[int(np.argmin(cost))])
+    return rotated_about_z(rec, best), best
+
+
+def rotated_about_z_matrix(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
 def write_views(views: list[View], folder: Path) -> None:
     """The views as image + mask PNGs and a ``views.json`` (K, cam_from_object, ground z = 0)."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -148,6 +205,8 @@ def main(argv=None) -> int:
     ap.add_argument("--views", type=int, nargs="*", default=[8, 16, 32])
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--objects", nargs="*", default=None, help="a subset of cone barrel crate cinder_block")
+    ap.add_argument("--unposed", action="store_true", help="also reconstruct without the poses (needs pycolmap)")
     ap.add_argument(
         "--views-out",
         type=Path,
@@ -161,7 +220,10 @@ def main(argv=None) -> int:
         "crate": crate(),
         "cinder_block": default_asset("concrete_block"),
     }
+    if a.objects:
+        objects = {k: v for k, v in objects.items() if k in a.objects}
     rows, tiles = [], []
+    a.out.mkdir(parents=True, exist_ok=True)
     for name, truth in objects.items():
         for n in a.views:
             rng = np.random.default_rng(a.seed)
@@ -184,6 +246,43 @@ def main(argv=None) -> int:
             row["coloured_vertex_share"] = rec.meta["coloured_vertex_share"]
             rows.append(row)
             print(json.dumps(row), flush=True)
+            if a.unposed:
+                tex = floor_texture(np.random.default_rng(a.seed))
+                images = [on_floor(v, tex) for v in views]
+                t0 = time.perf_counter()
+                try:
+                    rec_u = reconstruct_unposed(
+                        images,
+                        [v.mask for v in views],
+                        views[0].intrinsics,
+                        category=truth.category,
+                        height_m=truth.height_m,
+                        seed=a.seed,
+                        name=f"{name}_{n}_unposed",
+                        cfg=ReconstructConfig(a.resolution),
+                    )
+                except ValueError as err:  # SfM registered too few views: a failed row, shown
+                    row_u = {"object": name, "views": n, "posed": False, "failed": str(err)}
+                else:
+                    seconds = time.perf_counter() - t0
+                    rec_u, _ = align_yaw(truth, rec_u, rng)
+                    row_u = {
+                        "object": name,
+                        "views": n,
+                        "posed": False,
+                        "registered_views": rec_u.meta["registered_views"],
+                        "seconds": round(seconds, 1),
+                        **compare(truth, rec_u, rng),
+                    }
+                    row_u["texture_psnr_db"], _ = psnr(truth, rec_u)
+                    row_u["coloured_vertex_share"] = rec_u.meta["coloured_vertex_share"]
+                rows.append(row_u)
+                print(json.dumps(row_u), flush=True)
+                if n == max(a.views) and name == "cone":
+                    cv2.imwrite(
+                        str(a.out / "unposed_views_on_floor.png"),
+                        cv2.cvtColor(np.concatenate(images[:4], 1), cv2.COLOR_RGB2BGR),
+                    )
             if n == max(a.views):
                 tiles.append((name, pairs[0]))
                 if name == "cone":
@@ -201,13 +300,18 @@ def main(argv=None) -> int:
         + "\n"
     )
     lines = [
-        "| object | views | Chamfer / size | normal consistency | F@1 % | F@2 % | texture PSNR (dB) | s |",
-        "|---|---|---|---|---|---|---|---|",
+        "| object | views | poses | Chamfer / size | normal consistency | F@1 % | F@2 % | texture PSNR (dB) | s |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
+        poses = "given" if r["posed"] else f"SfM ({r.get('registered_views', 0)} registered)"
+        if "failed" in r:
+            lines.append(f"| {r['object']} | {r['views']} | SfM | failed: {r['failed']} | | | | | |")
+            continue
         lines.append(
-            f"| {r['object']} | {r['views']} | {100 * r['chamfer_rel']:.2f} % | {r['normal_consistency']:.3f} | "
-            f"{r['f_score_1pct']:.3f} | {r['f_score_2pct']:.3f} | {r['texture_psnr_db']:.1f} | {r['seconds']} |"
+            f"| {r['object']} | {r['views']} | {poses} | {100 * r['chamfer_rel']:.2f} % | "
+            f"{r['normal_consistency']:.3f} | {r['f_score_1pct']:.3f} | {r['f_score_2pct']:.3f} | "
+            f"{r['texture_psnr_db']:.1f} | {r['seconds']} |"
         )
     (a.out / "table.md").write_text("\n".join(lines) + "\n")
     sheet = []

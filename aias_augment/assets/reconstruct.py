@@ -9,6 +9,10 @@
 3. :func:`texture_from_views`: each vertex takes the colours of the views that see it (the hull's own depth,
    rendered by :mod:`aias_augment.apply.render`, decides visibility), weighted by how squarely each view faces it.
 
+Without poses, :func:`reconstruct_unposed` estimates them by structure from motion (:mod:`aias_augment.assets.sfm`)
+and leaves out the views that the others contradict (:func:`consistent_views`: a mis-registered view would carve
+the object away).
+
 Poses in metres give a metric asset; otherwise ``height_m`` scales it. A visual hull cannot see concavities that
 no silhouette shows (the inside of a bowl, the hollow of a cone's base): convex-ish objects reconstruct well.
 Photo-consistency refinement is not done.
@@ -77,23 +81,28 @@ def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return top * (1 - fv) + bot * fv
 
 
+def _view_distance(points: np.ndarray, v: View, sd: np.ndarray) -> np.ndarray:
+    """(N,) signed distance in metres of ``points`` (object frame) to the silhouette of view ``v``."""
+    T = np.asarray(v.cam_from_object, float)
+    pc = points @ T[:3, :3].T + T[:3, 3]
+    z = np.maximum(pc[:, 2], 1e-6)
+    K = v.intrinsics
+    u = K.fx * pc[:, 0] / z + K.cx
+    w = K.fy * pc[:, 1] / z + K.cy
+    h, wd = sd.shape
+    uc, wc = np.clip(u, 0, wd - 1), np.clip(w, 0, h - 1)
+    # bilinear sample, plus how far the point projects beyond the image (outside the silhouette there)
+    val = _bilinear(sd, uc, wc) + np.hypot(u - uc, w - wc)
+    d_m = val * z / K.fx
+    d_m[pc[:, 2] <= 1e-6] = np.inf  # behind the camera: not seen, cannot be inside
+    return d_m.astype(np.float32)
+
+
 def _field(points: np.ndarray, views: list[View], sdfs: list[np.ndarray]) -> np.ndarray:
     """(N,) max over views of the signed distance in metres of ``points`` (object frame) to each silhouette."""
     out = np.full(len(points), -np.inf, np.float32)
     for v, sd in zip(views, sdfs):
-        T = np.asarray(v.cam_from_object, float)
-        pc = points @ T[:3, :3].T + T[:3, 3]
-        z = np.maximum(pc[:, 2], 1e-6)
-        K = v.intrinsics
-        u = K.fx * pc[:, 0] / z + K.cx
-        w = K.fy * pc[:, 1] / z + K.cy
-        h, wd = sd.shape
-        uc, wc = np.clip(u, 0, wd - 1), np.clip(w, 0, h - 1)
-        # bilinear sample, plus how far the point projects beyond the image (outside the silhouette there)
-        val = _bilinear(sd, uc, wc) + np.hypot(u - uc, w - wc)
-        d_m = val * z / K.fx
-        d_m[pc[:, 2] <= 1e-6] = np.inf  # behind the camera: not seen, cannot be inside
-        out = np.maximum(out, d_m.astype(np.float32))
+        out = np.maximum(out, _view_distance(points, v, sd))
     return out
 
 
@@ -276,16 +285,17 @@ def grabcut_mask(image_rgb: np.ndarray, box_xyxy, iterations: int = 5) -> np.nda
     return (mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)
 
 
-def load_views(path) -> tuple[list[View], float | None]:
-    """Views from a JSON file: ``{"ground_z": 0.0 | null, "views": [{"image": PATH, "mask": PATH | null, "box":
-    [x0, y0, x1, y1] | null, "K": 3x3, "cam_from_object": 4x4}, ...]}`` (paths relative to the file; a view
-    without a mask is segmented by GrabCut from its box). Bad entries: ValueError naming the view."""
+def read_views(path) -> tuple[list[tuple[np.ndarray, np.ndarray, Intrinsics, np.ndarray | None]], float | None]:
+    """The photos of a views file: ``{"ground_z": 0.0 | null, "views": [{"image": PATH, "mask": PATH | null, "box":
+    [x0, y0, x1, y1] | null, "K": 3x3, "cam_from_object": 4x4 (optional)}, ...]}`` (paths relative to the file; a
+    view without a mask is segmented by GrabCut from its box) as (image, mask, intrinsics, pose or None). Bad
+    entries: ValueError naming the view. Either every view has its pose or none has (then SfM finds them)."""
     import json
     from pathlib import Path
 
     path = Path(path)
     spec = json.loads(path.read_text())
-    views = []
+    out = []
     for i, e in enumerate(spec.get("views", [])):
         try:
             bgr = cv2.imread(str(path.parent / e["image"]), cv2.IMREAD_COLOR)
@@ -304,9 +314,98 @@ def load_views(path) -> tuple[list[View], float | None]:
             K = np.asarray(e["K"], float)
             h, w = mask.shape
             intr = Intrinsics(K[0, 0], K[1, 1], K[0, 2], K[1, 2], w, h)
-            views.append(View(rgb, mask, intr, np.asarray(e["cam_from_object"], float)))
+            pose = None if e.get("cam_from_object") is None else np.asarray(e["cam_from_object"], float)
+            if pose is not None:
+                View(rgb, mask, intr, pose)  # checks sizes and the mask
+            out.append((rgb, mask, intr, pose))
         except (KeyError, ValueError, TypeError) as err:
             raise ValueError(f"{path}: view {i}: {err}") from None
-    if len(views) < 2:
-        raise ValueError(f"{path}: needs at least two views, got {len(views)}")
-    return views, spec.get("ground_z", 0.0)
+    if len(out) < 2:
+        raise ValueError(f"{path}: needs at least two views, got {len(out)}")
+    if len({o[3] is None for o in out}) > 1:
+        raise ValueError(f"{path}: some views have cam_from_object and some do not: give all or none")
+    return out, spec.get("ground_z", 0.0)
+
+
+def load_views(path) -> tuple[list[View], float | None]:
+    """Posed views of a views file (see :func:`read_views`); ValueError when the file has no poses."""
+    photos, ground_z = read_views(path)
+    if photos[0][3] is None:
+        raise ValueError(f"{path}: the views have no cam_from_object (unposed: use reconstruct_unposed)")
+    return [View(*p) for p in photos], ground_z
+
+
+def consistent_views(
+    views: list[View], search_lo, search_hi, ground_z: float | None = 0.0, min_agreement: float = 0.9, n_long: int = 32
+) -> list[int]:
+    """Indices of the views that agree with the others: the coarse hull of all views but one, projected into that
+    view, must lie inside its silhouette for at least ``min_agreement`` of its voxels. The worst view is left out
+    and the check repeated, until every remaining view agrees (or two are left)."""
+    lo, hi = np.asarray(search_lo, float), np.asarray(search_hi, float)
+    pts, step, _ = _grid(lo, hi, n_long)
+    d = np.stack([_view_distance(pts, v, _signed_distance_px(v.mask)) for v in views])  # (V, N)
+    if ground_z is not None:
+        d = np.maximum(d, (ground_z - pts[:, 2]).astype(np.float32))
+    keep = list(range(len(views)))
+    while len(keep) > 2:
+        agreement = []
+        for j in keep:
+            others = np.max(d[[k for k in keep if k != j]], axis=0) <= step
+            agreement.append(float(np.mean(d[j][others] <= step)) if others.any() else 0.0)
+        worst = int(np.argmin(agreement))
+        if agreement[worst] >= min_agreement:
+            break
+        keep.pop(worst)
+    return keep
+
+
+def reconstruct_unposed(
+    images_rgb: list[np.ndarray],
+    masks: list[np.ndarray],
+    intrinsics: Intrinsics,
+    *,
+    category: str,
+    height_m: float,
+    seed: int,
+    name: str = "reconstructed",
+    cfg: ReconstructConfig = ReconstructConfig(),
+    workdir=None,
+) -> Asset:
+    """:func:`reconstruct` from photos without poses: the poses by structure from motion
+    (:func:`aias_augment.assets.sfm.estimate_poses`), moved to the object's frame on the plane it stands on
+    (:func:`~aias_augment.assets.sfm.ground_gauge`), then the visual hull of the registered views, scaled to
+    ``height_m`` (SfM has no metric scale). ``meta`` adds the views registered and the model's reprojection error."""
+    from aias_augment.assets.sfm import estimate_poses, ground_gauge
+
+    if len(images_rgb) != len(masks):
+        raise ValueError(f"{len(images_rgb)} images but {len(masks)} masks")
+    sfm = estimate_poses(images_rgb, intrinsics, seed, workdir)
+    posed = [(img, m, T) for img, m, T in zip(images_rgb, masks, sfm.cams_from_world) if T is not None]
+    if len(posed) < 2:
+        raise ValueError(f"structure from motion registered {len(posed)} of {len(images_rgb)} views: need 2")
+    model_views = [View(img, np.asarray(m, bool), intrinsics, T) for img, m, T in posed]
+    lo, hi = search_box(model_views)
+    object_from_model = ground_gauge(sfm, (lo + hi) / 2, np.random.default_rng(seed))
+    model_from_object = np.linalg.inv(object_from_model)
+    views = [View(v.image_rgb, v.mask, intrinsics, v.cam_from_object @ model_from_object) for v in model_views]
+    lo, hi = search_box(views)
+    agree = consistent_views(views, lo, hi)
+    views = [views[i] for i in agree]
+    asset = reconstruct(views, lo, hi, category=category, name=name, height_m=height_m, ground_z=0.0, cfg=cfg)
+    meta = {
+        **asset.meta,
+        "registered_views": len(posed),
+        "consistent_views": len(views),
+        "input_views": len(images_rgb),
+        "sfm_points": int(len(sfm.points)),
+        "sfm_reprojection_error_px": round(sfm.mean_reprojection_error_px, 4),
+    }
+    return Asset(
+        asset.name,
+        asset.category,
+        asset.meshes,
+        f"reconstruction from {len(posed)} of {len(images_rgb)} unposed views (SfM)",
+        asset.licence,
+        asset.procedural,
+        meta,
+    )

@@ -7,7 +7,7 @@ aias-assets thumbnails --out out/assets/contact_sheet.png [--category dog rock] 
 aias-assets from-labels --yolo DIR --class-names cone --category traffic_cone --out BANK   # your own instances
 aias-assets from-labels --input train.json --images DIR --label cone --category traffic_cone --out BANK
 aias-assets deform --category traffic_cone --count 8 --seed 0 --out BANK --sheet sheet.png   # dented, crushed...
-aias-assets reconstruct --views views.json --category traffic_cone --out BANK   # from posed photos (visual hull)
+aias-assets reconstruct --views views.json --category traffic_cone --out BANK   # from photos (visual hull; SfM if unposed)
 """
 
 from __future__ import annotations
@@ -215,32 +215,56 @@ def _cmd_deform(a) -> int:
 
 def _cmd_reconstruct(a) -> int:
     from aias_augment.assets.bank.folder import add_to_bank
-    from aias_augment.assets.reconstruct import ReconstructConfig, load_views, reconstruct, search_box
+    from aias_augment.assets.reconstruct import (
+        ReconstructConfig,
+        View,
+        read_views,
+        reconstruct,
+        reconstruct_unposed,
+        search_box,
+    )
 
     t0 = time.perf_counter()
     try:
-        views, ground_z = load_views(a.views)
-        lo, hi = search_box(views)
-        asset = reconstruct(
-            views,
-            lo,
-            hi,
-            category=a.category,
-            name=a.views.parent.name,
-            height_m=a.height_m,
-            ground_z=ground_z,
-            cfg=ReconstructConfig(resolution=a.resolution),
-        )
-    except (ValueError, OSError) as e:
+        photos, ground_z = read_views(a.views)
+        cfg = ReconstructConfig(resolution=a.resolution)
+        if photos[0][3] is None:  # no poses: structure from motion, scaled to the given height
+            if a.height_m is None:
+                raise ValueError("views without cam_from_object need --height-m (SfM has no metric scale)")
+            asset = reconstruct_unposed(
+                [p[0] for p in photos],
+                [p[1] for p in photos],
+                photos[0][2],
+                category=a.category,
+                height_m=a.height_m,
+                seed=a.seed,
+                name=a.views.parent.name,
+                cfg=cfg,
+            )
+        else:
+            views = [View(*p) for p in photos]
+            lo, hi = search_box(views)
+            asset = reconstruct(
+                views,
+                lo,
+                hi,
+                category=a.category,
+                name=a.views.parent.name,
+                height_m=a.height_m,
+                ground_z=ground_z,
+                cfg=cfg,
+            )
+    except (ValueError, OSError, ImportError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    keys = ("resolution", "coloured_vertex_share", "registered_views", "sfm_reprojection_error_px")
     entry = add_to_bank(
         a.out,
         asset,
         {
             "source": f"reconstruction of {a.views}",
-            "views": len(views),
-            **{k: asset.meta[k] for k in ("resolution", "coloured_vertex_share")},
+            "views": len(photos),
+            **{k: asset.meta[k] for k in keys if k in asset.meta},
         },
     )
     print(json.dumps({**entry, "bank": str(a.out), "seconds": round(time.perf_counter() - t0, 1)}, indent=1))
@@ -299,8 +323,14 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")
     s.add_argument("--sheet", type=Path, default=None, help="write a contact sheet (source + variants) here")
     s.add_argument("--size", type=int, default=160, help="contact sheet tile size (px)")
-    s = sub.add_parser("reconstruct", help="an asset from posed photos of an object (visual hull, textured)")
-    s.add_argument("--views", type=Path, required=True, help="views.json: images, masks or boxes, K, cam_from_object")
+    s = sub.add_parser("reconstruct", help="an asset from photos of an object, posed or not (visual hull, textured)")
+    s.add_argument(
+        "--views",
+        type=Path,
+        required=True,
+        help="views.json: images, masks or boxes, K, cam_from_object (or none: SfM)",
+    )
+    s.add_argument("--seed", type=int, default=0, help="SfM's RANSAC and mapper seed (unposed views)")
     s.add_argument("--category", required=True)
     s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")
     s.add_argument("--height-m", type=float, default=None, help="scale to this height (default: the poses' metres)")
