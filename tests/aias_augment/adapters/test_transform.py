@@ -148,16 +148,18 @@ def test_warm_analyses_beforehand_and_changes_no_output(tmp_path):
 
 def test_warm_with_view_plans_renders_views_the_calls_then_read(tmp_path):
     """``warm(..., view_plans=n)`` renders views into ``scene_cache/views``; a worker-like transform on the same
-    folder reads views from there, and its output equals a transform's that has neither cache."""
+    folder reads views from there, and its output equals a transform's that has neither cache. (Views are kept for
+    mesh assets: a procedural cone is a new mesh per object.)"""
     img = _image()
-    warmed = _compose(seed=11, scene_cache=str(tmp_path))
+    mesh = {"config_overrides": {"asset_source": "default"}}
+    warmed = _compose(seed=11, scene_cache=str(tmp_path), **mesh)
     got = warmed.transforms[0].warm([img], camera_ks=[K], view_plans=4)
     assert got["views_rendered"] >= 1 and got["analysed"] == 1
     assert warmed.transforms[0]._scene_cache.misses == 1  # the views' plans used the cached analysis
     assert any((tmp_path / "views").rglob("*.npz"))
-    worker = _compose(seed=11, scene_cache=str(tmp_path))
+    worker = _compose(seed=11, scene_cache=str(tmp_path), **mesh)
     a = worker(image=img, bboxes=[], category_ids=[], camera_k=K)
-    fresh = _compose(seed=11)(image=img, bboxes=[], category_ids=[], camera_k=K)
+    fresh = _compose(seed=11, **mesh)(image=img, bboxes=[], category_ids=[], camera_k=K)
     assert np.array_equal(a["image"], fresh["image"])
     assert np.allclose(np.asarray(a["bboxes"]), np.asarray(fresh["bboxes"]))
 
