@@ -31,7 +31,12 @@ def placement_from_dict(d: dict) -> Placement:
 
 
 def default_asset_for(p: Placement) -> Asset:
-    """The shared-data default asset a placement names (the asset of ``asset_source="default"`` runs)."""
+    """The asset a placement names: a procedural one rebuilt from its recorded seed, else the shared-data default
+    asset of its category (the asset of ``asset_source="default"`` runs)."""
+    if p.asset_source.startswith("procedural:") and "seed" in p.asset_meta:
+        from aias_augment.assets.bank.procedural import procedural_asset_from_seed
+
+        return procedural_asset_from_seed(p.category, p.asset_meta["seed"])
     for rel in DEFAULT_ASSETS.get(p.category, []):
         a = default_asset(p.category, DEFAULT_ASSETS[p.category].index(rel))
         if a.source == p.asset_source or a.source == str(data_root() / rel):

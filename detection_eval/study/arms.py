@@ -25,7 +25,9 @@ ARM_FLAGS: dict[str, dict | None] = {
     "no_lighting": {"lighting": False},
     "no_harmonize": {"harmonize": False},
     "inserted_online": {},
-    "inserted_procedural": {"asset_source": "procedural"},  # a new seeded procedural cone per object
+    "inserted_procedural": {"asset_source": "procedural"},  # a new seeded procedural cone per object (the presets')
+    # Its ablation: the category's one shared mesh (the gazebo construction cone) for every object.
+    "inserted_gazebo_cone": {"asset_source": "default"},
     # Naive paste of the same family: the floor for a pipeline whose cones are procedural.
     "naive_paste_procedural": {"naive_paste": True, "asset_source": "procedural"},
     # One to three decoys per image: other road objects through the same stages, never labelled, so the insertion

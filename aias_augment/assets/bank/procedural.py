@@ -26,6 +26,7 @@ __all__ = [
     "ProceduralSpec",
     "generate",
     "procedural_asset",
+    "procedural_asset_from_seed",
     "make_stone",
     "make_concrete_block",
     "make_crumpled_sheet",
@@ -393,8 +394,12 @@ def generate(
 
 def procedural_asset(category: str, rng: np.random.Generator) -> Asset:
     """A new procedural asset of ``category`` (see :data:`CATEGORY_SPECS`) from its own generator, seeded by one draw
-    of ``rng``; the seed is in ``meta['seed']``, so ``generate(spec, default_rng(seed))`` rebuilds it exactly."""
-    spec = CATEGORY_SPECS[category]
-    seed = int(rng.integers(2**63 - 1))
-    a = generate(spec, np.random.default_rng(seed))
-    return Asset(a.name, a.category, a.meshes, a.source, a.licence, True, {**a.meta, "seed": seed})
+    of ``rng``; the seed is in ``meta['seed']``, so :func:`procedural_asset_from_seed` rebuilds it exactly."""
+    return procedural_asset_from_seed(category, int(rng.integers(2**63 - 1)))
+
+
+def procedural_asset_from_seed(category: str, seed: int) -> Asset:
+    """The procedural asset of ``category`` that the seed ``seed`` makes (the one a record's ``asset_meta['seed']``
+    names)."""
+    a = generate(CATEGORY_SPECS[category], np.random.default_rng(int(seed)))
+    return Asset(a.name, a.category, a.meshes, a.source, a.licence, True, {**a.meta, "seed": int(seed)})
