@@ -385,7 +385,7 @@ def reconstruct_unposed(
         raise ValueError(f"structure from motion registered {len(posed)} of {len(images_rgb)} views: need 2")
     model_views = [View(img, np.asarray(m, bool), intrinsics, T) for img, m, T in posed]
     lo, hi = search_box(model_views)
-    object_from_model = ground_gauge(sfm, (lo + hi) / 2, np.random.default_rng(seed))
+    object_from_model = ground_gauge(sfm, (lo + hi) / 2, np.random.default_rng(seed), float(np.max(hi - lo)) / 4)
     model_from_object = np.linalg.inv(object_from_model)
     views = [View(v.image_rgb, v.mask, intrinsics, v.cam_from_object @ model_from_object) for v in model_views]
     lo, hi = search_box(views)

@@ -3,7 +3,7 @@
 :func:`estimate_poses`: SIFT features, exhaustive matching and COLMAP's incremental mapper with the given pinhole
 intrinsics held fixed; the largest model is kept, in COLMAP's own gauge (arbitrary origin, rotation and scale).
 :func:`ground_gauge` moves it to the object's frame: z up along the normal of the dominant plane among the model's
-points (the floor or turntable the object stands on, which must carry texture: SfM matches features, and a plain
+points around the object (the floor or turntable it stands on, which must carry texture: SfM matches features, and a plain
 backdrop has none), the origin on that plane under the point the cameras look at. Lengths stay in model units; the
 reconstruction is scaled to metres by a reference size (the object's height). ``pycolmap`` is imported only here.
 """
@@ -134,12 +134,17 @@ def fit_plane(points: np.ndarray, rng: np.random.Generator, threshold: float, it
     return n, -float(n @ centroid), best
 
 
-def ground_gauge(sfm: SfmPoses, look_at: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """``object_from_model`` (4x4 rigid): z along the dominant plane's normal, toward the cameras; the origin on the
-    plane under ``look_at`` (model coordinates, e.g. where the cameras' axes meet); x toward the first camera."""
+def ground_gauge(sfm: SfmPoses, look_at: np.ndarray, rng: np.random.Generator, object_radius: float) -> np.ndarray:
+    """``object_from_model`` (4x4 rigid): z along the normal of the dominant plane among the model's points farther
+    than ``object_radius`` from ``look_at`` (the floor around the object, not a face of it), toward the cameras; the
+    origin on the plane under ``look_at`` (model coordinates, e.g. where the cameras' axes meet); x toward the first
+    camera."""
     centres = np.array([invert_rigid(T)[:3, 3] for T in sfm.cams_from_world if T is not None])
-    spread = float(np.median(np.linalg.norm(sfm.points - np.median(sfm.points, 0), axis=1)))
-    n, d, _ = fit_plane(sfm.points, rng, threshold=0.01 * spread)
+    around = sfm.points[np.linalg.norm(sfm.points - look_at, axis=1) > object_radius]
+    if len(around) < 3:
+        raise ValueError("no model points around the object: the floor cannot be found")
+    spread = float(np.median(np.linalg.norm(around - np.median(around, 0), axis=1)))
+    n, d, _ = fit_plane(around, rng, threshold=0.01 * spread)
     if np.mean(centres @ n + d) < 0:
         n, d = -n, -d
     origin = look_at - (look_at @ n + d) * n
