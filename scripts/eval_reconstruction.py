@@ -157,8 +157,8 @@ def on_floor(view: View, tex: np.ndarray, extent_m: float = 3.0) -> np.ndarray:
 
 
 def rotated_about_z(asset: Asset, yaw: float) -> Asset:
-    c, s = np.cos(yaw), np.sin(yaw)
-    Rz = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+    Rz = np.eye(4)
+    Rz[:3, :3] = rotated_about_z_matrix(yaw)
     meshes = tuple(m.copy().apply_transform(Rz) for m in asset.meshes)
     return Asset(asset.name, asset.category, meshes, asset.source, asset.licence, asset.procedural, asset.meta)
 

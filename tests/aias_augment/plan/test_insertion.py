@@ -1,4 +1,5 @@
 import json
+from dataclasses import replace
 
 import numpy as np
 
@@ -40,7 +41,6 @@ def test_sizes_from_existing_boxes_make_objects_the_scene_objects_size():
     """With placement_cfg.sizes_from_existing, objects are drawn at the existing boxes' heights (the scene's own
     objects of that kind), against the analytic box height of the planned pose; without boxes, the config's own
     distribution; off, sizes follow the geometry alone."""
-    from dataclasses import replace
 
     from aias_augment.plan.insertion import scene_sized_placement
 
@@ -90,7 +90,6 @@ def test_scene_scale_from_sizes_hosts_targets_the_assumed_camera_height_cannot()
     visible ground, the bottom row, is 500 * 1.65 / 240 = 3.4 m away). A 216 px target (0.45 of the frame) needs
     the assumed-scale scene scaled about the camera: every object then stands on the one scaled plane, at the
     target size by the analytic projection of its contact point, and the camera height lies in the allowed range."""
-    from dataclasses import replace
 
     an = analyse_scene(Frame(road_image(), K), CFG)
     assert an.ground.source.split(":")[0] in ("prior", "single_image")
@@ -140,8 +139,6 @@ def test_scene_scale_keeps_measured_grounds_and_the_camera_height_range():
 
 
 def _arranged(kind, seed, **kw):
-    from dataclasses import replace
-
     cfg = replace(CFG, arrangement=kind, min_objects=4, max_objects=4, **kw)
     an = analyse_scene(Frame(road_image(), K), cfg)
     return an, plan_insertion(an, cfg, np.random.default_rng(seed), bank=OneAsset(box_asset(extents=(0.3, 0.3, 0.7))))
@@ -183,7 +180,7 @@ def test_independent_arrangement_draws_as_before_mixed_records_the_same_per_seed
     a = _arranged("independent", 3)[1]
     b = plan_insertion(
         analyse_scene(Frame(road_image(), K), CFG),
-        __import__("dataclasses").replace(CFG, min_objects=4, max_objects=4),
+        replace(CFG, min_objects=4, max_objects=4),
         np.random.default_rng(3),
         bank=OneAsset(box_asset(extents=(0.3, 0.3, 0.7))),
     )
