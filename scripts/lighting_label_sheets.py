@@ -3,6 +3,10 @@ KITTI 06 colour frames and the DGP scene's camera frames, numbered on contact sh
 (hard cast shadows visible: 1, not: 0), one row per photo in ``results/lighting/benchmark/labels.csv``.
 
     python scripts/lighting_label_sheets.py --tracon 84 --out out/lighting_labels     # then label from the sheets
+
+With ``--shadow-grids`` it writes each photo labelled ``direct_sun`` at 760 px wide under a 0.05 grid, from which
+the cast-shadow lines of ``results/lighting/benchmark/shadow_directions.csv`` were read (base of an occluder, the
+far end of its shadow, as fractions of the width and height).
 """
 
 import argparse
@@ -41,11 +45,41 @@ def tile(path: Path, k: int, size: int = 300) -> np.ndarray:
     return out
 
 
+def shadow_grid(path: Path, index: str, width: int = 760) -> np.ndarray:
+    """The photo at ``width`` px under a grid every 0.05 of its width and height (labelled every 0.1)."""
+    img = cv2.imread(str(path))
+    img = cv2.resize(img, None, fx=width / img.shape[1], fy=width / img.shape[1], interpolation=cv2.INTER_AREA)
+    h, w = img.shape[:2]
+    for k in range(1, 20):
+        f = k / 20
+        colour = (0, 255, 255) if k % 2 == 0 else (255, 255, 0)
+        x, y = round(f * w), round(f * h)
+        cv2.line(img, (x, 0), (x, h), colour, 1)
+        cv2.line(img, (0, y), (w, y), colour, 1)
+        if k % 2 == 0:
+            for org in ((x + 2, 12), (2, y - 2)):
+                cv2.putText(img, f"{f:.1f}", org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3)
+                cv2.putText(img, f"{f:.1f}", org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 255, 255), 1)
+    cv2.putText(img, index, (w - 60, h - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.9, (0, 0, 255), 2)
+    return img
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tracon", type=int, default=84)
     ap.add_argument("--out", type=Path, default=Path("out/lighting_labels"))
+    ap.add_argument("--shadow-grids", action="store_true", help="grids of the direct-sun photos for shadow lines")
+    ap.add_argument("--labels", type=Path, default=Path("results/lighting/benchmark/labels.csv"))
     a = ap.parse_args(argv)
+    if a.shadow_grids:
+        (a.out / "grids").mkdir(parents=True, exist_ok=True)
+        sunny = [r for r in csv.DictReader(open(a.labels)) if r["direct_sun"] == "1"]
+        for r in sunny:
+            cv2.imwrite(
+                str(a.out / "grids" / f"{int(r['index']):03d}.png"), shadow_grid(data_root() / r["photo"], r["index"])
+            )
+        print(len(sunny), "grids in", a.out / "grids")
+        return 0
     photos = benchmark_photos(a.tracon)
     a.out.mkdir(parents=True, exist_ok=True)
     root = data_root()

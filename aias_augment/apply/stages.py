@@ -68,10 +68,13 @@ def apply_plan(
     cfg: InsertionConfig = InsertionConfig(),
     *,
     view_cache: ViewCache | None = None,
+    motions_px: tuple | None = None,
 ) -> AppliedPlan:
     """Render the plan's objects into ``frame.image`` (see the module docstring). ``cfg``: ssaa, render method,
     shadow and harmonization switches (the plan fixed everything random). ``view_cache``: where
     ``render_method="view_cache"`` keeps its views (None: the process-wide :func:`default_view_cache`).
+    ``motions_px``: per object, its image motion during one frame interval ((2,) px) for the layer stages, or None
+    (a still image; a clip frame passes its objects' motion).
 
     All float work happens inside one window: the union of the objects' and their shadows' render windows (the
     sRGB -> linear -> sRGB round trip is exact on uint8, so the pixels outside it are the input's)."""
@@ -105,7 +108,8 @@ def apply_plan(
             shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, alpha > 0, lighting)
         params = plan.layer_params[k] if k < len(plan.layer_params) else {}
         if params:
-            lay = apply_layer_stages(ObjectLayer(roi, alpha, odepth, shaded), params, (h, w))
+            motion = None if motions_px is None else motions_px[k]
+            lay = apply_layer_stages(ObjectLayer(roi, alpha, odepth, shaded), params, (h, w), motion)
             roi, alpha, odepth, shaded = lay.roi, lay.alpha, lay.depth, lay.rgb
         rendered.append((obj, roi, alpha, odepth, shaded, params))
     if cfg.render_method == "view_cache":

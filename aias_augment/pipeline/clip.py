@@ -6,11 +6,12 @@ path, not under it), or a ground pixel sampled in the first frame and lifted to 
 through K [R | t] of every frame (:func:`aias_augment.analyse.ground.project_world_point_track`). Per frame, when depth is
 given, the ground is re-fitted locally around the projected contact (:func:`aias_augment.plan.placement.
 refit_local_ground`); the median of those per-frame height offsets corrects the ONE world pose (per-frame poses
-would jitter). Each frame is rendered with that world pose, shaded with the frame's estimate of ONE clip
-lighting (same sun in the world, e.g. ``estimate_lighting_clip``; default a uniform ambient), composited against
-the frame's depth, and annotated (COCO xywh of the visible part). The object casts its shadow in every frame with the image pipeline's
-shadow catcher (:func:`aias_augment.apply.stages.object_shadow_ratio`): the ONE world pose and the ONE clip sun make it
-a fixed patch of the world ground. With ``flow_refine`` the ground patch under the contact is tracked with KLT
+would jitter). The clip is planned once (:func:`plan_clip`: contact, yaw, world pose, per-frame camera pose of the
+object, ground and lighting) and every frame goes through the image door's stages (:func:`apply_clip` ->
+:func:`aias_augment.apply.stages.apply_plan`): rendered with that pose, shaded with the frame's estimate of ONE clip
+lighting (same sun in the world, e.g. ``estimate_lighting_clip``; default a uniform ambient), layer stages with the
+object's image motion, the shadow catcher's shadow (the ONE world pose and the ONE clip sun make it a fixed patch of
+the world ground), composited against the frame's depth and annotated (COCO xywh of the visible part). With ``flow_refine`` the ground patch under the contact is tracked with KLT
 (:mod:`aias_augment.plan.stabilize`) and each frame's object pose slides on its ground so the contact stays on the
 tracked pixel: drifting poses (visual odometry) no longer make the object skate.
 
@@ -31,10 +32,6 @@ import numpy as np
 from aias_augment.analyse.ground import GroundFitError, GroundPlane, project_world_point_track
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
-from aias_augment.apply.annotate import annotate_object
-from aias_augment.apply.layers import ObjectLayer, apply_layer_stages
-from aias_augment.apply.render import render_object
-from aias_augment.apply.shading import shade_object
 from aias_augment.assets.asset import Asset
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, project_points, transform_points
 from aias_augment.plan.placement import (
@@ -46,7 +43,15 @@ from aias_augment.plan.placement import (
 )
 from aias_augment.plan.stabilize import FlowRefineConfig, refined_cam_from_object, track_contact_with_flow
 
-__all__ = ["VideoInsertionConfig", "ClipInsertion", "choose_world_contact", "insert_into_clip"]
+__all__ = [
+    "VideoInsertionConfig",
+    "ClipInsertion",
+    "ClipPlan",
+    "apply_clip",
+    "choose_world_contact",
+    "insert_into_clip",
+    "plan_clip",
+]
 
 
 @dataclass(frozen=True)
@@ -140,7 +145,28 @@ def choose_world_contact(
     raise ValueError("choose_world_contact: no ground pixel 2..40 m away in the first frame")
 
 
-def insert_into_clip(
+@dataclass(frozen=True, eq=False)
+class ClipPlan:
+    """Everything :func:`apply_clip` does to the frames of one clip, decided once (:func:`plan_clip`): the (scaled)
+    asset, its yaw and world pose, per frame its camera pose (None where the object is behind the camera or off the
+    frame), the frame's ground and lighting, the object's contact track and the layer stages' parameters."""
+
+    asset: Asset
+    yaw_rad: float
+    contact_in_world: np.ndarray
+    world_from_object: np.ndarray
+    cams_from_object: tuple
+    grounds: tuple
+    lights: tuple
+    contact_track_uv: np.ndarray
+    contact_visible: np.ndarray
+    contact_track_in_world: np.ndarray
+    refit_offsets_m: tuple
+    layer_params: dict
+    modules: dict
+
+
+def plan_clip(
     frames,
     intrinsics: Intrinsics,
     cams_from_world,
@@ -154,16 +180,9 @@ def insert_into_clip(
     start: int = 0,
     yaw_rad: float | None = None,
     layer_params: dict | None = None,
-) -> ClipInsertion:
-    """Insert ``asset`` into every frame with one world pose (see module docstring).
-
-    frames: N (H, W, 3) uint8 RGB. cams_from_world: (N, 4, 4). ground_in_cam0: ground of frame ``start`` in its
-    camera. depths: None or N (H, W) z-depth maps (0 = unknown): per-frame refit and occlusion. lighting: None
-    (uniform grey-world ambient of frame ``start``, no sun) or N per-frame estimates of ONE clip lighting, e.g.
-    :func:`aias_augment.analyse.lighting.estimate.estimate_lighting_clip`. layer_params: the object's layer stages
-    and their parameters (:func:`aias_augment.apply.layers.draw_layer_params`), applied in every frame with the
-    object's image motion there (the contact track's central difference, px per frame).
-    """
+) -> ClipPlan:
+    """Plan one object for the whole clip (see the module docstring and :func:`insert_into_clip`): every draw from
+    ``rng`` happens here."""
     poses = np.asarray(cams_from_world, dtype=np.float64)
     n = len(frames)
     if poses.shape != (n, 4, 4):
@@ -249,10 +268,7 @@ def insert_into_clip(
     else:
         lights = list(lighting)
         mods["lighting"] = f"given per frame ({lights[start].source})"
-
     if cfg.shadow:
-        from aias_augment.apply.stages import object_shadow_ratio  # lazy: the apply step imports the renderer
-
         mods["shadow"] = (
             "shadow catcher per frame (one world pose, one sun)"
             if lights[start].dominant_sun
@@ -270,7 +286,7 @@ def insert_into_clip(
         mods["stabilize"] = f"KLT ground tracking: contact corrected in {used}/{n - 1} frames"
     else:
         mods["stabilize"] = "skipped: poses trusted (flow_refine off)"
-    out_frames, boxes, amodal, masks = [], [], [], []
+    cams_from_object = []
     for i in range(n):
         world_from_object_i = world_from_object.copy()
         world_from_object_i[:3, 3] += steps[i] * heading_w
@@ -280,41 +296,131 @@ def insert_into_clip(
                 cam_from_object, transform_points(poses[i], contact_w), flow.uv[i], grounds[i], intrinsics
             )
         uvc, z = project_points(transform_points(cam_from_object, obj.corners_m()), intrinsics.K)
-        img = np.asarray(frames[i])
-        if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
-            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
-            continue
-        b = box_of_points(uvc)
-        if b[2] < 0 or b[3] < 0 or b[0] > intrinsics.width or b[1] > intrinsics.height:
-            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
-            continue
-        rl = render_object(obj, cam_from_object, intrinsics, ssaa=cfg.ssaa)
-        if rl.alpha.max() <= 0.5:
-            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
-            continue
-        shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, rl.alpha > 0, lights[i])
-        alpha, odepth = rl.alpha, rl.depth
-        if layer_params:
-            lay = ObjectLayer((0, 0, intrinsics.width, intrinsics.height), alpha, odepth, shaded)
-            lay = apply_layer_stages(lay, layer_params, img.shape[:2], _image_motion(track_uv, i))
-            alpha, odepth, shaded = lay.alpha, lay.depth, lay.rgb
-        depth_i = None if depths is None else depths[i]
-        vis = alpha * comp.visible_fraction_against_depth(odepth, depth_i)
-        bg = comp.to_linear(img)
-        if cfg.shadow:
-            bg = comp.apply_shadow(bg, object_shadow_ratio(obj, cam_from_object, intrinsics, lights[i], depth_i))
-        out_frames.append(comp.to_uint8(comp.alpha_over(bg, shaded, vis)))
-        masks.append(np.clip(vis, 0.0, 1.0).astype(np.float32))
-        ann = annotate_object(obj.category, alpha, vis)
-        boxes.append(ann.visible_box_xywh)
-        amodal.append(ann.amodal_box_xywh)
+        in_front = not np.any(z <= 0.05) and np.all(np.isfinite(uvc))
+        b = box_of_points(uvc) if in_front else None
+        on_frame = b is not None and b[2] >= 0 and b[3] >= 0 and b[0] <= intrinsics.width and b[1] <= intrinsics.height
+        cams_from_object.append(cam_from_object if on_frame else None)
     if layer_params:
         mods["layers"] = ", ".join(f"{k} {v}" for k, v in layer_params.items())
-    if flow is not None:  # the contact track the frames were rendered with
+    if flow is not None:  # the contact track the frames are rendered with
         track_uv = np.where(np.array([st == "flow" for st in flow.status])[:, None], flow.uv, track_uv)
-    return ClipInsertion(
-        out_frames, boxes, amodal, contact_w, world_from_object, track_uv, visible, offsets, masks, mods, contacts_w
+    return ClipPlan(
+        obj,
+        yaw,
+        contact_w,
+        world_from_object,
+        tuple(cams_from_object),
+        tuple(grounds),
+        tuple(lights),
+        track_uv,
+        visible,
+        contacts_w,
+        tuple(offsets),
+        dict(layer_params or {}),
+        mods,
     )
+
+
+def apply_clip(
+    frames, intrinsics: Intrinsics, plan: ClipPlan, cfg: VideoInsertionConfig = VideoInsertionConfig(), depths=None
+) -> ClipInsertion:
+    """Each frame through the image door's stages (:func:`aias_augment.apply.stages.apply_plan`: render, shade,
+    layer stages with the object's image motion, shadow, depth-aware composite, annotate) with the plan's pose,
+    ground and lighting of that frame. Harmonization is the clip's own (one transform for the clip,
+    :func:`aias_augment.apply.harmonize.harmonize_clip`), not per frame."""
+    from aias_augment.analyse.analysis import SceneAnalysis
+    from aias_augment.apply.stages import apply_plan  # lazy: the apply step imports the renderer
+    from aias_augment.core.frame import Frame
+    from aias_augment.pipeline.config import InsertionConfig
+    from aias_augment.plan.insertion import InsertionPlan, PlannedObject
+    from aias_augment.plan.placement import placement_at
+
+    if len(frames) != len(plan.cams_from_object):
+        raise ValueError(f"{len(frames)} frames for a plan of {len(plan.cams_from_object)}")
+    stages_cfg = InsertionConfig(
+        ssaa=cfg.ssaa, shadow=cfg.shadow, shadow_method="catcher", harmonize=False, render_method="full"
+    )
+    shape = (intrinsics.height, intrinsics.width)
+    out_frames, boxes, amodal, masks = [], [], [], []
+    for i, img in enumerate(frames):
+        img = np.asarray(img)
+        T = plan.cams_from_object[i]
+        res = None
+        if T is not None:
+            placement = placement_at(plan.asset, T, intrinsics, plan.yaw_rad, plan.grounds[i])
+            analysis = SceneAnalysis(f"clip-frame-{i}", shape, intrinsics, plan.grounds[i], None, plan.lights[i])
+            frame_plan = InsertionPlan((PlannedObject(placement, plan.asset),), 0, 1, layer_params=(plan.layer_params,))
+            depth = None if depths is None or depths[i] is None else np.asarray(depths[i], np.float32)
+            res = apply_plan(
+                Frame(img, intrinsics, depth=depth),
+                analysis,
+                frame_plan,
+                stages_cfg,
+                motions_px=(_image_motion(plan.contact_track_uv, i),),
+            )
+        if res is None or not res.annotations:
+            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
+            continue
+        ann = res.annotations[0]
+        out_frames.append(res.image)
+        masks.append(res.cover)
+        boxes.append(ann.visible_box_xywh)
+        amodal.append(ann.amodal_box_xywh)
+    return ClipInsertion(
+        out_frames,
+        boxes,
+        amodal,
+        plan.contact_in_world,
+        plan.world_from_object,
+        plan.contact_track_uv,
+        plan.contact_visible,
+        list(plan.refit_offsets_m),
+        masks,
+        dict(plan.modules),
+        plan.contact_track_in_world,
+    )
+
+
+def insert_into_clip(
+    frames,
+    intrinsics: Intrinsics,
+    cams_from_world,
+    rng: np.random.Generator,
+    cfg: VideoInsertionConfig = VideoInsertionConfig(),
+    *,
+    asset: Asset,
+    ground_in_cam0: GroundPlane,
+    depths=None,
+    lighting: list[LightingEstimate] | None = None,
+    start: int = 0,
+    yaw_rad: float | None = None,
+    layer_params: dict | None = None,
+) -> ClipInsertion:
+    """Insert ``asset`` into every frame with one world pose (see module docstring): :func:`plan_clip` once, then
+    :func:`apply_clip`.
+
+    frames: N (H, W, 3) uint8 RGB. cams_from_world: (N, 4, 4). ground_in_cam0: ground of frame ``start`` in its
+    camera. depths: None or N (H, W) z-depth maps (0 = unknown): per-frame refit and occlusion. lighting: None
+    (uniform grey-world ambient of frame ``start``, no sun) or N per-frame estimates of ONE clip lighting, e.g.
+    :func:`aias_augment.analyse.lighting.estimate.estimate_lighting_clip`. layer_params: the object's layer stages
+    and their parameters (:func:`aias_augment.apply.layers.draw_layer_params`), applied in every frame with the
+    object's image motion there (the contact track's central difference, px per frame).
+    """
+    plan = plan_clip(
+        frames,
+        intrinsics,
+        cams_from_world,
+        rng,
+        cfg,
+        asset=asset,
+        ground_in_cam0=ground_in_cam0,
+        depths=depths,
+        lighting=lighting,
+        start=start,
+        yaw_rad=yaw_rad,
+        layer_params=layer_params,
+    )
+    return apply_clip(frames, intrinsics, plan, cfg, depths)
 
 
 def _image_motion(track_uv: np.ndarray, i: int) -> np.ndarray | None:
