@@ -44,7 +44,8 @@ class AppliedPlan:
     pixel (with its placement), ``cover_window`` float32 over ``window`` (x0, y0, x1, y1): the union of the objects'
     visible coverage (what hides existing boxes; 0 outside the window; :attr:`cover` is it on the whole frame), and
     per stage what was done ('shadow', 'harmonize') and which planned objects were dropped. ``layer_params``: the
-    layer stages' parameters of the objects that rendered (aligned with ``placements``)."""
+    layer stages' parameters of the objects that rendered (aligned with ``placements``). ``object_cover_windows``:
+    per rendered object, its own visible coverage over ``window`` (behind the scene and nearer objects removed)."""
 
     image: np.ndarray
     placements: tuple[Placement, ...]
@@ -54,11 +55,16 @@ class AppliedPlan:
     modules: dict = field(default_factory=dict)
     dropped: tuple[dict, ...] = ()
     layer_params: tuple[dict, ...] = ()
+    object_cover_windows: tuple[np.ndarray, ...] = ()
 
     @property
     def cover(self) -> np.ndarray:
         """(H, W) float32: :attr:`cover_window` on the whole frame."""
         return _paste_window(self.image.shape[:2], self.window, self.cover_window)
+
+    def object_cover(self, k: int) -> np.ndarray:
+        """(H, W) float32: the visible coverage of the ``k``-th rendered object on the whole frame."""
+        return _paste_window(self.image.shape[:2], self.window, self.object_cover_windows[k])
 
 
 def apply_plan(
@@ -233,6 +239,7 @@ def apply_plan(
         mods,
         tuple(dropped),
         tuple(p for *_, p in rendered),
+        tuple(np.clip(v, 0, 1).astype(np.float32, copy=False) for v in vis_alphas),
     )
 
 

@@ -145,6 +145,13 @@ def main(argv=None) -> int:
         metavar="M_PER_S",
         help="the object moves along its heading at this speed (a car driving, a cart crossing); 0: it stands",
     )
+    clip.add_argument(
+        "--objects",
+        type=int,
+        default=1,
+        metavar="N",
+        help="objects inserted into the clip, each with its own track (alternating sides of the path, nearer each)",
+    )
     clip.add_argument("--lighting", choices=("clip", "ambient"), default="clip")
     clip.add_argument(
         "--harmonize",
@@ -202,6 +209,7 @@ def main(argv=None) -> int:
                 preset=a.preset,
                 fps=a.fps,
                 object_speed_mps=a.object_speed,
+                objects=a.objects,
             )
         )
         print({k: record[k] for k in ("category", "asset", "frames", "visible_frames", "wall_s")})

@@ -69,6 +69,9 @@ class ClipJob:
     preset: str = "balanced"  # the image door's preset whose layer stages (e.g. motion blur) the object gets
     fps: float = 10.0  # frames per second of the clip as read (after --stride): the mp4's rate and the speed's clock
     object_speed_mps: float = 0.0  # the object moves along its heading at this speed (0: it stands)
+    # Objects in the clip, each its own track: object k > 0 stands on the other side of the path from object k - 1
+    # and nearer (lookahead scaled by (n - k) / n); on a static camera each stands on its own sampled ground pixel.
+    objects: int = 1
 
     def __post_init__(self):
         if self.lighting not in ("clip", "ambient"):
@@ -89,6 +92,8 @@ class ClipJob:
             raise ValueError(f"need fps > 0 and a finite object speed, got {self.fps}, {self.object_speed_mps}")
         if self.object_speed_mps != 0 and self.flow_refine:
             raise ValueError("--flow-refine tracks the ground under a standing object: not with --object-speed")
+        if self.objects < 1:
+            raise ValueError(f"objects must be >= 1, got {self.objects}")
         if not (np.isfinite(self.camera_height_m) and self.camera_height_m > 0):
             raise ValueError(f"camera_height_m must be positive, got {self.camera_height_m}")
 
@@ -179,10 +184,11 @@ def _job_dict(job: ClipJob) -> dict:
 
 
 def augment_clip(job: ClipJob) -> dict:
-    """Insert one object of ``job.categories[0..]`` (drawn with the seed) into the clip; returns the record."""
+    """Insert ``job.objects`` objects of ``job.categories`` (drawn with the seed) into the clip, each with its own
+    track; returns the record."""
     from aias_augment.analyse.lighting.estimate import estimate_lighting_clip
     from aias_augment.apply.layers import draw_layer_params
-    from aias_augment.pipeline.clip import VideoInsertionConfig, insert_into_clip
+    from aias_augment.pipeline.clip import VideoInsertionConfig, apply_clip_objects, plan_clip
     from aias_augment.pipeline.config import InsertionConfig, load_preset
     from aias_augment.plan.insertion import choose_asset
 
@@ -220,7 +226,8 @@ def augment_clip(job: ClipJob) -> dict:
             log.warning("clip lighting failed (%s): ambient light only", e)
             lighting_note = f"skipped: {e}"
     last = len(frames) - 1
-    layer_params = draw_layer_params(load_preset(job.preset), job.seed, 1)[0]  # own generators: rng untouched
+    # each object's layer stages from generators of their own: rng untouched
+    layer_params = draw_layer_params(load_preset(job.preset), job.seed, job.objects)
     cfg = VideoInsertionConfig(
         lookahead_frames=last if job.lookahead_frames is None else min(job.lookahead_frames, last),
         lateral_offset_m=job.lateral_offset_m,
@@ -228,22 +235,56 @@ def augment_clip(job: ClipJob) -> dict:
         flow_refine=job.flow_refine,
         speed_m_per_frame=job.object_speed_mps / job.fps,
     )
-    res = insert_into_clip(
-        frames,
-        intr,
-        poses,
-        rng,
-        cfg,
-        asset=asset,
-        ground_in_cam0=ground0,
-        lighting=lighting,
-        layer_params=layer_params,
-    )
+    objects = [(category, asset)]
+    plans = [
+        plan_clip(
+            frames,
+            intr,
+            poses,
+            rng,
+            cfg,
+            asset=asset,
+            ground_in_cam0=ground0,
+            lighting=lighting,
+            layer_params=layer_params[0],
+        )
+    ]
+    for k in range(1, job.objects):
+        cat_k = job.categories[int(rng.integers(len(job.categories)))]
+        asset_k = choose_asset(cat_k, rng, InsertionConfig(categories=(cat_k,)))
+        cfg_k = dataclasses.replace(
+            cfg,
+            lookahead_frames=round(cfg.lookahead_frames * (job.objects - k) / job.objects),
+            lateral_offset_m=cfg.lateral_offset_m * (-1) ** k,
+        )
+        objects.append((cat_k, asset_k))
+        plans.append(
+            plan_clip(
+                frames,
+                intr,
+                poses,
+                rng,
+                cfg_k,
+                asset=asset_k,
+                ground_in_cam0=ground0,
+                lighting=lighting,
+                layer_params=layer_params[k],
+            )
+        )
+    results = apply_clip_objects(frames, intr, plans, cfg)
+    res = results[0]
+    out_frames = res.frames
 
     if job.harmonize != "none":
         from aias_augment.apply.harmonize import harmonize_clip
 
-        res.frames = harmonize_clip(res.frames, res.masks, job.harmonize, rng.spawn(1)[0])
+        union = [
+            None
+            if all(r.masks[i] is None for r in results)
+            else np.maximum.reduce([r.masks[i] for r in results if r.masks[i] is not None])
+            for i in range(len(frames))
+        ]
+        out_frames = harmonize_clip(out_frames, union, job.harmonize, rng.spawn(1)[0])
         harmonize_note = (
             f"{job.harmonize}: one colour transform for the clip (median of the per-frame predictions)"
             if job.harmonize == "fast"
@@ -254,30 +295,34 @@ def augment_clip(job: ClipJob) -> dict:
     # A grey clip (KITTI image_0/image_l) stays grey: an orange cone in a grey frame would be a give-away.
     grey = all(np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2]) for f in frames)
     if grey:
-        res.frames = [np.repeat(cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2) for f in res.frames]
-    coco = CocoBuilder({category: 1})
+        out_frames = [np.repeat(cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2) for f in out_frames]
+    categories = list(dict.fromkeys(c for c, _ in objects))
+    coco = CocoBuilder({c: j + 1 for j, c in enumerate(categories)})
     coco.videos.append({"id": 1, "name": Path(job.input).name, "width": w, "height": h, "fps": job.fps})
     drawn, mot = [], []
-    for i, (name, img) in enumerate(zip(names, res.frames)):
+    for i, (name, img) in enumerate(zip(names, out_frames)):
         file_name = f"frames/{name}.jpg"
         write_rgb(out / file_name, img)
         image_id = coco.add_image(file_name, w, h, frame_index=int(idx[i]), video_id=1, frame_id=i)
-        box = res.boxes_xywh[i]
-        if box is not None:
-            visible = res.masks[i] > 0.5
+        boxes, labels = [], []
+        for track, (r, (cat, _)) in enumerate(zip(results, objects), start=1):
+            box = r.boxes_xywh[i]
+            if box is None:
+                continue
+            visible = r.masks[i] > 0.5
             coco.add_box(
                 image_id,
-                category,
+                cat,
                 box,
                 segmentation=encode_rle(visible),
                 area=float(visible.sum()),
                 inserted=True,
-                track_id=1,
-                amodal_bbox=[float(v) for v in res.amodal_boxes_xywh[i]],
+                track_id=track,
+                amodal_bbox=[float(v) for v in r.amodal_boxes_xywh[i]],
             )
-            mot.append(f"{i + 1},1,{box[0]:.2f},{box[1]:.2f},{box[2]:.2f},{box[3]:.2f},1,-1,-1,-1")
-        boxes = [box] if box is not None else []
-        drawn.append(draw_boxes(img, boxes, [category] * len(boxes), inserted=[True] * len(boxes)))
+            mot.append(f"{i + 1},{track},{box[0]:.2f},{box[1]:.2f},{box[2]:.2f},{box[3]:.2f},1,-1,-1,-1")
+            boxes.append(box), labels.append(cat)
+        drawn.append(draw_boxes(img, boxes, labels, inserted=[True] * len(boxes)))
     coco.write(out / "annotations.json")
     atomic_write_text(out / "mot.txt", "".join(line + "\n" for line in mot))
     _write_side_by_side(out / "side_by_side.mp4", frames, drawn, job.fps)
@@ -294,8 +339,21 @@ def augment_clip(job: ClipJob) -> dict:
         "intrinsics": [intr.fx, intr.fy, intr.cx, intr.cy, w, h],
         "world_from_object": res.world_from_object.tolist(),
         "contact_in_world": res.contact_in_world.tolist(),
-        "layer_params": layer_params,
+        "layer_params": layer_params[0],
         "visible_frames": int(sum(b is not None for b in res.boxes_xywh)),
+        "objects": [
+            {
+                "track_id": k + 1,
+                "category": cat,
+                "asset": a.name,
+                "asset_height_m": float(a.height_m),
+                "world_from_object": r.world_from_object.tolist(),
+                "contact_in_world": r.contact_in_world.tolist(),
+                "layer_params": layer_params[k],
+                "visible_frames": int(sum(b is not None for b in r.boxes_xywh)),
+            }
+            for k, ((cat, a), r) in enumerate(zip(objects, results))
+        ],
         "modules": {
             **res.modules,
             "camera": camera_note,

@@ -48,6 +48,7 @@ __all__ = [
     "ClipInsertion",
     "ClipPlan",
     "apply_clip",
+    "apply_clip_objects",
     "choose_world_contact",
     "insert_into_clip",
     "plan_clip",
@@ -324,10 +325,21 @@ def plan_clip(
 def apply_clip(
     frames, intrinsics: Intrinsics, plan: ClipPlan, cfg: VideoInsertionConfig = VideoInsertionConfig(), depths=None
 ) -> ClipInsertion:
-    """Each frame through the image door's stages (:func:`aias_augment.apply.stages.apply_plan`: render, shade,
-    layer stages with the object's image motion, shadow, depth-aware composite, annotate) with the plan's pose,
-    ground and lighting of that frame. Harmonization is the clip's own (one transform for the clip,
-    :func:`aias_augment.apply.harmonize.harmonize_clip`), not per frame."""
+    """One planned object through every frame: :func:`apply_clip_objects` with one plan."""
+    return apply_clip_objects(frames, intrinsics, [plan], cfg, depths)[0]
+
+
+def apply_clip_objects(
+    frames, intrinsics: Intrinsics, plans, cfg: VideoInsertionConfig = VideoInsertionConfig(), depths=None
+) -> list[ClipInsertion]:
+    """Several planned objects (each its own :func:`plan_clip`: track, asset, appearance) through every frame, each
+    frame through the image door's stages (:func:`aias_augment.apply.stages.apply_plan`: render, shade, layer stages
+    with each object's image motion, shadows, composite far to near against the frame's depth and each other,
+    annotate) with the plans' poses, the frame's ground and lighting of the first plan. Harmonization is the clip's
+    own (one transform for the clip, :func:`aias_augment.apply.harmonize.harmonize_clip`), not per frame.
+
+    Returns one :class:`ClipInsertion` per plan; their ``frames`` are the same list (every object drawn in it),
+    ``boxes``/``masks`` each object's own visible part."""
     from aias_augment.analyse.analysis import SceneAnalysis
     from aias_augment.apply.stages import apply_plan  # lazy: the apply step imports the renderer
     from aias_augment.core.frame import Frame
@@ -335,50 +347,75 @@ def apply_clip(
     from aias_augment.plan.insertion import InsertionPlan, PlannedObject
     from aias_augment.plan.placement import placement_at
 
-    if len(frames) != len(plan.cams_from_object):
-        raise ValueError(f"{len(frames)} frames for a plan of {len(plan.cams_from_object)}")
+    plans = list(plans)
+    if not plans:
+        raise ValueError("apply_clip_objects: need at least one plan")
+    for plan in plans:
+        if len(frames) != len(plan.cams_from_object):
+            raise ValueError(f"{len(frames)} frames for a plan of {len(plan.cams_from_object)}")
     stages_cfg = InsertionConfig(
         ssaa=cfg.ssaa, shadow=cfg.shadow, shadow_method="catcher", harmonize=False, render_method="full"
     )
     shape = (intrinsics.height, intrinsics.width)
-    out_frames, boxes, amodal, masks = [], [], [], []
+    out_frames = []
+    boxes = [[] for _ in plans]
+    amodal = [[] for _ in plans]
+    masks = [[] for _ in plans]
     for i, img in enumerate(frames):
         img = np.asarray(img)
-        T = plan.cams_from_object[i]
+        live = [k for k, plan in enumerate(plans) if plan.cams_from_object[i] is not None]
+        placements = {
+            k: placement_at(
+                plans[k].asset, plans[k].cams_from_object[i], intrinsics, plans[k].yaw_rad, plans[k].grounds[i]
+            )
+            for k in live
+        }
         res = None
-        if T is not None:
-            placement = placement_at(plan.asset, T, intrinsics, plan.yaw_rad, plan.grounds[i])
-            analysis = SceneAnalysis(f"clip-frame-{i}", shape, intrinsics, plan.grounds[i], None, plan.lights[i])
-            frame_plan = InsertionPlan((PlannedObject(placement, plan.asset),), 0, 1, layer_params=(plan.layer_params,))
+        if live:
+            analysis = SceneAnalysis(
+                f"clip-frame-{i}", shape, intrinsics, plans[0].grounds[i], None, plans[0].lights[i]
+            )
+            frame_plan = InsertionPlan(
+                tuple(PlannedObject(placements[k], plans[k].asset) for k in live),
+                0,
+                len(live),
+                layer_params=tuple(plans[k].layer_params for k in live),
+            )
             depth = None if depths is None or depths[i] is None else np.asarray(depths[i], np.float32)
             res = apply_plan(
                 Frame(img, intrinsics, depth=depth),
                 analysis,
                 frame_plan,
                 stages_cfg,
-                motions_px=(_image_motion(plan.contact_track_uv, i),),
+                motions_px=tuple(_image_motion(plans[k].contact_track_uv, i) for k in live),
             )
-        if res is None or not res.annotations:
-            out_frames.append(img.copy()), boxes.append(None), amodal.append(None), masks.append(None)
-            continue
-        ann = res.annotations[0]
-        out_frames.append(res.image)
-        masks.append(res.cover)
-        boxes.append(ann.visible_box_xywh)
-        amodal.append(ann.amodal_box_xywh)
-    return ClipInsertion(
-        out_frames,
-        boxes,
-        amodal,
-        plan.contact_in_world,
-        plan.world_from_object,
-        plan.contact_track_uv,
-        plan.contact_visible,
-        list(plan.refit_offsets_m),
-        masks,
-        dict(plan.modules),
-        plan.contact_track_in_world,
-    )
+        out_frames.append(img.copy() if res is None else res.image)
+        rendered = {} if res is None else {id(pl): j for j, pl in enumerate(res.placements)}
+        for k in range(len(plans)):
+            j = rendered.get(id(placements.get(k)))
+            if j is None:
+                boxes[k].append(None), amodal[k].append(None), masks[k].append(None)
+                continue
+            ann = res.annotations[j]
+            boxes[k].append(ann.visible_box_xywh)
+            amodal[k].append(ann.amodal_box_xywh)
+            masks[k].append(res.object_cover(j))
+    return [
+        ClipInsertion(
+            out_frames,
+            boxes[k],
+            amodal[k],
+            plan.contact_in_world,
+            plan.world_from_object,
+            plan.contact_track_uv,
+            plan.contact_visible,
+            list(plan.refit_offsets_m),
+            masks[k],
+            dict(plan.modules),
+            plan.contact_track_in_world,
+        )
+        for k, plan in enumerate(plans)
+    ]
 
 
 def insert_into_clip(

@@ -185,3 +185,39 @@ def test_clip_outputs_are_coco_video_with_masks_and_motchallenge(clip_run):
     assert {int(r[0]): [float(v) for v in r[2:6]] for r in rows}.keys() == by_frame.keys()
     for r in rows:
         assert np.allclose([float(v) for v in r[2:6]], by_frame[int(r[0])], atol=0.01)
+
+
+def test_several_objects_each_have_their_own_track(clip_run, tmp_path):
+    """--objects 2: object 1 is drawn exactly as in the one-object run (same seed: its track, world pose and the
+    frames where it shows), object 2 stands on the other side of the camera's path; each has its own track in the
+    COCO-video file and in mot.txt, and where they do not overlap object 1's boxes are the one-object run's."""
+    out1, args = clip_run
+    out2 = tmp_path / "two"
+    args2 = [v if v != str(out1) else str(out2) for v in args] + ["--objects", "2"]
+    assert main(args2) == 0
+    rec1 = json.loads((out1 / "record.json").read_text())
+    rec2 = json.loads((out2 / "record.json").read_text())
+    assert len(rec2["objects"]) == 2
+    assert np.allclose(rec2["objects"][0]["world_from_object"], rec1["world_from_object"])
+    poses = read_cams_from_world(SEQ / "poses.txt")[:N]
+    sides = []
+    for obj in rec2["objects"]:
+        c = poses[0, :3, :3] @ np.asarray(obj["contact_in_world"]) + poses[0, :3, 3]
+        sides.append(np.sign(c[0]))
+    assert sides[0] == -sides[1]  # opposite sides of the path (camera x)
+    coco1, coco2 = COCO(str(out1 / "annotations.json")), COCO(str(out2 / "annotations.json"))
+    tracks = {a["track_id"] for a in coco2.dataset["annotations"]}
+    assert tracks == {1, 2}
+    rows = [line.split(",") for line in (out2 / "mot.txt").read_text().splitlines()]
+    assert {r[1] for r in rows} == {"1", "2"}
+    frame_of = {im["id"]: im["frame_id"] for im in coco2.dataset["images"]}
+    one = {frame_of[a["image_id"]]: a for a in coco1.dataset["annotations"]}
+    both = {}
+    for a in coco2.dataset["annotations"]:
+        both.setdefault(frame_of[a["image_id"]], {})[a["track_id"]] = a
+    assert set(k for k, v in both.items() if 1 in v) == set(one)
+    for f, a in one.items():
+        other = both[f].get(2)
+        overlap = other is not None and (coco2.annToMask(other) & coco1.annToMask(a)).any()
+        if not overlap:
+            assert np.allclose(both[f][1]["bbox"], a["bbox"])

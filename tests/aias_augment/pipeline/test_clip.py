@@ -260,3 +260,47 @@ def test_a_moving_object_follows_its_heading_at_its_speed_and_stands_on_its_proj
     assert drawn >= 8 and "moving 0.250 m per frame" in res.modules["motion"]
     with pytest.raises(ValueError, match="flow_refine"):
         VideoInsertionConfig(speed_m_per_frame=0.1, flow_refine=True)
+
+
+def _forward_drive(n: int = 3, step_m: float = 1.0):
+    """A camera 1.65 m above level ground driving straight ahead ``step_m`` per frame over a textured grey frame."""
+    K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)
+    frame = np.random.default_rng(3).integers(100, 140, (480, 640, 3), dtype=np.uint8)
+    poses = []
+    for i in range(n):
+        world_from_cam = np.eye(4)
+        world_from_cam[2, 3] = i * step_m
+        poses.append(np.linalg.inv(world_from_cam))
+    return K, [frame.copy() for _ in range(n)], np.stack(poses)
+
+
+def test_several_objects_occlude_each_other_far_to_near():
+    """Two 1 m boxes 0.3 m right of the camera's path, 4 m and 8 m ahead of frame 0: by the pinhole projection the
+    near one's image (x 19-81 px right of centre down to 206 px below) covers the far one's lower part. The near
+    object keeps its own box; the far one loses what the near one covers, and no pixel is counted for both."""
+    from aias_augment.pipeline.clip import apply_clip, apply_clip_objects, plan_clip
+
+    K, frames, poses = _forward_drive(step_m=4.0)
+    ground = prior_ground_plane(1.65)
+
+    def plan(lookahead):
+        cfg = VideoInsertionConfig(lookahead_frames=lookahead, lateral_offset_m=0.3, height_m=1.0, shadow=False)
+        return plan_clip(
+            frames, K, poses, np.random.default_rng(0), cfg, asset=box_asset(), ground_in_cam0=ground, yaw_rad=0.0
+        )
+
+    near, far = plan(1), plan(2)  # beside where the camera is at frames 1 and 2: 4 m and 8 m ahead of frame 0
+    cfg = VideoInsertionConfig(shadow=False)
+    alone_near, alone_far = apply_clip(frames, K, near, cfg), apply_clip(frames, K, far, cfg)
+    both_far, both_near = apply_clip_objects(frames, K, [far, near], cfg)
+    assert both_near.frames is both_far.frames
+    m_near, m_far = alone_near.masks[0] > 0.5, alone_far.masks[0] > 0.5
+    assert (m_near & m_far).sum() > 50  # the two projections overlap in frame 0
+    assert both_near.boxes_xywh[0] == pytest.approx(alone_near.boxes_xywh[0])
+    hidden = m_far.sum() - (both_far.masks[0] > 0.5).sum()
+    assert hidden == pytest.approx((m_near & m_far).sum(), abs=5)  # it loses exactly what the near one covers
+    assert ((both_far.masks[0] > 0.5) & m_near).sum() == 0
+    assert np.all(both_near.masks[0] + both_far.masks[0] <= 1.0 + 1e-5)
+    # where the near object covers, the frame shows it as it shows alone
+    inside = np.asarray(both_near.masks[0]) > 0.999
+    assert np.array_equal(both_near.frames[0][inside], alone_near.frames[0][inside])
