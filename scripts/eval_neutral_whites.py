@@ -76,6 +76,25 @@ def inserted_white_rgb(out: np.ndarray, plan, analysis) -> np.ndarray | None:
     return srgb_to_linear(out[wh].astype(np.float32) / 255.0).mean(0)
 
 
+def labelled_cone_photos(seed: int):
+    """TraCon train photos with labelled cones in a seeded order: (stem, RGB image at <= 640 px, cone boxes xyxy)."""
+    root = data_root() / "tracon"
+    stems = sorted(p.stem for p in (root / "labels/train").glob("*.txt") if p.stat().st_size > 0)
+    for i in np.random.default_rng(seed).permutation(len(stems)):
+        stem = stems[i]
+        path = next((root / "images/train").glob(stem + ".*"), None)
+        if path is None:
+            continue
+        img = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
+        s = min(1.0, 640 / max(img.shape[:2]))
+        if s < 1:
+            img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
+        H, W = img.shape[:2]
+        lab = np.loadtxt(root / "labels/train" / f"{stem}.txt", ndmin=2)
+        cx, cy, bw, bh = lab[:, 1] * W, lab[:, 2] * H, lab[:, 3] * W, lab[:, 4] * H
+        yield stem, img, np.c_[cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2]
+
+
 def chroma(rgb: np.ndarray) -> np.ndarray:
     return np.array([rgb[0] / max(rgb[1], 1e-6), rgb[2] / max(rgb[1], 1e-6)])
 
@@ -91,26 +110,11 @@ def main(argv=None) -> int:
     if a.from_rows:
         rows = json.loads((Path(a.out) / "rows.json").read_text())
         return write_report(rows, a)
-    root = data_root() / "tracon"
-    stems = sorted(p.stem for p in (root / "labels/train").glob("*.txt") if p.stat().st_size > 0)
-    rng = np.random.default_rng(a.seed)
-    stems = [stems[i] for i in rng.permutation(len(stems))]
     base = load_preset(a.preset)
     rows, t0 = [], time.perf_counter()
-    for stem in stems:
+    for stem, img, boxes in labelled_cone_photos(a.seed):
         if len(rows) >= a.photos:
             break
-        path = next((root / "images/train").glob(stem + ".*"), None)
-        if path is None:
-            continue
-        img = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
-        s = min(1.0, 640 / max(img.shape[:2]))
-        if s < 1:
-            img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
-        H, W = img.shape[:2]
-        lab = np.loadtxt(root / "labels/train" / f"{stem}.txt", ndmin=2)
-        cx, cy, bw, bh = lab[:, 1] * W, lab[:, 2] * H, lab[:, 3] * W, lab[:, 4] * H
-        boxes = np.c_[cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2]
         real = real_white_rgb(img, boxes)
         if real is None:
             continue

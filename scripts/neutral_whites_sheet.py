@@ -17,10 +17,12 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from eval_neutral_whites import labelled_cone_photos  # noqa: E402
 
 from aias_augment.analyse.analysis import analyse_scene  # noqa: E402
 from aias_augment.apply.stages import apply_plan  # noqa: E402
-from aias_augment.core.config import data_root  # noqa: E402
 from aias_augment.core.frame import Frame  # noqa: E402
 from aias_augment.pipeline.config import load_preset  # noqa: E402
 from aias_augment.plan.insertion import plan_insertion  # noqa: E402
@@ -44,9 +46,6 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="results/lighting/neutral_whites/sheet.jpg")
     a = ap.parse_args(argv)
-    root = data_root() / "tracon"
-    stems = sorted(p.stem for p in (root / "labels/train").glob("*.txt") if p.stat().st_size > 0)
-    stems = [stems[i] for i in np.random.default_rng(a.seed).permutation(len(stems))]
     new = load_preset("balanced")
     old = replace(
         new,
@@ -54,17 +53,9 @@ def main(argv=None) -> int:
         lighting_cfg=replace(new.lighting_cfg, ambient_colour="scene", ground_white_balance=0.75),
     )
     rows = []
-    for stem in stems:
+    for stem, img, boxes in labelled_cone_photos(a.seed):
         if len(rows) >= a.photos:
             break
-        path = next((root / "images/train").glob(stem + ".*"), None)
-        img = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
-        s = min(1.0, 640 / max(img.shape[:2]))
-        img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else img
-        H, W = img.shape[:2]
-        lab = np.loadtxt(root / "labels/train" / f"{stem}.txt", ndmin=2)
-        cx, cy, bw, bh = lab[:, 1] * W, lab[:, 2] * H, lab[:, 3] * W, lab[:, 4] * H
-        boxes = np.c_[cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2]
         frame = Frame(img, None)
         an_old, an_new = analyse_scene(frame, old), analyse_scene(frame, new)
         if an_new.region is None:
