@@ -2,6 +2,7 @@
 """Per-seed val AP50:95 and paired differences of chosen arm pairs from a study's run metrics (markdown).
 
 python scripts/probe_pairs.py results/study_probe/run_metrics
+python scripts/probe_pairs.py results/study_core/run_metrics
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from scipy import stats
 
 ARMS = [
     "original",
+    "inserted",
     "naive_paste",
     "copy_paste",
     "lifted",
@@ -31,6 +33,9 @@ ARMS = [
     "inserted_arranged",
 ]
 PAIRS = [
+    ("inserted", "original"),
+    ("inserted", "naive_paste_procedural"),
+    ("naive_paste_procedural", "original"),
     ("lifted", "naive_paste"),
     ("copy_paste", "naive_paste"),
     ("lifted", "copy_paste"),
@@ -86,6 +91,9 @@ def main(folder: str) -> int:
             continue
         cells = []
         for split in ("val", "dev"):
+            if any(ap[(x, s)][split] is None for x in (a, b) for s in both):
+                cells.append("—")  # a study without a development split
+                continue
             d = np.array([ap[(a, s)][split] - ap[(b, s)][split] for s in both])
             h = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else float("nan")
             ci = f" [{d.mean() - h:+.3f}, {d.mean() + h:+.3f}]" if len(d) > 1 else " (one seed)"

@@ -219,6 +219,9 @@ def main(argv=None) -> int:
     from aias_augment.adapters.boundary import InputError, check_categories
     from aias_augment.cli.manifest import ManifestMismatch
 
+    clip_only = [f for f, v in (("--objects", a.objects != 1), ("--object-speed", a.object_speed != 0)) if v]
+    if clip_only:
+        ap.error(f"{', '.join(clip_only)}: for clips (--input a video or a frame folder); images take --per-image")
     if (
         (a.per_image is not None and a.per_image < 0)
         or a.workers < 1

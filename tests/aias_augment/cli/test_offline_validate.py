@@ -141,6 +141,18 @@ def test_empty_input_unknown_category_are_errors(tmp_path, capsys):
         run([], CFG, 0, str(tmp_path / "o"))
 
 
+def test_clip_options_on_images_are_refused(tmp_path, capsys):
+    """--objects and --object-speed shape a clip; on an image dataset they would be silently ignored."""
+    (tmp_path / "images").mkdir()
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), _road())
+    for flag in (["--objects", "3"], ["--object-speed", "2"]):
+        with pytest.raises(SystemExit) as e:
+            main(["--images", str(tmp_path / "images"), "--out", str(tmp_path / "o"), *flag])
+        assert e.value.code == 2
+        assert f"{flag[0]}: for clips" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
 def test_mesh_scale_guess():
     assert plausible_scale(1.8, "person") == (1.0, None)
     s, warning = plausible_scale(187.0, "person")
