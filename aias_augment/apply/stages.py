@@ -63,8 +63,8 @@ class AppliedPlan:
         return _paste_window(self.image.shape[:2], self.window, self.cover_window)
 
     def object_cover(self, k: int) -> np.ndarray:
-        """(H, W) float32: the visible coverage of the ``k``-th rendered object on the whole frame."""
-        return _paste_window(self.image.shape[:2], self.window, self.object_cover_windows[k])
+        """(H, W) float32: the visible coverage of the ``k``-th rendered object on the whole frame, in [0, 1]."""
+        return _paste_window(self.image.shape[:2], self.window, np.clip(self.object_cover_windows[k], 0, 1))
 
 
 def apply_plan(
@@ -239,7 +239,7 @@ def apply_plan(
         mods,
         tuple(dropped),
         tuple(p for *_, p in rendered),
-        tuple(np.clip(v, 0, 1).astype(np.float32, copy=False) for v in vis_alphas),
+        tuple(vis_alphas),
     )
 
 

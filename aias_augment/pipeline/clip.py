@@ -392,7 +392,7 @@ def apply_clip_objects(
         out_frames.append(img.copy() if res is None else res.image)
         rendered = {} if res is None else {id(pl): j for j, pl in enumerate(res.placements)}
         for k in range(len(plans)):
-            j = rendered.get(id(placements.get(k)))
+            j = rendered.get(id(placements[k])) if k in placements else None
             if j is None:
                 boxes[k].append(None), amodal[k].append(None), masks[k].append(None)
                 continue
