@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import os
 import time
 from dataclasses import dataclass
@@ -44,6 +45,9 @@ log = logging.getLogger(__name__)
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+#: Draws of one object's plan before it is left out for meeting an object already placed in the clip.
+COLLISION_ATTEMPTS = 8
+COLLISION_STEP_M = 0.5
 
 
 @dataclass(frozen=True)
@@ -71,6 +75,8 @@ class ClipJob:
     object_speed_mps: float = 0.0  # the object moves along its heading at this speed (0: it stands)
     # Objects in the clip, each its own track: object k > 0 stands on the other side of the path from object k - 1
     # and nearer (lookahead scaled by (n - k) / n); on a static camera each stands on its own sampled ground pixel.
+    # Objects never meet: one whose box would meet another's in any frame is redrawn (record: "draws",
+    # "skipped_objects").
     objects: int = 1
 
     def __post_init__(self):
@@ -188,7 +194,7 @@ def augment_clip(job: ClipJob) -> dict:
     track; returns the record."""
     from aias_augment.analyse.lighting.estimate import estimate_lighting_clip
     from aias_augment.apply.layers import draw_layer_params
-    from aias_augment.pipeline.clip import VideoInsertionConfig, apply_clip_objects, plan_clip
+    from aias_augment.pipeline.clip import VideoInsertionConfig, apply_clip_objects, first_collision, plan_clip
     from aias_augment.pipeline.config import InsertionConfig, load_preset
     from aias_augment.plan.insertion import choose_asset
 
@@ -236,6 +242,7 @@ def augment_clip(job: ClipJob) -> dict:
         speed_m_per_frame=job.object_speed_mps / job.fps,
     )
     objects = [(category, asset)]
+    placed_params, draws = [layer_params[0]], [1]
     plans = [
         plan_clip(
             frames,
@@ -249,17 +256,20 @@ def augment_clip(job: ClipJob) -> dict:
             layer_params=layer_params[0],
         )
     ]
+    skipped_objects = []
     for k in range(1, job.objects):
         cat_k = job.categories[int(rng.integers(len(job.categories)))]
         asset_k = choose_asset(cat_k, rng, InsertionConfig(categories=(cat_k,)))
-        cfg_k = dataclasses.replace(
-            cfg,
-            lookahead_frames=round(cfg.lookahead_frames * (job.objects - k) / job.objects),
-            lateral_offset_m=cfg.lateral_offset_m * (-1) ** k,
-        )
-        objects.append((cat_k, asset_k))
-        plans.append(
-            plan_clip(
+        # Objects share the world: a plan whose box meets a placed object's in any frame is redrawn (a new yaw, a
+        # new sampled pixel, or COLLISION_STEP_M further from the path), and after COLLISION_ATTEMPTS it is left out.
+        for attempt in range(COLLISION_ATTEMPTS):
+            cfg_k = dataclasses.replace(
+                cfg,
+                lookahead_frames=round(cfg.lookahead_frames * (job.objects - k) / job.objects),
+                lateral_offset_m=(-1) ** k
+                * math.copysign(abs(cfg.lateral_offset_m) + COLLISION_STEP_M * attempt, cfg.lateral_offset_m),
+            )
+            plan_k = plan_clip(
                 frames,
                 intr,
                 poses,
@@ -270,7 +280,19 @@ def augment_clip(job: ClipJob) -> dict:
                 lighting=lighting,
                 layer_params=layer_params[k],
             )
-        )
+            hits = [(j, first_collision(plan_k, p)) for j, p in enumerate(plans)]
+            hit = next(((j, f) for j, f in hits if f is not None), None)
+            if hit is None:
+                break
+        if hit is not None:
+            why = f"meets object {hit[0] + 1} in frame {hit[1]} in all {COLLISION_ATTEMPTS} draws"
+            log.warning("%s: object %d left out: %s", job.input, k + 1, why)
+            skipped_objects.append({"object": k + 1, "category": cat_k, "reason": why})
+            continue
+        objects.append((cat_k, asset_k))
+        plans.append(plan_k)
+        placed_params.append(layer_params[k])
+        draws.append(attempt + 1)
     results = apply_clip_objects(frames, intr, plans, cfg)
     res = results[0]
     out_frames = res.frames
@@ -349,11 +371,13 @@ def augment_clip(job: ClipJob) -> dict:
                 "asset_height_m": float(a.height_m),
                 "world_from_object": r.world_from_object.tolist(),
                 "contact_in_world": r.contact_in_world.tolist(),
-                "layer_params": layer_params[k],
+                "layer_params": placed_params[k],
+                "draws": draws[k],
                 "visible_frames": int(sum(b is not None for b in r.boxes_xywh)),
             }
             for k, ((cat, a), r) in enumerate(zip(objects, results))
         ],
+        "skipped_objects": skipped_objects,
         "modules": {
             **res.modules,
             "camera": camera_note,

@@ -34,6 +34,7 @@ from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.assets.asset import Asset
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, project_points, transform_points
+from aias_augment.plan.collision import OrientedBox, boxes_intersect
 from aias_augment.plan.placement import (
     PlacementConfig,
     box_of_points,
@@ -50,7 +51,9 @@ __all__ = [
     "apply_clip",
     "apply_clip_objects",
     "choose_world_contact",
+    "first_collision",
     "insert_into_clip",
+    "object_boxes_in_world",
     "plan_clip",
 ]
 
@@ -320,6 +323,33 @@ def plan_clip(
         dict(layer_params or {}),
         mods,
     )
+
+
+def object_boxes_in_world(plan: ClipPlan) -> list[OrientedBox]:
+    """The object's bounding box in the world in every frame of the clip (a moving object's moves with it), whether
+    or not a camera sees it there: objects share the world, not the frame."""
+    lo, hi = plan.asset.bounds_m
+    box_from_object = np.eye(4)
+    box_from_object[:3, 3] = -(lo + hi) / 2
+    world_from_box = plan.world_from_object @ invert_rigid(box_from_object)
+    boxes = []
+    for c in np.asarray(plan.contact_track_in_world, float):
+        T = world_from_box.copy()
+        T[:3, 3] += c - plan.contact_in_world
+        boxes.append(OrientedBox(T, tuple(hi - lo)))
+    return boxes
+
+
+def first_collision(a: ClipPlan, b: ClipPlan, margin_m: float = 0.1) -> int | None:
+    """The first frame in which the two planned objects' boxes, each inflated by ``margin_m``, intersect (exact
+    separating-axis test), or None when they stay apart through the whole clip."""
+    boxes_a, boxes_b = object_boxes_in_world(a), object_boxes_in_world(b)
+    if len(boxes_a) != len(boxes_b):
+        raise ValueError(f"plans of clips of {len(boxes_a)} and {len(boxes_b)} frames")
+    for i, (ba, bb) in enumerate(zip(boxes_a, boxes_b)):
+        if boxes_intersect(ba, bb, margin_m):
+            return i
+    return None
 
 
 def apply_clip(

@@ -221,3 +221,37 @@ def test_several_objects_each_have_their_own_track(clip_run, tmp_path):
         overlap = other is not None and (coco2.annToMask(other) & coco1.annToMask(a)).any()
         if not overlap:
             assert np.allclose(both[f][1]["bbox"], a["bbox"])
+
+
+def test_objects_that_would_stand_in_one_spot_are_drawn_apart(tmp_path):
+    """Lateral offset 0 and lookahead 0 put both objects on the ground under the first camera, in one spot: the
+    second is redrawn further from the path until the two footprints are apart, and the record says how many draws
+    it took. Truth by hand: the contacts' distance on the ground exceeds the two bases' half-widths."""
+    from aias_augment.cli.clip import COLLISION_STEP_M, augment_clip
+
+    if not SEQ.exists():
+        pytest.skip("shared KITTI data not available")
+    job = ClipJob(
+        input=str(SEQ / "image_l"),
+        camera=str(SEQ / "calib.txt"),
+        poses=str(SEQ / "poses.txt"),
+        out=str(tmp_path / "apart"),
+        max_frames=3,
+        lighting="ambient",
+        harmonize="none",
+        lookahead_frames=0,
+        lateral_offset_m=0.0,
+        objects=2,
+        seed=1,
+    )
+    rec = augment_clip(job)
+    assert len(rec["objects"]) == 2 and rec["skipped_objects"] == []
+    first, second = rec["objects"]
+    assert first["draws"] == 1 and second["draws"] >= 2
+    c1, c2 = np.asarray(first["contact_in_world"]), np.asarray(second["contact_in_world"])
+    poses = read_cams_from_world(SEQ / "poses.txt")
+    right = np.linalg.inv(poses[0])[:3, 0]  # the first camera's x axis in the world
+    apart = np.linalg.norm(c2 - c1)
+    assert apart == pytest.approx(COLLISION_STEP_M * (second["draws"] - 1), abs=0.05)
+    assert abs((c2 - c1) @ right) == pytest.approx(apart, abs=0.05)  # moved sideways, across the path
+    assert apart > 0.2 + 0.1  # cones' bases are under 0.5 m wide: half of each plus the margin

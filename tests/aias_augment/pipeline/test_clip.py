@@ -304,3 +304,33 @@ def test_several_objects_occlude_each_other_far_to_near():
     # where the near object covers, the frame shows it as it shows alone
     inside = np.asarray(both_near.masks[0]) > 0.999
     assert np.array_equal(both_near.frames[0][inside], alone_near.frames[0][inside])
+
+
+def test_first_collision_is_the_frame_where_a_moving_object_meets_a_standing_one():
+    """Truth by hand on a straight drive (1 m per frame, world = camera 0, forward = +z): a 1 m cube stands 10 m
+    ahead; another leaves 2 m ahead at 1 m per frame along the path (yaw pi/2 points its heading forward). Their
+    centres are 8 - i metres apart in frame i, so boxes inflated by ``m`` meet first when 8 - i <= 1 + 2 m: frame 7
+    for m = 0.1, frame 6 for m = 0.6. Side by side at the same spot, 1.1 m apart: they meet only with a margin."""
+    from aias_augment.pipeline.clip import first_collision, object_boxes_in_world, plan_clip
+
+    K, frames, poses = _forward_drive(n=12, step_m=1.0)
+    ground, cube = prior_ground_plane(1.65), box_asset(extents=(1.0, 1.0, 1.0))
+
+    def plan(lookahead, lateral=0.0, speed=0.0):
+        cfg = VideoInsertionConfig(
+            lookahead_frames=lookahead, lateral_offset_m=lateral, height_m=1.0, shadow=False, speed_m_per_frame=speed
+        )
+        return plan_clip(
+            frames, K, poses, np.random.default_rng(0), cfg, asset=cube, ground_in_cam0=ground, yaw_rad=np.pi / 2
+        )
+
+    standing, moving = plan(10), plan(2, speed=1.0)
+    centres = np.array([b.cam_from_box[:3, 3] for b in object_boxes_in_world(moving)])
+    assert np.allclose(centres[:, 2], 2.0 + np.arange(12), atol=1e-9)  # forward 1 m per frame
+    assert np.allclose(centres[:, 1], 1.65 - 0.5, atol=1e-9)  # the cube's centre 0.5 m above the ground (y down)
+    assert first_collision(moving, standing, margin_m=0.1) == 7
+    assert first_collision(standing, moving, margin_m=0.6) == 6
+    assert first_collision(plan(2), standing, margin_m=0.1) is None
+    left, right = plan(5, lateral=-0.55), plan(5, lateral=0.55)
+    assert first_collision(left, right, margin_m=0.0) is None
+    assert first_collision(left, right, margin_m=0.1) == 0
