@@ -17,9 +17,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from aias_augment.analyse.ground import GroundFitError, fit_ground_plane
 from aias_augment.core.geometry import Intrinsics, invert_rigid
 
-__all__ = ["SfmPoses", "estimate_poses", "fit_plane", "ground_gauge"]
+__all__ = ["SfmPoses", "estimate_poses", "ground_gauge"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,31 +110,6 @@ def estimate_poses(
     return SfmPoses(tuple(poses), pts, err)
 
 
-def fit_plane(points: np.ndarray, rng: np.random.Generator, threshold: float, iters: int = 1000):
-    """The plane with the most of ``points`` within ``threshold`` (RANSAC on 3-point samples, then least squares on
-    its inliers): (unit normal, d) with n . x + d = 0, and the inlier mask."""
-    pts = np.asarray(points, float)
-    if len(pts) < 3:
-        raise ValueError(f"fit_plane: {len(pts)} points")
-    best = None
-    for _ in range(iters):
-        a, b, c = pts[rng.choice(len(pts), 3, replace=False)]
-        n = np.cross(b - a, c - a)
-        norm = np.linalg.norm(n)
-        if norm < 1e-12:
-            continue
-        n = n / norm
-        inl = np.abs((pts - a) @ n) < threshold
-        if best is None or inl.sum() > best.sum():
-            best = inl
-    if best is None or best.sum() < 3:
-        raise ValueError("fit_plane: no plane")
-    q = pts[best]
-    centroid = q.mean(0)
-    n = np.linalg.svd(q - centroid)[2][-1]
-    return n, -float(n @ centroid), best
-
-
 def ground_gauge(sfm: SfmPoses, look_at: np.ndarray, rng: np.random.Generator, object_radius: float) -> np.ndarray:
     """``object_from_model`` (4x4 rigid): z along the normal of the dominant plane among the model's points farther
     than ``object_radius`` from ``look_at`` (the floor around the object, not a face of it), toward the cameras; the
@@ -144,9 +120,16 @@ def ground_gauge(sfm: SfmPoses, look_at: np.ndarray, rng: np.random.Generator, o
     if len(around) < 3:
         raise ValueError("no model points around the object: the floor cannot be found")
     spread = float(np.median(np.linalg.norm(around - np.median(around, 0), axis=1)))
-    n, d, _ = fit_plane(around, rng, threshold=0.01 * spread)
-    if np.mean(centres @ n + d) < 0:
-        n, d = -n, -d
+    # The ground fit of a scene, seen from the cameras' centroid (above the floor: the fit's origin), with up toward
+    # them: the floor is the plane within 90 deg of it that holds the most points.
+    eye = centres.mean(0)
+    try:
+        plane = fit_ground_plane(
+            around - eye, rng, up_hint=eye - look_at, max_tilt_deg=90.0, threshold_m=0.01 * spread, iterations=1000
+        )
+    except GroundFitError as e:
+        raise ValueError(f"the floor around the object cannot be found: {e}") from e
+    n, d = plane.normal, plane.d - float(plane.normal @ eye)
     origin = look_at - (look_at @ n + d) * n
     x = centres[0] - origin
     x = x - (x @ n) * n
