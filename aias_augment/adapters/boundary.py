@@ -36,6 +36,22 @@ IMAGE_SKIP_KINDS = (
 BOX_POLICIES = ("clip", "drop")
 
 
+class ImageSkip(ValueError):
+    """Bad input that skips one image: ``kind`` (one of :data:`IMAGE_SKIP_KINDS`: what reports count), ``reason``,
+    and where it was found (``file``, ``line``) when known. The message reads ``"<kind>: [<file>[:<line>]: ]<reason>"``;
+    code reads the fields."""
+
+    def __init__(self, kind: str, reason: str, file=None, line: int | None = None):
+        if kind not in IMAGE_SKIP_KINDS:
+            raise ValueError(f"ImageSkip kind must be one of {IMAGE_SKIP_KINDS}, got {kind!r}")
+        where = "" if file is None else (f"{file}:{line}: " if line is not None else f"{file}: ")
+        super().__init__(f"{kind}: {where}{reason}")
+        self.kind, self.reason, self.file, self.line = kind, reason, None if file is None else str(file), line
+
+    def __reduce__(self):  # pickled (Ray, spawned workers) with its fields
+        return (ImageSkip, (self.kind, self.reason, self.file, self.line))
+
+
 def problem(kind: str, file, reason: str, line: int | None = None) -> dict:
     return {"kind": kind, "file": str(file), "line": line, "reason": reason}
 
@@ -59,7 +75,7 @@ def read_image_checked(path) -> tuple[np.ndarray, list[dict]]:
     try:
         data = path.read_bytes()
     except OSError as e:
-        raise ValueError(f"unreadable image: {e.strerror or e}") from None
+        raise ImageSkip("unreadable image", str(e.strerror or e)) from None
     if not data:
         raise ValueError("unreadable image: empty file")
     ImageFile.LOAD_TRUNCATED_IMAGES = False
@@ -77,7 +93,7 @@ def read_image_checked(path) -> tuple[np.ndarray, list[dict]]:
         # PIL names an in-memory file by its address ("<_io.BytesIO object at 0x7f...>"): not part of a reproducible
         # report, so the address is dropped
         detail = re.sub(r"<[^<>]* at 0x[0-9a-fA-F]+>", "the file", str(e))
-        raise ValueError(f"corrupt image: {type(e).__name__}: {detail}") from None
+        raise ImageSkip("corrupt image", f"{type(e).__name__}: {detail}") from None
     if data[:2] == b"\xff\xd8" and b"\xff\xd9" not in data[-4096:]:
         raise ValueError("corrupt image: JPEG without end-of-image marker (truncated)")
     if mode in ("F", "I") or mode.startswith("BGR"):
@@ -94,11 +110,11 @@ def read_image_checked(path) -> tuple[np.ndarray, list[dict]]:
         img = np.round(img.astype(np.float32) / 257.0).astype(np.uint8)
         notes.append(problem("converted", path, "16-bit image converted to 8-bit (round(v / 257))"))
     elif img.dtype != np.uint8:
-        raise ValueError(f"unsupported image: {img.dtype} pixels (only 8- and 16-bit integer images)")
+        raise ImageSkip("unsupported image", f"{img.dtype} pixels (only 8- and 16-bit integer images)")
     if mode not in ("RGB", "I;16", "I;16B", "I;16L"):
         notes.append(problem("converted", path, f"PIL mode {mode} converted to RGB"))
     if min(img.shape[:2]) < 1:
-        raise ValueError(f"unreadable image: size {img.shape[1]}x{img.shape[0]}")
+        raise ImageSkip("unreadable image", f"size {img.shape[1]}x{img.shape[0]}")
     return np.ascontiguousarray(img[..., ::-1]), notes
 
 
@@ -125,10 +141,10 @@ def check_box(
     x: float, y: float, w: float, h: float, width: float, height: float, policy: str, file, line, notes: list
 ) -> list[float] | None:
     """One box (xywh, same units as ``width``/``height``) against the image: non-finite raises
-    ``ValueError("non-finite box: ...")``; zero/negative size is dropped; outside the image clipped or dropped
+    ``ImageSkip("non-finite box", ...)``; zero/negative size is dropped; outside the image clipped or dropped
     (``policy``). Appends a note for every change; returns the box or None (dropped)."""
     if not all(math.isfinite(v) for v in (x, y, w, h)):
-        raise ValueError(f"non-finite box: {[x, y, w, h]}")
+        raise ImageSkip("non-finite box", f"{[x, y, w, h]}")
     if w <= 0 or h <= 0:
         notes.append(problem("box dropped: zero or negative size", file, f"w={w:g} h={h:g}", line))
         return None
@@ -144,7 +160,7 @@ def check_box(
 
 
 def parse_yolo_labels(path: Path, class_names: list[str] | None, policy: str = "clip") -> tuple[list, list]:
-    """``class cx cy w h`` normalised rows -> (rows as string tokens, notes). Raises ``ValueError("<kind>: ...")``
+    """``class cx cy w h`` normalised rows -> (rows as string tokens, notes). Raises :class:`ImageSkip`
     for a garbage line, a class id out of range (negative, or >= len(class_names)) or a non-finite number; the
     message names the file and line."""
     rows, notes = [], []
@@ -158,16 +174,16 @@ def parse_yolo_labels(path: Path, class_names: list[str] | None, policy: str = "
             c = float(tok[0])
             cx, cy, bw, bh = map(float, tok[1:])
         except ValueError:
-            raise ValueError(
-                f"garbage label line: {path}:{n}: expected 'class cx cy w h', got {raw.strip()[:80]!r}"
+            raise ImageSkip(
+                "garbage label line", f"expected 'class cx cy w h', got {raw.strip()[:80]!r}", path, n
             ) from None
         if not math.isfinite(c) or c != int(c) or c < 0 or (class_names and c >= len(class_names)):
             names = f"{len(class_names)} class names" if class_names else "no class names"
-            raise ValueError(f"class id out of range: {path}:{n}: class {tok[0]} ({names})")
+            raise ImageSkip("class id out of range", f"class {tok[0]} ({names})", path, n)
         try:
             box = check_box(cx - bw / 2, cy - bh / 2, bw, bh, 1.0, 1.0, policy, path, n, notes)
-        except ValueError as e:
-            raise ValueError(f"{e} at {path}:{n}") from None
+        except ImageSkip as e:
+            raise ImageSkip(e.kind, f"{e.reason} at {path}:{n}", line=n) from None
         if box is None:
             continue
         if box == [cx - bw / 2, cy - bh / 2, bw, bh]:
@@ -415,7 +431,8 @@ def nothing_inserted_reason(record: dict) -> str:
     search's commonest rejection."""
     from collections import Counter
 
-    skipped = [f"{k} {v}" for k, v in record.get("modules", {}).items() if str(v).startswith("skipped")]
+    notes = record.get("modules", {})
+    skipped = [f"{k} {notes[k]}" for k in record.get("skipped_stages", ())]
     rejected = Counter()
     for r in record.get("placement_reports", []):
         rejected.update((r or {}).get("rejected", {}))

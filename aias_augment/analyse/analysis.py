@@ -24,6 +24,7 @@ from aias_augment.analyse.region import PlaceableRegion, below_horizon_mask, pla
 from aias_augment.apply import composite as comp
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics
+from aias_augment.core.report import skipped
 from aias_augment.pipeline.config import InsertionConfig
 from aias_augment.scenes.single_image import SingleImageConfig, estimate_camera_from_image
 
@@ -236,7 +237,7 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
         )
         intr = given_K if given_K is not None else _scaled_intrinsics(intr_s, w, h)
     if not cfg.placement:
-        mods["placement"] = "skipped: disabled (ablation or naive paste); random 2D position and size"
+        mods["placement"] = skipped("disabled (ablation or naive paste); random 2D position and size")
     region = None
     if cfg.placement:
         if meta.get("placeable_mask") is not None:  # the caller says where objects may stand (e.g. road pixels)
@@ -250,7 +251,7 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
         if region.excluded:
             mods["region"] += ", excluded: " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in region.excluded.items())
         # measured regions only: the image region leaves cast shadows out, it would bias the sun/sky ratio
-        if not region.evidence.startswith(("prior:", "image:")) and "ground_mask" not in meta:
+        if region.measured and "ground_mask" not in meta:
             meta["ground_mask"] = region.mask  # lit/shadowed ground for the sun/sky ratio
     up_ground = ground or prior_ground_plane(cfg.camera_height_m)
     # The lighting's copy is at least lighting_cfg.min_input_width wide (the camera's may be narrower): on a 160 px
@@ -375,7 +376,7 @@ def scene_lighting(
         E = np.asarray(comp.ExposureMatch.from_image(image).irradiance_rgb)
         sh = np.zeros((9, 3))
         sh[0] = E / (np.pi * 0.886227)  # irradiance of a constant SH radiance L00*Y00 is pi * 0.886227 * L00
-        modules["lighting"] = "skipped: disabled (ablation); uniform gray-world ambient, no sun"
+        modules["lighting"] = skipped("disabled (ablation); uniform gray-world ambient, no sun")
         return LightingEstimate(None, np.zeros(3), sh, 0.0, False, 0.0, "none", ground.normal)
     # one camera height: the ground plane's (measured from depth or poses, else the prior) for the lighting too
     lcfg = cfg.lighting_cfg

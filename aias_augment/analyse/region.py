@@ -98,15 +98,28 @@ class RegionConfig:
     image_max_distance_m: float = 40.0  # farther ground (on the estimated plane) is left out
 
 
+#: Evidence of a region measured in the scene (or given by the user): its mask is the ground that is there.
+MEASURED_EVIDENCE = ("semantic", "depth", "multi_frame", "given")
+#: Evidence of a region inferred: the image's road appearance, or every pixel below the horizon.
+INFERRED_EVIDENCE = ("image:road_appearance", "prior:below_horizon")
+
+
 @dataclass(frozen=True, eq=False)
 class PlaceableRegion:
     mask: np.ndarray  # (H, W) bool
-    evidence: str  # "semantic" | "depth" | "multi_frame" | "image:road_appearance" | "prior:below_horizon"
+    evidence: str  # one of MEASURED_EVIDENCE or INFERRED_EVIDENCE
     fraction: float  # of the image
     # Image evidence: fraction of the below-horizon pixels each step excluded (why a pixel is not placeable).
     excluded: dict = field(default_factory=dict)
 
+    @property
+    def measured(self) -> bool:
+        """The mask is ground measured in the scene (or given), not inferred from appearance or the horizon."""
+        return self.evidence in MEASURED_EVIDENCE
+
     def __post_init__(self):
+        if self.evidence not in MEASURED_EVIDENCE + INFERRED_EVIDENCE:
+            raise ValueError(f"unknown region evidence {self.evidence!r}")
         # The region's own read-only copy: it cannot change after the analysis (placement memoises by identity).
         m = np.array(self.mask, dtype=bool, copy=True)
         m.setflags(write=False)

@@ -31,6 +31,7 @@ from aias_augment.apply.view_cache import ViewCache, warp_from_view_cache
 from aias_augment.assets.asset import Asset
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics, invert_rigid, transform_points, unproject_points
+from aias_augment.core.report import skipped
 from aias_augment.pipeline.config import InsertionConfig
 from aias_augment.plan.insertion import InsertionPlan
 from aias_augment.plan.placement import Placement
@@ -140,11 +141,11 @@ def apply_plan(
             else "contact occlusion only: no dominant sun"
         )
     elif not cfg.shadow:
-        mods["shadow"] = "skipped: disabled (ablation or naive paste)"
+        mods["shadow"] = skipped("disabled (ablation or naive paste)")
     rois = [r for _, r, *_ in rendered] + [r for r, _ in shadows if r[2] > r[0] and r[3] > r[1]]
     if not rois:
         if not cfg.harmonize:
-            mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
+            mods["harmonize"] = skipped("disabled (ablation or naive paste)")
         return AppliedPlan(img.copy(), (), (), np.zeros((0, 0), np.float32), (0, 0, 0, 0), mods, tuple(dropped))
     win = (min(r[0] for r in rois), min(r[1] for r in rois), max(r[2] for r in rois), max(r[3] for r in rois))
     X0, Y0, X1, Y1 = win
@@ -218,7 +219,7 @@ def apply_plan(
                 result, _paste_window(full, win, cover_w), cfg, img, plan.harmonize_seed
             )
     else:
-        mods["harmonize"] = "skipped: disabled (ablation or naive paste)"
+        mods["harmonize"] = skipped("disabled (ablation or naive paste)")
     if analysis.monochrome:
         # A monochrome camera records luminance: the window's pixels (objects, shadows and the scene between them,
         # which is grey already and unchanged by this) as the camera's grey, R = G = B.
@@ -366,7 +367,7 @@ def _harmonize(
     try:
         from aias_augment.apply.harmonize import harmonize
     except ImportError as e:  # the harmonization package is optional at this stage of the pipeline
-        return image, f"skipped: harmonizer unavailable ({e})"
+        return image, skipped(f"harmonizer unavailable ({e})")
     try:
         if mask_box is None:
             mask_box = _nonzero_box(mask, None if windowed else within, mask_origin)
@@ -398,7 +399,7 @@ def _harmonize(
         )
         return out, f"harmonized ({cfg.harmonize_method}, in the objects' context window)"
     except FileNotFoundError as e:
-        return image, f"skipped: {e}"
+        return image, skipped(str(e))
 
 
 def _camera_match(
@@ -408,7 +409,7 @@ def _camera_match(
     the surroundings; its noise from its own generator ``default_rng([harmonize_seed, 1])`` (the harmonizer's stream
     is left as it was)."""
     if cfg.harmonize_method == "camera":
-        return image, "skipped: the harmonizer is the camera pipeline already"
+        return image, skipped("the harmonizer is the camera pipeline already")
     from aias_augment.apply.harmonize.api import match_camera
 
     out, info = match_camera(image, mask, np.random.default_rng([harmonize_seed, 1]), source_rgb_uint8=source)

@@ -133,7 +133,7 @@ def _cmd_from_labels(a) -> int:
     def labelled():
         for it in items:
             if it.invalid:
-                skipped[it.invalid.split(":")[0]] += 1
+                skipped[it.invalid.kind] += 1
                 continue
             try:
                 image = read_rgb(it.path)

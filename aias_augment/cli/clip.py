@@ -39,6 +39,7 @@ from aias_augment.apply.annotate import encode_rle
 from aias_augment.cli.offline import read_rgb, write_rgb
 from aias_augment.core.coco_io import CocoBuilder, atomic_write_json, atomic_write_text
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics, invert_rigid
+from aias_augment.core.report import skipped, skipped_stages
 from aias_augment.core.viz import contact_sheet, draw_boxes
 
 log = logging.getLogger(__name__)
@@ -230,7 +231,7 @@ def augment_clip(job: ClipJob) -> dict:
             lighting_note = f"one sun fused over {len(frames)} frames ({lighting[0].source})"
         except (ValueError, np.linalg.LinAlgError) as e:  # a clip the estimator cannot read: ambient, said why
             log.warning("clip lighting failed (%s): ambient light only", e)
-            lighting_note = f"skipped: {e}"
+            lighting_note = skipped(str(e))
     last = len(frames) - 1
     # each object's layer stages from generators of their own: rng untouched
     layer_params = draw_layer_params(load_preset(job.preset), job.seed, job.objects)
@@ -313,7 +314,7 @@ def augment_clip(job: ClipJob) -> dict:
             else f"{job.harmonize}, frame by frame"
         )
     else:
-        harmonize_note = "skipped: --harmonize none"
+        harmonize_note = skipped("--harmonize none")
     # A grey clip (KITTI image_0/image_l) stays grey: an orange cone in a grey frame would be a give-away.
     grey = all(np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2]) for f in frames)
     if grey:
@@ -351,6 +352,13 @@ def augment_clip(job: ClipJob) -> dict:
     picks = np.unique(np.linspace(0, len(drawn) - 1, min(6, len(drawn))).astype(int))
     sheet = contact_sheet([drawn[i] for i in picks], cols=3, titles=[names[i] for i in picks])
     write_rgb(out / "contact_sheet.jpg", sheet)
+    notes = {
+        **res.modules,
+        "camera": camera_note,
+        "lighting": lighting_note,
+        "harmonize": harmonize_note,
+        "colour": "grey clip: output converted to grey" if grey else "colour clip",
+    }
     record = {
         "job": _job_dict(job),
         "category": category,
@@ -378,13 +386,8 @@ def augment_clip(job: ClipJob) -> dict:
             for k, ((cat, a), r) in enumerate(zip(objects, results))
         ],
         "skipped_objects": skipped_objects,
-        "modules": {
-            **res.modules,
-            "camera": camera_note,
-            "lighting": lighting_note,
-            "harmonize": harmonize_note,
-            "colour": "grey clip: output converted to grey" if grey else "colour clip",
-        },
+        "modules": notes,
+        "skipped_stages": skipped_stages(notes),
         "wall_s": round(time.perf_counter() - t0, 1),
     }
     atomic_write_json(record_path, record)  # last: its presence marks the clip as done

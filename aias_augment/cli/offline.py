@@ -20,6 +20,7 @@ import numpy as np
 from tqdm import tqdm
 
 from aias_augment.adapters.boundary import (
+    ImageSkip,
     InputError,
     check_box,
     check_coco,
@@ -66,24 +67,24 @@ def items_from_coco(json_path: str, images_dir: str, box_policy: str = "clip") -
             for a in anns.get(im["id"], []):
                 where = f"annotation {a['id']}"
                 if a.get("category_id") not in names:
-                    raise ValueError(
-                        f"unknown category id: {where}: category_id {a.get('category_id')!r} is not in the categories"
+                    raise ImageSkip(
+                        "unknown category id", f"category_id {a.get('category_id')!r} is not in the categories", where
                     )
                 b = a.get("bbox")
                 try:
                     x, y, w, h = (float(v) for v in b)
                 except (TypeError, ValueError):
-                    raise ValueError(f"garbage label line: {where}: bbox {b!r} is not 4 numbers") from None
+                    raise ImageSkip("garbage label line", f"bbox {b!r} is not 4 numbers", where) from None
                 W, H = im.get("width") or math.inf, im.get("height") or math.inf
                 try:
                     box = check_box(x, y, w, h, W, H, box_policy, f"{json_path} ({where})", None, item.problems)
-                except ValueError as e:
-                    raise ValueError(f"{e} ({where})") from None
+                except ImageSkip as e:
+                    raise ImageSkip(e.kind, f"{e.reason} ({where})") from None
                 if box is not None:
                     item.bboxes_xywh.append(box)
                     item.labels.append(names[a["category_id"]])
-        except ValueError as e:
-            item.invalid, item.bboxes_xywh, item.labels = str(e), [], []
+        except ImageSkip as e:
+            item.invalid, item.bboxes_xywh, item.labels = e, [], []
         items.append(item)
     return items
 
@@ -146,8 +147,8 @@ def items_from_yolo(
             item.meta["label_file"] = str(lab)
             try:
                 item.meta["yolo_rows"], item.problems = parse_yolo_labels(lab, class_names, box_policy)
-            except ValueError as e:
-                item.invalid = str(e)
+            except ImageSkip as e:
+                item.invalid = e
         items.append(item)
     return items
 
@@ -336,14 +337,8 @@ def build_report(records: list[dict]) -> dict:
             notes[n["kind"]] += 1
             note_list.append(n)
         if "skipped" in r:
-            line = None
-            import re
-
-            m = re.search(r":(\d+): ", r["skipped"])
-            if m:
-                line = int(m.group(1))
             skipped.setdefault(r.get("skip_kind", "failed"), []).append(
-                {"file": r["source"], "line": line, "reason": r["skipped"]}
+                {"file": r["source"], "line": r.get("skip_line"), "reason": r["skipped"]}
             )
         elif "output_errors" in r:
             skipped.setdefault("output check failed", []).append(

@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from aias_augment.adapters.boundary import IMAGE_SKIP_KINDS, nothing_inserted_reason, problem, read_image_checked
+from aias_augment.adapters.boundary import ImageSkip, nothing_inserted_reason, problem, read_image_checked
 from aias_augment.cli.manifest import item_hash
 from aias_augment.core.coco_io import atomic_write_json
 from aias_augment.core.geometry import Intrinsics
@@ -40,7 +40,7 @@ class Item:
     baseline_m: float | None = None
     meta: dict = field(default_factory=dict)
     problems: list = field(default_factory=list)  # input notes (validate.problem dicts): clipped/dropped boxes
-    invalid: str | None = None  # "<kind>: <reason>": the image is skipped without being read
+    invalid: ImageSkip | None = None  # a label problem: the image is skipped without being read
 
 
 def read_rgb(path: str) -> np.ndarray:
@@ -148,13 +148,14 @@ def process_item(
     notes = list(item.problems)
     try:
         if item.invalid:
-            raise ValueError(item.invalid)
+            raise item.invalid
         image, conv = read_image_checked(item.path)
         notes += conv
         size = item.meta.pop("coco_size", None)
         if size and size[0] and size[1] and tuple(size) != (image.shape[1], image.shape[0]):
-            raise ValueError(
-                f"image size mismatch: the json says {size[0]}x{size[1]}, the file is {image.shape[1]}x{image.shape[0]}"
+            raise ImageSkip(
+                "image size mismatch",
+                f"the json says {size[0]}x{size[1]}, the file is {image.shape[1]}x{image.shape[0]}",
             )
         item.meta.pop("label_file", None)
         resolve_yolo_boxes(item, image, class_names)
@@ -191,10 +192,10 @@ def process_item(
             bank=bank,
         )
     except Exception as e:  # counted, logged skip: one bad image never stops the run
-        msg = str(e)
-        kind = msg.split(":", 1)[0] if isinstance(e, ValueError) and ":" in msg else None
-        if kind not in IMAGE_SKIP_KINDS:
-            kind, msg = "failed", f"{type(e).__name__}: {e}"
+        if isinstance(e, ImageSkip):
+            kind, line, msg = e.kind, e.line, str(e)
+        else:
+            kind, line, msg = "failed", None, f"{type(e).__name__}: {e}"
         log.warning("skipping %s: %s", item.path, msg)
         rec = {
             "index": index,
@@ -202,6 +203,7 @@ def process_item(
             "input_hash": input_hash,
             "skipped": msg,
             "skip_kind": kind,
+            "skip_line": line,
             "input_notes": notes,
         }
         atomic_write_json(rec_path, rec)

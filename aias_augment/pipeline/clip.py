@@ -34,6 +34,7 @@ from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.assets.asset import Asset
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, project_points, transform_points
+from aias_augment.core.report import skipped
 from aias_augment.plan.collision import OrientedBox, boxes_intersect
 from aias_augment.plan.placement import (
     PlacementConfig,
@@ -244,7 +245,7 @@ def plan_clip(
         else:
             mods["refit"] = "no frame had a local ground around the contact: plane of the first frame kept"
     else:
-        mods["refit"] = "skipped: no depth (or disabled); plane of the first frame"
+        mods["refit"] = skipped("no depth (or disabled); plane of the first frame")
 
     # One world pose: object z = world up, yaw about it (reference axis: first camera's x on the ground).
     cam0_from_obj = object_pose_on_ground(
@@ -279,7 +280,7 @@ def plan_clip(
             else "contact occlusion only: no dominant sun"
         )
     else:
-        mods["shadow"] = "skipped: disabled"
+        mods["shadow"] = skipped("disabled")
     grounds = [world_ground.transformed(T) for T in poses]
     flow = None
     if cfg.flow_refine:
@@ -289,7 +290,7 @@ def plan_clip(
         used = sum(st == "flow" for st in flow.status)
         mods["stabilize"] = f"KLT ground tracking: contact corrected in {used}/{n - 1} frames"
     else:
-        mods["stabilize"] = "skipped: poses trusted (flow_refine off)"
+        mods["stabilize"] = skipped("poses trusted (flow_refine off)")
     cams_from_object = []
     for i in range(n):
         world_from_object_i = world_from_object.copy()

@@ -20,6 +20,7 @@ from aias_augment.apply.annotate import ObjectAnnotation, box_visibility_under_c
 from aias_augment.apply.stages import apply_plan
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics
+from aias_augment.core.report import notes_from_dict, skipped_stages
 from aias_augment.core.scene_inputs import SceneInputs, scene_meta
 from aias_augment.pipeline.config import PRESETS, InsertionConfig, load_preset  # noqa: F401
 from aias_augment.pipeline.replay import placement_from_dict
@@ -37,7 +38,7 @@ class InsertionRecord:
     placements: list[Placement] = field(default_factory=list)
     annotations: list[ObjectAnnotation] = field(default_factory=list)
     lighting: LightingEstimate | None = None
-    modules: dict[str, str] = field(default_factory=dict)  # stage -> what was used, or "skipped: why"
+    modules: dict[str, str] = field(default_factory=dict)  # stage -> its StageNote (what was used, or skipped: why)
     placement_reports: list[dict] = field(default_factory=list)
     existing_visibility: list[float] = field(default_factory=list)
     harmonize_seed: int | None = None  # the plan's harmonizer seed (with the placements: enough to replay)
@@ -53,7 +54,8 @@ class InsertionRecord:
             "placements": [asdict(p) for p in self.placements],
             "annotations": [a.to_dict() for a in self.annotations],
             "lighting": self.lighting.to_dict() if self.lighting else None,
-            "modules": self.modules,
+            "modules": dict(self.modules),
+            "skipped_stages": skipped_stages(self.modules),
             "placement_reports": self.placement_reports,
             "existing_visibility": self.existing_visibility,
             "layer_params": self.layer_params,
@@ -69,7 +71,7 @@ class InsertionRecord:
             [placement_from_dict(p) for p in d["placements"]],
             [ObjectAnnotation.from_dict(a) for a in d["annotations"]],
             None if d["lighting"] is None else LightingEstimate.from_dict(d["lighting"]),
-            dict(d["modules"]),
+            notes_from_dict(d["modules"], d.get("skipped_stages", ())),
             list(d["placement_reports"]),
             list(d["existing_visibility"]),
             d["harmonize_seed"],

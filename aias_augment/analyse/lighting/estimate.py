@@ -698,6 +698,10 @@ def _elevation_prior(azel: np.ndarray, config: LightingConfig) -> np.ndarray:
     return -0.5 * ((azel[:, 1] - mean) / sigma) ** 2
 
 
+#: Sources of a sun found in the image alone (one frame, or fused over a clip): the evidence model decides them.
+IMAGE_CUE_SOURCES = ("image_cues", "image_cues_clip")
+
+
 def _finish(
     ctx: _FrameContext,
     sun_dir: np.ndarray | None,
@@ -713,10 +717,10 @@ def _finish(
     sky_fraction = 0.0 if cue is None else cue.n_sky_pixels / max(ctx.n_above_small, 1)
     if ctx.indoor:
         dominant = False
-    elif source.startswith("image_cues") and sun_probability is not None:
+    elif source in IMAGE_CUE_SOURCES and sun_probability is not None:
         dominant = sun_probability >= load_sun_evidence_model().threshold
         confidence = sun_probability
-    elif source.startswith("image_cues") and sky_fraction < config.min_sky_fraction_for_sun:
+    elif source in IMAGE_CUE_SOURCES and sky_fraction < config.min_sky_fraction_for_sun:
         # Without metadata, a sun is only declared where the frame shows open sky: indoors, dark and bright materials
         # (and lamps) look like lit/shadowed ground and sun discs.
         dominant = False
@@ -737,7 +741,7 @@ def _finish(
         sh, _ = _anchor_and_cap(ctx, sh, None, None, 1.0, None, config)
         return LightingEstimate(None, np.zeros(3), sh, 0.0, False, confidence, source, up_in_cam)
     e_sky = sh_irradiance(sh, up_in_cam)
-    min_cos = config.min_sun_cos_image_cues if source.startswith("image_cues") else config.min_sun_cos
+    min_cos = config.min_sun_cos_image_cues if source in IMAGE_CUE_SOURCES else config.min_sun_cos
     cos_z = max(float(sun_dir @ up_in_cam), min_cos)
     if measurement is not None and measurement.dominant_sun:
         # Per channel: lit / shadow - 1 = E_sun,c cos(z) / E_sky,c.
@@ -750,7 +754,7 @@ def _finish(
         r_rgb = np.full(3, config.default_sun_sky_ratio)
         ratio = config.default_sun_sky_ratio
     sun_irr = np.nan_to_num(r_rgb * e_sky / cos_z, nan=0.0, posinf=0.0)
-    if source.startswith("image_cues") and config.sun_full_confidence > 0:
+    if source in IMAGE_CUE_SOURCES and config.sun_full_confidence > 0:
         sh, sun_irr = temper_sun(
             sh, sun_irr, cos_z, min(1.0, confidence / config.sun_full_confidence), sun_dir, up_in_cam
         )

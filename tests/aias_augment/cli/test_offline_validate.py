@@ -121,10 +121,10 @@ def test_coco_duplicate_ids_refused_and_nan_named(tmp_path):
     ]  # unknown category
     (tmp_path / "d.json").write_text(json.dumps({"images": ims, "annotations": anns, "categories": cats}))
     a, b, c = items_from_coco(str(tmp_path / "d.json"), str(tmp_path))
-    assert a.invalid.startswith("non-finite box") and "annotation 1" in a.invalid
+    assert a.invalid.kind == "non-finite box" and "annotation 1" in str(a.invalid)
     assert b.invalid is None and b.bboxes_xywh == [[150.0, 100.0, 10.0, 20.0]]
     assert sorted(p["kind"] for p in b.problems) == ["box clipped to the image", "box dropped: zero or negative size"]
-    assert c.invalid.startswith("unknown category id")
+    assert c.invalid.kind == "unknown category id" and c.invalid.file == "annotation 4"
 
 
 def test_empty_input_unknown_category_are_errors(tmp_path, capsys):
