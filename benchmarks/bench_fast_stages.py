@@ -24,7 +24,7 @@ os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_transform import _compose, tracon_images  # noqa: E402
+from bench_transform import compose_for, tracon_images  # noqa: E402
 
 #: (module, attribute, stage name, modules that imported the attribute by name and call it from there)
 STAGES = (
@@ -70,7 +70,7 @@ def main(argv=None) -> int:
     from aias_augment import InsertObjects
 
     img = tracon_images(1, (640, 480))[0]
-    tf = _compose(InsertObjects(categories=["traffic_cone"], min_objects=1, max_objects=1, preset="fast", p=1.0))
+    tf = compose_for(InsertObjects(categories=["traffic_cone"], min_objects=1, max_objects=1, preset="fast", p=1.0))
     load_before = os.getloadavg()
     for _ in range(a.warmup):
         tf(image=img, bboxes=np.zeros((0, 4)), labels=[])

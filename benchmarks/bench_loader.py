@@ -43,7 +43,7 @@ import albumentations as A  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_transform import _AppendBoxes, _compose, _decoded, _Images, _set_cv2_threads  # noqa: E402
+from bench_transform import AppendBoxes, Images, compose_for, decoded, set_cv2_threads  # noqa: E402
 
 from aias_augment import InsertObjects  # noqa: E402
 from aias_augment.core.config import data_root  # noqa: E402
@@ -86,8 +86,8 @@ def tracon_boxes(image_path: Path, size: int = 320) -> np.ndarray:
     return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)[keep].astype(np.float64)
 
 
-class _LabelledImages(_Images):
-    """:class:`_Images` with each item's TraCon boxes passed to the transform (labels "traffic_cone")."""
+class _LabelledImages(Images):
+    """:class:`Images` with each item's TraCon boxes passed to the transform (labels "traffic_cone")."""
 
     def __init__(self, paths, transform):
         super().__init__(paths, transform)
@@ -113,9 +113,9 @@ def make_loader(arm: str, paths, variants: int, cache_dir: str, warm_info: dict,
     tf = None
     labelled = arm.endswith("_labels")
     if arm in ("compose_only", "compose_labels"):
-        tf = _compose(A.NoOp(p=0.5))
+        tf = compose_for(A.NoOp(p=0.5))
     elif arm == "boxes_only":
-        tf = _compose(_AppendBoxes(p=0.5))
+        tf = compose_for(AppendBoxes(p=0.5))
     elif arm in ("variants_warmed", "fresh_warmed", "variants_labels"):
         t = InsertObjects(
             categories=["traffic_cone"],
@@ -124,10 +124,10 @@ def make_loader(arm: str, paths, variants: int, cache_dir: str, warm_info: dict,
             scene_cache=cache_dir,
             variants_per_image=None if arm == "fresh_warmed" else variants,
         )
-        tf = _compose(t)
+        tf = compose_for(t)
         t0, c0 = time.perf_counter(), time.process_time()
         info = t.warm(
-            _decoded(paths),
+            decoded(paths),
             variants=arm != "fresh_warmed",
             bboxes=[tracon_boxes(Path(p)) for p in paths] if labelled else None,
         )
@@ -139,14 +139,14 @@ def make_loader(arm: str, paths, variants: int, cache_dir: str, warm_info: dict,
     elif arm != "without":
         raise ValueError(arm)
     return torch.utils.data.DataLoader(
-        (_LabelledImages if labelled else _Images)(paths, tf),
+        (_LabelledImages if labelled else Images)(paths, tf),
         batch_size=8,
         shuffle=True,
         num_workers=2,
         multiprocessing_context="spawn",
         persistent_workers=persistent,
         generator=torch.Generator().manual_seed(0),
-        worker_init_fn=functools.partial(_set_cv2_threads, 0),
+        worker_init_fn=functools.partial(set_cv2_threads, 0),
     )
 
 

@@ -79,7 +79,7 @@ def cone_sprite() -> tuple[np.ndarray, np.ndarray]:
     return rgb, (rl.alpha[crop] > 0.5).astype(np.uint8)
 
 
-def _compose(t) -> A.Compose:
+def compose_for(t) -> A.Compose:
     return A.Compose([t], bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=7)
 
 
@@ -99,12 +99,12 @@ def per_call(rounds: int, images: list[np.ndarray], view_warmup: int = 0, varian
     transforms = {}
     for preset in ("fast", "balanced", "accurate"):
         for temp in ("cold", "warm"):
-            tf = _compose(
+            tf = compose_for(
                 InsertObjects(categories=["traffic_cone"], min_objects=1, max_objects=1, preset=preset, p=1.0)
             )
             transforms[f"{preset}_{temp}"] = tf
     if variants:  # the variant path: the same image again, its variants made (a paste per call)
-        transforms["fast_variant_hit"] = _compose(
+        transforms["fast_variant_hit"] = compose_for(
             InsertObjects(
                 categories=["traffic_cone"],
                 min_objects=1,
@@ -165,7 +165,7 @@ def per_call(rounds: int, images: list[np.ndarray], view_warmup: int = 0, varian
     return stats
 
 
-class _Images:
+class Images:
     """Map-style dataset as a training set reads it: each item decoded from its JPEG and resized to 320x320 (no
     boxes), then ``transform`` (or none)."""
 
@@ -186,7 +186,7 @@ class _Images:
         return torch.from_numpy(np.ascontiguousarray(img)).permute(2, 0, 1)
 
 
-class _AppendBoxes(A.DualTransform):
+class AppendBoxes(A.DualTransform):
     """The Compose's own cost of a transform that adds boxes, and nothing else: at ``p``, two fixed new boxes
     (labelled "traffic_cone" through the Compose's label manager, as InsertObjects labels its boxes) appended, no
     pixel changed. The ``boxes_only`` loader arm: the most any insertion transform inside an albumentations
@@ -214,7 +214,7 @@ class _AppendBoxes(A.DualTransform):
         return ()
 
 
-def _decoded(paths) -> list[np.ndarray]:
+def decoded(paths) -> list[np.ndarray]:
     """The items' images as the dataset decodes them (what ``InsertObjects.warm`` must see to hit the same keys)."""
     return [
         cv2.resize(cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB), (320, 320), interpolation=cv2.INTER_AREA)
@@ -228,7 +228,7 @@ def _decoded(paths) -> list[np.ndarray]:
 CV2_THREADS: int | None = None
 
 
-def _set_cv2_threads(n: int, worker_id: int) -> None:
+def set_cv2_threads(n: int, worker_id: int) -> None:
     cv2.setNumThreads(n)
 
 
@@ -245,28 +245,28 @@ def loader_rates(
 ) -> list[float]:
     """Images/s per epoch. ``warm``: a dict; the transform's ``warm`` (with ``view_plans``) is run on the items'
     images first (into the on-disk scene cache and views the workers read) and its seconds and counts are written
-    into it. ``boxes_only``: instead of InsertObjects, :class:`_AppendBoxes` (p=0.5) in the same Compose;
+    into it. ``boxes_only``: instead of InsertObjects, :class:`AppendBoxes` (p=0.5) in the same Compose;
     ``compose_only``: the same Compose (bbox params, label field) with ``NoOp(p=0.5)`` instead of InsertObjects."""
     import torch
 
     tf = None
     if boxes_only:
-        tf = _compose(_AppendBoxes(p=0.5))
+        tf = compose_for(AppendBoxes(p=0.5))
     elif compose_only:
-        tf = _compose(A.NoOp(p=0.5))
+        tf = compose_for(A.NoOp(p=0.5))
     elif with_insertion:
-        tf = _compose(
+        tf = compose_for(
             InsertObjects(
                 categories=["traffic_cone"], preset="fast", p=0.5, scene_cache=cache_dir, variants_per_image=variants
             )
         )
         if warm is not None:
             t0, c0 = time.perf_counter(), time.process_time()
-            warm.update(tf.transforms[0].warm(_decoded(paths), view_plans=view_plans, variants=bool(variants)))
+            warm.update(tf.transforms[0].warm(decoded(paths), view_plans=view_plans, variants=bool(variants)))
             warm["wall_s"], warm["cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
-    init = None if CV2_THREADS is None else functools.partial(_set_cv2_threads, CV2_THREADS)
+    init = None if CV2_THREADS is None else functools.partial(set_cv2_threads, CV2_THREADS)
     dl = torch.utils.data.DataLoader(
-        _Images(paths, tf),
+        Images(paths, tf),
         batch_size=8,
         shuffle=True,
         num_workers=2,
@@ -348,10 +348,10 @@ def worker_profile(paths, epochs: int, warm: bool = False, view_plans: int = 0) 
 
     from aias_augment.apply.view_cache import default_view_cache
 
-    tf = _compose(InsertObjects(categories=["traffic_cone"], preset="fast", p=0.5))
-    ds, plain = _Images(paths, tf), _Images(paths, None)
+    tf = compose_for(InsertObjects(categories=["traffic_cone"], preset="fast", p=0.5))
+    ds, plain = Images(paths, tf), Images(paths, None)
     if warm:
-        tf.transforms[0].warm(_decoded(paths), view_plans=view_plans)
+        tf.transforms[0].warm(decoded(paths), view_plans=view_plans)
     for _ in range(epochs):
         for i in range(len(ds)):
             ds[i]

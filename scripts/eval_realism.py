@@ -64,7 +64,7 @@ STUDY_POOLS = {
 # ------------------------------------------------------------------ generation
 
 
-def _study_cfg(cache_dir: str, n: int, preset: str | None = None):
+def study_cfg(cache_dir: str, n: int, preset: str | None = None):
     from detection_eval.study.config import load_study_config
 
     cfg = load_study_config(REPO / ABLATION_CONFIG)
@@ -79,7 +79,7 @@ def cmd_generate(args) -> None:
     from detection_eval.study.pools import generate_arm_set
     from detection_eval.study.splits import thin_cone_images
 
-    cfg = _study_cfg(args.cache_dir, args.n, args.preset)
+    cfg = study_cfg(args.cache_dir, args.n, args.preset)
     train = load_yolo_dir(dataset_root(cfg), cfg.train_split, cfg.class_names)
     _, empty = thin_cone_images(train, cfg.keep_fraction, cfg.seeds[0])
     fixes = set(FIXES) if args.fixes is None else set(args.fixes)
@@ -209,7 +209,7 @@ def _fid_equal_n(a: np.ndarray, ref: np.ndarray, n: int, rng: np.random.Generato
     )
 
 
-def _colour_summary(stats: list) -> dict:
+def colour_summary(stats: list) -> dict:
     if not stats:
         return {}
     keys = stats[0].keys()
@@ -249,17 +249,17 @@ def evaluate(
     if frame_feats is not None and len(frame_feats) >= 2:
         r["kid_frames"] = kid_from_features(frame_feats, ref_frame_feats, n_subsets=100, subset_size=1000, rng=rng)
         r["fid_frames"] = _fid_equal_n(frame_feats, ref_frame_feats, frame_fid_n, rng)
-    r["colour"] = _colour_summary(arm.stats)
+    r["colour"] = colour_summary(arm.stats)
     return r
 
 
-def _fmt_ci(d: dict | None) -> str:
+def fmt_ci(d: dict | None) -> str:
     if not d:
         return "—"
     return f"{d['auc']:.3f} [{d['ci95'][0]:.3f}, {d['ci95'][1]:.3f}]"
 
 
-def _fmt_folds(d: dict | None) -> str:
+def fmt_folds(d: dict | None) -> str:
     """Mean of the per-fold AUCs with a Student-t 95 % half-width over the folds: each fold is scored by its own
     model, so a fold model's offset cannot pull the estimate below 0.5 under the null as pooling can."""
     if not d:
@@ -285,7 +285,7 @@ def contact_sheet(sets: list[CropSet], path: Path, per_row: int = 14, rng=None) 
     cv2.imwrite(str(path), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
 
 
-def _pool_copies(folder: Path) -> set:
+def pool_copies(folder: Path) -> set:
     return {int(p.name[:4]) for p in (folder / "images").glob("*.jpg")}
 
 
@@ -317,7 +317,7 @@ def cmd_report(args) -> None:
 
     t_start = time.perf_counter()
     ccfg = CropConfig(context=args.context)
-    cfg = _study_cfg(args.cache_dir, 1)
+    cfg = study_cfg(args.cache_dir, 1)
     root = dataset_root(cfg)
     train = load_yolo_dir(root, cfg.train_split, cfg.class_names)
     val = load_yolo_dir(root, cfg.val_split, cfg.class_names)
@@ -335,7 +335,7 @@ def cmd_report(args) -> None:
     for extra in args.extra or []:
         name, folder = extra.split("=", 1)
         arms[name] = REPO / folder
-    common = set.intersection(*[_pool_copies(f) for f in arms.values()]) if arms else set()
+    common = set.intersection(*[pool_copies(f) for f in arms.values()]) if arms else set()
     sets = []
     for name, folder in arms.items():
         pool = load_yolo_dir(folder, names=cfg.class_names)
@@ -407,11 +407,11 @@ def cmd_report(args) -> None:
             cs.name,
             res["kid_crops"][0],
             res["fid_crops"],
-            _fmt_ci(res["auc_logreg_lite0"]),
-            _fmt_ci(res.get("auc_cnn")),
+            fmt_ci(res["auc_logreg_lite0"]),
+            fmt_ci(res.get("auc_cnn")),
         )
-    ref_colour = _colour_summary(ref.stats)
-    road_colour = _colour_summary([s for s, r in zip(ref.stats, ref.road) if r])
+    ref_colour = colour_summary(ref.stats)
+    road_colour = colour_summary([s for s, r in zip(ref.stats, ref.road) if r])
     out = REPO / args.out
     out.mkdir(parents=True, exist_ok=True)
     by_name = {x.name: x for x in sets}
@@ -528,9 +528,9 @@ def render_markdown(rep: dict, args) -> str:
         ff = f"{r['fid_frames']:.1f}" if "fid_frames" in r else "—"
         lines.append(
             f"| {name} | {r['crops']} ({r['photos']}) | {r['kid_crops'][0]:.3f} ± {r['kid_crops'][1]:.3f} | "
-            f"{r['fid_crops']:.1f} | {_fmt_ci(r['auc_logreg_lite0'])} | {_fmt_folds(r['auc_logreg_lite0'])} | "
-            f"{_fmt_ci(r.get('auc_cnn'))} | {_fmt_folds(r.get('auc_cnn'))} | "
-            f"{ro['kid_crops'][0]:.3f} | {_fmt_ci(ro['auc_logreg_lite0'])} | {kf} | {ff} |"
+            f"{r['fid_crops']:.1f} | {fmt_ci(r['auc_logreg_lite0'])} | {fmt_folds(r['auc_logreg_lite0'])} | "
+            f"{fmt_ci(r.get('auc_cnn'))} | {fmt_folds(r.get('auc_cnn'))} | "
+            f"{ro['kid_crops'][0]:.3f} | {fmt_ci(ro['auc_logreg_lite0'])} | {kf} | {ff} |"
         )
     lines += [
         "",

@@ -48,14 +48,14 @@ sys.path.insert(0, str(REPO / "scripts"))
 
 from eval_realism import (  # noqa: E402
     CropSet,
-    _colour_summary,
-    _fmt_ci,
-    _fmt_folds,
-    _study_cfg,
     cached_features,
+    colour_summary,
     contact_sheet,
     evaluate,
+    fmt_ci,
+    fmt_folds,
     is_stock_photo,
+    study_cfg,
 )
 
 from aias_augment.evaluation.realism.appearance import box_colour_stats  # noqa: E402
@@ -130,7 +130,7 @@ def cmd_generate(args) -> None:
     from detection_eval.study.arms import ARM_FLAGS, insertion_config_for_arm
     from detection_eval.study.config import dataset_root
 
-    cfg = _study_cfg(args.cache_dir, args.n)
+    cfg = study_cfg(args.cache_dir, args.n)
     train = load_yolo_dir(dataset_root(cfg), cfg.train_split, cfg.class_names)
     _, half_b = road_photo_halves(cfg, swap=args.swap)
     photos = half_b[: args.n]
@@ -295,7 +295,7 @@ def cmd_report(args) -> None:
     t_start = time.perf_counter()
     seed = 0
     ccfg = CropConfig(context=args.context)
-    cfg = _study_cfg(args.cache_dir, args.n)
+    cfg = study_cfg(args.cache_dir, args.n)
     half_a, half_b = road_photo_halves(cfg, swap=args.swap)
     photos_b = half_b[: args.n]
     max_side = cfg.insertion.max_side_px
@@ -388,8 +388,8 @@ def cmd_report(args) -> None:
             cs.name,
             res["kid_crops"][0],
             res["fid_crops"],
-            _fmt_ci(res["auc_logreg_lite0"]),
-            _fmt_ci(res.get("auc_cnn")),
+            fmt_ci(res["auc_logreg_lite0"]),
+            fmt_ci(res.get("auc_cnn")),
         )
     # KID with a photo-bootstrap interval; the B-photo sets share their draws (paired differences)
     reps = kid_photo_bootstrap(
@@ -438,7 +438,7 @@ def cmd_report(args) -> None:
             "name": ref.name,
             "crops": len(ref.crops),
             "photos": len(set(ref.groups)),
-            "colour": _colour_summary(ref.stats),
+            "colour": colour_summary(ref.stats),
             **ref.summary(),
         },
         "failures": {
@@ -494,7 +494,7 @@ def _reading(rep: dict) -> list[str]:
         "- Arms by KID (best first): "
         + ", ".join(f"{k} {_kid(a[k])}" for k in order)
         + "; by AUC: "
-        + ", ".join(f"{k} {_fmt_ci(a[k]['auc_logreg_lite0'])}" for k in sorted(order, key=lambda k: auc[k]))
+        + ", ".join(f"{k} {fmt_ci(a[k]['auc_logreg_lite0'])}" for k in sorted(order, key=lambda k: auc[k]))
         + "."
     )
     pd = rep["kid_paired_differences"]
@@ -604,8 +604,8 @@ def render_markdown(rep: dict, args) -> str:
         lines.append(
             f"| {name} | {r['crops']} ({r['photos']}) | "
             f"{_kid(r)} | {r['fid_crops']:.1f} | "
-            f"{_fmt_ci(r['auc_logreg_lite0'])} | {_fmt_folds(r['auc_logreg_lite0'])} | "
-            f"{_fmt_ci(r.get('auc_cnn'))} | {_fmt_folds(r.get('auc_cnn'))} |"
+            f"{fmt_ci(r['auc_logreg_lite0'])} | {fmt_folds(r['auc_logreg_lite0'])} | "
+            f"{fmt_ci(r.get('auc_cnn'))} | {fmt_folds(r.get('auc_cnn'))} |"
         )
     lines += [
         "",

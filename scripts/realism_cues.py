@@ -117,7 +117,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="results/realism/cues")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    from eval_realism import _pool_copies, _study_cfg
+    from eval_realism import pool_copies, study_cfg
 
     from aias_augment.evaluation.realism.features import Lite0Features
     from detection_eval.data import load_yolo_dir
@@ -125,7 +125,7 @@ def main(argv=None) -> int:
 
     t0 = time.perf_counter()
     ccfg = CropConfig()
-    cfg = _study_cfg(args.cache_dir, 1)
+    cfg = study_cfg(args.cache_dir, 1)
     root = dataset_root(cfg)
     seed = 0  # the report's seeds: reference [0, 1], floor [0, 2], arms [0, 3]
     sets = {
@@ -140,7 +140,7 @@ def main(argv=None) -> int:
     missing = [a for a, f in folders.items() if not (f / "done.json").exists()]
     if missing:
         raise SystemExit(f"no pool for {missing} under {args.cache_dir}: run scripts/eval_realism.py generate first")
-    common = set.intersection(*[_pool_copies(f) for f in folders.values()])
+    common = set.intersection(*[pool_copies(f) for f in folders.values()])
     for a, f in folders.items():
         sets[a] = crops_with_boxes(
             load_yolo_dir(f, names=cfg.class_names).records, np.random.default_rng([seed, 3]), ccfg, copies=common

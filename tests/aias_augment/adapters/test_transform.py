@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from aias_augment import InsertObjects
-from tests.aias_augment.pipeline.test_image import _image
+from tests.aias_augment.pipeline.test_image import road_frame
 
 K = [[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]]
 
@@ -20,7 +20,7 @@ def _compose(seed=137, **kw):
 
 
 def test_zero_boxes_with_label_fields_gets_inserted_boxes_and_labels():
-    out = _compose()(image=_image(), bboxes=[], category_ids=[], camera_k=np.array(K))
+    out = _compose()(image=road_frame(), bboxes=[], category_ids=[], camera_k=np.array(K))
     assert len(out["bboxes"]) >= 1 and len(out["bboxes"]) == len(out["category_ids"])
     assert set(out["category_ids"]) == {"traffic_cone"}
     for x, y, w, h in out["bboxes"]:
@@ -29,25 +29,25 @@ def test_zero_boxes_with_label_fields_gets_inserted_boxes_and_labels():
 
 def test_numeric_ids_and_existing_boxes_kept():
     tf = _compose(category_ids={"traffic_cone": 7})
-    out = tf(image=_image(), bboxes=[[5, 5, 30, 30]], category_ids=[3])
+    out = tf(image=road_frame(), bboxes=[[5, 5, 30, 30]], category_ids=[3])
     assert out["category_ids"][0] == 3 and all(c == 7 for c in out["category_ids"][1:])
     assert len(out["category_ids"]) >= 2
     with pytest.raises(ValueError, match="category_ids"):
-        _compose()(image=_image(), bboxes=[[5, 5, 30, 30]], category_ids=[3])
+        _compose()(image=road_frame(), bboxes=[[5, 5, 30, 30]], category_ids=[3])
 
 
 def test_same_seed_same_sample():
-    a = _compose(seed=5)(image=_image(), bboxes=[], category_ids=[])
-    b = _compose(seed=5)(image=_image(), bboxes=[], category_ids=[])
+    a = _compose(seed=5)(image=road_frame(), bboxes=[], category_ids=[])
+    b = _compose(seed=5)(image=road_frame(), bboxes=[], category_ids=[])
     assert np.array_equal(a["image"], b["image"]) and a["bboxes"] == b["bboxes"]
 
 
 @pytest.mark.parametrize(
     "img",
     [
-        _image()[..., 0],  # grey (H, W)
-        np.dstack([_image(), np.full((480, 640), 200, np.uint8)]),  # RGBA: alpha kept
-        _image().astype(np.float32) / 255.0,  # float in [0, 1]
+        road_frame()[..., 0],  # grey (H, W)
+        np.dstack([road_frame(), np.full((480, 640), 200, np.uint8)]),  # RGBA: alpha kept
+        road_frame().astype(np.float32) / 255.0,  # float in [0, 1]
     ],
 )
 def test_grey_rgba_float_inputs(img):
@@ -80,13 +80,13 @@ class _Data(torch.utils.data.Dataset):
         return 4
 
     def __getitem__(self, i):
-        out = self.tf(image=_image(), bboxes=[], category_ids=[])
+        out = self.tf(image=road_frame(), bboxes=[], category_ids=[])
         return torch.from_numpy(out["image"]), len(out["bboxes"])
 
 
 def test_pickles_and_runs_in_dataloader_with_two_workers():
     tf = _compose()
-    tf(image=_image(), bboxes=[], category_ids=[])  # after a call (renderer exists in this process)
+    tf(image=road_frame(), bboxes=[], category_ids=[])  # after a call (renderer exists in this process)
     tf2 = pickle.loads(pickle.dumps(tf))
     # spawn: this process already holds an EGL context, which a forked child must not inherit.
     dl = torch.utils.data.DataLoader(_Data(tf2), batch_size=2, num_workers=2, multiprocessing_context="spawn")
@@ -100,7 +100,7 @@ def test_pickles_and_runs_in_dataloader_with_two_workers():
 def test_scene_analysed_once_per_image_and_cache_never_changes_pixels(tmp_path):
     """The second call on the same image hits the transform's scene cache (in memory, then on disk for a new
     transform) and the pixels equal those of a transform that never saw the image."""
-    img = _image()
+    img = road_frame()
     cold = _compose(seed=11, scene_cache=str(tmp_path))
     a = cold(image=img, bboxes=[], category_ids=[], camera_k=K)
     b = cold(image=img, bboxes=[], category_ids=[], camera_k=K)
@@ -120,7 +120,7 @@ def test_warm_analyses_beforehand_and_changes_no_output(tmp_path):
     """``warm`` puts each image's analysis in the scene cache (on disk: a new transform, as a DataLoader worker,
     reads it), draws nothing from the transform's generator, and the calls after it return the bytes of a transform
     that was never warmed."""
-    img = _image()
+    img = road_frame()
     warmed = _compose(seed=11, scene_cache=str(tmp_path))
     ins = warmed.transforms[0]
     assert ins.warm([img, img], camera_ks=[K, K]) == {
@@ -150,7 +150,7 @@ def test_warm_with_view_plans_renders_views_the_calls_then_read(tmp_path):
     """``warm(..., view_plans=n)`` renders views into ``scene_cache/views``; a worker-like transform on the same
     folder reads views from there, and its output equals a transform's that has neither cache. (Views are kept for
     mesh assets: a procedural cone is a new mesh per object.)"""
-    img = _image()
+    img = road_frame()
     mesh = {"config_overrides": {"asset_source": "default"}}
     warmed = _compose(seed=11, scene_cache=str(tmp_path), **mesh)
     got = warmed.transforms[0].warm([img], camera_ks=[K], view_plans=4)
@@ -170,12 +170,14 @@ def test_scene_target_reaches_the_planner_and_a_bad_one_is_a_counted_skip():
     mask = np.zeros((480, 640), bool)
     mask[260:, 420:] = True  # objects may stand only in the lower right
     tf = _compose(seed=3)
-    out = tf(image=_image(), bboxes=[], category_ids=[], camera_k=np.array(K), scene=SceneInputs(placeable_mask=mask))
+    out = tf(
+        image=road_frame(), bboxes=[], category_ids=[], camera_k=np.array(K), scene=SceneInputs(placeable_mask=mask)
+    )
     rec = tf.transforms[0].last_record
     assert out["bboxes"] and rec.placements
     assert all(p.contact_pixel[0] >= 419.5 and p.contact_pixel[1] >= 259.5 for p in rec.placements)
-    bad = tf(image=_image(), bboxes=[], category_ids=[], scene=SceneInputs(placeable_mask=mask[:10]))
-    assert np.array_equal(bad["image"], _image()) and bad["bboxes"] == []
+    bad = tf(image=road_frame(), bboxes=[], category_ids=[], scene=SceneInputs(placeable_mask=mask[:10]))
+    assert np.array_equal(bad["image"], road_frame()) and bad["bboxes"] == []
     assert tf.transforms[0].skipped == 1
 
 
@@ -244,11 +246,11 @@ def test_new_box_labels_known_or_not_to_the_manager_get_its_codes():
         bbox_params=A.BboxParams(format="coco", label_fields=["labels"]),
         seed=3,
     )
-    out = tf(image=_image(), bboxes=[[5, 5, 30, 30]], labels=["car"], camera_k=K)
+    out = tf(image=road_frame(), bboxes=[[5, 5, 30, 30]], labels=["car"], camera_k=K)
     assert out["labels"][0] == "car" and set(out["labels"][1:]) == {"traffic_cone"}
     enc = tf.processors["bboxes"].label_manager.metadata["bboxes"]["labels"].encoder
     assert enc.classes_ == {"car": 0, "traffic_cone": 1}
-    again = tf(image=_image(), bboxes=[[5, 5, 30, 30]], labels=["truck"], camera_k=K)
+    again = tf(image=road_frame(), bboxes=[[5, 5, 30, 30]], labels=["truck"], camera_k=K)
     assert again["labels"][0] == "truck" and set(again["labels"][1:]) == {"traffic_cone"}
     assert enc.classes_ == {"car": 0, "traffic_cone": 1, "truck": 2}
 

@@ -22,7 +22,7 @@ from aias_augment.adapters.variants import (
 )
 from aias_augment.pipeline.bounded import insert_bounded
 from aias_augment.pipeline.image import load_preset
-from tests.aias_augment.pipeline.test_image import _image
+from tests.aias_augment.pipeline.test_image import road_frame
 
 K = [[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]]
 BOXES = [[20.0, 300.0, 40.0, 60.0]]  # an existing box (COCO xywh) the insertion must avoid / may cover
@@ -43,7 +43,7 @@ def _call(tf, img, boxes=BOXES):
 def test_variant_window_reproduces_the_full_insertion_byte_for_byte():
     """Variant j pasted on the image equals the pipeline's own output for variant j's generator (the window holds
     every changed pixel), with the same boxes."""
-    img = _image()
+    img = road_frame()
     cfg = load_preset("fast", categories=("traffic_cone",), max_objects=2)
     boxes = np.asarray(BOXES)
     key = variant_key(img, camera_k=K, existing_xywh=boxes, prefix=variant_key_prefix(cfg))
@@ -64,7 +64,7 @@ def test_variant_window_reproduces_the_full_insertion_byte_for_byte():
 def test_at_most_k_insertions_per_image_and_cached_equals_computed(tmp_path):
     """Over 12 calls an image shows at most K = 2 different outputs (both of them); every output equals that of a
     transform that computed nothing before (same seed), one reading the variants from disk, and one warmed."""
-    img = _image()
+    img = road_frame()
     a = _compose(k=2, scene_cache=str(tmp_path))
     outs = [_call(a, img) for _ in range(12)]
     distinct = {o["image"].tobytes() for o in outs}
@@ -85,7 +85,7 @@ def test_at_most_k_insertions_per_image_and_cached_equals_computed(tmp_path):
 
 
 def test_key_follows_what_the_insertion_reads():
-    img = _image()
+    img = road_frame()
     p = variant_key_prefix(load_preset("fast"))
     k0 = variant_key(img, camera_k=K, existing_xywh=np.asarray(BOXES), prefix=p)
     assert variant_key(img.copy(), camera_k=np.asarray(K), existing_xywh=np.asarray(BOXES), prefix=p) == k0
@@ -116,7 +116,7 @@ def test_key_follows_what_the_insertion_reads():
 def test_boxes_through_the_compose_round_trip_find_warms_variant():
     """warm() gets raw COCO boxes; the call sees them after albumentations' normalise/denormalise: both must key
     (and insert) the same, or warming would be wasted."""
-    img = _image()
+    img = road_frame()
     boxes = [[20.123456789, 300.3333333, 40.7777777, 60.1]]
     t = _compose(k=1)
     t.transforms[0].warm([img], camera_ks=[K], variants=True, bboxes=[boxes])
@@ -131,7 +131,7 @@ def test_warm_with_many_boxes_keys_as_every_call(fmt):
     cross a 1e-3 px rounding step somewhere among 160 coordinates); warm must key them as the calls do, so every
     call finds the warmed variant."""
     rng = np.random.default_rng(11)
-    img = _image()
+    img = road_frame()
     h, w = img.shape[:2]
     xy, wh = rng.uniform([0, 0], [w - 12, h - 12], (40, 2)), rng.uniform(2, 10, (40, 2))
     boxes = {
@@ -155,7 +155,7 @@ def test_warm_with_many_boxes_keys_as_every_call(fmt):
 def test_warm_counts_boxes_the_compose_refuses_and_goes_on(caplog):
     """An image whose boxes the Compose's processor refuses (x_max < x_min) gets no variants, is counted and logged;
     the next image is warmed."""
-    img = _image()
+    img = road_frame()
     t = _compose(k=1)
     with caplog.at_level("WARNING"):
         out = t.transforms[0].warm([img, img], camera_ks=[K, K], variants=True, bboxes=[[[50, 50, -5, 5]], BOXES])
@@ -166,7 +166,7 @@ def test_warm_counts_boxes_the_compose_refuses_and_goes_on(caplog):
 
 
 def test_min_visibility_decided_per_call_from_the_stored_visibility():
-    img = _image()
+    img = road_frame()
     cfg = load_preset("fast", categories=("traffic_cone",), max_objects=2)
     full = insert_bounded(img, np.asarray(BOXES), [0], np.random.default_rng(3), cfg, intrinsics=K)
     v = Variant.from_result(img, full)
@@ -182,12 +182,12 @@ def test_bad_arguments_pickling_and_cache_bounds(tmp_path):
         with pytest.raises(ValueError, match="variants_per_image"):
             InsertObjects(variants_per_image=bad)
     with pytest.raises(ValueError, match="variants_per_image"):
-        InsertObjects().warm([_image()], variants=True)
+        InsertObjects().warm([road_frame()], variants=True)
     t = _compose(k=2)
-    _call(t, _image())
+    _call(t, road_frame())
     t2 = pickle.loads(pickle.dumps(t))  # spawn workers get an empty LRU and no hash object
     assert len(t2.transforms[0]._variants) == 0 and t2.transforms[0]._variant_prefix is None
-    assert np.array_equal(_call(t2, _image())["image"], _call(_compose(k=2), _image())["image"])
+    assert np.array_equal(_call(t2, road_frame())["image"], _call(_compose(k=2), road_frame())["image"])
     c = VariantCache(max_bytes=5000)
     small = Variant((0, 1, 0, 1), np.zeros((1, 1, 3), np.uint8), np.zeros((0, 4)), (), np.zeros(0), None)
     for j in range(5):
@@ -203,8 +203,8 @@ import hashlib, sys
 import albumentations as A
 import numpy as np
 from aias_augment import InsertObjects
-from tests.aias_augment.pipeline.test_image import _image
-img = _image()
+from tests.aias_augment.pipeline.test_image import road_frame
+img = road_frame()
 t = InsertObjects(categories=["traffic_cone"], max_objects=2, p=1.0, preset="fast", variants_per_image=3)
 if sys.argv[1] == "warm":   # another history: every variant made beforehand, in another order than drawn
     t.warm([img], variants=True)
@@ -258,7 +258,7 @@ def test_a_worker_pasting_warmed_variants_never_imports_the_renderer(tmp_path):
     import sys
     from pathlib import Path
 
-    img = _image()
+    img = road_frame()
     tf = A.Compose(
         [
             InsertObjects(
@@ -295,7 +295,7 @@ def test_a_worker_pasting_warmed_variants_never_imports_the_renderer(tmp_path):
 def test_plain_image_key_is_the_variant_key_of_the_documented_stream():
     import xxhash
 
-    img = _image()
+    img = road_frame()
     p = variant_key_prefix(load_preset("fast"), seed=3)
     from aias_augment.adapters.variants import VARIANT_FORMAT
 
@@ -315,7 +315,7 @@ def test_the_training_loop_path_returns_what_the_general_path_returns(tmp_path):
     """A uint8 RGB image without boxes or targets takes the short path (key, lookup, paste, prebuilt boxes); the
     same pixels as a non-contiguous view take the general one: call by call the same image bytes, boxes, labels,
     counts and records, computed and read back from the folder alike."""
-    img = _image()
+    img = road_frame()
     view = np.zeros((480, 640, 4), np.uint8)
     view[..., :3] = img
     view = view[..., :3]
@@ -347,7 +347,7 @@ def test_the_training_loop_path_returns_what_the_general_path_returns(tmp_path):
 
 
 def test_variant_file_round_trip_keeps_everything_and_reads_the_record_when_asked(tmp_path):
-    img = _image()
+    img = road_frame()
     cfg = load_preset("fast", categories=("traffic_cone",), max_objects=2)
     full = insert_bounded(img, np.asarray(BOXES), [0], np.random.default_rng(3), cfg, intrinsics=K)
     v = Variant.from_result(img, full)
@@ -389,7 +389,7 @@ def test_a_planted_pickle_in_the_variant_folder_runs_nothing_and_the_variant_is_
     """A pickle that would run a command, planted where a lookup reads (and at the older ``.pkl`` name): the call
     unpickles nothing, counts the file, computes the variant (the bytes of a transform without a folder) and
     writes it over the planted file."""
-    img = _image()
+    img = road_frame()
     tf = _compose(k=1, scene_cache=str(tmp_path))
     t = tf.transforms[0]
     key = plain_image_key(img, t._key_prefix())
@@ -412,7 +412,7 @@ def test_a_damaged_variant_file_is_counted_and_computed_again(tmp_path, damage, 
     """A variant file cut short, with one pixel byte flipped, with a header that is not JSON, or empty: never
     pasted; the reader logs and counts it and computes the variant (the same bytes as a transform without a
     folder)."""
-    img = _image()
+    img = road_frame()
     _plain_call(_compose(k=1, scene_cache=str(tmp_path)), img)
     [path] = (tmp_path / "variants").glob("*/*.variant")
     data = bytearray(path.read_bytes())

@@ -9,7 +9,7 @@ from aias_augment.assets.asset import DEFAULT_ASSETS
 from aias_augment.cli.offline import Item, items_from_yolo, run
 from aias_augment.core.config import data_root
 from aias_augment.pipeline.image import load_preset
-from tests.aias_augment.pipeline.test_image import _image
+from tests.aias_augment.pipeline.test_image import road_frame
 
 pytestmark = pytest.mark.skipif(
     not (data_root() / DEFAULT_ASSETS["traffic_cone"][0]).exists(), reason="shared data not present"
@@ -22,7 +22,7 @@ def _items(tmp_path, n=3):
     for i in range(n):
         p = tmp_path / "in" / f"im{i}.png"
         p.parent.mkdir(exist_ok=True)
-        cv2.imwrite(str(p), _image()[..., ::-1])
+        cv2.imwrite(str(p), road_frame()[..., ::-1])
         items.append(Item(str(p), [[5.0, 5.0, 20.0, 20.0]], ["sign"]))
     items.append(Item(str(tmp_path / "in" / "missing.png")))  # a bad input: counted skip, not a crash
     return items
@@ -53,7 +53,7 @@ def test_same_output_for_one_or_two_workers_and_resume(tmp_path):
 def test_yolo_items(tmp_path):
     (tmp_path / "images").mkdir()
     (tmp_path / "labels").mkdir()
-    cv2.imwrite(str(tmp_path / "images" / "a.png"), _image()[..., ::-1])
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), road_frame()[..., ::-1])
     (tmp_path / "labels" / "a.txt").write_text("0 0.5 0.5 0.1 0.2\n")
     items = items_from_yolo(str(tmp_path / "images"))
     assert len(items) == 1 and items[0].meta["yolo_rows"] == [["0", "0.5", "0.5", "0.1", "0.2"]]
@@ -74,7 +74,7 @@ def test_kill_9_mid_run_then_rerun_gives_byte_identical_outputs(tmp_path):
     (tmp_path / "labels").mkdir(parents=True)
     images.mkdir()
     for i in range(10):
-        img = _image()[::4, ::4].copy()
+        img = road_frame()[::4, ::4].copy()
         img[i : i + 5, :] = 25 * i  # ten different scenes
         cv2.imwrite(str(images / f"im{i}.png"), img[..., ::-1])
         (tmp_path / "labels" / f"im{i}.txt").write_text("0 0.5 0.8 0.1 0.1\n")
@@ -121,7 +121,7 @@ def test_cli_exits_1_when_every_image_is_skipped(tmp_path, capsys):
 
     (tmp_path / "images").mkdir()
     (tmp_path / "labels").mkdir()
-    cv2.imwrite(str(tmp_path / "images" / "a.png"), _image()[..., ::-1])
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), road_frame()[..., ::-1])
     (tmp_path / "labels" / "a.txt").write_text("3 0.5 0.5 0.1 0.2\n")
     rc = main(
         [
@@ -147,8 +147,8 @@ def test_coco_category_ids_come_out_as_they_went_in(tmp_path):
 
     (tmp_path / "im").mkdir()
     for i in range(2):
-        cv2.imwrite(str(tmp_path / "im" / f"{i}.png"), _image()[..., ::-1])
-    h, w = _image().shape[:2]
+        cv2.imwrite(str(tmp_path / "im" / f"{i}.png"), road_frame()[..., ::-1])
+    h, w = road_frame().shape[:2]
     coco_in = {
         "images": [
             {"id": 1, "file_name": "0.png", "width": w, "height": h},

@@ -9,7 +9,7 @@ import pytest
 from aias_augment.assets.asset import DEFAULT_ASSETS
 from aias_augment.cli.augment import main
 from aias_augment.core.config import data_root
-from tests.aias_augment.cli.test_offline_validate import _road
+from tests.aias_augment.cli.test_offline_validate import road_picture
 
 pytest.importorskip("ray")
 pytestmark = pytest.mark.skipif(
@@ -20,7 +20,7 @@ pytestmark = pytest.mark.skipif(
 def test_ray_matches_local_pool_byte_for_byte(tmp_path):
     (tmp_path / "images").mkdir()
     for i in range(2):
-        cv2.imwrite(str(tmp_path / "images" / f"r{i}.png"), _road(seed=i))
+        cv2.imwrite(str(tmp_path / "images" / f"r{i}.png"), road_picture(seed=i))
     (tmp_path / "images" / "bad.png").write_bytes(b"\x89PNG\r\n\x1a\n broken")
     args = ["--yolo", str(tmp_path / "images"), "--preset", "fast", "--per-image", "1", "--seed", "5"]
     try:

@@ -19,7 +19,7 @@ from aias_augment.adapters.boundary import InputError, SampleSkip, image_for_ins
 from aias_augment.assets.asset import DEFAULT_ASSETS, AssetError, PathAssets
 from aias_augment.core.config import data_root
 from aias_augment.plan.placement import PlacementConfig
-from tests.aias_augment.pipeline.test_image import _image
+from tests.aias_augment.pipeline.test_image import road_frame
 
 needs_data = pytest.mark.skipif(
     not (data_root() / DEFAULT_ASSETS["traffic_cone"][0]).exists(), reason="shared data not present"
@@ -40,7 +40,7 @@ def _compose(seed=3, **kw):
 )
 @pytest.mark.parametrize("channels", [None, 1, 3, 4])
 def test_image_for_insertion_converts_explicitly_and_restores_untouched_pixels_bit_for_bit(dtype, scale, channels):
-    base = _image()[:40, :50]
+    base = road_frame()[:40, :50]
     img8 = (
         base[..., 0]
         if channels is None
@@ -117,7 +117,7 @@ def test_mesh_in_centimetres_is_rescaled_with_a_warning(tmp_path, caplog, suffix
 def test_users_pedestrian_in_centimetres_is_inserted_at_its_real_size(tmp_path):
     """The issue's row: loaded as 187 m tall, every placement rejected, nothing counted. Now rescaled and placed."""
     compose, tf = _compose(seed=2, categories=["person"], assets={"person": [_pedestrian_in_cm(tmp_path, ".glb")]})
-    out = compose(image=_image(), bboxes=[], category_ids=[], camera_k=K)
+    out = compose(image=road_frame(), bboxes=[], category_ids=[], camera_k=K)
     assert tf.counts.to_dict()["inserted"] == 1 and out["category_ids"] == ["person"]
     placement = tf.last_record.placements[0]
     assert 1.0 < placement.height_m < 2.5
@@ -127,7 +127,7 @@ def test_users_pedestrian_in_centimetres_is_inserted_at_its_real_size(tmp_path):
 @needs_data
 def test_odd_samples_never_stop_a_loop_and_are_counted_by_reason():
     compose, tf = _compose()
-    img = _image()
+    img = road_frame()
     odd = [
         dict(image=np.full(img.shape, np.nan, np.float32)),
         dict(image=img.astype(np.float32)),  # [0, 255] float
@@ -154,7 +154,7 @@ def test_odd_samples_never_stop_a_loop_and_are_counted_by_reason():
 @pytest.mark.parametrize("dtype", [np.uint16, np.float32])
 def test_16bit_and_float_images_get_objects_and_keep_their_dtype(dtype):
     compose, tf = _compose(seed=5)
-    img = _image().astype(np.uint16) * 257 if dtype == np.uint16 else _image().astype(np.float32) / 255
+    img = road_frame().astype(np.uint16) * 257 if dtype == np.uint16 else road_frame().astype(np.float32) / 255
     out = compose(image=img, bboxes=[], category_ids=[], camera_k=K)
     assert out["image"].dtype == dtype and out["image"].shape == img.shape
     changed = np.any(out["image"] != img, axis=2)
@@ -168,7 +168,7 @@ def test_16bit_and_float_images_get_objects_and_keep_their_dtype(dtype):
 def test_a_call_that_inserts_nothing_is_counted_with_its_reason():
     impossible = PlacementConfig(max_tries=3, min_box_height_px=10_000.0)  # no object can be that large
     compose, tf = _compose(config_overrides={"placement_cfg": impossible})
-    img = _image()
+    img = road_frame()
     out = compose(image=img, bboxes=[], category_ids=[], camera_k=K)
     assert np.array_equal(out["image"], img) and out["bboxes"] == []
     c = tf.counts.to_dict()

@@ -24,7 +24,7 @@ needs_data = pytest.mark.skipif(
 CFG = replace(load_preset("fast"), categories=("traffic_cone",), min_objects=1, max_objects=1, harmonize=False)
 
 
-def _road(h=120, w=160, seed=0):
+def road_picture(h=120, w=160, seed=0):
     rng = np.random.default_rng(seed)
     img = np.full((h, w, 3), 110, np.uint8)
     img[: h // 2] = (220, 180, 150)  # BGR sky
@@ -37,14 +37,14 @@ def _yolo(tmp_path, files: dict):
     (tmp_path / "labels").mkdir(exist_ok=True)
     for stem, (kind, label) in files.items():
         if kind == "png":
-            cv2.imwrite(str(tmp_path / "images" / f"{stem}.png"), _road())
+            cv2.imwrite(str(tmp_path / "images" / f"{stem}.png"), road_picture())
         elif kind == "jpg":
-            cv2.imwrite(str(tmp_path / "images" / f"{stem}.jpg"), _road())
+            cv2.imwrite(str(tmp_path / "images" / f"{stem}.jpg"), road_picture())
         elif kind == "truncated":
-            ok, buf = cv2.imencode(".jpg", _road())
+            ok, buf = cv2.imencode(".jpg", road_picture())
             (tmp_path / "images" / f"{stem}.jpg").write_bytes(buf.tobytes()[: len(buf) // 3])
         elif kind == "png16":
-            cv2.imwrite(str(tmp_path / "images" / f"{stem}.png"), _road().astype(np.uint16) * 257)
+            cv2.imwrite(str(tmp_path / "images" / f"{stem}.png"), road_picture().astype(np.uint16) * 257)
         if label is not None:
             (tmp_path / "labels" / f"{stem}.txt").write_text(label)
     return tmp_path / "images"
@@ -56,7 +56,7 @@ def test_truncated_and_16bit_images(tmp_path):
     with pytest.raises(ValueError, match="^corrupt image"):
         read_image_checked(tmp_path / "images" / "t.jpg")
     img, notes = read_image_checked(tmp_path / "images" / "d.png")
-    assert img.dtype == np.uint8 and np.array_equal(img, _road()[..., ::-1])
+    assert img.dtype == np.uint8 and np.array_equal(img, road_picture()[..., ::-1])
     assert notes[0]["kind"] == "converted" and "16-bit" in notes[0]["reason"]
     (tmp_path / "empty.png").write_bytes(b"")
     with pytest.raises(ValueError, match="^unreadable image: empty file"):
@@ -129,7 +129,7 @@ def test_coco_duplicate_ids_refused_and_nan_named(tmp_path):
 
 def test_empty_input_unknown_category_are_errors(tmp_path, capsys):
     (tmp_path / "images" / "train").mkdir(parents=True)
-    cv2.imwrite(str(tmp_path / "images" / "train" / "a.png"), _road())
+    cv2.imwrite(str(tmp_path / "images" / "train" / "a.png"), road_picture())
     assert main(["--yolo", str(tmp_path / "images"), "--out", str(tmp_path / "o")]) == 2  # the parent folder
     assert "no images" in capsys.readouterr().err
     assert (
@@ -144,7 +144,7 @@ def test_empty_input_unknown_category_are_errors(tmp_path, capsys):
 def test_clip_options_on_images_are_refused(tmp_path, capsys):
     """--objects and --object-speed shape a clip; on an image dataset they would be silently ignored."""
     (tmp_path / "images").mkdir()
-    cv2.imwrite(str(tmp_path / "images" / "a.png"), _road())
+    cv2.imwrite(str(tmp_path / "images" / "a.png"), road_picture())
     for flag in (["--objects", "3"], ["--object-speed", "2"]):
         with pytest.raises(SystemExit) as e:
             main(["--images", str(tmp_path / "images"), "--out", str(tmp_path / "o"), *flag])
@@ -234,7 +234,7 @@ def test_overwrite_replaces_a_different_run(tmp_path):
 @needs_data
 def test_huge_image_is_bounded(tmp_path):
     (tmp_path / "images").mkdir()
-    cv2.imwrite(str(tmp_path / "images" / "big.png"), cv2.resize(_road(), (1600, 1200)))
+    cv2.imwrite(str(tmp_path / "images" / "big.png"), cv2.resize(road_picture(), (1600, 1200)))
     out = tmp_path / "out"
     assert (
         main(

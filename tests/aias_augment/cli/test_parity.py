@@ -16,7 +16,7 @@ import trimesh
 from aias_augment.assets.asset import DEFAULT_ASSETS, PathAssets
 from aias_augment.cli.augment import asset_paths, main
 from aias_augment.core.config import data_root
-from tests.aias_augment.cli.test_offline_validate import _road
+from tests.aias_augment.cli.test_offline_validate import road_picture
 
 FAST = ["--preset", "fast", "--per-image", "1", "--seed", "3"]
 
@@ -25,7 +25,7 @@ def _backgrounds(tmp_path, n=2):
     d = tmp_path / "backgrounds"
     d.mkdir()
     for i in range(n):
-        cv2.imwrite(str(d / f"bg{i}.png"), _road(seed=i))
+        cv2.imwrite(str(d / f"bg{i}.png"), road_picture(seed=i))
     (d / "notes.txt").write_text("not an image")
     return d
 
@@ -211,7 +211,7 @@ def test_envmap_fact_is_the_scene_lighting_and_part_of_the_cache_key():
     cam_from_env = cam_from_env_look(0.0)  # a level camera looking at the map's centre column
     rad, d = _sun_envmap(-40.0, 35.0)  # ahead-right of the camera, 35 deg up
     env = EnvironmentMap(rad, cam_from_env)
-    image = _road()[..., ::-1].copy()
+    image = road_picture()[..., ::-1].copy()
     cfg = load_preset("fast", categories=("traffic_cone",), max_objects=1)
     cache = SceneCache()
     for scene in (SceneInputs(envmap=env), SceneInputs(envmap=rad, world_from_env=cam_from_env)):

@@ -7,7 +7,7 @@ from aias_augment import SceneInputs
 from aias_augment.core.scene_inputs import scene_meta
 from aias_augment.pipeline.image import insert_into_image
 from tests.aias_augment.fixtures import box_asset
-from tests.aias_augment.pipeline.test_image import CFG, K, OneAsset, _image
+from tests.aias_augment.pipeline.test_image import CFG, K, OneAsset, road_frame
 
 HW = (K.height, K.width)
 
@@ -85,10 +85,10 @@ def test_typed_placeable_mask_restricts_contact_points_like_meta():
     mask[:, 400:] = True
     kw = dict(rng=None, cfg=CFG, intrinsics=K, bank=OneAsset(box_asset()), n_objects=2)
     typed = insert_into_image(
-        _image(), **{**kw, "rng": np.random.default_rng(4)}, scene=SceneInputs(placeable_mask=mask)
+        road_frame(), **{**kw, "rng": np.random.default_rng(4)}, scene=SceneInputs(placeable_mask=mask)
     )
-    plain = insert_into_image(_image(), **{**kw, "rng": np.random.default_rng(4)}, meta={"placeable_mask": mask})
+    plain = insert_into_image(road_frame(), **{**kw, "rng": np.random.default_rng(4)}, meta={"placeable_mask": mask})
     assert typed.record.placements and all(p.contact_pixel[0] >= 399.5 for p in typed.record.placements)
     assert np.array_equal(typed.image, plain.image)
     with pytest.raises(ValueError, match="did you mean 'placeable_mask'"):
-        insert_into_image(_image(), **{**kw, "rng": np.random.default_rng(4)}, meta={"placable_mask": mask})
+        insert_into_image(road_frame(), **{**kw, "rng": np.random.default_rng(4)}, meta={"placable_mask": mask})

@@ -29,7 +29,7 @@ def _ground_depth(height=1.6):
     return np.nan_to_num(p[..., 2], nan=0.0).astype(np.float32)
 
 
-def _image():
+def road_frame():
     rng = np.random.default_rng(0)
     img = np.full((K.height, K.width, 3), 110, np.uint8)
     img[: K.height // 2] = (150, 180, 220)
@@ -45,7 +45,7 @@ def test_depth_wall_in_front_lowers_visibility_and_shrinks_visible_box():
     # The same placeable region in both runs (the wall would otherwise change where objects may stand).
     meta = {"placeable_mask": depth > 0}
     a = insert_into_image(
-        _image(),
+        road_frame(),
         rng=np.random.default_rng(3),
         cfg=CFG,
         intrinsics=K,
@@ -61,7 +61,7 @@ def test_depth_wall_in_front_lowers_visibility_and_shrinks_visible_box():
     wall = depth.copy()
     wall[: int(y + h / 2), int(x) - 5 : int(x + w) + 5] = z * 0.5  # a wall half way to the object, upper half
     b = insert_into_image(
-        _image(),
+        road_frame(),
         rng=np.random.default_rng(3),
         cfg=CFG,
         intrinsics=K,
@@ -80,7 +80,7 @@ def test_depth_wall_in_front_lowers_visibility_and_shrinks_visible_box():
 def test_existing_box_hidden_by_insertion_is_dropped():
     asset = box_asset(extents=(1.0, 1.0, 1.5), category="box")
     a = insert_into_image(
-        _image(), rng=np.random.default_rng(5), cfg=CFG, intrinsics=K, bank=OneAsset(asset), n_objects=1
+        road_frame(), rng=np.random.default_rng(5), cfg=CFG, intrinsics=K, bank=OneAsset(asset), n_objects=1
     )
     x, y, w, h = a.inserted_bboxes[0]
     existing = np.array([[x + w * 0.25, y + h * 0.25, w * 0.5, h * 0.5], [0, 0, 20, 20]])
@@ -91,7 +91,7 @@ def test_existing_box_hidden_by_insertion_is_dropped():
         placement_cfg=CFG.placement_cfg.__class__(max_overlap_existing=1.0),
     )
     b = insert_into_image(
-        _image(),
+        road_frame(),
         existing,
         ["hidden", "far"],
         rng=np.random.default_rng(5),
@@ -108,7 +108,7 @@ def test_existing_box_hidden_by_insertion_is_dropped():
 def test_contact_point_lies_on_the_ground_and_box_touches_it():
     asset = box_asset(category="box")
     res = insert_into_image(
-        _image(), rng=np.random.default_rng(11), cfg=CFG, intrinsics=K, bank=OneAsset(asset), n_objects=2
+        road_frame(), rng=np.random.default_rng(11), cfg=CFG, intrinsics=K, bank=OneAsset(asset), n_objects=2
     )
     g = prior_ground_plane(CFG.camera_height_m)
     for p in res.record.placements:
@@ -117,7 +117,7 @@ def test_contact_point_lies_on_the_ground_and_box_touches_it():
 
 
 def test_same_seed_same_output_and_inputs_untouched():
-    img = _image()
+    img = road_frame()
     before = img.copy()
     r1 = insert_into_image(img, rng=np.random.default_rng(7), cfg=CFG, intrinsics=K, bank=OneAsset(box_asset()))
     r2 = insert_into_image(img, rng=np.random.default_rng(7), cfg=CFG, intrinsics=K, bank=OneAsset(box_asset()))
@@ -133,7 +133,7 @@ def test_record_from_its_json_is_the_record():
     from aias_augment.analyse.lighting.estimate import LightingEstimate
 
     r = insert_into_image(
-        _image(), rng=np.random.default_rng(7), cfg=CFG, intrinsics=K, bank=OneAsset(box_asset())
+        road_frame(), rng=np.random.default_rng(7), cfg=CFG, intrinsics=K, bank=OneAsset(box_asset())
     ).record
     assert r.placements and r.annotations
     r = replace(
@@ -150,7 +150,7 @@ def test_record_from_its_json_is_the_record():
 
 def test_naive_paste_skips_modules_and_records_why():
     res = insert_into_image(
-        _image(),
+        road_frame(),
         rng=np.random.default_rng(1),
         cfg=InsertionConfig(categories=("box",), naive_paste=True, ssaa=1),
         bank=OneAsset(box_asset()),
@@ -170,11 +170,11 @@ def test_bad_inputs_raise_clearly():
     with pytest.raises(ValueError, match="uint8"):
         insert_into_image(np.zeros((10, 10), np.uint8), rng=np.random.default_rng(0))
     with pytest.raises(ValueError, match="Generator"):
-        insert_into_image(_image())
+        insert_into_image(road_frame())
     with pytest.raises(ValueError, match="labels"):
-        insert_into_image(_image(), [[0, 0, 1, 1]], [], rng=np.random.default_rng(0))
+        insert_into_image(road_frame(), [[0, 0, 1, 1]], [], rng=np.random.default_rng(0))
     with pytest.raises(ValueError):
-        insert_into_image(_image(), rng=np.random.default_rng(0), intrinsics=np.full((3, 3), np.nan))
+        insert_into_image(road_frame(), rng=np.random.default_rng(0), intrinsics=np.full((3, 3), np.nan))
     with pytest.raises(KeyError, match="unknown config keys"):
         from aias_augment.core.config import from_dict
 
@@ -187,7 +187,7 @@ def test_placeable_mask_restricts_contact_points():
     mask = np.zeros((K.height, K.width), bool)
     mask[:, 400:] = True
     res = insert_into_image(
-        _image(),
+        road_frame(),
         rng=np.random.default_rng(2),
         cfg=CFG,
         intrinsics=K,

@@ -38,12 +38,12 @@ def _yolo_cones(root, n_cone, n_empty):
     """A tiny YOLO dataset: grey-green noise roads, orange triangle cones on the cone images."""
     import cv2
 
-    from tests.aias_augment.assets.bank.test_lift import _noise_background, draw_cone
+    from tests.aias_augment.assets.bank.test_lift import draw_cone, noise_background
 
     (root / "images" / "train").mkdir(parents=True)
     (root / "labels" / "train").mkdir(parents=True)
     for i in range(n_cone + n_empty):
-        img = _noise_background(240, 320, i)
+        img = noise_background(240, 320, i)
         lines = []
         if i < n_cone:
             b = draw_cone(img, 100 + 20 * i, 200, 120, 32)
@@ -86,9 +86,9 @@ def test_copy_paste_pool_uses_only_the_seeds_own_instances(tmp_path):
 def test_paste_instances_changes_only_the_pasted_boxes():
     from aias_augment.assets.bank.lift import cut_out
     from detection_eval.copy_paste import paste_instances
-    from tests.aias_augment.assets.bank.test_lift import _noise_background, draw_cone
+    from tests.aias_augment.assets.bank.test_lift import draw_cone, noise_background
 
-    src = _noise_background(240, 320)
+    src = noise_background(240, 320)
     cut, _ = cut_out(src, draw_cone(src, 160, 200, 120, 32))
     bg = np.full((200, 300, 3), 77, np.uint8)
     out, boxes = paste_instances(bg, [cut], np.random.default_rng(0), (0.3, 0.5), n_objects=3)

@@ -26,7 +26,7 @@ from aias_augment.core.config import data_root
 from aias_augment.core.geometry import Intrinsics
 
 
-def _noise_background(h, w, seed=0):
+def noise_background(h, w, seed=0):
     rng = np.random.default_rng(seed)
     base = np.array([70, 110, 90], np.float32)
     img = base + rng.normal(0, 6, (h, w, 3))
@@ -50,7 +50,7 @@ def draw_cone(img, x_c, y_base, height, half_base, plate=(0, 0)):
 
 
 def test_cutout_of_a_drawn_cone_matches_its_shape():
-    img = _noise_background(240, 320)
+    img = noise_background(240, 320)
     box = draw_cone(img, 160, 200, 140, 40)
     cut, reason = cut_out(img, box)
     assert reason == "ok"
@@ -74,7 +74,7 @@ def test_cutout_of_a_drawn_cone_matches_its_shape():
     ],
 )
 def test_rejections_are_named(case, reason):
-    img = _noise_background(240, 320)
+    img = noise_background(240, 320)
     others = []
     if case == "truncated":
         box = draw_cone(img, 160, 239, 120, 40)
@@ -115,7 +115,7 @@ def _render_far_side(asset: Asset, height_px: float, shape=(320, 240), base_row=
     T[:3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]
     T[:3, 3] = [0.0, (base_row - intr.cy) * d / f, d]
     lay = render_object(asset, T, intr, ssaa=1)
-    bg = _noise_background(h, w, 1).astype(np.float32) / 255
+    bg = noise_background(h, w, 1).astype(np.float32) / 255
     rgb = linear_to_srgb(lay.albedo_linear)
     a = lay.alpha[..., None]
     img = np.clip((a * rgb + (1 - a) * bg) * 255 + 0.5, 0, 255).astype(np.uint8)
@@ -220,7 +220,7 @@ def test_silhouette_profile_of_a_rectangle():
 
 
 def test_bank_round_trips_through_glb_files(tmp_path):
-    img = _noise_background(240, 320)
+    img = noise_background(240, 320)
     b1 = draw_cone(img, 90, 200, 130, 35, plate=(45, 10))
     b2 = draw_cone(img, 240, 180, 100, 28)
     assets, report = lift_instances([("a.png", img, np.stack([b1, b2]))], "traffic_cone", tmp_path / "bank")
@@ -245,7 +245,7 @@ def test_insert_objects_takes_a_lifted_bank(tmp_path):
 
     from aias_augment import InsertObjects
 
-    img = _noise_background(240, 320)
+    img = noise_background(240, 320)
     lift_instances([("a.png", img, draw_cone(img, 160, 200, 130, 35)[None])], "traffic_cone", tmp_path / "bank")
     road = np.full((240, 320, 3), 90, np.uint8)
     road[:100] = (150, 180, 220)
@@ -277,14 +277,14 @@ def test_from_labels_cli(tmp_path):
     img_dir, lab_dir = tmp_path / "images", tmp_path / "labels"
     img_dir.mkdir()
     lab_dir.mkdir()
-    img = _noise_background(240, 320)
+    img = noise_background(240, 320)
     b = draw_cone(img, 160, 200, 130, 35)
     cv2.imwrite(str(img_dir / "x.png"), img[..., ::-1])
     (lab_dir / "x.txt").write_text(
         f"0 {(b[0] + b[2]) / 640} {(b[1] + b[3]) / 480} {(b[2] - b[0]) / 320} "
         f"{(b[3] - b[1]) / 240}\n1 0.05 0.05 0.05 0.05\n"
     )
-    empty = _noise_background(240, 320, 2)
+    empty = noise_background(240, 320, 2)
     cv2.imwrite(str(img_dir / "y.png"), empty[..., ::-1])
     rc = main(
         [
