@@ -18,6 +18,10 @@ point by more than its depth.
 - ``bend``: the object bent about a horizontal axis by ``angle`` over its height, as a circular arc (a bent post).
 - ``knocked_over``: turned 90 deg about a horizontal axis and settled on the face of its convex hull that then
   faces the ground (a cone lying on its side, a barrel on its flank).
+
+Falling over as it happens (a clip's toppling object, :func:`tipped`): the rigid object turns about the edge of its
+base on the side it falls to, which stays on the ground, until another point of its convex hull touches the ground
+(:func:`topple_rest_angle`: a cube lands on a face at 90 deg, a cone on its side line beyond 90 deg).
 """
 
 from __future__ import annotations
@@ -205,6 +209,108 @@ def _settle(asset: Asset, R: np.ndarray) -> np.ndarray:
     if s < 1e-12:
         return R
     return _axis_angle(axis, math.atan2(s, float(n @ down))) @ R
+
+
+def _fall_frame(asset: Asset, azimuth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(hull vertices, fall direction f, pivot p on z = 0, f's azimuth): a rigid object tips over an edge of its
+    base's convex outline, the one whose outward normal is nearest to ``azimuth`` (a round base has one edge per
+    facet: any direction, near enough)."""
+    from scipy.spatial import ConvexHull
+
+    hull = np.asarray(_merged_geometry(asset).convex_hull.vertices, float)
+    base = hull[hull[:, 2] <= hull[:, 2].min() + BASE_BAND_FRAC * asset.height_m][:, :2]
+    outline = ConvexHull(base).equations  # rows (nx, ny, c): outward unit normal, n . x + c = 0 on the edge
+    want = np.array([math.cos(azimuth), math.sin(azimuth)])
+    nx, ny, c = outline[int(np.argmax(outline[:, :2] @ want))]
+    f = np.array([nx, ny, 0.0])
+    return hull, f, -c * f, math.atan2(ny, nx)
+
+
+#: Hull points this close to the lowest one (a fraction of the height) form the base the object pivots on.
+BASE_BAND_FRAC = 0.02
+#: Most successive edges a falling object rolls over before it rests (a cone on a square plate needs two).
+MAX_FALL_SEGMENTS = 8
+
+
+def fall_segments(asset: Asset, azimuth: float) -> tuple[np.ndarray, float, list[tuple[np.ndarray, float]]]:
+    """How the knocked object falls: (fall direction f, its azimuth, [(pivot point on z = 0, angle), ...]).
+
+    The fall is planar: the object turns about horizontal lines across ``f``. In the plane of ``f`` and up, a hull
+    point at (u, w) from the pivot touches the ground when w cos t = u sin t, so at t = atan2(w, u); the first of
+    them ends the turn. The object rests there when its centre of mass (the convex hull's) lies over the points on
+    the ground; otherwise it goes on turning about the farthest of them (a cone on a square plate lands on the
+    plate's rim, then rolls onto its side)."""
+    hull, f, p, az = _fall_frame(asset, azimuth)
+    pts = np.c_[hull @ f, hull[:, 2]]  # (u, w) in the fixed plane of the fall
+    centre = np.asarray(_merged_geometry(asset).convex_hull.center_mass, float)
+    com = np.array([centre @ f, centre[2]])
+    tol = 1e-9 * max(asset.height_m, 1e-9)
+    pivot = np.array([p @ f, 0.0])
+    segments = []
+    for _ in range(MAX_FALL_SEGMENTS):
+        d = pts - pivot
+        free = (d[:, 1] > tol) | (d[:, 0] < -tol)  # points on the pivot line never leave the ground
+        t = float(np.arctan2(d[free, 1], d[free, 0]).min())
+        rot = np.array([[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]])  # (u, w): top towards +u
+        pts, com = pivot + d @ rot.T, pivot + rot @ (com - pivot)
+        pts[:, 1] = np.maximum(pts[:, 1], 0.0)  # rounding: what touches is on the ground
+        segments.append((pivot[0] * f, t))
+        ground_u = pts[pts[:, 1] <= tol, 0]
+        if com[0] <= ground_u.max() + tol:
+            break
+        pivot = np.array([ground_u.max(), 0.0])
+    return f, az, segments
+
+
+def topple_rest_angle(asset: Asset, azimuth: float) -> float:
+    """The total angle (radians) an object knocked over towards ``azimuth`` has turned when it rests
+    (:func:`fall_segments`)."""
+    return float(sum(t for _, t in fall_segments(asset, azimuth)[2]))
+
+
+def tipped(asset: Asset, azimuth: float, angle: float) -> tuple[Asset, np.ndarray]:
+    """``asset`` knocked over towards ``azimuth`` (radians from its +x axis; the base edge it tips over, in
+    ``meta["tipped"]["azimuth"]``) and turned by ``angle`` (0 .. :func:`topple_rest_angle`) about the edges it
+    rolls over (:func:`fall_segments`): the pivot stays on the ground and nothing goes below it. Returned like every
+    asset (x/y centred on its bounds, lowest point on z = 0) with ``origin`` (3,), where its origin lies in
+    ``asset``'s frame: the turned object stands at ``object_from_tipped = translation(origin)``."""
+    f, azimuth, segments = fall_segments(asset, azimuth)
+    axis = np.cross([0.0, 0.0, 1.0], f)  # turning about it brings +z towards f
+    T = np.eye(4)
+    left = float(angle)
+    for pivot, t in segments:
+        step = min(t, left)
+        if step <= 0:
+            break
+        R = _axis_angle(axis, step)
+        turn = np.eye(4)
+        turn[:3, :3], turn[:3, 3] = R, pivot - R @ pivot
+        T = turn @ T
+        left -= step
+    lo, hi = _transformed_bounds(asset, T)
+    origin = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    T[:3, 3] -= origin
+    meshes = []
+    for m in asset.meshes:
+        c = m.copy(include_cache=True)
+        c.apply_transform(T)  # a rigid motion: trimesh turns the cached vertex normals with it
+        meshes.append(c)
+    ref = float(asset.meta.get("reference_height_m", asset.height_m))
+    out = Asset(
+        f"{asset.name}_tipped{math.degrees(angle):.1f}",
+        asset.category,
+        tuple(meshes),
+        asset.source,
+        asset.licence,
+        asset.procedural,
+        {**asset.meta, "tipped": {"azimuth": float(azimuth), "angle": float(angle)}, "reference_height_m": ref},
+    )
+    return out, origin
+
+
+def _transformed_bounds(asset: Asset, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    v = np.concatenate([np.asarray(m.vertices, float) for m in asset.meshes]) @ T[:3, :3].T + T[:3, 3]
+    return v.min(0), v.max(0)
 
 
 def _wendland(t: np.ndarray) -> np.ndarray:

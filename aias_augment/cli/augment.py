@@ -146,6 +146,13 @@ def main(argv=None) -> int:
         help="the object moves along its heading at this speed (a car driving, a cart crossing); 0: it stands",
     )
     clip.add_argument(
+        "--topple",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="the object is knocked over during the clip, falling onto its side over this long; 0: it stays upright",
+    )
+    clip.add_argument(
         "--objects",
         type=int,
         default=1,
@@ -209,6 +216,7 @@ def main(argv=None) -> int:
                 preset=a.preset,
                 fps=a.fps,
                 object_speed_mps=a.object_speed,
+                topple_s=a.topple,
                 objects=a.objects,
             )
         )
@@ -219,7 +227,15 @@ def main(argv=None) -> int:
     from aias_augment.adapters.boundary import InputError, check_categories
     from aias_augment.cli.manifest import ManifestMismatch
 
-    clip_only = [f for f, v in (("--objects", a.objects != 1), ("--object-speed", a.object_speed != 0)) if v]
+    clip_only = [
+        f
+        for f, v in (
+            ("--objects", a.objects != 1),
+            ("--object-speed", a.object_speed != 0),
+            ("--topple", a.topple != 0),
+        )
+        if v
+    ]
     if clip_only:
         ap.error(f"{', '.join(clip_only)}: for clips (--input a video or a frame folder); images take --per-image")
     if (

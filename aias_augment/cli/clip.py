@@ -74,6 +74,7 @@ class ClipJob:
     preset: str = "balanced"  # the image door's preset whose layer stages (e.g. motion blur) the object gets
     fps: float = 10.0  # frames per second of the clip as read (after --stride): the mp4's rate and the speed's clock
     object_speed_mps: float = 0.0  # the object moves along its heading at this speed (0: it stands)
+    topple_s: float = 0.0  # each object is knocked over during the clip, falling for this long (0: it stays upright)
     # Objects in the clip, each its own track: object k > 0 stands on the other side of the path from object k - 1
     # and nearer (lookahead scaled by (n - k) / n); on a static camera each stands on its own sampled ground pixel.
     # Objects never meet: one whose box would meet another's in any frame is redrawn (record: "draws",
@@ -101,6 +102,12 @@ class ClipJob:
             raise ValueError("--flow-refine tracks the ground under a standing object: not with --object-speed")
         if self.objects < 1:
             raise ValueError(f"objects must be >= 1, got {self.objects}")
+        if not (np.isfinite(self.topple_s) and self.topple_s >= 0):
+            raise ValueError(f"topple_s must be >= 0 seconds, got {self.topple_s}")
+        if self.topple_s and (self.object_speed_mps or self.flow_refine):
+            raise ValueError(
+                "--topple: a toppling object stands where it falls, not with --object-speed or --flow-refine"
+            )
         if not (np.isfinite(self.camera_height_m) and self.camera_height_m > 0):
             raise ValueError(f"camera_height_m must be positive, got {self.camera_height_m}")
 
@@ -241,6 +248,7 @@ def augment_clip(job: ClipJob) -> dict:
         contact="lookahead" if job.poses is not None else "sampled",  # a static camera goes nowhere: a seen ground
         flow_refine=job.flow_refine,
         speed_m_per_frame=job.object_speed_mps / job.fps,
+        topple_frames=max(1, round(job.topple_s * job.fps)) if job.topple_s else 0,
     )
     objects = [(category, asset)]
     placed_params, draws = [layer_params[0]], [1]
@@ -381,6 +389,7 @@ def augment_clip(job: ClipJob) -> dict:
                 "contact_in_world": r.contact_in_world.tolist(),
                 "layer_params": placed_params[k],
                 "draws": draws[k],
+                "topple": plans[k].topple,
                 "visible_frames": int(sum(b is not None for b in r.boxes_xywh)),
             }
             for k, ((cat, a), r) in enumerate(zip(objects, results))

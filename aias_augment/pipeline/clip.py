@@ -15,6 +15,10 @@ the world ground), composited against the frame's depth and annotated (COCO xywh
 (:mod:`aias_augment.plan.stabilize`) and each frame's object pose slides on its ground so the contact stays on the
 tracked pixel: drifting poses (visual odometry) no longer make the object skate.
 
+A toppling object (``topple_frames``) is knocked over during the clip: it turns about the edge of its base towards a
+direction drawn in the plan and lands on its side (:func:`aias_augment.assets.deform.tipped`), the angle growing as
+under a constant angular acceleration; each frame renders the turned object standing where it rests then.
+
 A moving object (``speed_m_per_frame``) goes along its heading on the world ground from frame ``start`` on: its pose,
 contact track and shadow move with it; the local refit is measured under each frame's contact, and flow refinement
 (which tracks the ground under a standing object) is refused.
@@ -72,6 +76,10 @@ class VideoInsertionConfig:
     # A moving object: metres per frame along its heading (its own x axis on the ground; the yaw draws it), from
     # frame ``start`` on (before it, where it came from). 0: standing.
     speed_m_per_frame: float = 0.0
+    # Knocked over: it falls onto its side over this many frames from frame ``topple_start`` (None: drawn in the plan
+    # so that the fall ends in the clip), towards a direction drawn in the plan. 0: it stays upright.
+    topple_frames: int = 0
+    topple_start: int | None = None
     flow_cfg: FlowRefineConfig = FlowRefineConfig()
     placement_cfg: PlacementConfig = PlacementConfig()
 
@@ -84,6 +92,12 @@ class VideoInsertionConfig:
             raise ValueError(f"speed_m_per_frame must be finite, got {self.speed_m_per_frame}")
         if self.speed_m_per_frame != 0 and self.flow_refine:
             raise ValueError("flow_refine tracks the ground under a standing object: not with speed_m_per_frame")
+        if self.topple_frames < 0 or (self.topple_start is not None and self.topple_start < 0):
+            raise ValueError(
+                f"topple_frames and topple_start must be >= 0, got {self.topple_frames}, {self.topple_start}"
+            )
+        if self.topple_frames and (self.speed_m_per_frame != 0 or self.flow_refine):
+            raise ValueError("a toppling object stands where it falls: not with speed_m_per_frame or flow_refine")
 
 
 @dataclass
@@ -169,6 +183,15 @@ class ClipPlan:
     refit_offsets_m: tuple
     layer_params: dict
     modules: dict
+    # per frame: the world pose of the object as it stands in that frame, and that frame's asset (a toppling object
+    # turns; None: ``asset``)
+    worlds_from_object: tuple = ()
+    frame_assets: tuple = ()
+    # a toppling object's fall: start frame, frames, azimuth of the base edge it tips over, rest angle (radians)
+    topple: dict | None = None
+
+    def asset_at(self, i: int) -> Asset:
+        return self.frame_assets[i] if self.frame_assets and self.frame_assets[i] is not None else self.asset
 
 
 def plan_clip(
@@ -253,12 +276,25 @@ def plan_clip(
     )
     world_from_object = invert_rigid(poses[start]) @ cam0_from_obj
     contacts_w = contact_w[None, :] + steps[:, None] * heading_w[None, :]
-    if cfg.speed_m_per_frame == 0:
+    frame_assets: list[Asset | None] = [None] * n
+    object_from_frame = [np.eye(4)] * n
+    topple = None
+    if cfg.topple_frames:
+        frame_assets, object_from_frame, topple = _topple(obj, n, cfg, rng)
+        note = (
+            f"knocked over towards {np.degrees(topple['azimuth']):.0f} deg of its x axis: falls from frame "
+            f"{topple['start']}, lies on its side ({np.degrees(topple['rest_angle']):.0f} deg) from frame "
+            f"{topple['start'] + topple['frames']}"
+        )
+        contacts_w = np.array([contact_w + world_from_object[:3, :3] @ T[:3, 3] for T in object_from_frame])
+        mods["motion"] = note
+    if cfg.speed_m_per_frame == 0 and not cfg.topple_frames:
         track_uv, visible = project_world_point_track(contact_w, intrinsics, poses)
     else:
         tracks = [project_world_point_track(c, intrinsics, poses[i : i + 1]) for i, c in enumerate(contacts_w)]
         track_uv = np.concatenate([uv for uv, _ in tracks])
         visible = np.concatenate([v for _, v in tracks])
+    if cfg.speed_m_per_frame:
         mods["motion"] = f"moving {cfg.speed_m_per_frame:.3f} m per frame along its heading"
 
     if lighting is None:
@@ -291,16 +327,17 @@ def plan_clip(
         mods["stabilize"] = f"KLT ground tracking: contact corrected in {used}/{n - 1} frames"
     else:
         mods["stabilize"] = skipped("poses trusted (flow_refine off)")
-    cams_from_object = []
+    cams_from_object, worlds_from_object = [], []
     for i in range(n):
-        world_from_object_i = world_from_object.copy()
+        world_from_object_i = world_from_object @ object_from_frame[i]
         world_from_object_i[:3, 3] += steps[i] * heading_w
+        worlds_from_object.append(world_from_object_i)
         cam_from_object = poses[i] @ world_from_object_i
         if flow is not None and flow.status[i] == "flow":
             cam_from_object = refined_cam_from_object(
                 cam_from_object, transform_points(poses[i], contact_w), flow.uv[i], grounds[i], intrinsics
             )
-        uvc, z = project_points(transform_points(cam_from_object, obj.corners_m()), intrinsics.K)
+        uvc, z = project_points(transform_points(cam_from_object, (frame_assets[i] or obj).corners_m()), intrinsics.K)
         in_front = not np.any(z <= 0.05) and np.all(np.isfinite(uvc))
         b = box_of_points(uvc) if in_front else None
         on_frame = b is not None and b[2] >= 0 and b[3] >= 0 and b[0] <= intrinsics.width and b[1] <= intrinsics.height
@@ -323,20 +360,57 @@ def plan_clip(
         tuple(offsets),
         dict(layer_params or {}),
         mods,
+        tuple(worlds_from_object),
+        tuple(frame_assets),
+        topple,
     )
 
 
+def _topple(obj: Asset, n: int, cfg: VideoInsertionConfig, rng: np.random.Generator):
+    """Per frame the toppling object's asset (None before the fall) and ``object_from_frame`` (where that asset's
+    origin lies in the upright object's frame), and the fall's record. The angle grows as t^2 (a constant angular
+    acceleration from rest) over ``cfg.topple_frames`` frames up to the rest angle, and stays there."""
+    from aias_augment.assets.deform import tipped, topple_rest_angle
+
+    frames = cfg.topple_frames
+    if frames >= n:
+        raise ValueError(f"topple_frames {frames} must be shorter than the clip ({n} frames)")
+    start = int(rng.integers(0, n - frames)) if cfg.topple_start is None else cfg.topple_start
+    if start + frames >= n:
+        raise ValueError(f"the fall from frame {start} over {frames} frames does not end in the clip of {n}")
+    azimuth = float(rng.uniform(-np.pi, np.pi))
+    rest = topple_rest_angle(obj, azimuth)
+    assets: list[Asset | None] = [None] * n
+    poses = [np.eye(4)] * n
+    landed = None
+    for i in range(start + 1, n):
+        t = min((i - start) / frames, 1.0)
+        if t == 1.0 and landed is not None:
+            assets[i], poses[i] = landed
+            continue
+        tipped_obj, origin = tipped(obj, azimuth, rest * t * t)
+        T = np.eye(4)
+        T[:3, 3] = origin
+        assets[i], poses[i] = tipped_obj, T
+        if t == 1.0:
+            landed = (tipped_obj, T)
+    fall = {
+        "start": start,
+        "frames": frames,
+        "azimuth": assets[-1].meta["tipped"]["azimuth"],  # the base edge it tips over
+        "rest_angle": rest,
+    }
+    return assets, poses, fall
+
+
 def object_boxes_in_world(plan: ClipPlan) -> list[OrientedBox]:
-    """The object's bounding box in the world in every frame of the clip (a moving object's moves with it), whether
-    or not a camera sees it there: objects share the world, not the frame."""
-    lo, hi = plan.asset.bounds_m
-    box_from_object = np.eye(4)
-    box_from_object[:3, 3] = -(lo + hi) / 2
-    world_from_box = plan.world_from_object @ invert_rigid(box_from_object)
+    """The object's bounding box in the world in every frame of the clip (as it moves or falls), whether or not a
+    camera sees it there: objects share the world, not the frame."""
     boxes = []
-    for c in np.asarray(plan.contact_track_in_world, float):
-        T = world_from_box.copy()
-        T[:3, 3] += c - plan.contact_in_world
+    for i, world_from_object in enumerate(plan.worlds_from_object):
+        lo, hi = plan.asset_at(i).bounds_m
+        T = world_from_object.copy()
+        T[:3, 3] += T[:3, :3] @ ((lo + hi) / 2)
         boxes.append(OrientedBox(T, tuple(hi - lo)))
     return boxes
 
@@ -397,7 +471,7 @@ def apply_clip_objects(
         live = [k for k, plan in enumerate(plans) if plan.cams_from_object[i] is not None]
         placements = {
             k: placement_at(
-                plans[k].asset, plans[k].cams_from_object[i], intrinsics, plans[k].yaw_rad, plans[k].grounds[i]
+                plans[k].asset_at(i), plans[k].cams_from_object[i], intrinsics, plans[k].yaw_rad, plans[k].grounds[i]
             )
             for k in live
         }
@@ -407,7 +481,7 @@ def apply_clip_objects(
                 f"clip-frame-{i}", shape, intrinsics, plans[0].grounds[i], None, plans[0].lights[i]
             )
             frame_plan = InsertionPlan(
-                tuple(PlannedObject(placements[k], plans[k].asset) for k in live),
+                tuple(PlannedObject(placements[k], plans[k].asset_at(i)) for k in live),
                 0,
                 len(live),
                 layer_params=tuple(plans[k].layer_params for k in live),

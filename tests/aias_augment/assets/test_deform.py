@@ -17,8 +17,11 @@ from aias_augment.assets.deform import (
     DeformConfig,
     DeformParams,
     apply_deformation,
+    fall_segments,
     geometry_is_watertight,
     sample_deformation,
+    tipped,
+    topple_rest_angle,
     write_variants,
 )
 
@@ -170,3 +173,60 @@ def test_deformed_insertion_replays_exactly():
     kinds = [p["asset_meta"]["deformation"]["kind"] for p in record["placements"]]
     assert kinds and all(k in KINDS for k in kinds)
     assert np.array_equal(replay(record, Frame(img, None), cfg).image, res.image)
+
+
+def test_a_cone_tipping_over_lands_on_its_side_line_with_its_texture():
+    """Truth by hand: a cone of height H on a 48-gon base of circumradius R turns about a base edge (the apothem
+    a = R cos(pi / 48) from the axis) and rests when its apex reaches the ground, at pi - atan(H / a) (beyond
+    90 deg: it lies on a side line); the turn is rigid (edge lengths kept),
+    keeps the UVs, the pivot stays put, and nothing dips below the ground on the way."""
+    R, H = 0.2, 0.7
+    m = trimesh.creation.cone(R, H, sections=48)
+    uv = np.c_[np.arctan2(m.vertices[:, 1], m.vertices[:, 0]), m.vertices[:, 2]]
+    m.visual = trimesh.visual.TextureVisuals(uv=uv)
+    cone = Asset("cone", "traffic_cone", normalise_meshes([m]), "test")
+    rest = topple_rest_angle(cone, 0.0)
+    assert rest == pytest.approx(np.pi - np.arctan(H / (R * np.cos(np.pi / 48))), abs=1e-9)
+    src = np.asarray(cone.meshes[0].vertices)
+    for t in (0.0, 0.3, 0.8, 1.0):
+        out, origin = tipped(cone, 0.0, rest * t)
+        v = np.asarray(out.meshes[0].vertices) + origin  # back in the upright cone's frame
+        assert v[:, 2].min() == pytest.approx(0.0, abs=1e-12)
+        edges = np.asarray(cone.meshes[0].edges_unique)
+        assert np.allclose(
+            np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1),
+            np.linalg.norm(src[edges[:, 0]] - src[edges[:, 1]], axis=1),
+            atol=1e-12,
+        )
+        assert np.array_equal(np.asarray(out.meshes[0].visual.uv), np.asarray(cone.meshes[0].visual.uv))
+        edge = src[:, 0] > R * np.cos(np.pi / 48) - 1e-9  # the base rim's points on the pivot edge
+        assert np.allclose(v[edge & (src[:, 2] < 1e-9)], src[edge & (src[:, 2] < 1e-9)], atol=1e-12)
+    apex = v[np.argmax(src[:, 2])]
+    assert apex[2] == pytest.approx(0.0, abs=1e-9)  # landed: the apex touches the ground
+    assert out.meta["tipped"]["azimuth"] == pytest.approx(np.pi / 48, abs=1e-9)  # the facet edge nearest to 0
+
+
+def test_a_cone_on_a_square_plate_rolls_over_the_plate_rim_onto_its_side():
+    """Truth by hand: a cone (0.7 m, base radius 0.15 m) on a 0.4 m square plate 4 cm thick, knocked towards +x,
+    first turns 90 deg about the plate's bottom edge, until the plate's top edge touches (0.04 m past it). Its
+    centre of mass then lies far beyond that strip, so it turns on about the top edge; the apex, 0.2 m up and
+    0.70 m along from it, lands after atan2(0.2, 0.70) more. At rest the apex and the plate's top edge are on the
+    ground."""
+    plate = trimesh.creation.box(extents=(0.4, 0.4, 0.04))
+    plate.apply_translation([0, 0, 0.02])
+    body = trimesh.creation.cone(0.15, 0.7, sections=32)
+    body.apply_translation([0, 0, 0.04])
+    cone = Asset("plated", "traffic_cone", normalise_meshes([plate, body]), "test")
+    f, azimuth, segments = fall_segments(cone, 0.0)
+    assert azimuth == pytest.approx(0.0) and len(segments) == 2
+    assert segments[0][1] == pytest.approx(np.pi / 2, abs=1e-9)  # onto the plate's rim
+    assert np.allclose(segments[1][0], [0.24, 0.0, 0.0], atol=1e-9)  # then about its top edge
+    rest = topple_rest_angle(cone, 0.0)
+    assert rest == pytest.approx(np.pi / 2 + np.arctan2(0.2, 0.70), abs=1e-9)
+    out, origin = tipped(cone, 0.0, rest)
+    v = np.concatenate([np.asarray(m.vertices) for m in out.meshes]) + origin
+    src = np.concatenate([np.asarray(m.vertices) for m in cone.meshes])
+    assert v[:, 2].min() == pytest.approx(0.0, abs=1e-12)
+    assert v[np.argmax(src[:, 2]), 2] == pytest.approx(0.0, abs=1e-9)  # the apex is down
+    top_edge = (np.abs(src[:, 0] - 0.2) < 1e-9) & (np.abs(src[:, 2] - 0.04) < 1e-9)
+    assert top_edge.sum() >= 2 and np.allclose(v[top_edge, 2], 0.0, atol=1e-9)  # and the plate's top edge

@@ -255,3 +255,31 @@ def test_objects_that_would_stand_in_one_spot_are_drawn_apart(tmp_path):
     assert apart == pytest.approx(COLLISION_STEP_M * (second["draws"] - 1), abs=0.05)
     assert abs((c2 - c1) @ right) == pytest.approx(apart, abs=0.05)  # moved sideways, across the path
     assert apart > 0.2 + 0.1  # cones' bases are under 0.5 m wide: half of each plus the margin
+
+
+def test_topple_knocks_the_object_over_where_it_stands(clip_run, tmp_path):
+    """--topple 0.5 at 10 fps: the same object at the same world pose as the standing run (same seed) falls over
+    five frames from a frame drawn in the plan (recorded). Before the fall its boxes are the standing run's; once it
+    has turned past 30 deg, its box is wider than tall where the standing cone's is taller than wide."""
+    out1, args = clip_run
+    out2 = tmp_path / "topple"
+    assert main([v if v != str(out1) else str(out2) for v in args] + ["--topple", "0.5"]) == 0
+    rec1, rec2 = (json.loads((o / "record.json").read_text()) for o in (out1, out2))
+    assert np.allclose(rec2["world_from_object"], rec1["world_from_object"])
+    assert "knocked over" in rec2["modules"]["motion"]
+    fall = rec2["objects"][0]["topple"]
+    start, rest = fall["start"], fall["rest_angle"]
+    assert fall["frames"] == 5 and rec1["objects"][0]["topple"] is None
+    boxes = []
+    for o in (out1, out2):
+        coco = COCO(str(o / "annotations.json"))
+        frame_of = {im["id"]: im["frame_id"] for im in coco.dataset["images"]}
+        boxes.append({frame_of[a["image_id"]]: a["amodal_bbox"] for a in coco.dataset["annotations"]})
+    standing, fallen = boxes
+    for f in range(start + 1):
+        if f in standing:
+            assert np.allclose(fallen[f], standing[f], atol=0.01)
+    late = [f for f in fallen if f in standing and rest * ((f - start) / 5) ** 2 > np.pi / 6]
+    assert late, "the fall past 30 deg is seen in at least one frame"
+    for f in late:
+        assert fallen[f][2] > fallen[f][3] and standing[f][2] < standing[f][3]

@@ -334,3 +334,63 @@ def test_first_collision_is_the_frame_where_a_moving_object_meets_a_standing_one
     left, right = plan(5, lateral=-0.55), plan(5, lateral=0.55)
     assert first_collision(left, right, margin_m=0.0) is None
     assert first_collision(left, right, margin_m=0.1) == 0
+
+
+def test_a_toppling_cube_turns_about_its_base_edge_and_lands_on_a_face():
+    """Truth by hand for a 1 m cube knocked over (fall over frames 2-6, direction drawn in the plan): it turns about
+    the base edge on its falling side, so its centre, (-0.5, 0.5) from that edge (along the fall, up), is at
+    (-0.5 cos t + 0.5 sin t, 0.5 cos t + 0.5 sin t) after turning by t; t = 90 deg (t / T)^2 of the 90 deg at which
+    it lies on a face. Nothing goes below the ground, and the landed cube's rendered box is the pinhole projection
+    of the upright cube's corners moved 1 m along the fall."""
+    from aias_augment.pipeline.clip import apply_clip, object_boxes_in_world, plan_clip
+
+    K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)
+    frame = np.random.default_rng(3).integers(100, 140, (480, 640, 3), dtype=np.uint8)
+    poses = np.stack([np.eye(4)] * 10)
+    poses[9, 2, 3] = -6.0  # the last camera 6 m ahead: the cube stands there (lookahead 9), seen by frames 0-8
+    frames = [frame.copy() for _ in range(10)]
+    cfg = VideoInsertionConfig(
+        lookahead_frames=9, lateral_offset_m=0.0, height_m=1.0, shadow=False, topple_frames=4, topple_start=2
+    )
+    cube = box_asset(extents=(1.0, 1.0, 1.0))
+    plan = plan_clip(
+        frames,
+        K,
+        poses,
+        np.random.default_rng(5),
+        cfg,
+        asset=cube,
+        ground_in_cam0=prior_ground_plane(1.65),
+        yaw_rad=0.3,
+    )
+    up = np.array([0.0, -1.0, 0.0])
+    azimuth = plan.asset_at(8).meta["tipped"]["azimuth"]
+    f = plan.world_from_object[:3, :3] @ np.array([np.cos(azimuth), np.sin(azimuth), 0.0])
+    upright = plan.world_from_object[:3, 3] + 0.5 * up
+    for i in range(9):
+        W = plan.worlds_from_object[i]
+        v = np.asarray(plan.asset_at(i).meshes[0].vertices) @ W[:3, :3].T + W[:3, 3]
+        height = (v - plan.world_from_object[:3, 3]) @ up
+        assert height.min() == pytest.approx(0.0, abs=1e-9)  # on the ground, never in it
+        t = np.pi / 2 * np.clip((i - 2) / 4, 0, 1) ** 2
+        centre = v.mean(0)  # the cube's 8 vertices
+        moved = centre - upright
+        u = -0.5 * np.cos(t) + 0.5 * np.sin(t) + 0.5  # along the fall, from the upright centre
+        assert moved @ f == pytest.approx(u, abs=1e-9)
+        assert (centre - plan.world_from_object[:3, 3]) @ up == pytest.approx(
+            0.5 * np.cos(t) + 0.5 * np.sin(t), abs=1e-9
+        )
+    boxes = object_boxes_in_world(plan)
+    assert np.allclose(boxes[8].cam_from_box[:3, 3], upright + f, atol=1e-9)
+    res = apply_clip(frames, K, plan, VideoInsertionConfig(shadow=False))
+    corners = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (0.0, 1.0)])
+    W = plan.world_from_object
+    p = corners @ W[:3, :3].T + W[:3, 3] + f  # the upright cube moved 1 m along the fall (poses[8] is the identity)
+    uv = np.c_[K.fx * p[:, 0] / p[:, 2] + K.cx, K.fy * p[:, 1] / p[:, 2] + K.cy]
+    x0, y0 = uv.min(0)
+    x1, y1 = uv.max(0)
+    assert res.amodal_boxes_xywh[8] == pytest.approx((x0, y0, x1 - x0, y1 - y0), abs=1.0)
+    assert res.amodal_boxes_xywh[1] != pytest.approx(res.amodal_boxes_xywh[8], abs=5.0)
+    assert "knocked over" in res.modules["motion"]
+    with pytest.raises(ValueError, match="toppling"):
+        VideoInsertionConfig(topple_frames=3, speed_m_per_frame=0.1)
