@@ -1,7 +1,8 @@
 """``make demo``: insert traffic cones into real KITTI frames (known K, depth from the stereo pair) and TraCon
 empty-road images (unknown camera: priors); writes images, a validated COCO json, per-image records and a contact
 sheet under ``out/demo/``; then one cone through 16 posed KITTI frames (``out/demo/clip/``: side-by-side video,
-COCO track, contact sheet) and a car driving through a static camera's clip without poses (``out/demo/moving/``)."""
+COCO track, contact sheet), a car driving through a static camera's clip without poses (``out/demo/moving/``) and
+two cones knocked over in it (``out/demo/topple/``)."""
 
 from __future__ import annotations
 
@@ -115,6 +116,26 @@ def main(argv=None) -> int:
         print(
             f"demo: a car driving through a static camera's clip, {rec['frames']} frames, in view in "
             f"{rec['visible_frames']}, {rec['wall_s']} s: {out}/moving/side_by_side.mp4, {out}/moving/contact_sheet.jpg"
+        )
+        rec = augment_clip(  # two cones; each is knocked over at a moment drawn in the plan
+            ClipJob(
+                str(tripod),
+                None,
+                None,
+                str(out / "topple"),
+                ("traffic_cone",),
+                a.seed,
+                max_frames=a.clip_frames,
+                stride=2,
+                camera_height_m=8.0,
+                fps=12.0,
+                topple_s=0.6,
+                objects=2,
+            )
+        )
+        print(
+            f"demo: two cones knocked over in a static camera's clip, {rec['frames']} frames: "
+            f"{out}/topple/side_by_side.mp4, {out}/topple/contact_sheet.jpg"
         )
     return 0
 
