@@ -18,6 +18,10 @@ point by more than its depth.
 - ``bend``: the object bent about a horizontal axis by ``angle`` over its height, as a circular arc (a bent post).
 - ``knocked_over``: turned 90 deg about a horizontal axis and settled on the face of its convex hull that then
   faces the ground (a cone lying on its side, a barrel on its flank).
+- ``fracture``: broken in two along a tilted plane at ``cut_height`` of the height: the base stands, the top lies
+  on its side beside it (settled like ``knocked_over``), ``gap`` of the size away towards ``fall_azimuth``. The cut
+  faces are closed (the section's outline triangulated) in the colour the surface has along the cut, so each piece
+  is as closed as its source; the rest of the surface keeps its UVs.
 
 Falling over as it happens (a clip's toppling object, :func:`tipped`): the rigid object turns about the edge of its
 base on the side it falls to, which stays on the ground, until another point of its convex hull touches the ground
@@ -36,16 +40,16 @@ import numpy as np
 from aias_augment.assets.asset import Asset, normalise_meshes
 from aias_augment.core.config import checked_config
 
-Kind = Literal["dent", "crush", "bend", "knocked_over"]
+Kind = Literal["dent", "crush", "bend", "knocked_over", "fracture"]
 KINDS: tuple[str, ...] = get_args(Kind)
 
 #: What makes sense per category (a car does not bend or lie on its side in a road scene; a cone can do all).
 CATEGORY_KINDS: dict[str, tuple[str, ...]] = {
-    "traffic_cone": ("dent", "crush", "bend", "knocked_over"),
-    "barrel": ("dent", "crush", "knocked_over"),
+    "traffic_cone": ("dent", "crush", "bend", "knocked_over", "fracture"),
+    "barrel": ("dent", "crush", "knocked_over", "fracture"),
     "car": ("dent", "crush"),
-    "barrier": ("dent",),
-    "concrete_block": ("dent",),
+    "barrier": ("dent", "fracture"),
+    "concrete_block": ("dent", "fracture"),
     "fire_hydrant": ("dent", "bend"),
 }
 
@@ -59,6 +63,9 @@ CATEGORY_KINDS: dict[str, tuple[str, ...]] = {
         "crush_bulge": "[0, 1] lo<=hi",
         "crush_max_lean": "[0, 0.5]",
         "bend_angle_deg": "[0, 90] lo<=hi",
+        "fracture_height": "(0, 1) lo<=hi",
+        "fracture_tilt_deg": "[0, 60]",
+        "fracture_gap": "[0, 1] lo<=hi",
     }
 )
 @dataclass(frozen=True)
@@ -73,6 +80,9 @@ class DeformConfig:
     crush_bulge: tuple[float, float] = (0.1, 0.3)  # sideways growth at mid-height, relative
     crush_max_lean: float = 0.15  # horizontal shift of the top, relative to the height
     bend_angle_deg: tuple[float, float] = (10.0, 35.0)
+    fracture_height: tuple[float, float] = (0.35, 0.7)  # of the height, where the cut crosses the axis
+    fracture_tilt_deg: float = 30.0  # most the cut plane leans from level
+    fracture_gap: tuple[float, float] = (0.05, 0.3)  # between the base and the fallen top, of the largest extent
 
 
 @dataclass(frozen=True)
@@ -91,6 +101,10 @@ class DeformParams:
     bend_angle: float = 0.0
     # knocked_over: the rotation (row-major 3x3) applied before settling on z = 0
     rotation: tuple[float, ...] = ()
+    # fracture: the cut plane (point on the axis, upward unit normal), where the top falls and how far from the base
+    cut: tuple[float, ...] = ()
+    fall_azimuth: float = 0.0
+    gap: float = 0.0
     source_height_m: float = 0.0  # the undeformed height: what the category's size range refers to
     meta: dict = field(default_factory=dict, compare=False)
 
@@ -116,6 +130,9 @@ class DeformParams:
             bend_azimuth=float(d.get("bend_azimuth", 0.0)),
             bend_angle=float(d.get("bend_angle", 0.0)),
             rotation=tuple(float(x) for x in d.get("rotation", ())),
+            cut=tuple(float(x) for x in d.get("cut", ())),
+            fall_azimuth=float(d.get("fall_azimuth", 0.0)),
+            gap=float(d.get("gap", 0.0)),
             source_height_m=float(d.get("source_height_m", 0.0)),
         )
 
@@ -181,6 +198,21 @@ def sample_deformation(
             "bend",
             bend_azimuth=float(rng.uniform(-math.pi, math.pi)),
             bend_angle=math.radians(float(rng.uniform(*cfg.bend_angle_deg))),
+            source_height_m=h,
+        )
+    if kind == "fracture":
+        lean_az, tilt = (
+            float(rng.uniform(-math.pi, math.pi)),
+            math.radians(float(rng.uniform(0, cfg.fracture_tilt_deg))),
+        )
+        n = np.array([math.sin(tilt) * math.cos(lean_az), math.sin(tilt) * math.sin(lean_az), math.cos(tilt)])
+        lo, hi = asset.bounds_m
+        centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, h * float(rng.uniform(*cfg.fracture_height))])
+        return DeformParams(
+            "fracture",
+            cut=(*map(float, centre), *map(float, n)),
+            fall_azimuth=float(rng.uniform(-math.pi, math.pi)),
+            gap=float(rng.uniform(*cfg.fracture_gap)),
             source_height_m=h,
         )
     phi = float(rng.uniform(-math.pi, math.pi))  # knocked over: fall towards a random horizontal direction
@@ -353,16 +385,92 @@ def _displace(v: np.ndarray, p: DeformParams) -> np.ndarray:
     return v @ R.T
 
 
+def _fractured(asset: Asset, p: DeformParams) -> list:
+    """The two pieces of a fracture (see the module doc): each part's mesh cut by the plane (UVs kept), each piece
+    closed by the triangulated section of the whole surface, the top turned onto its side beside the base."""
+    import trimesh
+
+    point, normal = np.asarray(p.cut[:3], float), np.asarray(p.cut[3:], float)
+    merged = _merged_geometry(asset)
+    section = merged.section(plane_origin=point, plane_normal=normal)
+    if section is None:
+        raise ValueError(f"fracture of {asset.name}: the cut plane misses the object")
+    planar, to_3d = section.to_2D()
+    colour = _cut_colour(asset, point, normal)
+    caps = []
+    for polygon in planar.polygons_full:
+        v2, f2 = trimesh.creation.triangulate_polygon(polygon)
+        v3 = trimesh.transform_points(np.c_[v2, np.zeros(len(v2))], to_3d)
+        cap = trimesh.Trimesh(v3, f2, process=False)
+        if cap.face_normals.size and float(np.mean(cap.face_normals @ normal)) < 0:
+            cap.invert()  # faces +normal: the base's lid; the top's is the same turned over
+        cap.visual = trimesh.visual.ColorVisuals(cap, face_colors=np.tile(colour, (len(cap.faces), 1)))
+        caps.append(cap)
+    if not caps:
+        raise ValueError(f"fracture of {asset.name}: the section has no closed outline")
+    lower = [m.slice_plane(point, -normal) for m in asset.meshes]
+    upper = [m.slice_plane(point, normal) for m in asset.meshes]
+    lower = [m for m in lower if len(m.faces)] + caps
+    top_caps = []
+    for cap in caps:
+        c = cap.copy()
+        c.invert()
+        top_caps.append(c)
+    upper = [m for m in upper if len(m.faces)] + top_caps
+    top = Asset("top", asset.category, tuple(upper), asset.source)
+    f = np.array([math.cos(p.fall_azimuth), math.sin(p.fall_azimuth), 0.0])
+    R = _settle(top, _axis_angle(np.cross([0.0, 0.0, 1.0], f), math.pi / 2))
+    T = np.eye(4)
+    T[:3, :3] = R
+    lo, hi = _transformed_bounds(top, T)
+    base_lo, base_hi = _transformed_bounds(Asset("base", asset.category, tuple(lower), asset.source), np.eye(4))
+    # beside the base along f: the top's near side p.gap of the size beyond the base's far side
+    reach = float(np.sum(np.maximum(base_lo[:2] * f[:2], base_hi[:2] * f[:2])))  # the base's far side along f
+    near = float(np.sum(np.minimum(lo[:2] * f[:2], hi[:2] * f[:2])))  # the top's side nearest the base
+    shift = f * (reach + p.gap * float(asset.extents_m.max()) - near)
+    T[:3, 3] = shift - np.array([0.0, 0.0, lo[2]])
+    turned = []
+    for m in upper:
+        c = m.copy(include_cache=True)
+        c.apply_transform(T)
+        turned.append(c)
+    return lower + turned
+
+
+def _cut_colour(asset: Asset, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """RGBA uint8: the median colour of the surface's vertices within 2 % of the height of the cut plane (the
+    material the break shows), mid grey where the surface has no colour there."""
+    colours, near = [], []
+    for m in asset.meshes:
+        try:
+            c = np.asarray(m.visual.to_color().vertex_colors, np.uint8)
+        except (AttributeError, ValueError):
+            continue
+        if len(c) != len(m.vertices):
+            continue
+        d = np.abs((np.asarray(m.vertices) - point) @ normal)
+        colours.append(c[:, :4]), near.append(d <= 0.02 * asset.height_m)
+    if colours:
+        c, k = np.concatenate(colours), np.concatenate(near)
+        if k.any():
+            rgb = np.median(c[k, :3].astype(float), axis=0)
+            return np.r_[np.round(rgb), 255].astype(np.uint8)
+    return np.array([128, 128, 128, 255], np.uint8)
+
+
 def apply_deformation(asset: Asset, p: DeformParams) -> Asset:
     """A new asset: ``asset`` deformed by ``p`` (pure; UVs, faces and materials kept), re-centred in x/y on its
     bounding box and resting on z = 0. ``meta["deformation"]`` records ``p``; ``meta["reference_height_m"]`` is the
     source's height, which the placement's size range refers to (a cone on its side is still a cone of that
     height)."""
-    meshes = []
-    for m in asset.meshes:
-        c = m.copy()
-        c.vertices = _displace(np.asarray(m.vertices), p)
-        meshes.append(c)
+    if p.kind == "fracture":
+        meshes = _fractured(asset, p)
+    else:
+        meshes = []
+        for m in asset.meshes:
+            c = m.copy()
+            c.vertices = _displace(np.asarray(m.vertices), p)
+            meshes.append(c)
     ref = float(asset.meta.get("reference_height_m", asset.height_m))
     return Asset(
         f"{asset.name}_{p.kind}",
