@@ -317,7 +317,9 @@ def main(argv: list[str] | None = None) -> int:
     s = sub.add_parser("deform", help="seeded dented, crushed, bent or knocked-over variants of a mesh into a bank")
     s.add_argument("--category", required=True, help="the category (its default mesh unless --asset)")
     s.add_argument("--asset", default=None, help="a mesh file or gazebo model folder to deform")
-    s.add_argument("--kinds", nargs="*", default=None, help="dent crush bend knocked_over fracture (default: the category's)")
+    s.add_argument(
+        "--kinds", nargs="*", default=None, help="dent crush bend knocked_over fracture (default: the category's)"
+    )
     s.add_argument("--count", type=int, default=8)
     s.add_argument("--seed", type=int, required=True, help="the seed of the draws (a variant replays from its record)")
     s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")

@@ -132,6 +132,12 @@ def main(argv=None) -> int:
         "estimated from the first frame)",
     )
     clip.add_argument("--poses", help="one pose per frame: KITTI (12 numbers) or TUM (tx ty tz qx qy qz qw) lines")
+    clip.add_argument(
+        "--stereo-right",
+        metavar="FRAMES",
+        help="the rectified right camera's frames (a folder or video, frame for frame): poses by stereo odometry "
+        "instead of --poses; --camera must give both cameras (KITTI calib.txt P0/P1, or a yaml with Camera.bf)",
+    )
     clip.add_argument("--colour", action="store_true", help="KITTI calib.txt: the colour camera (P2)")
     clip.add_argument("--start", type=int, default=0, help="first frame")
     clip.add_argument("--stride", type=int, default=1)
@@ -180,8 +186,10 @@ def main(argv=None) -> int:
     from aias_augment.cli.clip import is_video_input
 
     if a.input and (a.camera or a.poses or is_video_input(a.input) or Path(a.input).is_dir()):  # a COCO json or a clip
-        if a.poses and not a.camera:
-            ap.error("--poses needs --camera (a static camera's clip needs neither)")
+        if (a.poses or a.stereo_right) and not a.camera:
+            ap.error("--poses and --stereo-right need --camera (a static camera's clip needs neither)")
+        if a.poses and a.stereo_right:
+            ap.error("--poses or --stereo-right: poses given, or estimated from the stereo pair, not both")
         given = [
             f
             for f, v in (
@@ -217,6 +225,7 @@ def main(argv=None) -> int:
                 fps=a.fps,
                 object_speed_mps=a.object_speed,
                 topple_s=a.topple,
+                stereo_right=a.stereo_right,
                 objects=a.objects,
             )
         )

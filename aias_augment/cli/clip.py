@@ -75,6 +75,7 @@ class ClipJob:
     fps: float = 10.0  # frames per second of the clip as read (after --stride): the mp4's rate and the speed's clock
     object_speed_mps: float = 0.0  # the object moves along its heading at this speed (0: it stands)
     topple_s: float = 0.0  # each object is knocked over during the clip, falling for this long (0: it stays upright)
+    stereo_right: str | None = None  # the right camera's frames: poses by stereo odometry (with a camera, no poses)
     # Objects in the clip, each its own track: object k > 0 stands on the other side of the path from object k - 1
     # and nearer (lookahead scaled by (n - k) / n); on a static camera each stands on its own sampled ground pixel.
     # Objects never meet: one whose box would meet another's in any frame is redrawn (record: "draws",
@@ -102,6 +103,8 @@ class ClipJob:
             raise ValueError("--flow-refine tracks the ground under a standing object: not with --object-speed")
         if self.objects < 1:
             raise ValueError(f"objects must be >= 1, got {self.objects}")
+        if self.stereo_right is not None and (self.poses is not None or self.camera is None):
+            raise ValueError("stereo_right estimates the poses: it needs a camera and no poses")
         if not (np.isfinite(self.topple_s) and self.topple_s >= 0):
             raise ValueError(f"topple_s must be >= 0 seconds, got {self.topple_s}")
         if self.topple_s and (self.object_speed_mps or self.flow_refine):
@@ -219,7 +222,10 @@ def augment_clip(job: ClipJob) -> dict:
     if any(f.shape != frames[0].shape for f in frames):
         raise ValueError(f"{job.input}: frames differ in size")
     idx = np.arange(job.start, job.start + job.stride * len(frames), job.stride)
-    if job.poses is None:
+    if job.stereo_right is not None:
+        intr, poses, camera_note = stereo_odometry_clip(frames, job)
+        ground0 = prior_ground_plane(job.camera_height_m)
+    elif job.poses is None:
         intr, poses, ground0, camera_note = static_camera_clip(frames, job)
     else:
         intr = read_camera(job.camera, w, h, colour=job.colour)
@@ -245,7 +251,9 @@ def augment_clip(job: ClipJob) -> dict:
     cfg = VideoInsertionConfig(
         lookahead_frames=last if job.lookahead_frames is None else min(job.lookahead_frames, last),
         lateral_offset_m=job.lateral_offset_m,
-        contact="lookahead" if job.poses is not None else "sampled",  # a static camera goes nowhere: a seen ground
+        contact="lookahead"
+        if job.poses is not None or job.stereo_right is not None
+        else "sampled",  # a static camera goes nowhere: a seen ground
         flow_refine=job.flow_refine,
         speed_m_per_frame=job.object_speed_mps / job.fps,
         topple_frames=max(1, round(job.topple_s * job.fps)) if job.topple_s else 0,
@@ -402,6 +410,27 @@ def augment_clip(job: ClipJob) -> dict:
     atomic_write_json(record_path, record)  # last: its presence marks the clip as done
     log.info("%s: %d frames, object visible in %d, %.1fs", out, len(frames), record["visible_frames"], record["wall_s"])
     return record
+
+
+def stereo_odometry_clip(frames: list[np.ndarray], job: ClipJob):
+    """(K, cams_from_world, note) of a stereo clip without poses: the right frames read as the left ones were,
+    the baseline from the camera file, the poses by stereo odometry (world = the first left camera)."""
+    from aias_augment.scenes.kitti import read_kitti_calib
+    from aias_augment.scenes.video import estimate_stereo_motion
+
+    if job.camera is None:
+        raise ValueError("--stereo-right needs --camera with both cameras (KITTI P0/P1, or a yaml with Camera.bf)")
+    h, w = frames[0].shape[:2]
+    intr, baseline = read_kitti_calib(job.camera, w, h, colour=job.colour)
+    rights, _ = read_clip_frames(job.stereo_right, job.start, job.max_frames, job.stride)
+    if len(rights) != len(frames) or any(r.shape != frames[0].shape for r in rights):
+        raise ValueError(f"{job.stereo_right}: {len(rights)} right frames for {len(frames)} left ones, or another size")
+    motion = estimate_stereo_motion(frames, rights, intr, baseline, np.random.default_rng([job.seed, 2]))
+    failed = [s for s in motion.status if s != "moving"]
+    note = f"given camera; poses by stereo odometry (baseline {baseline:.3f} m, {len(frames) - 1 - len(failed)} of {len(frames) - 1} steps measured)"
+    if failed:
+        log.warning("%s: stereo odometry kept the previous pose in %d steps (%s)", job.input, len(failed), failed[0])
+    return intr, motion.cams_from_world, note
 
 
 def static_camera_clip(frames: list[np.ndarray], job: ClipJob):

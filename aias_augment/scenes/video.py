@@ -3,10 +3,17 @@
 Per consecutive pair: Shi-Tomasi corners tracked with pyramidal Lucas-Kanade (forward-backward check), the
 essential matrix by RANSAC (OpenCV, seeded through ``cv2.setRNGSeed`` from the caller's generator) and
 ``recoverPose``. Monocular translation has no scale: each step gets ``step_scale_m`` (a speed prior, or 1), so
-poses are metric only up to that prior; ``metric_scale_from_ground`` can rescale with a camera-height prior.
+poses are metric only up to that prior.
 Pairs with a median flow below ``static_flow_px`` are treated as a static camera (identity motion), which is also
 what a tripod video (e.g. ``$AIAS_DATA/video/vtest.avi``) gives.
 K is given, or estimated from the first frame by :func:`aias_augment.scenes.single_image.estimate_camera_from_image`.
+
+A rectified stereo clip (:func:`estimate_stereo_motion`) has metric poses without any prior: in each frame the left
+corners are matched along their rows in the right image (Lucas-Kanade, forward-backward checked), their disparity
+gives their depth, and tracked into the next left frame they give its pose by PnP RANSAC (OpenCV, seeded the same
+way). Depth from a disparity is biased long (E[1/d] > 1/E[d]: far points most), which biases the step's length, so
+the pose is refined by a two-frame stereo bundle adjustment: the step and every inlier's 3D point fitted to its
+four observations (left and right image of both frames; scipy's sparse robust least squares), no depth assumed.
 """
 
 from __future__ import annotations
@@ -25,6 +32,8 @@ __all__ = [
     "track_pair",
     "relative_pose",
     "estimate_video_motion",
+    "StereoOdometryConfig",
+    "estimate_stereo_motion",
     "static_camera_check",
     "read_video",
 ]
@@ -205,3 +214,165 @@ def trajectory_errors(est_cams_from_world: np.ndarray, gt_cams_from_world: np.nd
         "rotation_err_deg_median": float(np.median(rot)),
         "translation_dir_err_deg_median": float(np.median(direction)) if direction else None,
     }
+
+
+@dataclass(frozen=True)
+class StereoOdometryConfig:
+    max_corners: int = 2000
+    quality_level: float = 0.005
+    min_distance_px: int = 7
+    fb_max_err_px: float = 0.5  # forward-backward tracking error allowed (left-right and frame to frame)
+    max_row_error_px: float = 1.0  # a rectified match stays on its row
+    min_disparity_px: float = 2.0
+    max_depth_m: float = 40.0  # depth error grows as depth^2 / (f b): far points only add noise
+    ransac_threshold_px: float = 1.0
+    ransac_iterations: int = 500
+    min_inliers: int = 30
+    bundle_adjust: bool = (
+        False  # the two-frame stereo bundle adjustment after PnP (7x slower, see results/video/unposed)
+    )
+    # frames measured from one keyframe's points (tracked on) before its successor: fewer steps chained, less drift
+    keyframe_every: int = 1
+
+
+def _lk(g0: np.ndarray, g1: np.ndarray, p0: np.ndarray, fb_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """Lucas-Kanade from g0 to g1 with a forward-backward check: (p1, ok)."""
+    q0 = p0.reshape(-1, 1, 2).astype(np.float32)
+    q1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, g1, q0, None, winSize=(21, 21), maxLevel=3)
+    qb, st2, _ = cv2.calcOpticalFlowPyrLK(g1, g0, q1, None, winSize=(21, 21), maxLevel=3)
+    fb = np.linalg.norm((q0 - qb).reshape(-1, 2), axis=1)
+    ok = (st1.ravel() == 1) & (st2.ravel() == 1) & (fb < fb_max)
+    return q1.reshape(-1, 2).astype(np.float64), ok
+
+
+def stereo_points(
+    left: np.ndarray,
+    right: np.ndarray,
+    intrinsics: Intrinsics,
+    baseline_m: float,
+    cfg: StereoOdometryConfig = StereoOdometryConfig(),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(left pixels (M, 2), their right matches (M, 2), points (M, 3) in the left camera) of corners matched along
+    their row in the right image: depth f b / disparity."""
+    gl, gr = _grey(left), _grey(right)
+    p = cv2.goodFeaturesToTrack(gl, cfg.max_corners, cfg.quality_level, cfg.min_distance_px)
+    if p is None:
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 3))
+    p = p.reshape(-1, 2).astype(np.float64)
+    q, ok = _lk(gl, gr, p, cfg.fb_max_err_px)
+    disparity = p[:, 0] - q[:, 0]
+    ok &= (np.abs(p[:, 1] - q[:, 1]) < cfg.max_row_error_px) & (disparity > cfg.min_disparity_px)
+    p, q, disparity = p[ok], q[ok], disparity[ok]
+    z = intrinsics.fx * baseline_m / disparity
+    keep = z < cfg.max_depth_m
+    p, q, z = p[keep], q[keep], z[keep]
+    xyz = np.c_[(p[:, 0] - intrinsics.cx) / intrinsics.fx * z, (p[:, 1] - intrinsics.cy) / intrinsics.fy * z, z]
+    return p, q, xyz
+
+
+def estimate_stereo_motion(
+    lefts: list[np.ndarray],
+    rights: list[np.ndarray],
+    intrinsics: Intrinsics,
+    baseline_m: float,
+    rng: np.random.Generator,
+    cfg: StereoOdometryConfig = StereoOdometryConfig(),
+) -> VideoMotion:
+    """Metric ``cams_from_world`` (world = left camera of frame 0) of a rectified stereo clip (module doc). A pair
+    whose PnP fails keeps the previous pose, and ``status`` says why."""
+    if len(lefts) != len(rights) or len(lefts) < 2:
+        raise ValueError(f"need as many right as left frames, at least 2: {len(lefts)} left, {len(rights)} right")
+    if not (np.isfinite(baseline_m) and baseline_m > 0):
+        raise ValueError(f"baseline_m must be positive, got {baseline_m}")
+    for f in (*lefts, *rights):
+        if np.asarray(f).shape[:2] != (intrinsics.height, intrinsics.width):
+            raise ValueError("frames do not match the intrinsics' size")
+    poses, inliers, status = [np.eye(4)], [], []
+    key = None  # the keyframe: its index, left and right pixels, 3D points, and where they are tracked now
+    for i in range(len(lefts) - 1):
+        if key is None or i - key[0] >= cfg.keyframe_every or key[5].sum() < cfg.min_inliers:
+            px, qx, xyz = stereo_points(lefts[i], rights[i], intrinsics, baseline_m, cfg)
+            key = [i, px, qx, xyz, px.copy(), np.ones(len(px), bool)]
+        k, px, qx, xyz, cur, alive = key
+        nxt, ok = _lk(_grey(lefts[i]), _grey(lefts[i + 1]), cur, cfg.fb_max_err_px) if len(cur) else (cur, alive)
+        ok &= alive
+        key[4], key[5] = nxt, ok
+        if ok.sum() < cfg.min_inliers:
+            poses.append(poses[-1]), inliers.append(0), status.append(f"failed: {int(ok.sum())} tracked points")
+            key = None
+            continue
+        cv2.setRNGSeed(int(rng.integers(0, 2**31 - 1)))
+        found, rvec, tvec, inl = cv2.solvePnPRansac(
+            xyz[ok],
+            nxt[ok],
+            intrinsics.K,
+            None,
+            iterationsCount=cfg.ransac_iterations,
+            reprojectionError=cfg.ransac_threshold_px,
+            confidence=0.999,
+            flags=cv2.SOLVEPNP_EPNP,
+        )
+        n = 0 if inl is None else len(inl)
+        if not found or n < cfg.min_inliers:
+            poses.append(poses[-1]), inliers.append(n), status.append(f"failed: {n} PnP inliers")
+            key = None
+            continue
+        idx = inl.ravel()
+        rvec, tvec = cv2.solvePnPRefineLM(xyz[ok][idx], nxt[ok][idx], intrinsics.K, None, rvec, tvec)
+        if cfg.bundle_adjust:
+            right_next, on_row = _row_matches(lefts[i + 1], rights[i + 1], nxt[ok][idx], cfg)
+            obs = (px[ok][idx], qx[ok][idx], nxt[ok][idx], right_next, on_row)
+            rvec, tvec = _stereo_bundle_adjust(xyz[ok][idx], obs, intrinsics, baseline_m, rvec, tvec)
+        step = make_rigid(cv2.Rodrigues(rvec)[0], tvec.ravel())  # cam_{i+1} from the keyframe's camera
+        poses.append(step @ poses[k]), inliers.append(n), status.append("moving")
+    return VideoMotion(
+        intrinsics, np.stack(poses), tuple(inliers), tuple(status), "given", {"baseline_m": float(baseline_m)}
+    )
+
+
+def _row_matches(left: np.ndarray, right: np.ndarray, p: np.ndarray, cfg: StereoOdometryConfig):
+    """Right-image matches (M, 2) of left pixels ``p`` along their rows, and which passed the checks."""
+    q, ok = _lk(_grey(left), _grey(right), p, cfg.fb_max_err_px)
+    ok &= (np.abs(p[:, 1] - q[:, 1]) < cfg.max_row_error_px) & (p[:, 0] - q[:, 0] > cfg.min_disparity_px)
+    return q, ok
+
+
+def _stereo_bundle_adjust(xyz, obs, intrinsics: Intrinsics, baseline_m: float, rvec, tvec):
+    """The step (rvec, tvec: cam1 from cam0) and the points (M, 3, in cam0) that best reproject into the left and
+    right images of both frames: ``obs`` = (left0, right0, left1, right1, has_right1) pixels (right1 only where
+    matched). Huber residuals at 1 px; the points are nuisance parameters."""
+    from scipy.optimize import least_squares
+    from scipy.sparse import lil_matrix
+
+    left0, right0, left1, right1, has_right1 = obs
+    m = len(xyz)
+    fx, fy, cx, cy = intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy
+    w1 = has_right1.astype(float)[:, None]
+    right1 = np.where(has_right1[:, None], right1, 0.0)
+
+    def proj(X, shift):
+        return np.c_[fx * (X[:, 0] - shift) / X[:, 2] + cx, fy * X[:, 1] / X[:, 2] + cy]
+
+    def residuals(x):
+        R = cv2.Rodrigues(x[:3])[0]
+        X0 = x[6:].reshape(m, 3)
+        X1 = X0 @ R.T + x[3:6]
+        return np.concatenate(
+            [
+                (proj(X0, 0.0) - left0).ravel(),
+                (proj(X0, baseline_m) - right0).ravel(),
+                (proj(X1, 0.0) - left1).ravel(),
+                ((proj(X1, baseline_m) - right1) * w1).ravel(),
+            ]
+        )
+
+    sparsity = lil_matrix((8 * m, 6 + 3 * m), dtype=int)
+    for block in range(4):
+        for j in range(m):
+            rows = slice(block * 2 * m + 2 * j, block * 2 * m + 2 * j + 2)
+            sparsity[rows, 6 + 3 * j : 9 + 3 * j] = 1
+            if block >= 2:
+                sparsity[rows, :6] = 1
+    x0 = np.r_[np.ravel(rvec), np.ravel(tvec), np.asarray(xyz, float).ravel()]
+    fit = least_squares(residuals, x0, jac_sparsity=sparsity, loss="huber", f_scale=1.0, x_scale="jac", max_nfev=50)
+    return fit.x[:3].reshape(3, 1), fit.x[3:6].reshape(3, 1)

@@ -12,8 +12,12 @@ def box_asset(extents=(0.4, 0.6, 1.0), category="box", color=(200, 60, 20)) -> A
     return Asset("box", category, normalise_meshes([m]), "tests:box")
 
 
-def synthetic_ground_drive(n: int = 12, height_m: float = 1.5, K=None):
-    """A synthetic drive over a textured ground plane with known poses (world = camera 0, ground y = 1.5 m).
+def synthetic_ground_drive(
+    n: int = 12, height_m: float = 1.5, K=None, baseline_m: float | None = None, step_m: float = 1.0
+):
+    """A synthetic drive over a textured ground plane with known poses (world = camera 0, ground y = 1.5 m);
+    with ``baseline_m`` also the rectified right camera's frames (its centre that far along the left's +x), returned
+    as a fourth value.
 
     The texture (seeded grain at two scales, like asphalt) lies on the ground at 20 px per metre; each frame is its
     exact perspective image (a homography per frame), so the true image track of any ground point is known
@@ -29,16 +33,25 @@ def synthetic_ground_drive(n: int = 12, height_m: float = 1.5, K=None):
     coarse = cv2.resize(rng.random((100, 50)).astype(np.float32), (800, 1600), interpolation=cv2.INTER_CUBIC)
     tex = cv2.normalize(fine + 0.5 * coarse, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)  # asphalt-like grain
     s, x0, z0 = 20.0, -20.0, 80.0  # texture (u, v) -> ground X = u / s + x0, Z = z0 - v / s
-    gt, frames = [], []
-    for i in range(n):  # 1 m forward per frame, turning 0.4 deg per frame
-        R = rotation_about_axis([0, 1, 0], np.radians(0.4 * i))
-        world_from_cam = make_rigid(R, [0.0, 0.0, 1.0 * i])
-        T = invert_rigid(world_from_cam)
-        A = np.array([[1 / s, 0, x0], [0, 0, height_m], [0, -1 / s, z0]])  # texture (u, v, 1) -> world point
+    gt, frames, rights = [], [], []
+    A = np.array([[1 / s, 0, x0], [0, 0, height_m], [0, -1 / s, z0]])  # texture (u, v, 1) -> world point
+
+    def view(T):
         H = K.K @ (T[:3, :3] @ A + np.outer(T[:3, 3], [0, 0, 1]))
         img = cv2.warpPerspective(tex, H, (K.width, K.height), flags=cv2.INTER_LINEAR)
-        frames.append(np.repeat(img[..., None], 3, axis=2))
+        return np.repeat(img[..., None], 3, axis=2)
+
+    for i in range(n):  # step_m forward per frame, turning 0.4 deg per frame
+        R = rotation_about_axis([0, 1, 0], np.radians(0.4 * i))
+        world_from_cam = make_rigid(R, [0.0, 0.0, step_m * i])
+        T = invert_rigid(world_from_cam)
+        frames.append(view(T))
         gt.append(T)
+        if baseline_m is not None:
+            right_from_left = make_rigid(np.eye(3), [-baseline_m, 0.0, 0.0])
+            rights.append(view(right_from_left @ T))
+    if baseline_m is not None:
+        return K, frames, np.stack(gt), rights
     return K, frames, np.stack(gt)
 
 

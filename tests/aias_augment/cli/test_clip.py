@@ -283,3 +283,28 @@ def test_topple_knocks_the_object_over_where_it_stands(clip_run, tmp_path):
     assert late, "the fall past 30 deg is seen in at least one frame"
     for f in late:
         assert fallen[f][2] > fallen[f][3] and standing[f][2] < standing[f][3]
+
+
+def test_a_stereo_clip_without_poses_gets_them_from_stereo_odometry(clip_run, tmp_path):
+    """--stereo-right instead of --poses: the poses come from the stereo pair (metric, no prior). Against the
+    published poses (the same seed's run with --poses): the object's world contact within 15 cm and its boxes
+    within a few pixels in every frame both see it."""
+    out1, args = clip_run
+    out2 = tmp_path / "stereo"
+    i = args.index("--poses")
+    args2 = args[:i] + args[i + 2 :] + ["--stereo-right", str(SEQ / "image_r")]
+    assert main([v if v != str(out1) else str(out2) for v in args2]) == 0
+    rec1, rec2 = (json.loads((o / "record.json").read_text()) for o in (out1, out2))
+    assert "stereo odometry" in rec2["modules"]["camera"] and "7 of 7 steps" in rec2["modules"]["camera"]
+    assert np.linalg.norm(np.subtract(rec2["contact_in_world"], rec1["contact_in_world"])) < 0.15
+    boxes = []
+    for o in (out1, out2):
+        coco = COCO(str(o / "annotations.json"))
+        frame_of = {im["id"]: im["frame_id"] for im in coco.dataset["images"]}
+        boxes.append({frame_of[a["image_id"]]: a["amodal_bbox"] for a in coco.dataset["annotations"]})
+    common = set(boxes[0]) & set(boxes[1])
+    assert len(common) >= N // 2
+    for f in common:
+        assert np.allclose(boxes[1][f], boxes[0][f], atol=6.0)
+    with pytest.raises(SystemExit):
+        main(args + ["--stereo-right", str(SEQ / "image_r")])  # poses given and estimated: refused

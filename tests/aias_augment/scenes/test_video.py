@@ -32,3 +32,35 @@ def test_static_camera_video():
 def test_too_few_frames():
     with pytest.raises(ValueError):
         estimate_video_motion([np.zeros((10, 10, 3), np.uint8)], np.random.default_rng(0))
+
+
+def test_stereo_odometry_recovers_a_synthetic_drive_metrically():
+    """Truth by construction: a rectified pair 0.5 m apart driving 0.5 m per frame and turning 0.4 deg per frame
+    over a textured ground (exact homographies). Stereo odometry, which knows nothing but the frames, K and the
+    baseline, finds every camera centre within 2 cm + 2 % of the distance driven (the metric scale included) and
+    every rotation within 0.25 deg, with and without its bundle adjustment or keyframes; the same seed gives the
+    same poses."""
+    from aias_augment.core.geometry import invert_rigid
+    from aias_augment.scenes.video import StereoOdometryConfig, estimate_stereo_motion
+    from tests.aias_augment.fixtures import synthetic_ground_drive
+
+    K, lefts, gt, rights = synthetic_ground_drive(n=8, baseline_m=0.5, step_m=0.5)
+    for cfg in (
+        StereoOdometryConfig(),
+        StereoOdometryConfig(bundle_adjust=True),
+        StereoOdometryConfig(keyframe_every=2),
+    ):
+        m = estimate_stereo_motion(lefts, rights, K, 0.5, np.random.default_rng(0), cfg)
+        assert m.status == ("moving",) * 7
+        for i in range(8):
+            c_est, c_true = invert_rigid(m.cams_from_world[i])[:3, 3], invert_rigid(gt[i])[:3, 3]
+            assert np.linalg.norm(c_est - c_true) <= 0.02 + 0.02 * 0.5 * i
+            R = m.cams_from_world[i][:3, :3] @ gt[i][:3, :3].T
+            assert np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))) < 0.25
+    again = estimate_stereo_motion(lefts, rights, K, 0.5, np.random.default_rng(0))
+    first = estimate_stereo_motion(lefts, rights, K, 0.5, np.random.default_rng(0))
+    np.testing.assert_array_equal(again.cams_from_world, first.cams_from_world)
+    with pytest.raises(ValueError, match="right"):
+        estimate_stereo_motion(lefts, rights[:-1], K, 0.5, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="baseline"):
+        estimate_stereo_motion(lefts, rights, K, 0.0, np.random.default_rng(0))
