@@ -44,9 +44,10 @@ def rotation_deg(A: np.ndarray, B: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))))
 
 
-def contact_errors(est: np.ndarray, truth: np.ndarray, intrinsics, lookahead: int) -> tuple[np.ndarray, np.ndarray]:
+def contact_errors(est: np.ndarray, truth: np.ndarray, intrinsics, lookahead: int):
     """Per frame where both see it, pixel distances to the contact as the published poses place and project it:
-    (placed and projected with the estimated poses, the published contact projected with the estimated poses)."""
+    (placed and projected with the estimated poses, the published contact projected with the estimated poses, the
+    change of the first offset from one such frame to the next)."""
     g = prior_ground_plane(1.65)
     cfg = VideoInsertionConfig(lookahead_frames=lookahead, lateral_offset_m=2.5)
     rng = np.random.default_rng(0)  # not drawn from: the lookahead contact is deterministic
@@ -56,7 +57,11 @@ def contact_errors(est: np.ndarray, truth: np.ndarray, intrinsics, lookahead: in
     uv_e, v_e = project_world_point_track(c_est, intrinsics, est)
     uv_s, v_s = project_world_point_track(c_true, intrinsics, est)  # the same ground point, seen with the estimate
     both, same = v_t & v_e, v_t & v_s
-    return np.linalg.norm(uv_t[both] - uv_e[both], axis=1), np.linalg.norm(uv_t[same] - uv_s[same], axis=1)
+    return (
+        np.linalg.norm(uv_t[both] - uv_e[both], axis=1),
+        np.linalg.norm(uv_t[same] - uv_s[same], axis=1),
+        np.linalg.norm(np.diff(uv_e[both] - uv_t[both], axis=0), axis=1),  # how the offset changes frame to frame
+    )
 
 
 def report(name: str, est: np.ndarray, truth: np.ndarray, intrinsics, seconds: float) -> dict:
@@ -78,7 +83,7 @@ def report(name: str, est: np.ndarray, truth: np.ndarray, intrinsics, seconds: f
         "contact": {},
     }
     for L in LOOKAHEADS:
-        e, same = contact_errors(est, truth, intrinsics, L)
+        e, same, change = contact_errors(est, truth, intrinsics, L)
         out["contact"][str(L)] = {
             "frames": int(e.size),
             "median_px": round(float(np.median(e)), 2),
@@ -86,6 +91,8 @@ def report(name: str, est: np.ndarray, truth: np.ndarray, intrinsics, seconds: f
             "max_px": round(float(e.max()), 2),
             "same_point_median_px": round(float(np.median(same)), 2),
             "same_point_p95_px": round(float(np.percentile(same, 95)), 2),
+            "offset_change_median_px": round(float(np.median(change)), 2),
+            "offset_change_p95_px": round(float(np.percentile(change, 95)), 2),
         }
     return out
 
