@@ -17,6 +17,8 @@ from scipy import stats
 ARMS = [
     "original",
     "inserted",
+    "inserted n=200",
+    "inserted_online",
     "naive_paste",
     "copy_paste",
     "lifted",
@@ -35,6 +37,14 @@ ARMS = [
 PAIRS = [
     ("inserted", "original"),
     ("inserted", "naive_paste_procedural"),
+    ("inserted", "copy_paste"),
+    ("copy_paste", "original"),
+    ("lifted", "original"),
+    ("inserted", "lifted"),
+    ("inserted_online", "original"),
+    ("inserted_online", "inserted"),
+    ("inserted n=200", "original"),
+    ("inserted n=200", "inserted"),
     ("naive_paste_procedural", "original"),
     ("lifted", "naive_paste"),
     ("copy_paste", "naive_paste"),
@@ -66,9 +76,13 @@ PAIRS = [
 
 def main(folder: str) -> int:
     ap: dict[tuple[str, int], dict[str, float]] = {}
-    for p in sorted(Path(folder).glob("*.json")):
-        r = json.loads(p.read_text())
-        ap[(r["arm"], r["seed"])] = {"val": r["metrics"]["AP"], "dev": (r.get("dev_metrics") or {}).get("AP")}
+    runs = [json.loads(p.read_text()) for p in sorted(Path(folder).glob("*.json"))]
+    amounts: dict[str, set] = {}
+    for r in runs:
+        amounts.setdefault(r["arm"], set()).add(r.get("amount"))
+    for r in runs:  # an arm run at several amounts: its smallest keeps the arm's name, the others say theirs
+        label = r["arm"] if r.get("amount") in (None, min(amounts[r["arm"]])) else f"{r['arm']} n={r['amount']}"
+        ap[(label, r["seed"])] = {"val": r["metrics"]["AP"], "dev": (r.get("dev_metrics") or {}).get("AP")}
     seeds = sorted({s for _, s in ap})
     print("| arm | " + " | ".join(f"seed {s}" for s in seeds) + " | mean |")
     print("|---|" + "---|" * (len(seeds) + 1))
