@@ -127,7 +127,15 @@ def apply_plan(
     shadows = []
     if cfg.shadow and rendered:
         shadows = [
-            _object_shadow_window(o.asset, o.cam_from_object, intr, lighting, depth, cfg.shadow_method)
+            _object_shadow_window(
+                o.asset,
+                o.cam_from_object,
+                intr,
+                lighting,
+                depth,
+                cfg.shadow_method,
+                (cfg.contact_shadow_strength, cfg.contact_shadow_radius),
+            )
             for o, *_ in rendered
         ]
         how = (
@@ -281,8 +289,10 @@ def _object_shadow_window(
     lighting: LightingEstimate,
     scene_depth: np.ndarray | None,
     method: str = "catcher",
+    contact: tuple[float, float] = (0.6, 0.25),
 ) -> tuple[tuple[int, int, int, int], np.ndarray]:
-    """(roi, ratio inside roi) of :func:`object_shadow_ratio`; ``method``: "catcher" (GL) or "projected"."""
+    """(roi, ratio inside roi) of :func:`object_shadow_ratio`; ``method``: "catcher" (GL) or "projected";
+    ``contact``: the contact shadow's (strength, radius as a fraction of the object's height)."""
     R = cam_from_object[:3, :3]
     sun_cam = lighting.sun_direction_in_cam if lighting.dominant_sun else None
     # Below-horizon direction: the catcher then returns the ground geometry with full visibility.
@@ -306,7 +316,7 @@ def _object_shadow_window(
     dx = np.maximum(np.maximum(lo[0] - pts_obj[:, 0], pts_obj[:, 0] - hi[0]), 0.0)
     dy = np.maximum(np.maximum(lo[1] - pts_obj[:, 1], pts_obj[:, 1] - hi[1]), 0.0)
     ao = np.ones(gm.shape, np.float32)  # off the ground patch: far from the object, no contact occlusion
-    ao[gm] = contact_occlusion_of(np.hypot(dx, dy), asset.height_m)  # >= 0, finite: the ground points are
+    ao[gm] = contact_occlusion_of(np.hypot(dx, dy), asset.height_m, *contact)  # >= 0, finite: the ground points are
     # Without a sun the ratio is the contact occlusion alone ((a + 0 v) / 1).
     ratio = (
         shadow_ratio_from_sun_sky(sl.visibility, lighting.sun_sky_ratio, ambient_occlusion=ao)

@@ -139,9 +139,9 @@ def test_shipped_npz_is_the_shipped_checkpoint_and_fast_insertion_needs_no_torch
         "import sys, numpy as np\n"
         "from aias_augment.pipeline.image import load_preset\n"
         "from aias_augment.pipeline.bounded import insert_bounded\n"
-        "from tests.aias_augment.pipeline.test_image import _image\n"
+        "from tests.aias_augment.pipeline.test_image import road_frame\n"
         "cfg = load_preset('fast', categories=('traffic_cone',), min_objects=2, max_objects=2)\n"
-        "r = insert_bounded(_image(), rng=np.random.default_rng(0), cfg=cfg)\n"
+        "r = insert_bounded(road_frame(), rng=np.random.default_rng(0), cfg=cfg)\n"
         "assert r.record.modules['harmonize'].startswith('harmonized'), r.record.modules\n"
         "print(len(r.inserted_labels), 'torch' in sys.modules)\n"
     )
