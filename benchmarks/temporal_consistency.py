@@ -149,6 +149,7 @@ def main(argv=None) -> int:
     ap.add_argument("--work", type=Path, default=Path("out/temporal"))
     ap.add_argument("--weights", type=Path, default=None, help="a detector trained on real cones (detector share)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--clips", nargs="*", default=None, help="only these clips; the others kept from OUT/temporal.json")
     a = ap.parse_args(argv)
     root = data_root()
     seq, tripod = root / "kitti06_seq", root / "video" / "vtest.avi"
@@ -170,7 +171,21 @@ def main(argv=None) -> int:
         "static, 3 objects": ClipJob(
             str(tripod), None, None, str(a.work / "static_3"), ("traffic_cone",), a.seed, objects=3, **vtest
         ),
+        # the posed clip's frames without their poses: estimated by stereo odometry from the right camera
+        "unposed (stereo odometry)": ClipJob(
+            str(seq / "image_l"),
+            str(seq / "calib.txt"),
+            None,
+            str(a.work / "unposed"),
+            ("traffic_cone",),
+            a.seed,
+            max_frames=20,
+            stereo_right=str(seq / "image_r"),
+        ),
     }
+    unknown = set(a.clips or ()) - set(jobs)
+    if unknown:
+        ap.error(f"unknown clips {sorted(unknown)}; known: {sorted(jobs)}")
     model = None
     if a.weights is not None:
         import dataclasses
@@ -180,11 +195,18 @@ def main(argv=None) -> int:
         net, _, _ = load_checkpoint(a.weights)
         model = (net, dataclasses.replace(net.cfg.inference, score_threshold=0.3))
     report = {"command": "python benchmarks/temporal_consistency.py " + shlex.join(argv or sys.argv[1:]), "clips": {}}
+    if a.clips is not None and (a.out / "temporal.json").exists():
+        old = json.loads((a.out / "temporal.json").read_text())
+        report["clips"] = {k: v for k, v in old["clips"].items() if not any(k.startswith(c) for c in a.clips)}
+        report["command"] = old["command"] + "; then " + report["command"]
     for name, job in jobs.items():
+        if a.clips is not None and name not in a.clips:
+            continue
         rec = augment_clip(job)
         inputs, _ = read_clip_frames(job.input, job.start, job.max_frames, job.stride)
-        if job.poses is not None:
-            poses = np.asarray(read_cams_from_world(job.poses))[job.start : job.start + len(inputs)]
+        if job.poses is not None or job.stereo_right is not None:  # camera motion removed with the published poses
+            poses = np.asarray(read_cams_from_world(seq / "poses.txt" if job.poses is None else job.poses))
+            poses = poses[job.start : job.start + len(inputs)]
         else:
             poses = np.repeat(np.eye(4)[None], len(inputs), axis=0)  # a static camera is its own world
         for track in range(1, job.objects + 1):
