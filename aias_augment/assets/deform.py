@@ -21,7 +21,8 @@ point by more than its depth.
 - ``fracture``: broken in two along a tilted plane at ``cut_height`` of the height: the base stands, the top lies
   on its side beside it (settled like ``knocked_over``), ``gap`` of the size away towards ``fall_azimuth``. The cut
   faces are closed (the section's outline triangulated) in the colour the surface has along the cut, so each piece
-  is as closed as its source; the rest of the surface keeps its UVs.
+  is as closed as its source; the rest of the surface keeps its UVs. 0-4 flat chips of that colour lie scattered
+  around it (``debris``: position, length, yaw each); they add a little material the source did not have.
 
 Falling over as it happens (a clip's toppling object, :func:`tipped`): the rigid object turns about the edge of its
 base on the side it falls to, which stays on the ground, until another point of its convex hull touches the ground
@@ -66,6 +67,8 @@ CATEGORY_KINDS: dict[str, tuple[str, ...]] = {
         "fracture_height": "(0, 1) lo<=hi",
         "fracture_tilt_deg": "[0, 60]",
         "fracture_gap": "[0, 1] lo<=hi",
+        "fracture_debris": "[0, inf) lo<=hi",
+        "debris_size_frac": "(0, 1] lo<=hi",
     }
 )
 @dataclass(frozen=True)
@@ -83,6 +86,8 @@ class DeformConfig:
     fracture_height: tuple[float, float] = (0.35, 0.7)  # of the height, where the cut crosses the axis
     fracture_tilt_deg: float = 30.0  # most the cut plane leans from level
     fracture_gap: tuple[float, float] = (0.05, 0.3)  # between the base and the fallen top, of the largest extent
+    fracture_debris: tuple[int, int] = (0, 4)  # chips scattered around a fracture
+    debris_size_frac: tuple[float, float] = (0.04, 0.1)  # a chip's length, of the largest extent
 
 
 @dataclass(frozen=True)
@@ -105,6 +110,8 @@ class DeformParams:
     cut: tuple[float, ...] = ()
     fall_azimuth: float = 0.0
     gap: float = 0.0
+    # fracture: chips on the ground, each (x, y, length m, yaw) in the source's frame
+    debris: tuple[tuple[float, ...], ...] = ()
     source_height_m: float = 0.0  # the undeformed height: what the category's size range refers to
     meta: dict = field(default_factory=dict, compare=False)
 
@@ -116,7 +123,8 @@ class DeformParams:
         d = asdict(self)
         d.pop("meta")
         return {
-            k: (list(map(list, v)) if k == "dents" else list(v) if isinstance(v, tuple) else v) for k, v in d.items()
+            k: (list(map(list, v)) if k in ("dents", "debris") else list(v) if isinstance(v, tuple) else v)
+            for k, v in d.items()
         }
 
     @classmethod
@@ -133,6 +141,7 @@ class DeformParams:
             cut=tuple(float(x) for x in d.get("cut", ())),
             fall_azimuth=float(d.get("fall_azimuth", 0.0)),
             gap=float(d.get("gap", 0.0)),
+            debris=tuple(tuple(float(x) for x in chip) for chip in d.get("debris", ())),
             source_height_m=float(d.get("source_height_m", 0.0)),
         )
 
@@ -208,11 +217,18 @@ def sample_deformation(
         n = np.array([math.sin(tilt) * math.cos(lean_az), math.sin(tilt) * math.sin(lean_az), math.cos(tilt)])
         lo, hi = asset.bounds_m
         centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, h * float(rng.uniform(*cfg.fracture_height))])
+        fall_azimuth, gap = float(rng.uniform(-math.pi, math.pi)), float(rng.uniform(*cfg.fracture_gap))
+        chips = []
+        for _ in range(int(rng.integers(cfg.fracture_debris[0], cfg.fracture_debris[1] + 1))):
+            r, a = size * float(rng.uniform(0.3, 0.7)), float(rng.uniform(-math.pi, math.pi))
+            length = size * float(rng.uniform(*cfg.debris_size_frac))
+            chips.append((r * math.cos(a), r * math.sin(a), length, float(rng.uniform(-math.pi, math.pi))))
         return DeformParams(
             "fracture",
             cut=(*map(float, centre), *map(float, n)),
-            fall_azimuth=float(rng.uniform(-math.pi, math.pi)),
-            gap=float(rng.uniform(*cfg.fracture_gap)),
+            fall_azimuth=fall_azimuth,
+            gap=gap,
+            debris=tuple(chips),
             source_height_m=h,
         )
     phi = float(rng.uniform(-math.pi, math.pi))  # knocked over: fall towards a random horizontal direction
@@ -434,7 +450,16 @@ def _fractured(asset: Asset, p: DeformParams) -> list:
         c = m.copy(include_cache=True)
         c.apply_transform(T)
         turned.append(c)
-    return lower + turned
+    chips = []
+    for x, y, length, yaw in p.debris:  # flat chips of the broken material on the ground around the break
+        chip = trimesh.creation.box(extents=(length, 0.6 * length, 0.3 * length))
+        turn = _axis_angle(np.array([0.0, 0.0, 1.0]), yaw)
+        place = np.eye(4)
+        place[:3, :3], place[:3, 3] = turn, (x, y, 0.15 * length)
+        chip.apply_transform(place)
+        chip.visual = trimesh.visual.ColorVisuals(chip, face_colors=np.tile(colour, (len(chip.faces), 1)))
+        chips.append(chip)
+    return lower + turned + chips
 
 
 def _cut_colour(asset: Asset, point: np.ndarray, normal: np.ndarray) -> np.ndarray:

@@ -239,7 +239,7 @@ def test_a_fracture_makes_two_closed_pieces_of_the_same_volume_apart_with_the_uv
     gap; every face of the source wholly below the cut is still there with its texture coordinates."""
     from aias_augment.assets.deform import _merged_geometry
 
-    p = sample_deformation(cylinder, np.random.default_rng(4), kind="fracture")
+    p = sample_deformation(cylinder, np.random.default_rng(4), DeformConfig(fracture_debris=(0, 0)), kind="fracture")
     v = apply_deformation(cylinder, p)
     pieces = _merged_geometry(v).split(only_watertight=False)
     assert len(pieces) == 2 and all(piece.is_watertight for piece in pieces)
@@ -260,3 +260,22 @@ def test_a_fracture_makes_two_closed_pieces_of_the_same_volume_apart_with_the_uv
 
 def corner_uvs_of(m) -> np.ndarray:
     return np.asarray(m.visual.uv)[np.asarray(m.faces)]
+
+
+def test_fracture_debris_are_closed_chips_on_the_ground_around_it(cylinder):
+    """Three chips drawn: five closed components (base, top, chips), each chip resting on the ground (its lowest
+    point at the pieces' ground), no larger than the drawn length, and the record replays them."""
+    from aias_augment.assets.deform import _merged_geometry
+
+    p = sample_deformation(cylinder, np.random.default_rng(4), DeformConfig(fracture_debris=(3, 3)), kind="fracture")
+    assert len(p.debris) == 3
+    v = apply_deformation(cylinder, p)
+    pieces = _merged_geometry(v).split(only_watertight=False)
+    assert len(pieces) == 5 and all(piece.is_watertight for piece in pieces)
+    chips = sorted(pieces, key=lambda piece: piece.volume)[:3]
+    for chip in chips:
+        assert chip.bounds[0, 2] == pytest.approx(0.0, abs=1e-9)
+        assert np.max(chip.extents) <= max(c[2] for c in p.debris) * 1.2 + 1e-9
+    again = apply_deformation(cylinder, DeformParams.from_dict(json.loads(json.dumps(p.to_dict()))))
+    for m, n in zip(v.meshes, again.meshes):
+        assert np.asarray(m.vertices).tobytes() == np.asarray(n.vertices).tobytes()
