@@ -152,6 +152,20 @@ def main(argv=None) -> int:
         help="the object moves along its heading at this speed (a car driving, a cart crossing); 0: it stands",
     )
     clip.add_argument(
+        "--object-start",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="with --object-speed: the object stands this long first (a parked car pulling out)",
+    )
+    clip.add_argument(
+        "--object-accel",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="with --object-speed: it reaches its speed from rest over this long (0: at once)",
+    )
+    clip.add_argument(
         "--topple",
         type=float,
         default=0.0,
@@ -226,6 +240,8 @@ def main(argv=None) -> int:
                 object_speed_mps=a.object_speed,
                 topple_s=a.topple,
                 stereo_right=a.stereo_right,
+                object_start_s=a.object_start,
+                object_accel_s=a.object_accel,
                 objects=a.objects,
             )
         )
@@ -241,6 +257,8 @@ def main(argv=None) -> int:
         for f, v in (
             ("--objects", a.objects != 1),
             ("--object-speed", a.object_speed != 0),
+            ("--object-start", a.object_start != 0),
+            ("--object-accel", a.object_accel != 0),
             ("--topple", a.topple != 0),
         )
         if v

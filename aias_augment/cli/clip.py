@@ -74,6 +74,9 @@ class ClipJob:
     preset: str = "balanced"  # the image door's preset whose layer stages (e.g. motion blur) the object gets
     fps: float = 10.0  # frames per second of the clip as read (after --stride): the mp4's rate and the speed's clock
     object_speed_mps: float = 0.0  # the object moves along its heading at this speed (0: it stands)
+    # ... after standing this long (seconds), reaching that speed from rest over object_accel_s (a car pulling out)
+    object_start_s: float = 0.0
+    object_accel_s: float = 0.0
     topple_s: float = 0.0  # each object is knocked over during the clip, falling for this long (0: it stays upright)
     stereo_right: str | None = None  # the right camera's frames: poses by stereo odometry (with a camera, no poses)
     # Objects in the clip, each its own track: object k > 0 stands on the other side of the path from object k - 1
@@ -105,6 +108,12 @@ class ClipJob:
             raise ValueError(f"objects must be >= 1, got {self.objects}")
         if self.stereo_right is not None and (self.poses is not None or self.camera is None):
             raise ValueError("stereo_right estimates the poses: it needs a camera and no poses")
+        if not all(np.isfinite(v) and v >= 0 for v in (self.object_start_s, self.object_accel_s)):
+            raise ValueError(
+                f"object_start_s and object_accel_s must be >= 0, got {self.object_start_s}, {self.object_accel_s}"
+            )
+        if (self.object_start_s or self.object_accel_s) and not self.object_speed_mps:
+            raise ValueError("--object-start and --object-accel need --object-speed")
         if not (np.isfinite(self.topple_s) and self.topple_s >= 0):
             raise ValueError(f"topple_s must be >= 0 seconds, got {self.topple_s}")
         if self.topple_s and (self.object_speed_mps or self.flow_refine):
@@ -256,6 +265,8 @@ def augment_clip(job: ClipJob) -> dict:
         else "sampled",  # a static camera goes nowhere: a seen ground
         flow_refine=job.flow_refine,
         speed_m_per_frame=job.object_speed_mps / job.fps,
+        move_after_frames=round(job.object_start_s * job.fps),
+        accelerate_frames=round(job.object_accel_s * job.fps),
         topple_frames=max(1, round(job.topple_s * job.fps)) if job.topple_s else 0,
     )
     objects = [(category, asset)]

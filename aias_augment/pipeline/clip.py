@@ -59,6 +59,7 @@ __all__ = [
     "first_collision",
     "insert_into_clip",
     "object_boxes_in_world",
+    "travel_m",
     "plan_clip",
 ]
 
@@ -76,6 +77,11 @@ class VideoInsertionConfig:
     # A moving object: metres per frame along its heading (its own x axis on the ground; the yaw draws it), from
     # frame ``start`` on (before it, where it came from). 0: standing.
     speed_m_per_frame: float = 0.0
+    # A parked object pulling out: it stands for ``move_after_frames`` frames from ``start``, then speeds up from rest
+    # at a constant acceleration, reaching its speed after ``accelerate_frames`` frames. Both 0: it moves at its speed
+    # in every frame (before ``start`` too: where it came from).
+    move_after_frames: int = 0
+    accelerate_frames: int = 0
     # Knocked over: it falls onto its side over this many frames from frame ``topple_start`` (None: drawn in the plan
     # so that the fall ends in the clip), towards a direction drawn in the plan. 0: it stays upright.
     topple_frames: int = 0
@@ -92,6 +98,11 @@ class VideoInsertionConfig:
             raise ValueError(f"speed_m_per_frame must be finite, got {self.speed_m_per_frame}")
         if self.speed_m_per_frame != 0 and self.flow_refine:
             raise ValueError("flow_refine tracks the ground under a standing object: not with speed_m_per_frame")
+        if self.move_after_frames < 0 or self.accelerate_frames < 0:
+            raise ValueError(
+                f"move_after_frames and accelerate_frames must be >= 0, got {self.move_after_frames}, "
+                f"{self.accelerate_frames}"
+            )
         if self.topple_frames < 0 or (self.topple_start is not None and self.topple_start < 0):
             raise ValueError(
                 f"topple_frames and topple_start must be >= 0, got {self.topple_frames}, {self.topple_start}"
@@ -239,7 +250,7 @@ def plan_clip(
             :3, 0
         ]
     )
-    steps = (np.arange(n) - start) * cfg.speed_m_per_frame
+    steps = travel_m(n, start, cfg)
 
     # Per-frame local ground refit around the projected contact: signed offset of the local ground along up.
     offsets: list[float | None] = [None] * n
@@ -295,7 +306,11 @@ def plan_clip(
         track_uv = np.concatenate([uv for uv, _ in tracks])
         visible = np.concatenate([v for _, v in tracks])
     if cfg.speed_m_per_frame:
-        mods["motion"] = f"moving {cfg.speed_m_per_frame:.3f} m per frame along its heading"
+        mods["motion"] = f"moving {cfg.speed_m_per_frame:.3f} m per frame along its heading" + (
+            f", standing {cfg.move_after_frames} frames, then reaching that speed over {cfg.accelerate_frames}"
+            if cfg.move_after_frames or cfg.accelerate_frames
+            else ""
+        )
 
     if lighting is None:
         E = np.asarray(comp.ExposureMatch.from_image(frames[start]).irradiance_rgb)
@@ -364,6 +379,20 @@ def plan_clip(
         tuple(frame_assets),
         topple,
     )
+
+
+def travel_m(n: int, start: int, cfg: VideoInsertionConfig) -> np.ndarray:
+    """(n,) metres the object has gone along its heading in each frame, from where it is at frame ``start``: at its
+    speed throughout, or standing for ``move_after_frames`` and then speeding up from rest over
+    ``accelerate_frames`` (distance a k^2 / 2 with a = speed / frames, then speed per frame)."""
+    v, wait, ramp = cfg.speed_m_per_frame, cfg.move_after_frames, cfg.accelerate_frames
+    k = np.arange(n, dtype=np.float64) - start
+    if not wait and not ramp:
+        return k * v
+    k = np.clip(k - wait, 0.0, None)
+    if not ramp:
+        return k * v
+    return np.where(k <= ramp, 0.5 * v / ramp * k**2, 0.5 * v * ramp + v * (k - ramp))
 
 
 def _topple(obj: Asset, n: int, cfg: VideoInsertionConfig, rng: np.random.Generator):

@@ -394,3 +394,32 @@ def test_a_toppling_cube_turns_about_its_base_edge_and_lands_on_a_face():
     assert "knocked over" in res.modules["motion"]
     with pytest.raises(ValueError, match="toppling"):
         VideoInsertionConfig(topple_frames=3, speed_m_per_frame=0.1)
+
+
+def test_a_parked_object_pulls_out_standing_then_speeding_up_at_a_constant_acceleration():
+    """Truth by hand: 0.4 m per frame, standing 3 frames after the start, reaching that speed over 4 frames: from
+    frame k = i - 3 > 0 it has gone 0.4 k^2 / 8 (k <= 4), then 0.8 + 0.4 (k - 4) metres along its heading, and its
+    contact is that far from the parked one in the world."""
+    from aias_augment.pipeline.clip import plan_clip, travel_m
+
+    K, frames, poses = _forward_drive(n=12, step_m=0.0)
+    cfg = VideoInsertionConfig(
+        lookahead_frames=0,
+        lateral_offset_m=4.0,
+        height_m=1.0,
+        shadow=False,
+        speed_m_per_frame=0.4,
+        move_after_frames=3,
+        accelerate_frames=4,
+    )
+    k = np.clip(np.arange(12) - 3, 0, None).astype(float)
+    truth = np.where(k <= 4, 0.4 * k**2 / 8, 0.8 + 0.4 * (k - 4))
+    assert np.allclose(travel_m(12, 0, cfg), truth, atol=1e-12)
+    plan = plan_clip(
+        frames, K, poses, np.random.default_rng(0), cfg, asset=box_asset(), ground_in_cam0=prior_ground_plane(1.65)
+    )
+    moved = np.linalg.norm(plan.contact_track_in_world - plan.contact_track_in_world[0], axis=1)
+    assert np.allclose(moved, truth, atol=1e-9)
+    assert "standing 3 frames" in plan.modules["motion"]
+    with pytest.raises(ValueError, match="move_after_frames"):
+        VideoInsertionConfig(speed_m_per_frame=0.1, move_after_frames=-1)
