@@ -259,19 +259,20 @@ def _settle(asset: Asset, R: np.ndarray) -> np.ndarray:
     return _axis_angle(axis, math.atan2(s, float(n @ down))) @ R
 
 
-def _fall_frame(asset: Asset, azimuth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """(hull vertices, fall direction f, pivot p on z = 0, f's azimuth): a rigid object tips over an edge of its
+def _fall_frame(asset: Asset, azimuth: float):
+    """(convex hull, fall direction f, pivot p on z = 0, f's azimuth): a rigid object tips over an edge of its
     base's convex outline, the one whose outward normal is nearest to ``azimuth`` (a round base has one edge per
     facet: any direction, near enough)."""
     from scipy.spatial import ConvexHull
 
-    hull = np.asarray(_merged_geometry(asset).convex_hull.vertices, float)
+    hull_mesh = _merged_geometry(asset).convex_hull
+    hull = np.asarray(hull_mesh.vertices, float)
     base = hull[hull[:, 2] <= hull[:, 2].min() + BASE_BAND_FRAC * asset.height_m][:, :2]
     outline = ConvexHull(base).equations  # rows (nx, ny, c): outward unit normal, n . x + c = 0 on the edge
     want = np.array([math.cos(azimuth), math.sin(azimuth)])
     nx, ny, c = outline[int(np.argmax(outline[:, :2] @ want))]
     f = np.array([nx, ny, 0.0])
-    return hull, f, -c * f, math.atan2(ny, nx)
+    return hull_mesh, f, -c * f, math.atan2(ny, nx)
 
 
 #: Hull points this close to the lowest one (a fraction of the height) form the base the object pivots on.
@@ -288,9 +289,10 @@ def fall_segments(asset: Asset, azimuth: float) -> tuple[np.ndarray, float, list
     them ends the turn. The object rests there when its centre of mass (the convex hull's) lies over the points on
     the ground; otherwise it goes on turning about the farthest of them (a cone on a square plate lands on the
     plate's rim, then rolls onto its side)."""
-    hull, f, p, az = _fall_frame(asset, azimuth)
+    hull_mesh, f, p, az = _fall_frame(asset, azimuth)
+    hull = np.asarray(hull_mesh.vertices, float)
     pts = np.c_[hull @ f, hull[:, 2]]  # (u, w) in the fixed plane of the fall
-    centre = np.asarray(_merged_geometry(asset).convex_hull.center_mass, float)
+    centre = np.asarray(hull_mesh.center_mass, float)
     com = np.array([centre @ f, centre[2]])
     tol = 1e-9 * max(asset.height_m, 1e-9)
     pivot = np.array([p @ f, 0.0])
@@ -316,13 +318,14 @@ def topple_rest_angle(asset: Asset, azimuth: float) -> float:
     return float(sum(t for _, t in fall_segments(asset, azimuth)[2]))
 
 
-def tipped(asset: Asset, azimuth: float, angle: float) -> tuple[Asset, np.ndarray]:
+def tipped(asset: Asset, azimuth: float, angle: float, fall=None) -> tuple[Asset, np.ndarray]:
     """``asset`` knocked over towards ``azimuth`` (radians from its +x axis; the base edge it tips over, in
     ``meta["tipped"]["azimuth"]``) and turned by ``angle`` (0 .. :func:`topple_rest_angle`) about the edges it
     rolls over (:func:`fall_segments`): the pivot stays on the ground and nothing goes below it. Returned like every
     asset (x/y centred on its bounds, lowest point on z = 0) with ``origin`` (3,), where its origin lies in
-    ``asset``'s frame: the turned object stands at ``object_from_tipped = translation(origin)``."""
-    f, azimuth, segments = fall_segments(asset, azimuth)
+    ``asset``'s frame: the turned object stands at ``object_from_tipped = translation(origin)``. ``fall``: this
+    asset's :func:`fall_segments` for ``azimuth`` when the caller has it (a clip turns one object in every frame)."""
+    f, azimuth, segments = fall_segments(asset, azimuth) if fall is None else fall
     axis = np.cross([0.0, 0.0, 1.0], f)  # turning about it brings +z towards f
     T = np.eye(4)
     left = float(angle)

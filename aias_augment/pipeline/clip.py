@@ -399,7 +399,7 @@ def _topple(obj: Asset, n: int, cfg: VideoInsertionConfig, rng: np.random.Genera
     """Per frame the toppling object's asset (None before the fall) and ``object_from_frame`` (where that asset's
     origin lies in the upright object's frame), and the fall's record. The angle grows as t^2 (a constant angular
     acceleration from rest) over ``cfg.topple_frames`` frames up to the rest angle, and stays there."""
-    from aias_augment.assets.deform import tipped, topple_rest_angle
+    from aias_augment.assets.deform import fall_segments, tipped
 
     frames = cfg.topple_frames
     if frames >= n:
@@ -408,7 +408,8 @@ def _topple(obj: Asset, n: int, cfg: VideoInsertionConfig, rng: np.random.Genera
     if start + frames >= n:
         raise ValueError(f"the fall from frame {start} over {frames} frames does not end in the clip of {n}")
     azimuth = float(rng.uniform(-np.pi, np.pi))
-    rest = topple_rest_angle(obj, azimuth)
+    fall = fall_segments(obj, azimuth)
+    rest = float(sum(t for _, t in fall[2]))
     assets: list[Asset | None] = [None] * n
     poses = [np.eye(4)] * n
     landed = None
@@ -417,7 +418,7 @@ def _topple(obj: Asset, n: int, cfg: VideoInsertionConfig, rng: np.random.Genera
         if t == 1.0 and landed is not None:
             assets[i], poses[i] = landed
             continue
-        tipped_obj, origin = tipped(obj, azimuth, rest * t * t)
+        tipped_obj, origin = tipped(obj, azimuth, rest * t * t, fall)
         T = np.eye(4)
         T[:3, 3] = origin
         assets[i], poses[i] = tipped_obj, T

@@ -254,15 +254,13 @@ def stereo_points(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(left pixels (M, 2), their right matches (M, 2), points (M, 3) in the left camera) of corners matched along
     their row in the right image: depth f b / disparity."""
-    gl, gr = _grey(left), _grey(right)
-    p = cv2.goodFeaturesToTrack(gl, cfg.max_corners, cfg.quality_level, cfg.min_distance_px)
+    p = cv2.goodFeaturesToTrack(_grey(left), cfg.max_corners, cfg.quality_level, cfg.min_distance_px)
     if p is None:
         return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros((0, 3))
     p = p.reshape(-1, 2).astype(np.float64)
-    q, ok = _lk(gl, gr, p, cfg.fb_max_err_px)
+    q, ok = _row_matches(left, right, p, cfg)
+    p, q = p[ok], q[ok]
     disparity = p[:, 0] - q[:, 0]
-    ok &= (np.abs(p[:, 1] - q[:, 1]) < cfg.max_row_error_px) & (disparity > cfg.min_disparity_px)
-    p, q, disparity = p[ok], q[ok], disparity[ok]
     z = intrinsics.fx * baseline_m / disparity
     keep = z < cfg.max_depth_m
     p, q, z = p[keep], q[keep], z[keep]
