@@ -282,9 +282,12 @@ class InsertObjects(A.DualTransform):
         data,
         j: int | None = None,
         key: str | None = None,
+        references=None,
     ):
         """Variant ``j`` (None: drawn with the call's generator) of this sample, computed on a miss. ``key``: the
-        sample's :func:`variant_key` when the caller has it (and found it missing: it is not looked up again)."""
+        sample's :func:`variant_key` when the caller has it (and found it missing: it is not looked up again).
+        ``references``: per existing box, the inserted category it is an object of (its label is the one the
+        inserted boxes get), else None."""
         if j is None:
             j = int(self.random_generator.integers(self.variants_per_image))
         # Boxes to 1e-3 px, in the key and in the insertion alike: the Compose's normalise/denormalise round trip
@@ -299,10 +302,11 @@ class InsertObjects(A.DualTransform):
                 depth=data.get("depth"),
                 scene=data.get("scene"),
                 existing_xywh=existing_xywh,
+                references=None if references is None else [r is not None for r in references],
                 prefix=self._key_prefix(),
             )
             v = self._variants.get(key, j)
-        labels = list(range(len(existing_xywh)))
+        labels = _plan_labels(len(existing_xywh), references)
         if v is None:
             full = insert_bounded(
                 rgb,
@@ -412,14 +416,15 @@ class InsertObjects(A.DualTransform):
         proc = self._bbox_processor()
         if proc is not None:
             min_vis = float(proc.params.min_visibility)
+        references = self._references(boxes_internal, proc) if n_existing else None
         try:
             if self.variants_per_image:
-                res = self._variant(rgb, existing_xywh, min_vis, data)
+                res = self._variant(rgb, existing_xywh, min_vis, data, references=references)
             else:
                 res = insert_bounded(
                     rgb,
                     existing_xywh,
-                    list(range(n_existing)),
+                    _plan_labels(n_existing, references),
                     self.random_generator,
                     self.config,
                     intrinsics=data.get("camera_k"),
@@ -546,6 +551,30 @@ class InsertObjects(A.DualTransform):
             proc.is_sequence_input.update(saved)
         return temp["bboxes"]
 
+    def _references(self, boxes_internal, proc) -> list | None:
+        """Per existing box, the inserted category whose label (as the inserted boxes get it, encoded by the
+        Compose's first label field) the box carries, else None: the image's own objects of the inserted kind,
+        which set the inserted objects' sizes (``placement_cfg.sizes_from_existing``). None without label fields."""
+        if proc is None or not proc.params.label_fields or not self.config.placement_cfg.sizes_from_existing:
+            return None
+        field = proc.params.label_fields[0]
+        meta = proc.label_manager.metadata.get("bboxes", {}).get(field)
+        if meta is None:
+            return None
+        codes = {}
+        for c in self.config.categories:
+            try:
+                value = self._label_for(c, proc, field)
+            except (KeyError, ValueError):
+                continue
+            if meta.is_numerical:
+                codes[float(value)] = c
+            elif meta.encoder is not None and value in meta.encoder.classes_:
+                codes[float(meta.encoder.classes_[value])] = c
+        column = np.asarray(boxes_internal)[:, 4] if np.asarray(boxes_internal).shape[1] > 4 else ()
+        out = [codes.get(float(x)) for x in column]
+        return out if any(r is not None for r in out) else None
+
     def _label_for(self, category: str, proc, field: str):
         if self.category_ids is not None:
             return self.category_ids[category]
@@ -556,6 +585,12 @@ class InsertObjects(A.DualTransform):
                 f"{{{category!r}: <id>}} so inserted boxes get numeric labels"
             )
         return category
+
+
+def _plan_labels(n: int, references: list | None) -> list:
+    """The existing boxes' labels as the pipeline reads them: an inserted category for a box of that kind, else
+    None (no kind); without references, the boxes' indices (the output's labels are not read back)."""
+    return list(range(n)) if references is None else list(references)
 
 
 def _xywh_from_internal(boxes_internal, h: int, w: int) -> np.ndarray:

@@ -65,12 +65,15 @@ def variant_key_prefix(cfg=None, assets=None, seed: int = 0):
     return h
 
 
-def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, existing_xywh=None, prefix=None) -> str:
+def variant_key(
+    image: np.ndarray, *, camera_k=None, depth=None, scene=None, existing_xywh=None, references=None, prefix=None
+) -> str:
     """xxh3-128 (hex) of everything a variant depends on except its index: ``prefix`` (from
     :func:`variant_key_prefix`; None: its defaults), image bytes, K, depth, scene facts (``scene``: SceneInputs)
     and the existing boxes. The stream hashed is ``image:<dtype><shape>``, the bytes, then for each of K, depth and
-    the boxes ``<name>:None`` or ``<name>:<dtype><shape>`` and its bytes, then the scene's fields. It is computed
-    at every variant call: an image alone (the common case in a training loop) is three updates."""
+    the boxes ``<name>:None`` or ``<name>:<dtype><shape>`` and its bytes, then the scene's fields, then, when any
+    existing box is of an inserted kind (``references``: one bool per box), which ones. It is computed at every
+    variant call: an image alone (the common case in a training loop) is three updates."""
     h = (prefix if prefix is not None else variant_key_prefix()).copy()
     a = np.ascontiguousarray(image)
     h.update(f"image:{a.dtype}{a.shape}".encode())
@@ -97,6 +100,8 @@ def variant_key(image: np.ndarray, *, camera_k=None, depth=None, scene=None, exi
             v = getattr(scene, f.name)
             h.update(f"scene:{f.name}".encode())
             hash_value(h, v if isinstance(v, (np.ndarray, EnvironmentMap)) or v is None else repr(v))
+    if references is not None and any(references):
+        h.update(b"references:" + np.packbits(np.asarray(references, bool)).tobytes())
     return h.hexdigest()
 
 

@@ -98,6 +98,7 @@ def insert_bounded(
         cfg,
         rng,
         existing_boxes_xyxy=existing_xyxy * scale4,
+        existing_labels=labels,
         depth=small.depth,
         meta=small.meta,
         bank=bank,

@@ -145,7 +145,15 @@ def insert_into_image(
     analysis = cache.get(frame, cfg)
     existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
     plan = plan_insertion(
-        analysis, cfg, rng, existing_boxes_xyxy=existing_xyxy, depth=depth, meta=meta, bank=bank, n_objects=n_objects
+        analysis,
+        cfg,
+        rng,
+        existing_boxes_xyxy=existing_xyxy,
+        existing_labels=labels,
+        depth=depth,
+        meta=meta,
+        bank=bank,
+        n_objects=n_objects,
     )
     applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
     return assemble_result(analysis, plan, applied, boxes, labels, min_visibility)

@@ -25,6 +25,7 @@ from aias_augment.plan.placement import (
     sample_placement,
     scaled_ground,
     scene_scale_for_sizes,
+    scene_scale_from_boxes,
 )
 
 
@@ -70,6 +71,7 @@ def plan_insertion(
     rng: np.random.Generator,
     *,
     existing_boxes_xyxy: np.ndarray | None = None,
+    existing_labels: list | None = None,
     depth: np.ndarray | None = None,
     meta: dict | None = None,
     bank=None,
@@ -77,7 +79,9 @@ def plan_insertion(
 ) -> InsertionPlan:
     """Draw the insertion: ``k`` objects (``n_objects`` or uniform in [min_objects, max_objects]), each a category,
     an asset and a placement that avoids ``existing_boxes_xyxy`` (N, 4), earlier objects and, with ``meta``
-    'lidar_points_in_cam' / 'boxes_in_cam', the scene's 3D points and boxes. ``depth`` (H, W) metres or None."""
+    'lidar_points_in_cam' / 'boxes_in_cam', the scene's 3D points and boxes. ``depth`` (H, W) metres or None.
+    ``existing_labels`` (N,): the boxes' labels; those naming an inserted category are the scene's own objects of
+    that kind, which set the sizes with ``placement_cfg.sizes_from_existing`` (without labels, none does)."""
     if rng is None:
         raise ValueError("plan_insertion needs an explicit numpy Generator (rng) for reproducibility")
     cfg = cfg.effective()
@@ -95,9 +99,12 @@ def plan_insertion(
             f"3D checks: {0 if scene_points is None else len(scene_points)} scene points, "
             f"{len(boxes_3d)} existing 3D boxes, earlier insertions"
         )
-    pcfg = scene_sized_placement(cfg.placement_cfg, taken, analysis.image_shape[0])
+    references = size_references(taken, existing_labels, cfg.categories, cfg.placement_cfg)
+    pcfg = scene_sized_placement(cfg.placement_cfg, references, analysis.image_shape[0])
     if pcfg is not cfg.placement_cfg:
-        mods["sizes"] = f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes"
+        mods["sizes"] = (
+            f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes of the inserted kind"
+        )
     object_cfgs = [pcfg] * k
     targets = None
     if cfg.placement and pcfg.scene_scale_from_sizes and k:
@@ -158,9 +165,13 @@ def plan_insertion(
             base = apply_deformation(base, sample_deformation(base, rng, cfg.deform_cfg))
         if cfg.placement and targets is not None and i == 0:
             hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
-            scale, mods["scene_scale"] = scene_scale_for_sizes(
-                ground, intr, rng, pcfg, float(np.mean(hr)), max(targets), region.mask
-            )
+            scale = None
+            if references:  # the scene's own objects on their ground rows fix its scale
+                scale, mods["scene_scale"] = scene_scale_from_boxes(ground, intr, references, float(np.mean(hr)), pcfg)
+            if scale is None:
+                scale, mods["scene_scale"] = scene_scale_for_sizes(
+                    ground, intr, rng, pcfg, float(np.mean(hr)), max(targets), region.mask
+                )
             if scale != 1.0:  # the scene scaled about the camera: its distance limits with it
                 ground = scaled_ground(ground, scale)
                 pcfg = replace(
@@ -264,6 +275,24 @@ def arrangement_pixels(
         near = dist == dist.min()
     mask[y0:y1, x0:x1] = near
     return mask
+
+
+def size_references(boxes_xyxy: list, labels: list | None, categories, pcfg) -> list:
+    """The boxes of ``boxes_xyxy`` that are objects of an inserted kind: their label is one of ``categories``, is
+    classified into one by the taxonomy's name rules (e.g. "cone", "Traffic cone" -> traffic_cone) or is listed in
+    ``pcfg.size_reference_labels`` (a None label names no kind). None without labels or with
+    ``pcfg.sizes_from_existing`` off."""
+    if not pcfg.sizes_from_existing or labels is None or not len(boxes_xyxy):
+        return []
+    if len(labels) != len(boxes_xyxy):
+        raise ValueError(f"{len(boxes_xyxy)} existing boxes but {len(labels)} labels")
+    from aias_augment.assets.bank.taxonomy import load_taxonomy  # the bank package imports trimesh: only when needed
+
+    taxonomy, cats, extra = load_taxonomy(), set(categories), set(map(str, pcfg.size_reference_labels))
+    kinds = {None: False}
+    for lab in {str(x) for x in labels if x is not None}:
+        kinds[lab] = lab in cats or lab in extra or taxonomy.classify(lab.replace("_", " ")) in cats
+    return [b for b, lab in zip(boxes_xyxy, labels) if kinds[None if lab is None else str(lab)]]
 
 
 def scene_sized_placement(pcfg, existing_xyxy: list, image_height: int):

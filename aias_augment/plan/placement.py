@@ -91,10 +91,14 @@ class PlacementConfig:
     box_height_frac_samples: tuple[float, ...] = ()
     box_height_jitter: float = 0.1
     box_height_tolerance: float = 0.2
-    # The image's existing boxes are objects of the inserted kind (e.g. the real cones of a cone dataset): when an
-    # image has any, target box heights are drawn from theirs (jittered as above) instead of the samples/range above,
-    # so an inserted object is as large as the same scene's own objects (a close-up's cones are close-up sized).
-    sizes_from_existing: bool = False
+    # An image's existing boxes of the inserted kind (their labels name an inserted category through the taxonomy,
+    # e.g. "cone" for traffic_cone, or are listed in ``size_reference_labels``) are the scene's own objects: when an
+    # image has any, target box heights are drawn from theirs (jittered as above) instead of the samples/range
+    # above, and an assumed-scale scene takes the scale at which objects of the category's mean height stand on
+    # their bottom rows at their heights (:func:`scene_scale_from_boxes`), so an inserted object is as large as
+    # the real ones on the same ground row. Images without such boxes are unaffected.
+    sizes_from_existing: bool = True
+    size_reference_labels: tuple[str, ...] = ()
     # A single photo's ground has no measured scale: its plane comes from a camera-height prior
     # (``GroundPlane.assumed_scale``), and a level road camera 1.65 m up cannot see a cone on the ground taller than
     # ~0.25 of the frame, while close-ups and product shots are full of them. With ``scene_scale_from_sizes`` and a
@@ -424,12 +428,7 @@ def scene_scale_for_sizes(
     v, u = np.divmod(cand, intrinsics.width)
     uv = np.c_[u, v].astype(np.float64)
     target = target_frac * intrinsics.height
-    k = np.ones(len(cand))
-    for _ in range(4):  # pred(h / k) is nearly proportional to 1 / k: converges in a few steps
-        pred = _pred_scaled(uv, object_height_m / k, ground, intrinsics)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            k = k * pred / target
-        k[~(np.isfinite(k) & (k > 0))] = np.nan
+    k = _scales_for_heights(uv, np.full(len(uv), target), object_height_m, ground, intrinsics)
     if np.isnan(k).all():
         return 1.0, f"target {target:.0f} px: no ground pixel predicts a size, scale kept"
     heights = k * ground.d
@@ -444,6 +443,58 @@ def scene_scale_for_sizes(
         f"camera {heights[i]:.2f} m above the ground (assumed {ground.d:.2f} m) so that a "
         f"{target:.0f} px target stands on visible ground"
     )
+
+
+def scene_scale_from_boxes(
+    ground: GroundPlane,
+    intrinsics: Intrinsics,
+    boxes_xyxy: np.ndarray,
+    object_height_m: float,
+    cfg: PlacementConfig,
+) -> tuple[float | None, str]:
+    """Factor ``k`` by which to scale an assumed-scale scene about the camera centre so that objects of
+    ``object_height_m`` standing on the ground at the bottom centres of ``boxes_xyxy`` (the scene's own objects of
+    the inserted kind) are as tall in the image as those boxes: the median over the boxes of the per-box factor,
+    the camera height ``k * ground.d`` kept inside ``cfg.camera_height_range_m``. Boxes cut by the frame's top or
+    bottom edge (their height or base unknown) and bases above the horizon give none. ``(None, reason)`` when no
+    box gives a factor; ``(1.0, reason)`` for a measured ground."""
+    if not ground.assumed_scale:
+        return 1.0, f"measured ground ({ground.source}): its scale is kept"
+    b = np.asarray(boxes_xyxy, float).reshape(-1, 4)
+    h_px = b[:, 3] - b[:, 1]
+    inside = (b[:, 1] > 1.0) & (b[:, 3] < intrinsics.height - 2.0) & (h_px >= 4.0)
+    if not inside.any() or not (ground.d > 0):
+        return None, f"none of {len(b)} reference boxes is whole in the frame"
+    b, h_px = b[inside], h_px[inside]
+    uv = np.c_[(b[:, 0] + b[:, 2]) / 2, b[:, 3]]
+    k = _scales_for_heights(uv, h_px, object_height_m, ground, intrinsics)
+    k = k[np.isfinite(k)]
+    if len(k) == 0:
+        return None, f"no reference box stands on the visible ground ({len(b)} whole in the frame)"
+    lo, hi = cfg.camera_height_range_m
+    height = float(np.median(k)) * ground.d
+    kk = float(np.clip(height, lo, hi)) / ground.d
+    clipped = "" if lo <= height <= hi else f" (the boxes ask for {height:.2f} m, outside {lo}-{hi} m)"
+    return kk, (
+        f"camera {kk * ground.d:.2f} m above the ground (assumed {ground.d:.2f} m): {object_height_m:.2f} m objects "
+        f"on the bottom rows of the image's {len(k)} reference boxes are their height (median of their scales){clipped}"
+    )
+
+
+def _scales_for_heights(
+    uv: np.ndarray, target_px: np.ndarray, object_height_m: float, ground: GroundPlane, intrinsics: Intrinsics
+) -> np.ndarray:
+    """Per ground pixel, the scene scale ``k`` at which an object of ``object_height_m`` standing there is
+    ``target_px`` tall (nan where none). Scaling the scene by ``k`` shows an object of height ``h`` as the unscaled
+    scene shows one of ``h / k``: a fixed-point iteration on the predicted heights, nearly proportional to 1 / k, so
+    a few steps converge."""
+    k = np.ones(len(uv))
+    for _ in range(4):
+        pred = _pred_scaled(uv, object_height_m / k, ground, intrinsics)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            k = k * pred / target_px
+        k[~(np.isfinite(k) & (k > 0))] = np.nan
+    return k
 
 
 def _pred_scaled(uv: np.ndarray, heights_m: np.ndarray, ground: GroundPlane, intrinsics: Intrinsics) -> np.ndarray:

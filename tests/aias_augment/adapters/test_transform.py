@@ -265,3 +265,36 @@ def test_a_box_the_processor_must_check_goes_through_preprocess():
     assert _encode_boxes(res.inserted_bboxes, 240, 320, "coco") is False
     with pytest.raises(ValueError, match="x_max"):
         t._encode_new_boxes(res, np.zeros((0, 5)), (240, 320, 3))
+
+
+@pytest.mark.parametrize("variants", [None, 2])
+def test_existing_boxes_with_the_inserted_label_set_the_sizes_others_do_not(variants):
+    """A caller's box carrying the label the inserted boxes get (numeric through ``category_ids``, or the category
+    name) is the scene's own object of that kind and sets the sizes (the record says so); a box of another label
+    does not. The variant cache keys the difference."""
+    box = [300.0, 330.0, 30.0, 60.0]
+
+    def record(labels, ids, field_values):
+        tf = A.Compose(
+            [
+                InsertObjects(
+                    categories=["traffic_cone"],
+                    max_objects=1,
+                    p=1.0,
+                    preset="fast",
+                    category_ids=ids,
+                    variants_per_image=variants,
+                )
+            ],
+            bbox_params=A.BboxParams(format="coco", label_fields=["labels"]),
+            seed=3,
+        )
+        tf(image=road_frame(), bboxes=[box] * len(labels), labels=field_values(labels))
+        rec = tf.transforms[0].last_record
+        return getattr(rec, "record", rec).to_dict()
+
+    numeric = {"traffic_cone": 3}
+    assert "1 existing boxes of the inserted kind" in record([3], numeric, list)["modules"]["sizes"]
+    assert "sizes" not in record([5], numeric, list)["modules"]
+    assert "sizes" in record(["traffic_cone"], None, list)["modules"]
+    assert "sizes" not in record(["car"], None, list)["modules"]

@@ -60,7 +60,15 @@ def test_sizes_from_existing_boxes_make_objects_the_scene_objects_size():
     )
     heights = []
     for s in range(6):
-        p = plan_insertion(an, cfg, np.random.default_rng(s), bank=bank, n_objects=2, existing_boxes_xyxy=existing)
+        p = plan_insertion(
+            an,
+            cfg,
+            np.random.default_rng(s),
+            bank=bank,
+            n_objects=2,
+            existing_boxes_xyxy=existing,
+            existing_labels=["box", "box"],
+        )
         assert p.modules["sizes"].startswith("box heights drawn from the image's 2 existing boxes")
         heights += [o.placement.amodal_box_xyxy[3] - o.placement.amodal_box_xyxy[1] for o in p.objects]
     assert len(heights) >= 6
@@ -187,3 +195,73 @@ def test_independent_arrangement_draws_as_before_mixed_records_the_same_per_seed
     assert json.dumps(a.to_dict()) == json.dumps(b.to_dict())
     m1, m2 = _arranged("mixed", 5)[1], _arranged("mixed", 5)[1]
     assert json.dumps(m1.to_dict()) == json.dumps(m2.to_dict())
+
+
+def _standing_boxes(ground, intr, pixels, height_m, half_width_px=12.0):
+    """xyxy boxes of vertical ``height_m`` segments standing on ``ground`` at the ground pixels ``pixels``: base
+    and top projected forward (the inverse of what a scale search does)."""
+    from aias_augment.core.geometry import project_points
+
+    base = ground.intersect_pixels(np.asarray(pixels, float), intr)
+    top = base + height_m * ground.normal[None, :]
+    ub, _ = project_points(base, intr.K)
+    ut, _ = project_points(top, intr.K)
+    return np.c_[ub[:, 0] - half_width_px, ut[:, 1], ub[:, 0] + half_width_px, ub[:, 1]]
+
+
+def test_scene_scale_from_boxes_recovers_the_camera_height_the_boxes_were_made_at():
+    """Boxes of 0.7 m objects projected from a camera 0.8 m above the ground (the assumed plane scaled about the
+    camera) give back 0.8 m; a box cut by the bottom edge is left out; a measured ground keeps its scale."""
+    from aias_augment.plan.placement import PlacementConfig, scaled_ground, scene_scale_from_boxes
+
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    g = an.ground
+    assert g.assumed_scale
+    truth = scaled_ground(g, 0.8 / g.d)
+    boxes = _standing_boxes(truth, K, [[100, 300], [320, 360], [500, 420]], 0.7)
+    cut = np.array([[200.0, 400.0, 230.0, K.height]])  # touches the bottom edge: its base is not seen
+    k, note = scene_scale_from_boxes(g, K, np.r_[boxes, cut], 0.7, PlacementConfig())
+    assert abs(k * g.d - 0.8) < 0.01 * 0.8, note
+    assert "3 reference boxes" in note
+    k2, _ = scene_scale_from_boxes(g, K, boxes, 0.7, PlacementConfig(camera_height_range_m=(1.0, 4.0)))
+    assert abs(k2 * g.d - 1.0) < 1e-9  # clamped into the allowed range
+    assert scene_scale_from_boxes(g, K, cut, 0.7, PlacementConfig())[0] is None
+    measured = replace(g, assumed_scale=False)
+    assert scene_scale_from_boxes(measured, K, boxes, 0.7, PlacementConfig())[0] == 1.0
+
+
+def test_objects_of_the_inserted_kind_set_the_scene_scale_and_others_do_not():
+    """Existing boxes labelled with the inserted category (here "box") make the plan's scene the one they were
+    projected from: every object stands on the 0.8 m plane, as tall as a 0.7 m object is there. Boxes labelled
+    with another kind ("car") and unlabelled boxes change no size."""
+    from aias_augment.plan.placement import scaled_ground
+
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    g = an.ground
+    truth = scaled_ground(g, 0.8 / g.d)
+    boxes = _standing_boxes(truth, K, [[100, 300], [320, 360], [500, 420]], 0.7)
+    bank = OneAsset(box_asset(extents=(0.3, 0.3, 0.7)))
+    for s in range(3):
+        p = plan_insertion(
+            an,
+            CFG,
+            np.random.default_rng(s),
+            bank=bank,
+            n_objects=2,
+            existing_boxes_xyxy=boxes,
+            existing_labels=["box"] * 3,
+        )
+        assert p.objects and "reference boxes" in p.modules["scene_scale"]
+        for o in p.objects:
+            assert abs(o.placement.ground_d - 0.8) < 0.01
+        for labels in (["car"] * 3, None):
+            q = plan_insertion(
+                an,
+                CFG,
+                np.random.default_rng(s),
+                bank=bank,
+                n_objects=2,
+                existing_boxes_xyxy=boxes,
+                existing_labels=labels,
+            )
+            assert "sizes" not in q.modules and "reference boxes" not in q.modules.get("scene_scale", "")
