@@ -83,7 +83,7 @@ class Photo:
     scale: float  # downscale factor applied to the file
 
 
-def _downscaled(path: str, max_side: int) -> tuple[np.ndarray, float]:
+def downscaled(path: str, max_side: int) -> tuple[np.ndarray, float]:
     from detection_eval.data import read_image_rgb
 
     img = read_image_rgb(path)
@@ -106,7 +106,7 @@ def road_photo_halves(cfg, seed: int = 0, swap: bool = False) -> tuple[list[Phot
         for rec in load_yolo_dir(root, split, cfg.class_names).records:
             if not len(rec.labels):
                 continue
-            img, s = _downscaled(rec.image_path, cfg.insertion.max_side_px)
+            img, s = downscaled(rec.image_path, cfg.insertion.max_side_px)
             if is_stock_photo(img):
                 continue
             photos.append(Photo(f"{split}/{Path(rec.image_path).stem}", rec.image_path, rec.boxes_xyxy * s, s))
@@ -168,7 +168,7 @@ def cmd_generate(args) -> None:
                 ph, copy = photos[j], j + COPY_STRIDE * k
                 if copy in done:
                     continue
-                img, _ = _downscaled(ph.path, cfg.insertion.max_side_px)
+                img, _ = downscaled(ph.path, cfg.insertion.max_side_px)
                 existing = np.c_[ph.boxes_xyxy[:, :2], ph.boxes_xyxy[:, 2:] - ph.boxes_xyxy[:, :2]]
                 # same stream in every arm; copy k > 0 of a photo: another draw
                 rng = np.random.default_rng([cfg.insertion.pool_seed, 7, j] + ([k] if k else []))
@@ -309,7 +309,7 @@ def cmd_report(args) -> None:
     sc = tuple(args.scene_scale) if args.scene_scale else None
     ref = crops_of(
         REF,
-        ((p.key, _downscaled(p.path, max_side)[0], p.boxes_xyxy, (), p.boxes_xyxy) for p in half_a),
+        ((p.key, downscaled(p.path, max_side)[0], p.boxes_xyxy, (), p.boxes_xyxy) for p in half_a),
         np.random.default_rng([seed, 1]),
         ccfg,
         iso,
@@ -319,7 +319,7 @@ def cmd_report(args) -> None:
     used_b = [photos_b[j] for j in sorted({c % COPY_STRIDE for c in common})]
     floor = crops_of(
         FLOOR,
-        ((p.key, _downscaled(p.path, max_side)[0], p.boxes_xyxy, (), p.boxes_xyxy) for p in used_b),
+        ((p.key, downscaled(p.path, max_side)[0], p.boxes_xyxy, (), p.boxes_xyxy) for p in used_b),
         np.random.default_rng([seed, 2]),
         ccfg,
         iso,
@@ -344,7 +344,7 @@ def cmd_report(args) -> None:
         items = (
             (
                 photos_b[c % COPY_STRIDE].key,
-                _downscaled(photos_b[c % COPY_STRIDE].path, max_side)[0],
+                downscaled(photos_b[c % COPY_STRIDE].path, max_side)[0],
                 entries["inserted"][c]["boxes"],
                 photos_b[c % COPY_STRIDE].boxes_xyxy,
                 photos_b[c % COPY_STRIDE].boxes_xyxy,

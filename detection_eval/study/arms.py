@@ -70,15 +70,20 @@ ARM_FLAGS: dict[str, dict | None] = {
     # (placed on the ground, lit, shadowed, harmonized: the pipeline with the data's own appearance).
     "copy_paste": {"copy_paste": True},
     "lifted": {"lifted": True},
+    # The defaults with a realism filter: a classifier fitted per seed on the thinned subset's real cone crops
+    # against inserted ones scores every inserted cone, and an image whose worst cone looks more inserted than
+    # half the real ones is drawn again, up to this many times (aias_augment.evaluation.realism.filter.best_of;
+    # the first draw is the ``inserted`` arm's).
+    "inserted_filtered": {"realism_filter": 3},
 }
 
 
 # Flags the study applies itself (not insertion-config overrides).
-STUDY_FLAGS = ("closeup_crop", "copy_paste", "lifted")
+STUDY_FLAGS = ("closeup_crop", "copy_paste", "lifted", "realism_filter")
 
 
 # Arms whose pool is made per seed from that seed's thinned real subset (no other seed's real images leak in).
-PER_SEED_ARMS = ("copy_paste", "lifted")
+PER_SEED_ARMS = ("copy_paste", "lifted", "inserted_filtered")
 
 
 # Arms whose insertions happen inside the training loop (``InsertObjects`` on each sample, new draws every epoch)

@@ -331,11 +331,72 @@ def pool_maker(cfg: StudyConfig, arm: str, train: DetectionSet, base: DetectionS
             return make_paste
     else:
         bank = None
-    ins_cfg = insertion_config_for_arm(cfg, "inserted" if flags.get("lifted") else arm, train)
+    ins_cfg = insertion_config_for_arm(
+        cfg, "inserted" if flags.get("lifted") or flags.get("realism_filter") else arm, train
+    )
 
     def make_insert(image, rng):
         res = insert_into_image(image, np.zeros((0, 4)), [], rng, ins_cfg, bank=bank)
         b = np.asarray(res.bboxes, np.float64).reshape(-1, 4)
         return res.image, np.c_[b[:, :2], b[:, :2] + b[:, 2:]], dict(res.record.modules)
 
-    return make_insert
+    if not flags.get("realism_filter"):
+        return make_insert
+    from aias_augment.evaluation.realism.filter import best_of
+
+    judge = fit_realism_filter(cfg, base, make_insert, out)
+
+    def make_filtered(image, rng):
+        (new, boxes, modules), info = best_of(
+            lambda g: make_insert(image, g), lambda r: (r[0], r[1]), judge, rng, int(flags["realism_filter"])
+        )
+        return new, boxes, {**modules, "realism_filter": info}
+
+    return make_filtered
+
+
+def fit_realism_filter(cfg: StudyConfig, base: DetectionSet, make_insert, out: Path):
+    """The seed's realism filter: crops of its thinned subset's real cones (the only real cones the arm may see)
+    against crops of cones inserted into its empty roads (up to 60, each with its own stream ``[pool_seed, 99,
+    i]``), Lite0 features as in the realism report. Its fit (out-of-fold AUC, threshold) goes to
+    ``out/realism_filter.json``."""
+    from aias_augment.evaluation.realism.crops import object_crops
+    from aias_augment.evaluation.realism.features import Lite0Features
+    from aias_augment.evaluation.realism.filter import RealismFilter
+
+    ic = cfg.insertion
+    rng = np.random.default_rng([ic.pool_seed, 98])
+    real, real_g, ins, ins_g = [], [], [], []
+
+    def shrunk(path):
+        image = read_image_rgb(path)
+        s = min(1.0, ic.max_side_px / max(image.shape[:2]))
+        if s < 1:
+            image = cv2.resize(
+                image, (round(image.shape[1] * s), round(image.shape[0] * s)), interpolation=cv2.INTER_AREA
+            )
+        return image, s
+
+    empty = []
+    for r in base.records:
+        if len(r.labels):
+            image, s = shrunk(r.image_path)
+            crops, _ = object_crops(image, r.boxes_xyxy * s, rng)
+            real += crops
+            real_g += [r.image_path] * len(crops)
+        else:
+            empty.append(r.image_path)
+    for i, path in enumerate(empty[:60]):
+        image, _ = shrunk(path)
+        try:
+            new, boxes, _ = make_insert(image, np.random.default_rng([ic.pool_seed, 99, i]))
+        except Exception as exc:  # counted in the fit report by the crops it did not give
+            log.warning("realism filter: calibration insertion failed on %s: %s", path, exc)
+            continue
+        crops, _ = object_crops(new, boxes, rng)
+        ins += crops
+        ins_g += [path] * len(crops)
+    judge = RealismFilter.fit(real, real_g, ins, ins_g, Lite0Features(input_size=160), rng)
+    (out / "realism_filter.json").write_text(json.dumps(judge.fit_report, indent=1))
+    log.info("realism filter: %s", judge.fit_report)
+    return judge

@@ -56,7 +56,7 @@ def test_implied_ground_albedo_stays_in_range_at_any_exposure(exposure):
     # ground radiance = albedo_true x exposure x (sky + sun sin el) / pi; their ratio is the implied albedo.
     s = sun_direction(60.0, 40.0)
     img, R = render([], s, K, exposure=exposure, noise=0.0)
-    anchored = LightingConfig(ground_albedo_range=(0.06, 0.15))  # the anchor is an option (off by default)
+    anchored = LightingConfig(ground_albedo_range=(0.06, 0.15))  # a narrower range than the default
     est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=anchored)
     e_up = float(luminance(sh_irradiance(est.ambient_sh, est.up_in_cam)))
     if est.dominant_sun:
