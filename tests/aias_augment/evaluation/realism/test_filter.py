@@ -32,7 +32,12 @@ def judge():
         return out
 
     return RealismFilter.fit(
-        crops(real), list(range(30)), crops(ins), list(range(30)), Lite0Features(input_size=96), np.random.default_rng(1)
+        crops(real),
+        list(range(30)),
+        crops(ins),
+        list(range(30)),
+        Lite0Features(input_size=96),
+        np.random.default_rng(1),
     )
 
 
