@@ -33,6 +33,7 @@ HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
         "naive_height_frac_range": "(0, 1] lo<=hi",
         "naive_height_frac_samples": "(0, 1]",
         "motion_blur_px": "[0, inf) lo<=hi",
+        "edge_feather_px": "[0, inf) lo<=hi",
         "deform_probability": "[0, 1]",
         "decoys": "[0, inf) lo<=hi",
         "arrangement_spacing_m": "(0, inf) lo<=hi",
@@ -71,6 +72,11 @@ class InsertionConfig:
     # Motion blur of each object (apply/layer_stages/motion_blur.py): streak length range in output pixels, drawn
     # per object in the plan; (0, 0): off.
     motion_blur_px: tuple[float, float] = (0.0, 0.0)
+    # Edge blending (apply/layer_stages/edge_blend.py): each object's boundary drawn uniformly from these modes
+    # ("rendered", "hard", "feather", the last with a Gaussian sigma uniform in ``edge_feather_px``), so no one
+    # boundary predicts the label; (): off (the rendered coverage).
+    edge_blend: tuple[str, ...] = ()
+    edge_feather_px: tuple[float, float] = (0.5, 2.0)
     # Where the objects come from: "default": the shared-data model per category, the bank for others; "bank": all
     # from the bank; "procedural": a new seeded procedural asset per object where the category has a generator
     # (traffic_cone), else as "default".
@@ -127,6 +133,12 @@ class InsertionConfig:
         if 0 < self.analysis_max_width < 64:
             raise ConfigValueError(
                 ("InsertionConfig", "analysis_max_width"), f"must be 0 (off) or >= 64, got {self.analysis_max_width}"
+            )
+        from aias_augment.apply.layer_stages.edge_blend import MODES
+
+        if set(self.edge_blend) - set(MODES):
+            raise ConfigValueError(
+                ("InsertionConfig", "edge_blend"), f"unknown modes {sorted(set(self.edge_blend) - set(MODES))}: {MODES}"
             )
         if self.decoys[1] > 0 and not self.decoy_categories:
             raise ConfigValueError(("InsertionConfig", "decoy_categories"), "must not be empty when decoys are drawn")

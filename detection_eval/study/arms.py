@@ -39,6 +39,9 @@ ARM_FLAGS: dict[str, dict | None] = {
     # The labelled objects of an image stand together as they do on roads: a row along the lane or across it, a
     # cluster, or each on its own (one of the three per image, InsertionConfig.arrangement "mixed").
     "inserted_arranged": {"arrangement": "mixed"},
+    # Each object's boundary drawn from three blend modes (as rendered, hard, feathered; InsertionConfig.edge_blend),
+    # so that no one kind of paste edge is the sign of a cone (Cut, Paste and Learn's blending invariance).
+    "inserted_edges": {"edge_blend": ("rendered", "hard", "feather")},
     # The inserted image cropped, without resampling, around its largest object so that object's box height matches
     # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
     # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
