@@ -267,3 +267,52 @@ def test_same_seed_same_bytes_across_processes_hash_seeds_and_histories():
     assert outs[0][0] == "shadow" and outs[0][1] == "3", outs  # the sun-shadow path ran for three objects
     assert len(outs[1]) == 3, outs  # one image in the 3 runs of the second process
     assert outs[0] == outs[1]
+
+
+def _tracon_with_labels(name: str):
+    import os
+
+    from tests.aias_augment.fixtures import tracon_train_photo
+
+    img = tracon_train_photo(name, 640)
+    lab = (
+        Path(os.environ.get("AIAS_DATA", "../shared/data"))
+        / "tracon"
+        / "labels"
+        / "train"
+        / name.replace(".jpg", ".txt")
+    )
+    yolo = np.array([[float(x) for x in line.split()[1:]] for line in lab.read_text().splitlines() if line.strip()])
+    h, w = img.shape[:2]
+    return img, np.c_[
+        (yolo[:, 0] - yolo[:, 2] / 2) * w, (yolo[:, 1] - yolo[:, 3] / 2) * h, yolo[:, 2] * w, yolo[:, 3] * h
+    ]
+
+
+def _height_ratios(img, xywh, seeds=3):
+    cfg = load_preset("fast", categories=("traffic_cone",), min_objects=2, max_objects=2)
+    ratios, notes = [], []
+    for s in range(seeds):
+        res = insert_into_image(img, xywh, ["cone"] * len(xywh), np.random.default_rng(s), cfg)
+        assert "existing boxes of the inserted kind" in res.record.modules["sizes"]
+        notes.append(res.record.modules["scene_scale"])
+        ratios += [b[3] / np.median(xywh[:, 3]) for b in np.asarray(res.inserted_bboxes).reshape(-1, 4)]
+    return ratios, notes
+
+
+@pytest.mark.parametrize("name", ["cone (142).jpg", "cone (178).jpg"])
+def test_cones_inserted_beside_a_photos_labelled_cones_take_their_size(name):
+    """TraCon photos with their labelled cones passed as boxes labelled "cone": the inserted cones are as tall as
+    the labelled ones (median ratio within 0.75-1.33 over three draws of two cones), where the labelled cones'
+    rows ask for a camera height inside the allowed range. The labels are the truth here."""
+    ratios, notes = _height_ratios(*_tracon_with_labels(name))
+    assert all("reference boxes" in n and "outside" not in n for n in notes), notes
+    assert len(ratios) >= 4 and 0.75 <= np.median(ratios) <= 1.33, ratios
+
+
+def test_a_close_up_asking_for_a_camera_below_the_range_says_so_and_gets_larger_cones():
+    """Stacked close-up cones ask for a camera 0.18 m above the ground under the horizon prior: the scale is held at
+    the range's 0.4 m, the record says so, and the inserted cones come out larger than the labelled ones."""
+    ratios, notes = _height_ratios(*_tracon_with_labels("cone (127).jpg"))
+    assert all("outside 0.4-4.0 m" in n for n in notes), notes
+    assert np.median(ratios) > 1.0, ratios
