@@ -74,8 +74,8 @@ ARM_FLAGS: dict[str, dict | None] = {
     "copy_paste": {"copy_paste": True},
     "lifted": {"lifted": True},
     # The defaults with a realism filter: a classifier fitted per seed on the thinned subset's real cone crops
-    # against inserted ones scores every inserted cone, and an image whose worst cone looks more inserted than
-    # half the real ones is drawn again, up to this many times (aias_augment.evaluation.realism.filter.best_of;
+    # against inserted ones scores every inserted cone, and an image whose cones look on average more inserted
+    # than half the real ones is drawn again, up to this many times (aias_augment.evaluation.realism.filter.best_of;
     # the first draw is the ``inserted`` arm's).
     "inserted_filtered": {"realism_filter": 3},
 }

@@ -3,8 +3,9 @@
 Fitted on crops of real objects (label 0) against crops of inserted ones (label 1), with the crops and features
 the realism report uses (:mod:`.crops`, :class:`~.features.Lite0Features`, standardised L2 logistic regression,
 class-balanced), it scores each inserted object of a new image: the decision value, higher for what looks inserted.
-:func:`best_of` draws an insertion up to ``attempts`` times and keeps the first whose worst object scores at or
-below the threshold, else the best-scoring draw. The threshold is the median out-of-fold score of the real crops:
+:func:`best_of` draws an insertion up to ``attempts`` times and keeps the first whose objects score at or below the
+threshold on average, else the draw with the lowest mean score (the mean, not the worst object: a worst-object
+rule would favour draws with fewer objects). The threshold is the median out-of-fold score of the real crops:
 an accepted insertion looks no more inserted than half of the real objects do to a classifier that never saw them.
 
 A filter trained on the same features as the realism report's classifier lowers that report's AUC partly by
@@ -100,8 +101,8 @@ def best_of(
 ) -> tuple[tuple, dict]:
     """Up to ``attempts`` draws of an insertion, the first with ``rng`` itself (so it is the unfiltered draw) and
     each later one with a generator seeded from ``rng``: ``draw(generator) -> result``, ``boxes_of(result) ->
-    (image, boxes_xyxy)``. The first draw whose worst object scores at or below the judge's threshold is kept,
-    else the draw with the lowest worst score. A draw without a scorable object scores +inf (kept only if every
+    (image, boxes_xyxy)``. The first draw whose objects' mean score is at or below the judge's threshold is kept,
+    else the draw with the lowest mean score. A draw without a scorable object scores +inf (kept only if every
     draw is so). Returns (result, info: attempt kept, scores of each draw, accepted)."""
     if attempts < 1:
         raise ValueError(f"attempts must be >= 1, got {attempts}")
@@ -113,10 +114,10 @@ def best_of(
         result = draw(gen)
         image, boxes = boxes_of(result)
         s = judge.score(image, boxes, np.random.default_rng(int(rng.integers(0, 2**63 - 1))))
-        worst = float(np.nanmax(s)) if np.isfinite(s).any() else np.inf
-        scores.append(worst)
-        if best is None or worst < best_score:
-            best, best_score, kept = result, worst, a
-        if worst <= judge.threshold:
+        mean = float(np.nanmean(s)) if np.isfinite(s).any() else np.inf
+        scores.append(mean)
+        if best is None or mean < best_score:
+            best, best_score, kept = result, mean, a
+        if mean <= judge.threshold:
             break
     return best, {"attempt": kept, "scores": scores, "accepted": bool(best_score <= judge.threshold)}
