@@ -171,6 +171,7 @@ class LightingEstimate:
         "shadow_end_kappa": "[0, inf)",
         "side_analysis_width": "[64, inf)",
         "ground_albedo_range": "(0, inf) lo<=hi",
+        "ground_anchor_max_gain": "[1, inf)",
         "sun_full_confidence": "[0, inf)",
         "cap_white_to_scene_percentile": "[50, 100]",
         "white_cap_linear": "(0, 1]",
@@ -267,6 +268,11 @@ class LightingConfig:
     #: (0.05, 0.2), 0.99 [0.81, 1.06] ((0.06, 0.15): 1.00; (0.05, 0.3): 0.95); the widest range that matched was
     #: kept, so brighter grounds (concrete) are left alone. None: off.
     ground_albedo_range: tuple[float, float] | None = (0.05, 0.2)
+    #: The anchor changes the light by at most this factor either way: a ground lit by a sun the estimate did not
+    #: find (or a bright pavement) would otherwise be explained by an ambient many times too strong, which lights
+    #: the object's sides as brightly as the sunlit ground and blows it out (a sunlit TraCon street: x11.5, 56 % of
+    #: the cone clipped). On half A, 3 keeps the median brightness ratio at 0.94 (unbounded 0.99, 2: 0.87, 5: 0.97).
+    ground_anchor_max_gain: float = 3.0
     #: Sun tempering: an image-cue sun of confidence c keeps the share min(1, c / this) of its irradiance as a
     #: directional light; the rest becomes the sun's own order-2 SH lobe with the same irradiance on the ground (an
     #: uncertain direction gives a softer terminator around the sun that casts the shadow; a uniform ambient rest
@@ -888,6 +894,8 @@ def _anchor_and_cap(
         if sun_irr is not None and sun_dir is not None:
             e_ground += float(luminance(sun_irr)) * cos_z
         k = ground_exposure_scale(ground_lum, e_ground, config.ground_albedo_range)
+        g = config.ground_anchor_max_gain
+        k = float(np.clip(k, 1.0 / g, g))
     if config.cap_white_to_scene_percentile is not None:
         ref = float(np.percentile(lin.max(-1), config.cap_white_to_scene_percentile))
         if ref < 0.98:

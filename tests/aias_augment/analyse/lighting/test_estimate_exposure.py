@@ -56,7 +56,8 @@ def test_implied_ground_albedo_stays_in_range_at_any_exposure(exposure):
     # ground radiance = albedo_true x exposure x (sky + sun sin el) / pi; their ratio is the implied albedo.
     s = sun_direction(60.0, 40.0)
     img, R = render([], s, K, exposure=exposure, noise=0.0)
-    anchored = LightingConfig(ground_albedo_range=(0.06, 0.15))  # a narrower range than the default
+    # a narrower range than the default, the gain unbounded (its bound: the next test)
+    anchored = LightingConfig(ground_albedo_range=(0.06, 0.15), ground_anchor_max_gain=1e6)
     est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=anchored)
     e_up = float(luminance(sh_irradiance(est.ambient_sh, est.up_in_cam)))
     if est.dominant_sun:
@@ -80,6 +81,29 @@ def test_implied_ground_albedo_stays_in_range_at_any_exposure(exposure):
     off = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=OFF)
     e_off = float(luminance(sh_irradiance(off.ambient_sh, off.up_in_cam)))
     assert not lo <= np.pi * ground_linear / e_off <= hi
+
+
+@pytest.mark.parametrize("exposure", [0.25, 3.0])
+def test_the_anchor_changes_the_light_by_at_most_its_gain_bound(exposure):
+    """The same frames as above: the anchored light over the unanchored one (the ground's irradiance, which the
+    saturation guard leaves alone in these frames or lowers) stays within the bound of 3 either way, while the
+    unbounded anchor moves it further."""
+    s = sun_direction(60.0, 40.0)
+    img, _ = render([], s, K, exposure=exposure, noise=0.0)
+
+    def e_ground(cfg):
+        est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=cfg)
+        e = float(luminance(sh_irradiance(est.ambient_sh, est.up_in_cam)))
+        if est.dominant_sun:
+            e += float(luminance(est.sun_irradiance_rgb)) * max(float(est.sun_direction_in_cam @ est.up_in_cam), 0)
+        return e
+
+    no_guard = {"cap_white_to_scene_percentile": None}
+    base = e_ground(LightingConfig(ground_albedo_range=None, **no_guard))
+    bounded = e_ground(LightingConfig(ground_albedo_range=(0.06, 0.15), ground_anchor_max_gain=3.0, **no_guard))
+    free = e_ground(LightingConfig(ground_albedo_range=(0.06, 0.15), ground_anchor_max_gain=1e6, **no_guard))
+    assert 1 / 3 - 1e-6 <= bounded / base <= 3 + 1e-6
+    assert abs(np.log(free / base)) > abs(np.log(bounded / base)) - 1e-9
 
 
 def _white_sphere_uint8(est, n=4000):
