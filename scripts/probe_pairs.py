@@ -33,6 +33,9 @@ ARMS = [
     "naive_paste_procedural",
     "inserted_procedural",
     "inserted_arranged",
+    "inserted_today",
+    "inserted_filtered",
+    "inserted_edges",
 ]
 PAIRS = [
     ("inserted", "original"),
@@ -71,6 +74,14 @@ PAIRS = [
     ("naive_paste_procedural", "naive_paste"),
     ("inserted_procedural", "original"),
     ("inserted_arranged", "inserted_procedural"),
+    ("inserted_today", "original"),
+    ("inserted_today", "inserted"),
+    ("inserted_today", "copy_paste"),
+    ("inserted_today", "naive_paste_procedural"),
+    ("inserted_filtered", "inserted_today"),
+    ("inserted_edges", "inserted_today"),
+    ("inserted_filtered", "original"),
+    ("inserted_edges", "original"),
 ]
 
 
