@@ -61,8 +61,17 @@ def main(argv=None) -> int:
     ap.add_argument("--model", type=Path, default=Path("checkpoints/sun_evidence.json"))
     ap.add_argument("--out", type=Path, default=Path("results/lighting/sun_evidence"))
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--extra-labels",
+        type=Path,
+        default=None,
+        help="more labelled photos outside the benchmark (labels_extra.csv): added to the train half only",
+    )
     a = ap.parse_args(argv)
     rows = list(csv.DictReader(open(a.labels)))
+    n_bench = len(rows)
+    extra = [] if a.extra_labels is None else list(csv.DictReader(open(a.extra_labels)))
+    rows += extra
     root = data_root()
     t0 = time.perf_counter()
     for r in rows:
@@ -71,7 +80,8 @@ def main(argv=None) -> int:
     seconds_per_photo = (time.perf_counter() - t0) / len(rows)
     X = np.array([[float(r[k]) for k in FEATURES] for r in rows])
     y = np.array([int(r["direct_sun"]) for r in rows])
-    train, test = split_halves(len(rows), a.seed)
+    train, test = split_halves(n_bench, a.seed)
+    train = np.r_[train, np.arange(n_bench, len(rows))].astype(int)  # extra photos train, never score
 
     mean, scale = X[train].mean(axis=0), X[train].std(axis=0)
     Z = (X - mean) / scale
@@ -82,6 +92,7 @@ def main(argv=None) -> int:
         cv=StratifiedKFold(6, shuffle=True, random_state=a.seed),
         method="predict_proba",
     )[:, 1]
+    bench = train < n_bench  # the benchmark's own train half among the training rows
     candidates = np.unique(np.clip(oof, 0.02, 0.98))
     threshold = max(candidates, key=lambda t: (f_beta(*precision_recall(oof >= t, y[train] == 1), 0.5), -t))
     clf = LogisticRegression(C=1.0).fit(Z[train], y[train])
@@ -95,6 +106,7 @@ def main(argv=None) -> int:
         {
             "command": "python scripts/fit_sun_evidence.py " + " ".join(argv if argv is not None else sys.argv[1:]),
             "labels": str(a.labels),
+            "extra_labels": None if a.extra_labels is None else str(a.extra_labels),
             "train_photos": len(train),
             "split_seed": a.seed,
             "threshold": "max F0.5 on 6-fold out-of-fold probabilities of the train half",
@@ -108,12 +120,18 @@ def main(argv=None) -> int:
     p_test, r_test = precision_recall(prob[test] >= threshold, truth[test])
     report = {
         "command": model.provenance["command"],
-        "photos": len(rows),
+        "photos": n_bench,
+        "extra_train_photos": len(rows) - n_bench,
         "train": len(train),
         "test": len(test),
         "seconds_per_photo": round(seconds_per_photo, 4),
         "coefficients": dict(zip(FEATURES, (round(v, 3) for v in model.coef))),
         "threshold": round(float(threshold), 3),
+        "benchmark_train_half_out_of_fold": {
+            "precision": round(precision_recall(oof[bench] >= threshold, y[train][bench] == 1)[0], 3),
+            "recall": round(precision_recall(oof[bench] >= threshold, y[train][bench] == 1)[1], 3),
+            "roc_auc": round(float(roc_auc_score(y[train][bench], oof[bench])), 3),
+        },
         "train_out_of_fold": {
             "precision": round(precision_recall(oof >= threshold, y[train] == 1)[0], 3),
             "recall": round(precision_recall(oof >= threshold, y[train] == 1)[1], 3),
@@ -132,8 +150,8 @@ def main(argv=None) -> int:
         for preset in ("fast", "balanced"):
             if f"{preset}_sun" not in next(iter(est.values())):
                 continue
-            old = np.array([int(est[r["index"]][f"{preset}_sun"]) for r in rows], bool)
-            conf = np.array([float(est[r["index"]][f"{preset}_confidence"]) for r in rows])
+            old = np.array([int(est[r["index"]][f"{preset}_sun"]) for r in rows[:n_bench]], bool)
+            conf = np.array([float(est[r["index"]][f"{preset}_confidence"]) for r in rows[:n_bench]])
             po, ro = precision_recall(old[test], truth[test])
             report[f"test_recorded_{preset}"] = {
                 "precision": round(po, 3),
@@ -143,7 +161,7 @@ def main(argv=None) -> int:
             }
     a.out.mkdir(parents=True, exist_ok=True)
     for i, r in enumerate(rows):
-        r["split"] = "train" if i in set(train.tolist()) else "test"
+        r["split"] = "extra" if i >= n_bench else "train" if i in set(train.tolist()) else "test"
         r["probability"] = round(float(prob[i]), 4)
     with open(a.out / "features.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))

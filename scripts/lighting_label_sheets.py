@@ -70,7 +70,23 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/lighting_labels"))
     ap.add_argument("--shadow-grids", action="store_true", help="grids of the direct-sun photos for shadow lines")
     ap.add_argument("--labels", type=Path, default=Path("results/lighting/benchmark/labels.csv"))
+    ap.add_argument(
+        "--extra",
+        type=int,
+        default=0,
+        help="sheets of N more TraCon train photos outside the benchmark (seeded draw), labelled into "
+        "labels_extra.csv: training data for the sun-evidence model only, never scored",
+    )
     a = ap.parse_args(argv)
+    if a.extra:
+        root = data_root()
+        taken = {p.name for p in benchmark_photos(a.tracon)}
+        rest = [p for p in sorted((root / "tracon" / "images" / "train").iterdir()) if p.name not in taken]
+        pick = np.random.default_rng(1).choice(len(rest), size=min(a.extra, len(rest)), replace=False)
+        photos = [rest[i] for i in sorted(pick)]
+        write_sheets(photos, a.out, "extra_")
+        print(len(photos), "extra photos in", a.out)
+        return 0
     if a.shadow_grids:
         (a.out / "grids").mkdir(parents=True, exist_ok=True)
         sunny = [r for r in csv.DictReader(open(a.labels)) if r["direct_sun"] == "1"]
@@ -81,9 +97,16 @@ def main(argv=None) -> int:
         print(len(sunny), "grids in", a.out / "grids")
         return 0
     photos = benchmark_photos(a.tracon)
-    a.out.mkdir(parents=True, exist_ok=True)
+    write_sheets(photos, a.out, "")
+    print(len(photos), "photos,", (len(photos) + 15) // 16, "sheets in", a.out)
+    return 0
+
+
+def write_sheets(photos: list[Path], out: Path, prefix: str) -> None:
+    """``{prefix}photos.csv`` (index, path under the data root) and numbered 4 x 4 sheets ``{prefix}sheet_NN.png``."""
+    out.mkdir(parents=True, exist_ok=True)
     root = data_root()
-    with open(a.out / "photos.csv", "w", newline="") as f:
+    with open(out / f"{prefix}photos.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["index", "photo"])
         for k, p in enumerate(photos):
@@ -92,9 +115,7 @@ def main(argv=None) -> int:
         tiles = [tile(p, s + i) for i, p in enumerate(photos[s : s + 16])]
         tiles += [np.full_like(tiles[0], 255)] * (16 - len(tiles))
         sheet = np.vstack([np.hstack(tiles[r * 4 : r * 4 + 4]) for r in range(4)])
-        cv2.imwrite(str(a.out / f"sheet_{s // 16:02d}.png"), sheet)
-    print(len(photos), "photos,", (len(photos) + 15) // 16, "sheets in", a.out)
-    return 0
+        cv2.imwrite(str(out / f"{prefix}sheet_{s // 16:02d}.png"), sheet)
 
 
 if __name__ == "__main__":
