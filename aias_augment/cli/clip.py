@@ -231,11 +231,20 @@ def augment_clip(job: ClipJob) -> dict:
     if any(f.shape != frames[0].shape for f in frames):
         raise ValueError(f"{job.input}: frames differ in size")
     idx = np.arange(job.start, job.start + job.stride * len(frames), job.stride)
+    moving = True  # a camera that goes somewhere: the object stands beside where it will be
     if job.stereo_right is not None:
         intr, poses, camera_note = stereo_odometry_clip(frames, job)
         ground0 = prior_ground_plane(job.camera_height_m)
     elif job.poses is None:
-        intr, poses, ground0, camera_note = static_camera_clip(frames, job)
+        from aias_augment.scenes.video import static_camera_check
+
+        check = static_camera_check(frames)
+        moving = not check.static
+        if moving:
+            intr, poses, camera_note = monocular_odometry_clip(frames, job, check)
+            ground0 = prior_ground_plane(job.camera_height_m)
+        else:
+            intr, poses, ground0, camera_note = static_camera_clip(frames, job)
     else:
         intr = read_camera(job.camera, w, h, colour=job.colour)
         all_poses = read_cams_from_world(job.poses)
@@ -260,9 +269,7 @@ def augment_clip(job: ClipJob) -> dict:
     cfg = VideoInsertionConfig(
         lookahead_frames=last if job.lookahead_frames is None else min(job.lookahead_frames, last),
         lateral_offset_m=job.lateral_offset_m,
-        contact="lookahead"
-        if job.poses is not None or job.stereo_right is not None
-        else "sampled",  # a static camera goes nowhere: a seen ground
+        contact="lookahead" if moving else "sampled",  # a static camera goes nowhere: a seen ground
         flow_refine=job.flow_refine,
         speed_m_per_frame=job.object_speed_mps / job.fps,
         move_after_frames=round(job.object_start_s * job.fps),
@@ -444,6 +451,37 @@ def stereo_odometry_clip(frames: list[np.ndarray], job: ClipJob):
     return intr, motion.cams_from_world, note
 
 
+def monocular_odometry_clip(frames: list[np.ndarray], job: ClipJob, check):
+    """(K, cams_from_world, note) of a moving camera's clip without poses or a right camera: essential-matrix
+    odometry, each step's length from the ground at ``job.camera_height_m`` (``scenes.video``, ``ground_height_m``).
+    It needs the camera (``--camera``): a focal length guessed from one frame would bend every step."""
+    from aias_augment.scenes.video import VideoMotionConfig, estimate_video_motion
+
+    if job.camera is None:
+        raise ValueError(
+            f"{job.input}: {check.reason()}; a moving camera needs --camera (then its poses are estimated from the "
+            "frames, scaled by --camera-height), or --poses, or --stereo-right"
+        )
+    h, w = frames[0].shape[:2]
+    intr = read_camera(job.camera, w, h, colour=job.colour)
+    motion = estimate_video_motion(
+        frames,
+        np.random.default_rng([job.seed, 3]),
+        intrinsics=intr,
+        cfg=VideoMotionConfig(ground_height_m=job.camera_height_m),
+    )
+    failed = [s for s in motion.status if s != "moving"]
+    steps = motion.meta["ground_steps_m"]
+    note = (
+        f"given camera; {check.reason()}: poses by monocular odometry, steps scaled by the ground "
+        f"{job.camera_height_m} m below ({len(steps)} of {len(frames) - 1} steps measured on the ground, "
+        f"median {float(np.median(steps)) if steps else float('nan'):.2f} m)"
+    )
+    if failed:
+        log.warning("%s: monocular odometry kept the previous pose in %d steps (%s)", job.input, len(failed), failed[0])
+    return intr, motion.cams_from_world, note
+
+
 def static_camera_clip(frames: list[np.ndarray], job: ClipJob):
     """(intrinsics, identity poses, ground in the camera, note) of a clip without poses, which must come from a static
     camera (:func:`aias_augment.scenes.video.static_camera_check`; a moving one raises, saying how far it moved).
@@ -455,7 +493,7 @@ def static_camera_clip(frames: list[np.ndarray], job: ClipJob):
 
     check = static_camera_check(frames)
     if not check.static:
-        raise ValueError(f"{job.input}: {check.reason()}; a moving camera needs --camera and --poses (one per frame)")
+        raise ValueError(f"{job.input}: {check.reason()}; not a static camera")
     h, w = frames[0].shape[:2]
     given = None if job.camera is None else read_camera(job.camera, w, h, colour=job.colour)
     cam = estimate_camera_from_image(frames[0], np.random.default_rng([job.seed, 1]), intrinsics=given)

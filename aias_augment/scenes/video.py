@@ -3,7 +3,13 @@
 Per consecutive pair: Shi-Tomasi corners tracked with pyramidal Lucas-Kanade (forward-backward check), the
 essential matrix by RANSAC (OpenCV, seeded through ``cv2.setRNGSeed`` from the caller's generator) and
 ``recoverPose``. Monocular translation has no scale: each step gets ``step_scale_m`` (a speed prior, or 1), so
-poses are metric only up to that prior.
+poses are metric only up to that prior; or, with ``ground_height_m`` (the camera's height above the road, e.g. the
+1.65 m of a car's roof camera), each step's length comes from the ground: the pair's tracked points on the lane
+ahead (pixels whose ray meets a level ground at that height within ``ground_lane_half_width_m`` of the camera's
+path, ``ground_lane_depth_m`` away) are triangulated with the unit step, a plane
+is fitted to them by RANSAC (its normal within ``ground_max_tilt_deg`` of the camera's up), and the step is
+``ground_height_m`` over the plane's distance from the camera; the median over the ``ground_scale_window`` pairs
+centred on each pair smooths the per-pair estimates (a pair without a ground fit takes its neighbours').
 Pairs with a median flow below ``static_flow_px`` are treated as a static camera (identity motion), which is also
 what a tripod video (e.g. ``$AIAS_DATA/video/vtest.avi``) gives.
 K is given, or estimated from the first frame by :func:`aias_augment.scenes.single_image.estimate_camera_from_image`.
@@ -49,6 +55,19 @@ class VideoMotionConfig:
     static_flow_px: float = 0.5
     min_inliers: int = 30
     step_scale_m: float = 1.0  # translation length per frame (unknown in monocular video)
+    ground_height_m: float | None = None  # the camera's height above the ground: steps scaled from it (module doc)
+    ground_scale_window: int = 5
+    ground_max_tilt_deg: float = 20.0
+    ground_min_points: int = 20
+    ground_ransac_iterations: int = 200
+    ground_lane_half_width_m: float = 1.5
+    ground_lane_depth_m: tuple[float, float] = (4.0, 25.0)
+
+    def __post_init__(self):
+        if self.ground_height_m is not None and not (np.isfinite(self.ground_height_m) and self.ground_height_m > 0):
+            raise ValueError(f"ground_height_m must be positive, got {self.ground_height_m}")
+        if self.ground_scale_window < 1:
+            raise ValueError(f"ground_scale_window must be >= 1, got {self.ground_scale_window}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,17 +167,125 @@ def estimate_video_motion(
     h, w = np.asarray(frames[0]).shape[:2]
     if (intrinsics.width, intrinsics.height) != (w, h):
         raise ValueError("intrinsics do not match the frame size")
-    poses = [np.eye(4)]
-    inliers, status = [], []
+    steps, inliers, status, measured = [], [], [], []
     for a, b in zip(frames[:-1], frames[1:]):
         p0, p1 = track_pair(a, b, cfg)
         T, n, st = relative_pose(p0, p1, intrinsics, rng, cfg)
-        if st == "moving":
-            T = make_rigid(T[:3, :3], T[:3, 3] * cfg.step_scale_m)
-        poses.append(T @ poses[-1])
+        g = None
+        if st == "moving" and cfg.ground_height_m is not None:
+            unit_height = ground_distance_unit_step(a, b, T, intrinsics, rng, cfg)
+            g = None if unit_height is None else cfg.ground_height_m / unit_height
+        steps.append(T)
+        measured.append(g)
         inliers.append(n)
         status.append(st)
-    return VideoMotion(intrinsics, np.stack(poses), tuple(inliers), tuple(status), focal_source)
+    meta = {}
+    if cfg.ground_height_m is not None:
+        lengths = ground_step_lengths(measured, cfg.ground_scale_window)
+        if lengths is None:
+            status = [s if s != "moving" else "failed: no ground plane measured in the clip" for s in status]
+        meta = {"ground_steps_m": [round(x, 4) for x in measured if x is not None]}
+    poses = [np.eye(4)]
+    for k, (T, st) in enumerate(zip(steps, status)):
+        if st == "moving":
+            length = cfg.step_scale_m if cfg.ground_height_m is None else lengths[k]
+            T = make_rigid(T[:3, :3], T[:3, 3] * length)
+        else:
+            T = np.eye(4)
+        poses.append(T @ poses[-1])
+    return VideoMotion(intrinsics, np.stack(poses), tuple(inliers), tuple(status), focal_source, meta)
+
+
+def ground_step_lengths(measured: list, window: int) -> list[float] | None:
+    """Per pair, the median of the ground-measured step lengths of the ``window`` pairs centred on it (the whole
+    clip is known; a pair measures its own step only roughly), widened until it holds one; None if none was
+    measured."""
+    got = np.array([np.nan if m is None else m for m in measured], float)
+    if not np.isfinite(got).any():
+        return None
+    out = []
+    for k in range(len(got)):
+        half = window // 2
+        while True:
+            part = got[max(0, k - half) : k + half + 1]
+            if np.isfinite(part).any():
+                out.append(float(np.nanmedian(part)))
+                break
+            half += 1
+    return out
+
+
+def ground_distance_unit_step(
+    img0: np.ndarray,
+    img1: np.ndarray,
+    cam1_from_cam0: np.ndarray,
+    intrinsics: Intrinsics,
+    rng: np.random.Generator,
+    cfg: VideoMotionConfig = VideoMotionConfig(),
+) -> float | None:
+    """Distance from camera 0 to the ground plane in units of the step ``cam1_from_cam0`` (unit translation):
+    corners of the lane ahead in ``img0`` (found there with a low quality threshold: a road's texture is faint)
+    tracked into ``img1`` and triangulated, a plane fitted by RANSAC with its normal within
+    ``cfg.ground_max_tilt_deg`` of the camera's up (-y), refitted to its inliers. None without enough points."""
+    K = intrinsics.K
+    # the lane ahead: pixels whose ray meets a level ground ``ground_height_m`` below within the lane's half width
+    # and the distance range (kerbs, pavements and parked cars beside the lane stay out)
+    vv, uu = np.mgrid[0 : intrinsics.height, 0 : intrinsics.width].astype(np.float64)
+    dv = vv - intrinsics.cy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(dv > 1.0, intrinsics.fy * float(cfg.ground_height_m or 1.0) / dv, np.inf)
+    x = (uu - intrinsics.cx) * z / intrinsics.fx
+    near, far = cfg.ground_lane_depth_m
+    lane = ((z >= near) & (z <= far) & (np.abs(x) <= cfg.ground_lane_half_width_m)).astype(np.uint8)
+    g0, g1 = _grey(img0), _grey(img1)
+    c = cv2.goodFeaturesToTrack(g0, 400, 0.001, 5, mask=lane)
+    if c is None or len(c) < cfg.ground_min_points:
+        return None
+    pts0 = c.reshape(-1, 2).astype(np.float32)
+    pts1, ok = _lk(g0, g1, pts0, cfg.fb_max_err_px)
+    pts0, pts1 = pts0[ok].astype(np.float64), pts1[ok].astype(np.float64)
+    if len(pts0) < cfg.ground_min_points:
+        return None
+    region = np.ones(len(pts0), bool)
+    P0 = K @ np.eye(3, 4)
+    P1 = K @ cam1_from_cam0[:3]
+    X = cv2.triangulatePoints(P0, P1, pts0[region].T, pts1[region].T)
+    X = (X[:3] / X[3]).T
+    X1 = X @ cam1_from_cam0[:3, :3].T + cam1_from_cam0[:3, 3]
+    ok = (X[:, 2] > 0) & (X1[:, 2] > 0) & (X[:, 1] > 0)  # in front of both cameras, below the camera centre
+    for P, q in ((P0, pts0[region]), (P1, pts1[region])):
+        xh = np.c_[X, np.ones(len(X))] @ P.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ok &= np.linalg.norm(xh[:, :2] / xh[:, 2:3] - q, axis=1) < 1.0
+    X = X[ok]
+    if len(X) < cfg.ground_min_points:
+        return None
+    up = np.array([0.0, -1.0, 0.0])
+    cos_tilt = np.cos(np.radians(cfg.ground_max_tilt_deg))
+    tol = 0.02 * float(np.median(np.linalg.norm(X, axis=1)))  # 2 % of the points' distance, in unit steps
+    best = None
+    for _ in range(cfg.ground_ransac_iterations):
+        s = X[rng.choice(len(X), 3, replace=False)]
+        n = np.cross(s[1] - s[0], s[2] - s[0])
+        if np.linalg.norm(n) < 1e-12:
+            continue
+        n = n / np.linalg.norm(n)
+        n = n if n @ up > 0 else -n
+        if n @ up < cos_tilt:
+            continue
+        d = -float(n @ s[0])
+        inl = np.abs(X @ n + d) < tol
+        if best is None or inl.sum() > best.sum():
+            best = inl
+    if best is None or best.sum() < cfg.ground_min_points:
+        return None
+    Q = X[best]
+    c = Q.mean(axis=0)
+    n = np.linalg.svd(Q - c)[2][-1]
+    n = n if n @ up > 0 else -n
+    if n @ up < cos_tilt:
+        return None
+    return float(abs(n @ c))
 
 
 @dataclass(frozen=True)

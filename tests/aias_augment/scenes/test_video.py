@@ -64,3 +64,28 @@ def test_stereo_odometry_recovers_a_synthetic_drive_metrically():
         estimate_stereo_motion(lefts, rights[:-1], K, 0.5, np.random.default_rng(0))
     with pytest.raises(ValueError, match="baseline"):
         estimate_stereo_motion(lefts, rights, K, 0.0, np.random.default_rng(0))
+
+
+@pytest.mark.skipif(not KITTI.exists(), reason="KITTI data not available")
+def test_monocular_steps_scaled_by_the_ground_match_the_published_step_lengths():
+    """KITTI 06 (51 frames), the camera 1.65 m above the road: the steps measured on the lane ahead have a median
+    within 5 % of the published poses' (1.2 m per frame), without a speed prior. Single pairs scatter (0.99-1.56 m
+    over the first ten, whose median is 12 % short), hence the running median. A bad height is refused."""
+    from aias_augment.core.geometry import invert_rigid
+    from aias_augment.scenes.kitti import open_kitti_sequence
+    from aias_augment.scenes.video import VideoMotionConfig
+
+    seq = open_kitti_sequence(KITTI)
+    idx = list(range(len(seq.left_paths)))
+    m = estimate_video_motion(
+        [seq.frame(i).image for i in idx],
+        np.random.default_rng(0),
+        intrinsics=seq.intrinsics,
+        cfg=VideoMotionConfig(ground_height_m=1.65),
+    )
+    centres = np.array([invert_rigid(seq.cam_from_world(i))[:3, 3] for i in idx])
+    true_step = float(np.median(np.linalg.norm(np.diff(centres, axis=0), axis=1)))
+    steps = m.meta["ground_steps_m"]
+    assert len(steps) >= 30 and abs(np.median(steps) / true_step - 1) < 0.05, (steps, true_step)
+    with pytest.raises(ValueError, match="ground_height_m"):
+        VideoMotionConfig(ground_height_m=-1.0)
