@@ -1,9 +1,10 @@
 """Real vs lifted vs rendered cones, side by side at the same height, and the lifted assets inserted into roads.
 
 For TraCon train cone instances: the photo's crop | the lifted surface of revolution rendered from its source view
-(albedo under a fixed grey light) | the same turned 90 deg | the shared cone mesh at the same pixel height; the
-silhouette IoU of each source-view render with its cutout; then six empty TraCon roads with lifted cones inserted by
-the pipeline (fast preset) beside the same roads with the shared mesh.
+(albedo under a fixed grey light) | the same turned 90 deg | the shared cone mesh | a member of the procedural cone
+family (the presets' cones), all at the same pixel height; the silhouette IoU of each source-view render with its
+cutout; then six empty TraCon roads with lifted cones inserted by the pipeline (fast preset) beside the same roads
+with the shared mesh.
 
     python scripts/lift_contact_sheet.py --images 40 --out results/lift
 """
@@ -22,6 +23,7 @@ from aias_augment.apply.render import linear_to_srgb, render_object
 from aias_augment.assets.asset import default_asset
 from aias_augment.assets.bank.lift import LiftConfig, LiftedAssets, cut_out, lift_instances, profile_iou
 from aias_augment.assets.bank.lift_view import source_view
+from aias_augment.assets.bank.procedural import procedural_asset_from_seed
 from aias_augment.core.config import data_root
 from detection_eval.data import load_yolo_dir, read_image_rgb
 
@@ -101,9 +103,22 @@ def main() -> None:
                 turned = render_object(a, _turned(T, 90), intr, ssaa=2)
                 scale = a.height_m / mesh_cone.height_m
                 mesh = render_object(mesh_cone.scaled(scale), T, intr, ssaa=2)
-                rows.append(np.hstack([_cell(crop), _cell(_shade(lay_hi)), _cell(_shade(turned)), _cell(_shade(mesh))]))
-    head = np.full((28, 4 * CELL, 3), 255, np.uint8)
-    for i, t in enumerate(("real (mask outline)", "lifted, source view", "lifted, turned 90 deg", "shared mesh")):
+                fam = procedural_asset_from_seed("traffic_cone", len(rows))  # the presets' family, one per row
+                fam = render_object(fam.scaled(a.height_m / fam.height_m), T, intr, ssaa=2)
+                rows.append(
+                    np.hstack(
+                        [
+                            _cell(crop),
+                            _cell(_shade(lay_hi)),
+                            _cell(_shade(turned)),
+                            _cell(_shade(mesh)),
+                            _cell(_shade(fam)),
+                        ]
+                    )
+                )
+    head = np.full((28, 5 * CELL, 3), 255, np.uint8)
+    titles = ("real (mask outline)", "lifted, source view", "lifted, turned 90 deg", "shared mesh", "procedural family")
+    for i, t in enumerate(titles):
         cv2.putText(head, t, (i * CELL + 4, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.imwrite(str(out / "contact_sheet.png"), np.vstack([head] + rows)[..., ::-1])
 
