@@ -16,6 +16,8 @@ PRESETS = ("fast", "balanced", "accurate")
 
 #: ``harmonize.api.METHODS`` (tests/aias_augment/pipeline/test_config.py checks they agree).
 HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
+#: The edge-blend modes of ``apply/layer_stages/edge_blend.MODES`` (tests/aias_augment/pipeline/test_config.py).
+EdgeBlendMode = Literal["rendered", "hard", "feather"]
 
 
 # Every field is checked at construction against its type hint and these bounds (config.checked_config): a wrong
@@ -75,7 +77,7 @@ class InsertionConfig:
     # Edge blending (apply/layer_stages/edge_blend.py): each object's boundary drawn uniformly from these modes
     # ("rendered", "hard", "feather", the last with a Gaussian sigma uniform in ``edge_feather_px``), so no one
     # boundary predicts the label; (): off (the rendered coverage).
-    edge_blend: tuple[str, ...] = ()
+    edge_blend: tuple[EdgeBlendMode, ...] = ()
     edge_feather_px: tuple[float, float] = (0.5, 2.0)
     # Where the objects come from: "default": the shared-data model per category, the bank for others; "bank": all
     # from the bank; "procedural": a new seeded procedural asset per object where the category has a generator
@@ -133,12 +135,6 @@ class InsertionConfig:
         if 0 < self.analysis_max_width < 64:
             raise ConfigValueError(
                 ("InsertionConfig", "analysis_max_width"), f"must be 0 (off) or >= 64, got {self.analysis_max_width}"
-            )
-        from aias_augment.apply.layer_stages.edge_blend import MODES
-
-        if set(self.edge_blend) - set(MODES):
-            raise ConfigValueError(
-                ("InsertionConfig", "edge_blend"), f"unknown modes {sorted(set(self.edge_blend) - set(MODES))}: {MODES}"
             )
         if self.decoys[1] > 0 and not self.decoy_categories:
             raise ConfigValueError(("InsertionConfig", "decoy_categories"), "must not be empty when decoys are drawn")
