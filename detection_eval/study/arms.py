@@ -39,6 +39,9 @@ ARM_FLAGS: dict[str, dict | None] = {
     # The labelled objects of an image stand together as they do on roads: a row along the lane or across it, a
     # cluster, or each on its own (one of the three per image, InsertionConfig.arrangement "mixed").
     "inserted_arranged": {"arrangement": "mixed"},
+    # The defaults without the exposure anchor (LightingConfig.ground_albedo_range off): what the anchor does to a
+    # detector, against ``inserted``.
+    "inserted_no_anchor": {"lighting_cfg": {"ground_albedo_range": None}},
     # Each object's boundary drawn from three blend modes (as rendered, hard, feathered; InsertionConfig.edge_blend),
     # so that no one kind of paste edge is the sign of a cone (Cut, Paste and Learn's blending invariance).
     "inserted_edges": {"edge_blend": ("rendered", "hard", "feather")},
