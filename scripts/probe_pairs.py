@@ -36,6 +36,7 @@ ARMS = [
     "inserted_anchor",
     "inserted_filtered",
     "inserted_edges",
+    "inserted_no_anchor",
 ]
 PAIRS = [
     ("inserted", "original"),
@@ -82,6 +83,9 @@ PAIRS = [
     ("inserted_edges", "inserted_anchor"),
     ("inserted_filtered", "original"),
     ("inserted_edges", "original"),
+    ("inserted_no_anchor", "inserted_anchor"),
+    ("inserted_no_anchor", "inserted"),
+    ("inserted_no_anchor", "original"),
 ]
 
 
