@@ -257,6 +257,13 @@ def test_objects_that_would_stand_in_one_spot_are_drawn_apart(tmp_path):
     assert apart > 0.2 + 0.1  # cones' bases are under 0.5 m wide: half of each plus the margin
 
 
+def _amodal_boxes_by_frame(out) -> dict:
+    """{frame_id: amodal box} of a clip run's COCO-video file."""
+    coco = COCO(str(out / "annotations.json"))
+    frame_of = {im["id"]: im["frame_id"] for im in coco.dataset["images"]}
+    return {frame_of[a["image_id"]]: a["amodal_bbox"] for a in coco.dataset["annotations"]}
+
+
 def test_topple_knocks_the_object_over_where_it_stands(clip_run, tmp_path):
     """--topple 0.5 at 10 fps: the same object at the same world pose as the standing run (same seed) falls over
     five frames from a frame drawn in the plan (recorded). Before the fall its boxes are the standing run's; once it
@@ -270,11 +277,7 @@ def test_topple_knocks_the_object_over_where_it_stands(clip_run, tmp_path):
     fall = rec2["objects"][0]["topple"]
     start, rest = fall["start"], fall["rest_angle"]
     assert fall["frames"] == 5 and rec1["objects"][0]["topple"] is None
-    boxes = []
-    for o in (out1, out2):
-        coco = COCO(str(o / "annotations.json"))
-        frame_of = {im["id"]: im["frame_id"] for im in coco.dataset["images"]}
-        boxes.append({frame_of[a["image_id"]]: a["amodal_bbox"] for a in coco.dataset["annotations"]})
+    boxes = [_amodal_boxes_by_frame(o) for o in (out1, out2)]
     standing, fallen = boxes
     for f in range(start + 1):
         if f in standing:
@@ -297,11 +300,7 @@ def test_a_stereo_clip_without_poses_gets_them_from_stereo_odometry(clip_run, tm
     rec1, rec2 = (json.loads((o / "record.json").read_text()) for o in (out1, out2))
     assert "stereo odometry" in rec2["modules"]["camera"] and "7 of 7 steps" in rec2["modules"]["camera"]
     assert np.linalg.norm(np.subtract(rec2["contact_in_world"], rec1["contact_in_world"])) < 0.15
-    boxes = []
-    for o in (out1, out2):
-        coco = COCO(str(o / "annotations.json"))
-        frame_of = {im["id"]: im["frame_id"] for im in coco.dataset["images"]}
-        boxes.append({frame_of[a["image_id"]]: a["amodal_bbox"] for a in coco.dataset["annotations"]})
+    boxes = [_amodal_boxes_by_frame(o) for o in (out1, out2)]
     common = set(boxes[0]) & set(boxes[1])
     assert len(common) >= N // 2
     for f in common:
@@ -324,11 +323,7 @@ def test_a_moving_clip_with_a_camera_and_no_poses_gets_them_from_monocular_odome
     rec1, rec2 = (json.loads((o / "record.json").read_text()) for o in (out1, out2))
     assert "monocular odometry" in rec2["modules"]["camera"] and "on the ground" in rec2["modules"]["camera"]
     assert np.linalg.norm(np.subtract(rec2["contact_in_world"], rec1["contact_in_world"])) < 0.15 * 8.4
-    boxes = []
-    for o in (out1, out2):
-        coco = COCO(str(o / "annotations.json"))
-        frame_of = {im["id"]: im["frame_id"] for im in coco.dataset["images"]}
-        boxes.append({frame_of[a["image_id"]]: a["amodal_bbox"] for a in coco.dataset["annotations"]})
+    boxes = [_amodal_boxes_by_frame(o) for o in (out1, out2)]
     common = set(boxes[0]) & set(boxes[1])
     assert len(common) >= N // 2
 
