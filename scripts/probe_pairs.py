@@ -37,6 +37,7 @@ ARMS = [
     "inserted_filtered",
     "inserted_edges",
     "inserted_no_anchor",
+    "inserted_strong_contact",
 ]
 PAIRS = [
     ("inserted", "original"),
@@ -86,6 +87,10 @@ PAIRS = [
     ("inserted_no_anchor", "inserted_anchor"),
     ("inserted_no_anchor", "inserted"),
     ("inserted_no_anchor", "original"),
+    ("inserted_strong_contact", "inserted"),
+    ("inserted_strong_contact", "inserted_procedural"),
+    ("inserted", "inserted_procedural"),
+    ("inserted_strong_contact", "original"),
 ]
 
 

@@ -45,6 +45,10 @@ ARM_FLAGS: dict[str, dict | None] = {
     # Each object's boundary drawn from three blend modes (as rendered, hard, feathered; InsertionConfig.edge_blend),
     # so that no one kind of paste edge is the sign of a cone (Cut, Paste and Learn's blending invariance).
     "inserted_edges": {"edge_blend": ("rendered", "hard", "feather")},
+    # The defaults with the contact shadow at 0.6 instead of 0.15 (InsertionConfig.contact_shadow_strength): 0.15 is
+    # nearest the real cones' base darkening (results/lighting/contact_shadows); this arm asks what a detector takes
+    # from a darker footprint.
+    "inserted_strong_contact": {"contact_shadow_strength": 0.6},
     # The inserted image cropped, without resampling, around its largest object so that object's box height matches
     # a height drawn from the real train boxes (see closeup_crop): a level road camera ~1.65 m up cannot see a cone
     # standing on the ground taller than ~0.3 of the frame, while a third of TraCon's real cones are.
