@@ -38,6 +38,8 @@ ARMS = [
     "inserted_edges",
     "inserted_no_anchor",
     "inserted_strong_contact",
+    "naive_paste_procedural_at_82ec856",
+    "copy_paste_at_43dcde4",
 ]
 PAIRS = [
     ("inserted", "original"),
@@ -91,6 +93,14 @@ PAIRS = [
     ("inserted_strong_contact", "inserted_procedural"),
     ("inserted", "inserted_procedural"),
     ("inserted_strong_contact", "original"),
+    ("inserted", "naive_paste"),
+    ("inserted_procedural", "naive_paste_procedural_at_82ec856"),
+    ("naive_paste_procedural_at_82ec856", "naive_paste"),
+    ("copy_paste_at_43dcde4", "naive_paste"),
+    ("lifted", "copy_paste_at_43dcde4"),
+    ("inserted_gazebo_cone", "copy_paste_at_43dcde4"),
+    ("naive_paste_procedural", "naive_paste_procedural_at_82ec856"),
+    ("copy_paste", "copy_paste_at_43dcde4"),
 ]
 
 
