@@ -1,8 +1,10 @@
 #!/usr/bin/env python
 """Per-seed val AP50:95 and paired differences of chosen arm pairs from a study's run metrics (markdown).
 
-python scripts/probe_pairs.py results/study_probe/run_metrics
+python scripts/probe_pairs.py results/study_probe/run_metrics results/study_probe_n200/run_metrics
 python scripts/probe_pairs.py results/study_core/run_metrics
+
+Several folders are read as one study (the same seeds and splits, e.g. an amount axis run from its own config).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ ARMS = [
     "inserted_gazebo_cone",
     "inserted_decoys",
     "naive_paste_procedural",
+    "naive_paste_procedural n=200",
     "inserted_procedural",
     "inserted_arranged",
     "inserted_anchor",
@@ -52,6 +55,8 @@ PAIRS = [
     ("inserted_online", "inserted"),
     ("inserted n=200", "original"),
     ("inserted n=200", "inserted"),
+    ("inserted n=200", "naive_paste_procedural n=200"),
+    ("naive_paste_procedural n=200", "naive_paste_procedural"),
     ("naive_paste_procedural", "original"),
     ("lifted", "naive_paste"),
     ("copy_paste", "naive_paste"),
@@ -104,9 +109,9 @@ PAIRS = [
 ]
 
 
-def main(folder: str) -> int:
+def main(folders: list[str]) -> int:
     ap: dict[tuple[str, int], dict[str, float]] = {}
-    runs = [json.loads(p.read_text()) for p in sorted(Path(folder).glob("*.json"))]
+    runs = [json.loads(p.read_text()) for folder in folders for p in sorted(Path(folder).glob("*.json"))]
     amounts: dict[str, set] = {}
     for r in runs:
         amounts.setdefault(r["arm"], set()).add(r.get("amount"))
@@ -148,4 +153,4 @@ def main(folder: str) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main(sys.argv[1] if len(sys.argv) > 1 else "results/study_probe/run_metrics"))
+    raise SystemExit(main(sys.argv[1:] or ["results/study_probe/run_metrics"]))
