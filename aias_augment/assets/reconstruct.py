@@ -5,7 +5,9 @@
    is inside the hull when it is inside every silhouette, so the field is the maximum over the views; its zero
    level, found by marching cubes (scikit-image), is the hull's surface with sub-voxel accuracy. The grid is first
    coarse over the box the caller gives, then fine over the occupied part.
-2. Cleaned: the largest connected component, holes filled, oriented outward, resting on z = 0.
+2. Cleaned: the largest connected component, holes filled, oriented outward, resting on z = 0; with
+   ``max_faces``, decimated by quadric error (``fast-simplification``, through trimesh) before texturing, so the
+   colours are sampled on the vertices the asset keeps.
 3. :func:`texture_from_views`: each vertex takes the colours of the views that see it (the hull's own depth,
    rendered by :mod:`aias_augment.apply.render`, decides visibility), weighted by how squarely each view faces it.
 
@@ -49,12 +51,44 @@ class View:
             raise ValueError("View: empty mask (the object is not in this view)")
 
 
-@checked_config({"resolution": "[16, 512]", "coarse_resolution": "[8, 128]", "padding_voxels": "[1, 16]"})
+@checked_config(
+    {"resolution": "[16, 512]", "coarse_resolution": "[8, 128]", "padding_voxels": "[1, 16]", "max_faces": "[100, inf)"}
+)
 @dataclass(frozen=True)
 class ReconstructConfig:
     resolution: int = 128  # voxels along the longest side of the occupied box
     coarse_resolution: int = 32  # first pass over the search box
     padding_voxels: int = 3
+    # Quadric decimation of the cleaned hull to at most this many faces (None: marching cubes' own, ~10^5 at 128).
+    max_faces: int | None = None
+
+
+def decimate(mesh, max_faces: int):
+    """``mesh`` reduced to at most ``max_faces`` faces by quadric error (Garland-Heckbert, ``fast-simplification``),
+    then cleaned like the hull. A closed hull stays closed: holes a collapse opens are filled. The decimator can
+    stop short of its target or open the surface at one aggressiveness and not at another, so three are tried
+    (7, its default, then 5 and 9), the first result that is closed and within budget kept. ``ValueError`` if none
+    is: an open asset casts wrong shadows, and the budget is the caller's."""
+    import trimesh
+
+    if len(mesh.faces) <= max_faces:
+        return mesh
+    tried = []
+    for aggression in (7, 5, 9):
+        out = mesh.simplify_quadric_decimation(face_count=int(max_faces), aggression=aggression)
+        parts = out.split(only_watertight=False)
+        if len(parts) > 1:
+            out = max(parts, key=lambda p: p.area)
+        if mesh.is_watertight and not out.is_watertight:
+            trimesh.repair.fill_holes(out)
+        closed = out.is_watertight or not mesh.is_watertight
+        if closed and len(out.faces) <= max_faces:
+            trimesh.repair.fix_normals(out)
+            if out.is_watertight and out.volume < 0:
+                out.invert()
+            return out
+        tried.append(f"{len(out.faces)} faces, {'closed' if out.is_watertight else 'open'}")
+    raise ValueError(f"decimate: no closed hull within {max_faces} faces ({'; '.join(tried)}); allow more faces")
 
 
 def _signed_distance_px(mask: np.ndarray) -> np.ndarray:
@@ -224,6 +258,8 @@ def reconstruct(
     units are kept unless ``height_m`` is given (then the asset is scaled to it). ``meta`` records the number of
     views, the grid and the share of vertices some view coloured."""
     hull = visual_hull(views, search_lo, search_hi, cfg, ground_z)
+    if cfg.max_faces is not None:
+        hull = decimate(hull, cfg.max_faces)
     textured, seen = texture_from_views(hull, views)
     asset = Asset(
         name,
@@ -232,7 +268,12 @@ def reconstruct(
         f"reconstruction from {len(views)} posed views",
         "",
         False,
-        {"views": len(views), "resolution": cfg.resolution, "coloured_vertex_share": round(seen, 4)},
+        {
+            "views": len(views),
+            "resolution": cfg.resolution,
+            "faces": len(hull.faces),
+            "coloured_vertex_share": round(seen, 4),
+        },
     )
     if height_m is not None:
         asset = asset.scaled(float(height_m) / asset.height_m)

@@ -227,7 +227,7 @@ def _cmd_reconstruct(a) -> int:
     t0 = time.perf_counter()
     try:
         photos, ground_z = read_views(a.views)
-        cfg = ReconstructConfig(resolution=a.resolution)
+        cfg = ReconstructConfig(resolution=a.resolution, max_faces=a.max_faces)
         if photos[0][3] is None:  # no poses: structure from motion, scaled to the given height
             if a.height_m is None:
                 raise ValueError("views without cam_from_object need --height-m (SfM has no metric scale)")
@@ -257,7 +257,7 @@ def _cmd_reconstruct(a) -> int:
     except (ValueError, OSError, ImportError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    keys = ("resolution", "coloured_vertex_share", "registered_views", "sfm_reprojection_error_px")
+    keys = ("resolution", "faces", "coloured_vertex_share", "registered_views", "sfm_reprojection_error_px")
     entry = add_to_bank(
         a.out,
         asset,
@@ -337,6 +337,12 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")
     s.add_argument("--height-m", type=float, default=None, help="scale to this height (default: the poses' metres)")
     s.add_argument("--resolution", type=int, default=128, help="voxels along the longest side")
+    s.add_argument(
+        "--max-faces",
+        type=int,
+        default=None,
+        help="decimate the hull to at most this many faces before texturing (quadric error; default: keep all)",
+    )
     a = p.parse_args(argv)
     if a.cmd == "deform" and a.count < 1:
         p.error("--count >= 1 please")
