@@ -10,6 +10,8 @@
    colours are sampled on the vertices the asset keeps.
 3. :func:`texture_from_views`: each vertex takes the colours of the views that see it (the hull's own depth,
    rendered by :mod:`aias_augment.apply.render`, decides visibility), weighted by how squarely each view faces it.
+   With ``texture_px``, a UV atlas (``xatlas``) is baked instead: each texel's surface point is coloured the same
+   way, so the colour detail no longer depends on how many vertices the (decimated) hull keeps.
 
 Without poses, :func:`reconstruct_unposed` estimates them by structure from motion (:mod:`aias_augment.assets.sfm`)
 and leaves out the views that the others contradict (:func:`consistent_views`: a mis-registered view would carve
@@ -52,7 +54,13 @@ class View:
 
 
 @checked_config(
-    {"resolution": "[16, 512]", "coarse_resolution": "[8, 128]", "padding_voxels": "[1, 16]", "max_faces": "[100, inf)"}
+    {
+        "resolution": "[16, 512]",
+        "coarse_resolution": "[8, 128]",
+        "padding_voxels": "[1, 16]",
+        "max_faces": "[100, inf)",
+        "texture_px": "[16, 8192]",
+    }
 )
 @dataclass(frozen=True)
 class ReconstructConfig:
@@ -61,6 +69,8 @@ class ReconstructConfig:
     padding_voxels: int = 3
     # Quadric decimation of the cleaned hull to at most this many faces (None: marching cubes' own, ~10^5 at 128).
     max_faces: int | None = None
+    # A texture atlas of this many texels a side baked from the views (xatlas UVs); None: vertex colours.
+    texture_px: int | None = None
 
 
 def decimate(mesh, max_faces: int):
@@ -197,16 +207,16 @@ def visual_hull(
     return mesh
 
 
-def texture_from_views(mesh, views: list[View], ssaa: int = 1):
-    """``mesh`` with vertex colours from the views that see each vertex (visibility by the mesh's own rendered
-    depth; weight cos^2 of the angle between the normal and the direction to the camera)."""
+def _colours_from_views(points, normals, mesh, views: list[View], ssaa: int = 1):
+    """Colour of each surface point (``points``, ``normals``: (N, 3), object frame) from the views that see it:
+    visibility by ``mesh``'s own rendered depth, weight cos^2 of the angle between the normal and the direction to
+    the camera. Returns (N, 3) float sRGB colours and the (N,) mask of points some view saw."""
     import trimesh
 
     from aias_augment.apply.render import render_object
 
     plain = Asset("hull", "object", (trimesh.Trimesh(mesh.vertices, mesh.faces, process=False),), "reconstruction")
-    V = np.asarray(mesh.vertices, float)
-    N = np.asarray(mesh.vertex_normals, float)
+    V, N = np.asarray(points, float), np.asarray(normals, float)
     acc = np.zeros((len(V), 3))
     wsum = np.zeros(len(V))
     for v in views:
@@ -236,11 +246,85 @@ def texture_from_views(mesh, views: list[View], ssaa: int = 1):
     seen = wsum > 0
     colours = np.full((len(V), 3), 128.0)
     colours[seen] = acc[seen] / wsum[seen, None]
+    return colours, seen
+
+
+def texture_from_views(mesh, views: list[View], ssaa: int = 1):
+    """``mesh`` with vertex colours from the views that see each vertex (:func:`_colours_from_views`). The colour
+    detail is the vertices' spacing: a decimated hull keeps its shape but blurs its colours (use
+    :func:`texture_atlas_from_views` for those)."""
+    import trimesh
+
+    colours, seen = _colours_from_views(mesh.vertices, mesh.vertex_normals, mesh, views, ssaa)
     out = mesh.copy()
     out.visual = trimesh.visual.ColorVisuals(
-        out, vertex_colors=np.c_[np.clip(colours + 0.5, 0, 255).astype(np.uint8), np.full(len(V), 255, np.uint8)]
+        out, vertex_colors=np.c_[np.clip(colours + 0.5, 0, 255).astype(np.uint8), np.full(len(colours), 255, np.uint8)]
     )
     return out, float(seen.mean())
+
+
+def _texel_samples(uv: np.ndarray, faces: np.ndarray, size: int):
+    """Which face covers each texel of a ``size`` x ``size`` atlas (``uv`` per vertex, v up, as glTF reads it) and
+    its barycentric weights there: (rows, cols, face index, (K, 3) weights) of the covered texels."""
+    owner = np.full((size, size), -1, np.int32)
+    px = np.stack([uv[:, 0] * size, (1.0 - uv[:, 1]) * size], axis=1)
+    for f, tri in enumerate(faces):  # OpenCV draws the face's texels with its index
+        cv2.fillConvexPoly(owner, np.round(px[tri] * 16).astype(np.int32), int(f), lineType=cv2.LINE_8, shift=4)
+    rows, cols = np.nonzero(owner >= 0)
+    fi = owner[rows, cols]
+    a, b, c = (px[faces[fi, k]] for k in range(3))
+    p = np.stack([cols + 0.5, rows + 0.5], axis=1)
+    m = np.stack([b - a, c - a], axis=2)  # (K, 2, 2): columns are the edges
+    det = m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
+    det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+    d = p - a
+    l1 = (d[:, 0] * m[:, 1, 1] - d[:, 1] * m[:, 0, 1]) / det
+    l2 = (m[:, 0, 0] * d[:, 1] - m[:, 1, 0] * d[:, 0]) / det
+    bary = np.clip(np.stack([1 - l1 - l2, l1, l2], axis=1), 0.0, 1.0)  # texel centres just outside a drawn edge
+    bary /= bary.sum(axis=1, keepdims=True)
+    return rows, cols, fi, bary
+
+
+def texture_atlas_from_views(mesh, views: list[View], size: int, ssaa: int = 1):
+    """``mesh`` with a ``size`` x ``size`` texture baked from the views: a UV atlas by ``xatlas``, each covered
+    texel's surface point coloured like a vertex (:func:`_colours_from_views`), every other texel (gutters between
+    charts, and texels no view saw) given its nearest seen texel's colour so that filtering at chart edges draws no
+    seam. The colour detail is the atlas's, not the vertices': a decimated hull keeps it."""
+    import trimesh
+    import xatlas
+    from PIL import Image
+
+    vmap, faces, uv = xatlas.parametrize(np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.uint32))
+    verts = np.asarray(mesh.vertices, float)[vmap]
+    rows, cols, fi, bary = _texel_samples(np.asarray(uv, float), faces, size)
+    tri = verts[faces[fi]]  # (K, 3, 3)
+    points = np.einsum("kj,kjd->kd", bary, tri)
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # xatlas keeps each face's winding
+    normals = face_n / np.maximum(np.linalg.norm(face_n, axis=1, keepdims=True), 1e-12)
+    colours, seen = _colours_from_views(points, normals, mesh, views, ssaa)
+    img = np.zeros((size, size, 3), np.float32)
+    valid = np.zeros((size, size), bool)
+    img[rows[seen], cols[seen]] = colours[seen]
+    valid[rows[seen], cols[seen]] = True
+    if not valid.any():
+        img[:] = 128.0
+    else:  # nearest seen texel for the rest (OpenCV's distance transform, labelled by the nearest zero pixel)
+        _, labels = cv2.distanceTransformWithLabels(
+            (~valid).astype(np.uint8), cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL
+        )
+        vr, vc = np.nonzero(valid)
+        lut = np.zeros((labels.max() + 1, 2), np.int64)
+        lut[labels[vr, vc]] = np.stack([vr, vc], axis=1)
+        src = lut[labels[~valid]]
+        img[~valid] = img[src[:, 0], src[:, 1]]
+    image = Image.fromarray(np.clip(img + 0.5, 0, 255).astype(np.uint8))
+    out = trimesh.Trimesh(verts, faces, process=False)
+    material = trimesh.visual.material.PBRMaterial(  # a plain image material would scale the texture by its grey
+        baseColorTexture=image, baseColorFactor=[255, 255, 255, 255], metallicFactor=0.0, roughnessFactor=1.0
+    )
+    out.visual = trimesh.visual.TextureVisuals(uv=np.asarray(uv, float), material=material)
+    covered_seen = float(seen.mean()) if len(seen) else 0.0
+    return out, covered_seen
 
 
 def reconstruct(
@@ -260,7 +344,10 @@ def reconstruct(
     hull = visual_hull(views, search_lo, search_hi, cfg, ground_z)
     if cfg.max_faces is not None:
         hull = decimate(hull, cfg.max_faces)
-    textured, seen = texture_from_views(hull, views)
+    if cfg.texture_px is None:
+        textured, seen = texture_from_views(hull, views)
+    else:
+        textured, seen = texture_atlas_from_views(hull, views, cfg.texture_px)
     asset = Asset(
         name,
         category,
@@ -272,7 +359,8 @@ def reconstruct(
             "views": len(views),
             "resolution": cfg.resolution,
             "faces": len(hull.faces),
-            "coloured_vertex_share": round(seen, 4),
+            "texture_px": cfg.texture_px,
+            ("coloured_vertex_share" if cfg.texture_px is None else "coloured_texel_share"): round(seen, 4),
         },
     )
     if height_m is not None:

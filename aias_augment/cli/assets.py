@@ -227,7 +227,7 @@ def _cmd_reconstruct(a) -> int:
     t0 = time.perf_counter()
     try:
         photos, ground_z = read_views(a.views)
-        cfg = ReconstructConfig(resolution=a.resolution, max_faces=a.max_faces)
+        cfg = ReconstructConfig(resolution=a.resolution, max_faces=a.max_faces, texture_px=a.texture_px)
         if photos[0][3] is None:  # no poses: structure from motion, scaled to the given height
             if a.height_m is None:
                 raise ValueError("views without cam_from_object need --height-m (SfM has no metric scale)")
@@ -257,7 +257,15 @@ def _cmd_reconstruct(a) -> int:
     except (ValueError, OSError, ImportError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    keys = ("resolution", "faces", "coloured_vertex_share", "registered_views", "sfm_reprojection_error_px")
+    keys = (
+        "resolution",
+        "faces",
+        "texture_px",
+        "coloured_vertex_share",
+        "coloured_texel_share",
+        "registered_views",
+        "sfm_reprojection_error_px",
+    )
     entry = add_to_bank(
         a.out,
         asset,
@@ -342,6 +350,12 @@ def main(argv: list[str] | None = None) -> int:
         type=int,
         default=None,
         help="decimate the hull to at most this many faces before texturing (quadric error; default: keep all)",
+    )
+    s.add_argument(
+        "--texture-px",
+        type=int,
+        default=None,
+        help="bake a texture atlas of this many texels a side from the views (default: vertex colours)",
     )
     a = p.parse_args(argv)
     if a.cmd == "deform" and a.count < 1:
