@@ -4,8 +4,8 @@ The truth and views of ``scripts/eval_reconstruction.py`` (the shared cone, barr
 crate, posed views on a golden-angle spiral). Each object is reconstructed once per face budget
 (``ReconstructConfig.max_faces``: quadric decimation of the cleaned hull before texturing; "full" keeps marching
 cubes' faces) and texture (vertex colours, or an atlas of ``--texture-px`` texels a side baked from the views:
-``ReconstructConfig.texture_px``), and scored as there: Chamfer / size, normal consistency, F-score at 1 %, texture PSNR on the held-out
-views. Also: the asset's GLB size, and the median time of 5 renders of the asset (albedo and depth, 320 px, 2x
+``ReconstructConfig.texture_px``), and scored as there: Chamfer / size, normal consistency, F-score at 1 %, texture
+PSNR on the held-out views. Also: the asset's GLB size, and the median time of 5 renders of the asset (albedo and depth, 320 px, 2x
 supersampling) on this machine.
 
     python scripts/eval_hull_decimation.py --out results/assets/reconstruct
@@ -43,8 +43,6 @@ def render_ms(asset, cams, repeats: int = 5) -> float:
 
 
 def glb_kib(asset) -> float:
-    import trimesh
-
     buf = io.BytesIO()
     trimesh.Scene(list(asset.meshes)).export(buf, file_type="glb")
     return buf.tell() / 1024

@@ -73,29 +73,32 @@ class ReconstructConfig:
     texture_px: int | None = None
 
 
+def _cleaned(mesh):
+    """The largest connected component of ``mesh``, its holes filled, its faces oriented outward."""
+    import trimesh
+
+    parts = mesh.split(only_watertight=False)
+    if len(parts) > 1:
+        mesh = max(parts, key=lambda p: p.area)
+    trimesh.repair.fill_holes(mesh)
+    trimesh.repair.fix_normals(mesh)
+    if mesh.is_watertight and mesh.volume < 0:  # outward: a closed surface encloses a positive volume
+        mesh.invert()
+    return mesh
+
+
 def decimate(mesh, max_faces: int):
     """``mesh`` reduced to at most ``max_faces`` faces by quadric error (Garland-Heckbert, ``fast-simplification``),
     then cleaned like the hull. A closed hull stays closed: holes a collapse opens are filled. The decimator can
     stop short of its target or open the surface at one aggressiveness and not at another, so three are tried
     (7, its default, then 5 and 9), the first result that is closed and within budget kept. ``ValueError`` if none
     is: an open asset casts wrong shadows, and the budget is the caller's."""
-    import trimesh
-
     if len(mesh.faces) <= max_faces:
         return mesh
     tried = []
     for aggression in (7, 5, 9):
-        out = mesh.simplify_quadric_decimation(face_count=int(max_faces), aggression=aggression)
-        parts = out.split(only_watertight=False)
-        if len(parts) > 1:
-            out = max(parts, key=lambda p: p.area)
-        if mesh.is_watertight and not out.is_watertight:
-            trimesh.repair.fill_holes(out)
-        closed = out.is_watertight or not mesh.is_watertight
-        if closed and len(out.faces) <= max_faces:
-            trimesh.repair.fix_normals(out)
-            if out.is_watertight and out.volume < 0:
-                out.invert()
+        out = _cleaned(mesh.simplify_quadric_decimation(face_count=int(max_faces), aggression=aggression))
+        if (out.is_watertight or not mesh.is_watertight) and len(out.faces) <= max_faces:
             return out
         tried.append(f"{len(out.faces)} faces, {'closed' if out.is_watertight else 'open'}")
     raise ValueError(f"decimate: no closed hull within {max_faces} faces ({'; '.join(tried)}); allow more faces")
@@ -196,15 +199,7 @@ def visual_hull(
         raise ValueError("visual_hull: no surface in the fine grid")
     verts, faces, _, _ = marching_cubes(field, level=0.0, spacing=(step, step, step))
     verts = verts + lo - pad * step
-    mesh = trimesh.Trimesh(verts, faces, process=True)
-    parts = mesh.split(only_watertight=False)
-    if len(parts) > 1:
-        mesh = max(parts, key=lambda p: p.area)
-    trimesh.repair.fill_holes(mesh)
-    trimesh.repair.fix_normals(mesh)
-    if mesh.is_watertight and mesh.volume < 0:  # outward: a closed surface encloses a positive volume
-        mesh.invert()
-    return mesh
+    return _cleaned(trimesh.Trimesh(verts, faces, process=True))
 
 
 def _colours_from_views(points, normals, mesh, views: list[View], ssaa: int = 1):
