@@ -85,11 +85,16 @@ ARM_FLAGS: dict[str, dict | None] = {
     # than half the real ones is drawn again, up to this many times (aias_augment.evaluation.realism.filter.best_of;
     # the first draw is the ``inserted`` arm's).
     "inserted_filtered": {"realism_filter": 3},
+    # Half the pool placed by the pipeline, half naive pastes of the same family: copy j is copy j of ``inserted``
+    # or of ``naive_paste_procedural`` (same background, same draw stream), chosen by a seeded coin (see
+    # pools.derive_mixed_pool). Ground context for some cones, free positions and sizes for the rest, at the same
+    # amount: what mixing the two kinds of placement gives a detector, without rendering anything new.
+    "inserted_mixed_naive": {"mix_pools": ("inserted", "naive_paste_procedural")},
 }
 
 
 # Flags the study applies itself (not insertion-config overrides).
-STUDY_FLAGS = ("closeup_crop", "copy_paste", "lifted", "realism_filter")
+STUDY_FLAGS = ("closeup_crop", "copy_paste", "lifted", "realism_filter", "mix_pools")
 
 
 # Arms whose pool is made per seed from that seed's thinned real subset (no other seed's real images leak in).

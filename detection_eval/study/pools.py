@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import shutil
 import time
 from pathlib import Path
 
@@ -78,6 +79,8 @@ def generate_arm_set(
     restarted; ``done.json`` marks a complete pool and is reused while its parameters match."""
     if ARM_FLAGS[arm].get("closeup_crop"):
         return derive_closeup_pool(cfg, arm, train, empty)
+    if ARM_FLAGS[arm].get("mix_pools"):
+        return derive_mixed_pool(cfg, arm, train, empty)
     ic = cfg.insertion
     per_seed = arm in PER_SEED_ARMS
     if per_seed and (seed is None or base is None):
@@ -268,6 +271,81 @@ def derive_closeup_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: 
         src,
         json.loads(done.read_text())["median_zoom"] or 1.0,
     )
+    return out
+
+
+def mixed_pool_sources(pool_seed: int, n: int, k: int) -> list[int]:
+    """Which of ``k`` source pools copy j of a mixed pool comes from: a fair seeded coin per copy
+    (``default_rng([pool_seed, 23])``), the same for every amount, so the first n copies of a longer pool are
+    those of a shorter one."""
+    return [int(x) for x in np.floor(np.random.default_rng([pool_seed, 23]).random(n) * k)]
+
+
+def derive_mixed_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: list[int]) -> Path:
+    """Copy j of the mixed pool is copy j of one of the arms in ``ARM_FLAGS[arm]["mix_pools"]``
+    (:func:`mixed_pool_sources`): the same backgrounds and draw streams, the kind of insertion chosen per copy.
+    The source pools are generated (or reused) first; their images are copied, nothing is rendered."""
+    sources = tuple(ARM_FLAGS[arm]["mix_pools"])
+    if any(ARM_FLAGS[s] is None or s in PER_SEED_ARMS or ARM_FLAGS[s].get("mix_pools") for s in sources):
+        raise ValueError(f"{arm}: mixes only shared offline pools of insertion arms, got {sources}")
+    src = {s: generate_arm_set(cfg, s, train, empty) for s in sources}
+    src_done = {s: json.loads((src[s] / "done.json").read_text()) for s in sources}
+    out = repo_path(cfg.cache_dir) / arm / "pool"
+    done = out / "done.json"
+    wanted = json.loads(
+        json.dumps(
+            {
+                "arm": arm,
+                "flags": ARM_FLAGS[arm],
+                "insertion": dataclasses.asdict(cfg.insertion),
+                "sources": {
+                    s: {k: d.get(k) for k in ("code_commit", "num_images", "num_boxes")} for s, d in src_done.items()
+                },
+            }
+        )
+    )
+    if done.exists() and all(json.loads(done.read_text()).get(k) == v for k, v in wanted.items()):
+        log.info("%s: using cached pool %s", arm, out)
+        return out
+    done.unlink(missing_ok=True)
+    manifests = {s: {e["copy"]: e for e in json.loads((src[s] / "manifest.json").read_text())} for s in sources}
+    n = cfg.insertion.pool_size
+    entries = []
+    for j, k in enumerate(mixed_pool_sources(cfg.insertion.pool_seed, n, len(sources))):
+        s = sources[k]
+        e = manifests[s].get(j)
+        if e is None:
+            raise RuntimeError(f"{arm}: copy {j} is missing from the {s} pool {src[s]}")
+        if e.get("failed"):
+            entries.append({**e, "source_arm": s})
+            continue
+        stem = Path(e["image"]).stem.replace(f"__{s}", f"__{arm}")
+        for sub, ext in (("images", ".jpg"), ("labels", ".txt")):  # the source's bytes: no second JPEG encoding
+            (out / sub).mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(src[s] / sub / f"{Path(e['image']).stem}{ext}", out / sub / f"{stem}{ext}")
+        entries.append({**e, "image": f"{stem}.jpg", "source_arm": s})
+    ok = [e for e in entries if not e.get("failed")]
+    write_classes(out, cfg.class_names)
+    (out / "manifest.json").write_text(json.dumps(entries, indent=1))
+    failures: dict[str, int] = {}
+    for e in entries:
+        if e.get("failed"):
+            failures[e["failed"]] = failures.get(e["failed"], 0) + 1
+    done.write_text(
+        json.dumps(
+            {
+                **wanted,
+                "code_commit": git_head(),
+                "num_images": len(ok),
+                "num_boxes": sum(e["boxes"] for e in ok),
+                "failures": failures,
+                "copies_by_source": {s: sum(1 for e in entries if e["source_arm"] == s) for s in sources},
+                "seconds_per_image": None,
+            },
+            indent=1,
+        )
+    )
+    log.info("%s: %d copies mixed from %s", arm, len(ok), json.loads(done.read_text())["copies_by_source"])
     return out
 
 

@@ -100,3 +100,43 @@ def test_paste_instances_changes_only_the_pasted_boxes():
         inside[max(0, y0 - 2) : y1 + 2, max(0, x0 - 2) : x1 + 2] = True
     assert np.all(out[~inside] == 77)  # soft edges stay within 2 px of the box
     assert np.any(out[inside] != 77)
+
+
+def test_mixed_pool_is_its_sources_copies_byte_for_byte(tmp_path):
+    import json
+
+    from detection_eval.data import load_yolo_dir
+    from detection_eval.study.pools import generate_arm_set, mixed_pool_sources
+
+    # The coin of a longer pool starts with that of a shorter one (amount axes share their first copies).
+    assert mixed_pool_sources(0, 200, 2)[:60] == mixed_pool_sources(0, 60, 2)
+    assert 0.4 < np.mean(mixed_pool_sources(0, 200, 2)) < 0.6
+    _yolo_cones(tmp_path / "data", 2, 6)
+    train = load_yolo_dir(tmp_path / "data", "train", ("cone",))
+    cfg = StudyConfig(
+        dataset=str(tmp_path / "data"),
+        keep_fraction=0.5,
+        arms=("original", "inserted_mixed_naive"),
+        amounts=(6,),
+        insertion=InsertionStudyConfig(pool_size=6, max_objects=1, max_side_px=320),
+        cache_dir=str(tmp_path / "cache"),
+    )
+    _, empty = thin_cone_images(train, cfg.keep_fraction, 0)
+    out = generate_arm_set(cfg, "inserted_mixed_naive", train, empty)
+    which = mixed_pool_sources(0, 6, 2)
+    assert set(which) == {0, 1}  # both kinds in this pool
+    sources = ("inserted", "naive_paste_procedural")
+    done = json.loads((out / "done.json").read_text())
+    assert done["copies_by_source"] == {s: which.count(i) for i, s in enumerate(sources)}
+    by_copy = {e["copy"]: e for e in json.loads((out / "manifest.json").read_text())}
+    for j, k in enumerate(which):
+        src = tmp_path / "cache" / sources[k] / "pool"
+        src_entry = {e["copy"]: e for e in json.loads((src / "manifest.json").read_text())}[j]
+        assert by_copy[j]["source_arm"] == sources[k] and by_copy[j]["background"] == src_entry["background"]
+        a = (out / "images" / by_copy[j]["image"]).read_bytes()
+        assert a == (src / "images" / src_entry["image"]).read_bytes()
+    assert len(load_yolo_dir(out, names=("cone",)).records) == done["num_images"] == 6
+    # A second call reuses the pool as it is.
+    stamp = (out / "done.json").stat().st_mtime_ns
+    generate_arm_set(cfg, "inserted_mixed_naive", train, empty)
+    assert (out / "done.json").stat().st_mtime_ns == stamp
