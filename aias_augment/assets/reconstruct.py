@@ -18,8 +18,9 @@ and leaves out the views that the others contradict (:func:`consistent_views`: a
 the object away).
 
 Poses in metres give a metric asset; otherwise ``height_m`` scales it. A visual hull cannot see concavities that
-no silhouette shows (the inside of a bowl, the hollow of a cone's base): convex-ish objects reconstruct well.
-Photo-consistency refinement is not done.
+no silhouette shows (the inside of a bowl, a block's pits): with ``refine``, :func:`refine_photo_consistent` moves
+its vertices inward to where the views agree on the surface's texture (a plane sweep along each normal scored by
+normalised cross-correlation). Textureless surfaces give it nothing to match and stay where the hull put them.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import cv2
 import numpy as np
 
 from aias_augment.assets.asset import Asset, normalise_meshes
-from aias_augment.core.config import checked_config
+from aias_augment.core.config import ConfigValueError, checked_config
 from aias_augment.core.geometry import Intrinsics
 
 
@@ -60,6 +61,12 @@ class View:
         "padding_voxels": "[1, 16]",
         "max_faces": "[100, inf)",
         "texture_px": "[16, 8192]",
+        "refine_depth": "(0, 1]",
+        "refine_patch": "[3, 31]",
+        "refine_top_views": "[1, 64]",
+        "refine_min_ncc": "[-1, 1]",
+        "refine_min_gain": "[0, 2]",
+        "refine_min_std": "[0, inf)",
     }
 )
 @dataclass(frozen=True)
@@ -71,6 +78,20 @@ class ReconstructConfig:
     max_faces: int | None = None
     # A texture atlas of this many texels a side baked from the views (xatlas UVs); None: vertex colours.
     texture_px: int | None = None
+    # Photo-consistency refinement of the hull (refine_photo_consistent): off, or the deepest inward move searched
+    # as a share of the hull's largest extent, the patch side in pixels, the views averaged per depth, and the
+    # score a move needs (NCC, and its gain over the hull's own surface).
+    refine: bool = False
+    refine_depth: float = 0.15
+    refine_patch: int = 7
+    refine_top_views: int = 2
+    refine_min_ncc: float = 0.6
+    refine_min_gain: float = 0.1
+    refine_min_std: float = 4.0  # grey levels: flatter patches have nothing to match and stay
+
+    def __post_init__(self):
+        if self.refine_patch % 2 == 0:
+            raise ConfigValueError(("ReconstructConfig", "refine_patch"), f"must be odd, got {self.refine_patch}")
 
 
 def _cleaned(mesh):
@@ -202,18 +223,16 @@ def visual_hull(
     return _cleaned(trimesh.Trimesh(verts, faces, process=True))
 
 
-def _colours_from_views(points, normals, mesh, views: list[View], ssaa: int = 1):
-    """Colour of each surface point (``points``, ``normals``: (N, 3), object frame) from the views that see it:
-    visibility by ``mesh``'s own rendered depth, weight cos^2 of the angle between the normal and the direction to
-    the camera. Returns (N, 3) float sRGB colours and the (N,) mask of points some view saw."""
+def _visibility(points, normals, mesh, views: list[View], ssaa: int = 1):
+    """For each view, which of the surface points (``points``, ``normals``: (N, 3), object frame) it sees: in its
+    image, facing it, inside its mask and in front of ``mesh``'s own rendered depth. Yields (view, u, v, seen,
+    cos of the angle between the normal and the direction to the camera) per view."""
     import trimesh
 
     from aias_augment.apply.render import render_object
 
     plain = Asset("hull", "object", (trimesh.Trimesh(mesh.vertices, mesh.faces, process=False),), "reconstruction")
     V, N = np.asarray(points, float), np.asarray(normals, float)
-    acc = np.zeros((len(V), 3))
-    wsum = np.zeros(len(V))
     for v in views:
         T = np.asarray(v.cam_from_object, float)
         pc = V @ T[:3, :3].T + T[:3, 3]
@@ -232,6 +251,17 @@ def _colours_from_views(points, normals, mesh, views: list[View], ssaa: int = 1)
         d[ok] = depth[wi[ok], ui[ok]]
         ok &= (d > 0) & (np.abs(d - pc[:, 2]) < 0.01 * pc[:, 2] + 0.005)
         ok &= np.asarray(v.mask, bool)[np.clip(wi, 0, h - 1), np.clip(ui, 0, wd - 1)]
+        yield v, u, w, ok, cosang
+
+
+def _colours_from_views(points, normals, mesh, views: list[View], ssaa: int = 1):
+    """Colour of each surface point (``points``, ``normals``: (N, 3), object frame) from the views that see it
+    (:func:`_visibility`), weighted by cos^2 of the angle between the normal and the direction to the camera.
+    Returns (N, 3) float sRGB colours and the (N,) mask of points some view saw."""
+    V = np.asarray(points, float)
+    acc = np.zeros((len(V), 3))
+    wsum = np.zeros(len(V))
+    for v, u, w, ok, cosang in _visibility(points, normals, mesh, views, ssaa):
         if not ok.any():
             continue
         col = _bilinear(v.image_rgb.astype(np.float32), u[ok], w[ok])
@@ -322,6 +352,102 @@ def texture_atlas_from_views(mesh, views: list[View], size: int, ssaa: int = 1):
     return out, covered_seen
 
 
+def _project(points: np.ndarray, v: View) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixel coordinates (u, v) and depth of ``points`` (..., 3) in view ``v``."""
+    T = np.asarray(v.cam_from_object, float)
+    pc = points @ T[:3, :3].T + T[:3, 3]
+    z = np.maximum(pc[..., 2], 1e-9)
+    K = v.intrinsics
+    return K.fx * pc[..., 0] / z + K.cx, K.fy * pc[..., 1] / z + K.cy, pc[..., 2]
+
+
+def _ncc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Normalised cross-correlation of patches along the last axis (NaN where either patch is flat)."""
+    a = a - a.mean(axis=-1, keepdims=True)
+    b = b - b.mean(axis=-1, keepdims=True)
+    den = np.sqrt((a * a).sum(axis=-1) * (b * b).sum(axis=-1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 1e-6, (a * b).sum(axis=-1) / den, np.nan)
+
+
+def refine_photo_consistent(mesh, views: list[View], cfg: "ReconstructConfig", ssaa: int = 1):
+    """The hull's vertices moved inward along their normals to where the views agree on the surface's texture: a
+    plane sweep per vertex. A visual hull holds the object, so the surface lies at or inside it; for each depth d
+    in [0, ``refine_depth`` x the hull's largest extent], a ``refine_patch``-square patch on the plane through
+    v - d n, tangent to the hull, one pixel of the vertex's reference view (the one facing it most squarely) per
+    sample, is projected into every view that sees the vertex and compared with the reference's patch by
+    normalised cross-correlation; the depth's score is the mean of its ``refine_top_views`` best views (a view
+    that sees the hull's surface there may not see the object's, e.g. the bottom of a hole seen from the side).
+    A vertex moves to its best depth when that score is at least ``refine_min_ncc`` and beats the hull's own (d = 0)
+    by ``refine_min_gain``; flat patches (no texture to match) stay. The displacements are then smoothed by a
+    median over each vertex's ring, twice, so lone outliers go. Same faces: a closed hull stays closed.
+    Returns (mesh, {"moved_share", "median_moved_m", "max_moved_m"})."""
+    import trimesh
+
+    V = np.asarray(mesh.vertices, float)
+    N = np.asarray(mesh.vertex_normals, float)
+    n_v = len(V)
+    extent = float(np.max(V.max(axis=0) - V.min(axis=0)))
+    grey = [cv2.cvtColor(v.image_rgb, cv2.COLOR_RGB2GRAY).astype(np.float32) for v in views]
+    vis = [(ok, cosang) for _, _, _, ok, cosang in _visibility(V, N, mesh, views, ssaa)]
+    seen = np.stack([ok for ok, _ in vis])  # (views, vertices)
+    facing = np.where(seen, np.stack([c for _, c in vis]), -np.inf)
+    ref = np.argmax(facing, axis=0)
+    # tangent frame of each vertex
+    helper = np.where(np.abs(N[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+    t1 = np.cross(N, helper)
+    t1 /= np.maximum(np.linalg.norm(t1, axis=1, keepdims=True), 1e-12)
+    t2 = np.cross(N, t1)
+    half = cfg.refine_patch // 2
+    ab = np.stack(np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1)), -1).reshape(-1, 2)  # (P, 2)
+    step = extent / cfg.resolution / 2  # half a voxel of the hull's grid
+    depths = np.arange(0.0, cfg.refine_depth * extent + 1e-12, step)  # (D,)
+    best = np.zeros(n_v)
+    owned = [np.nonzero((ref == r) & (seen.sum(axis=0) >= 2))[0] for r in range(len(views))]
+    for r, idx in ((r, c) for r, own in enumerate(owned) for c in np.array_split(own, max(1, -(-len(own) // 1024)))):
+        if not len(idx):
+            continue
+        vr = views[r]
+        _, _, z = _project(V[idx], vr)
+        px = z / vr.intrinsics.fx  # metres per pixel at the vertex in its reference view
+        offs = ab[None, :, 0:1] * t1[idx, None] + ab[None, :, 1:2] * t2[idx, None]  # (n, P, 3)
+        pts = (V[idx, None, None] - depths[None, :, None, None] * N[idx, None, None]) + (px[:, None, None] * offs)[
+            :, None
+        ]  # (n, D, P, 3)
+        u, w, _ = _project(pts, vr)
+        ref_patch = _bilinear(grey[r], u.ravel(), w.ravel()).reshape(u.shape)
+        textured = ref_patch[:, 0].std(axis=-1) >= cfg.refine_min_std  # the hull's own patch has texture to match
+        scores = np.full((len(views), len(idx), len(depths)), np.nan, np.float32)
+        for k, vk in enumerate(views):
+            sel = seen[k, idx] & (k != r)
+            if not sel.any():
+                continue
+            u, w, z = _project(pts[sel], vk)
+            inside = (u >= 0) & (u <= vk.intrinsics.width - 1) & (w >= 0) & (w <= vk.intrinsics.height - 1) & (z > 0)
+            patch = _bilinear(grey[k], u.ravel(), w.ravel()).reshape(u.shape)
+            ncc = _ncc(ref_patch[sel], patch)
+            ncc[~inside.all(axis=-1)] = np.nan
+            scores[k, sel] = ncc
+        top = np.sort(np.where(np.isnan(scores), -np.inf, scores), axis=0)[::-1][: cfg.refine_top_views]  # (t, n, D)
+        score = np.where(np.isfinite(top).all(axis=0), top.mean(axis=0), np.nan)
+        k_best = np.argmax(np.where(np.isnan(score), -np.inf, score), axis=1)
+        s_best = score[np.arange(len(idx)), k_best]
+        s_zero = np.where(np.isnan(score[:, 0]), -1.0, score[:, 0])
+        move = textured & (s_best >= cfg.refine_min_ncc) & (s_best - s_zero >= cfg.refine_min_gain)
+        best[idx[move]] = depths[k_best[move]]
+    # median over each vertex's one-ring (with itself), twice
+    nbrs = mesh.vertex_neighbors
+    for _ in range(2):
+        best = np.array([np.median(np.r_[best[i], best[nbrs[i]]]) for i in range(n_v)])
+    out = trimesh.Trimesh(V - best[:, None] * N, np.asarray(mesh.faces), process=False)
+    moved = best > 0
+    return out, {
+        "moved_share": round(float(moved.mean()), 4),
+        "median_moved_m": round(float(np.median(best[moved])), 5) if moved.any() else 0.0,
+        "max_moved_m": round(float(best.max()), 5),
+    }
+
+
 def reconstruct(
     views: list[View],
     search_lo,
@@ -339,6 +465,9 @@ def reconstruct(
     hull = visual_hull(views, search_lo, search_hi, cfg, ground_z)
     if cfg.max_faces is not None:
         hull = decimate(hull, cfg.max_faces)
+    refined = None
+    if cfg.refine:
+        hull, refined = refine_photo_consistent(hull, views, cfg)
     if cfg.texture_px is None:
         textured, seen = texture_from_views(hull, views)
     else:
@@ -355,6 +484,7 @@ def reconstruct(
             "resolution": cfg.resolution,
             "faces": len(hull.faces),
             "texture_px": cfg.texture_px,
+            **({} if refined is None else {"refinement": refined}),
             ("coloured_vertex_share" if cfg.texture_px is None else "coloured_texel_share"): round(seen, 4),
         },
     )

@@ -227,7 +227,9 @@ def _cmd_reconstruct(a) -> int:
     t0 = time.perf_counter()
     try:
         photos, ground_z = read_views(a.views)
-        cfg = ReconstructConfig(resolution=a.resolution, max_faces=a.max_faces, texture_px=a.texture_px)
+        cfg = ReconstructConfig(
+            resolution=a.resolution, max_faces=a.max_faces, texture_px=a.texture_px, refine=a.refine
+        )
         if photos[0][3] is None:  # no poses: structure from motion, scaled to the given height
             if a.height_m is None:
                 raise ValueError("views without cam_from_object need --height-m (SfM has no metric scale)")
@@ -261,6 +263,7 @@ def _cmd_reconstruct(a) -> int:
         "resolution",
         "faces",
         "texture_px",
+        "refinement",
         "coloured_vertex_share",
         "coloured_texel_share",
         "registered_views",
@@ -356,6 +359,12 @@ def main(argv: list[str] | None = None) -> int:
         type=int,
         default=None,
         help="bake a texture atlas of this many texels a side from the views (default: vertex colours)",
+    )
+    s.add_argument(
+        "--refine",
+        action="store_true",
+        help="move the hull inward where the views agree on the texture (photo-consistency; slower, helps "
+        "textured concave objects: results/assets/reconstruct/refinement.md)",
     )
     a = p.parse_args(argv)
     if a.cmd == "deform" and a.count < 1:

@@ -208,3 +208,82 @@ def test_a_texture_atlas_keeps_colour_detail_that_vertex_colours_lose_on_a_decim
         psnr[tex] = eval_psnr(truth, rec)[0]
     assert psnr[256] >= psnr[None] + 2.0
     assert psnr[256] >= 20.0
+
+
+def _pit_block(textured: bool) -> Asset:
+    """A 0.4 m square block, 0.25 m tall, with a 0.2 m square pit 0.1 m deep in its top: a concavity that no
+    silhouette shows. Two closed parts (the base and the rim around the pit), subdivided to 1 cm edges and given a
+    random grey per vertex (texture to match) or one flat colour."""
+    from shapely.geometry import Polygon
+
+    base = trimesh.creation.box((0.4, 0.4, 0.15))
+    base.apply_translation((0, 0, 0.075))
+    ring = Polygon(
+        [(-0.2, -0.2), (0.2, -0.2), (0.2, 0.2), (-0.2, 0.2)], [[(-0.1, -0.1), (0.1, -0.1), (0.1, 0.1), (-0.1, 0.1)]]
+    )
+    rim = trimesh.creation.extrude_polygon(ring, 0.1)
+    rim.apply_translation((0, 0, 0.15))
+    rng = np.random.default_rng(5)
+    parts = []
+    for m in (base, rim):
+        v, f = trimesh.remesh.subdivide_to_size(m.vertices, m.faces, 0.01)
+        m = trimesh.Trimesh(v, f)
+        grey = rng.integers(30, 230, len(m.vertices)) if textured else np.full(len(m.vertices), 150)
+        m.visual = trimesh.visual.ColorVisuals(
+            m, vertex_colors=np.c_[grey, grey, grey, np.full(len(grey), 255)].astype(np.uint8)
+        )
+        parts.append(m)
+    return Asset("pit_block", "object", normalise_meshes(parts, crease_deg=None), "analytic")
+
+
+def _top_height(mesh, xy) -> np.ndarray:
+    """Height of the highest surface above each (x, y): the faces whose top-view projection holds the point,
+    interpolated barycentrically (a vertical ray from above meets that one first)."""
+    tri = np.asarray(mesh.vertices)[np.asarray(mesh.faces)]  # (F, 3, 3)
+    a, b, c = tri[:, 0, :2], tri[:, 1, :2], tri[:, 2, :2]
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    out = np.full(len(xy), -np.inf)
+    ok = np.abs(det) > 1e-12
+    for i, p in enumerate(np.asarray(xy, float)):
+        l1 = ((p[0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (p[1] - a[:, 1])) / np.where(ok, det, 1)
+        l2 = ((b[:, 0] - a[:, 0]) * (p[1] - a[:, 1]) - (p[0] - a[:, 0]) * (b[:, 1] - a[:, 1])) / np.where(ok, det, 1)
+        inside = ok & (l1 >= 0) & (l2 >= 0) & (l1 + l2 <= 1)
+        if inside.any():
+            z = (1 - l1 - l2) * tri[:, 0, 2] + l1 * tri[:, 1, 2] + l2 * tri[:, 2, 2]
+            out[i] = z[inside].max()
+    return out
+
+
+def test_photo_consistency_digs_the_pit_the_hull_fills_and_leaves_flat_surfaces_alone():
+    """The hull closes the pit at the rim's height (0.25 m), 0.1 m above its floor. Refined, the pit's middle must
+    come down to within 3 cm of the floor (0.15 m: the plane sweep's step is half a voxel, 3 mm, and the median
+    smoothing over a ring of 2 cm vertices), the rim must stay within 1 cm of its height, the surface stay closed,
+    and a flat-coloured block (no texture: nothing to match) must not move at all."""
+    cfg = ReconstructConfig(resolution=64, refine=True, refine_depth=0.35)
+    xy_pit = np.stack(np.meshgrid(np.linspace(-0.04, 0.04, 5), np.linspace(-0.04, 0.04, 5)), -1).reshape(-1, 2)
+    xy_rim = np.array([[0.15, 0.0], [-0.15, 0.0], [0.0, 0.15], [0.0, -0.15], [0.15, 0.15], [-0.15, -0.15]])
+    truth = _pit_block(True)
+    views = shoot(truth, cameras(truth, 24, elevations=(10.0, 80.0)))
+    lo, hi = search_box(views)
+    hull = visual_hull(views, lo, hi, cfg)
+    assert np.median(_top_height(hull, xy_pit)) > 0.24  # the hull fills the pit
+    rec = reconstruct(views, lo, hi, category="object", cfg=cfg)
+    mesh = rec.meshes[0]
+    assert mesh.is_watertight
+    assert rec.meta["refinement"]["moved_share"] > 0
+    assert np.median(np.abs(_top_height(mesh, xy_pit) - 0.15)) < 0.03
+    assert np.all(np.abs(_top_height(mesh, xy_rim) - 0.25) < 0.01)
+    flat = _pit_block(False)
+    views = shoot(flat, cameras(flat, 24, elevations=(10.0, 80.0)))
+    lo, hi = search_box(views)
+    rec = reconstruct(views, lo, hi, category="object", cfg=cfg)
+    assert rec.meta["refinement"]["moved_share"] == 0.0
+
+
+def test_refinement_settings_are_checked():
+    from aias_augment.core.config import ConfigValueError
+
+    with pytest.raises(ConfigValueError, match="odd"):
+        ReconstructConfig(refine_patch=6)
+    with pytest.raises(ValueError, match="refine_depth"):
+        ReconstructConfig(refine_depth=0.0)
