@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from aias_augment.assets.asset import Asset, normalise_meshes
-from aias_augment.core.config import ConfigValueError, checked_config
+from aias_augment.core.config import checked_config
 from aias_augment.core.geometry import Intrinsics
 
 
@@ -62,7 +62,7 @@ class View:
         "max_faces": "[100, inf)",
         "texture_px": "[16, 8192]",
         "refine_depth": "(0, 1]",
-        "refine_patch": "[3, 31]",
+        "refine_patch_radius": "[1, 15]",
         "refine_top_views": "[1, 64]",
         "refine_min_ncc": "[-1, 1]",
         "refine_min_gain": "[0, 2]",
@@ -79,19 +79,15 @@ class ReconstructConfig:
     # A texture atlas of this many texels a side baked from the views (xatlas UVs); None: vertex colours.
     texture_px: int | None = None
     # Photo-consistency refinement of the hull (refine_photo_consistent): off, or the deepest inward move searched
-    # as a share of the hull's largest extent, the patch side in pixels, the views averaged per depth, and the
+    # as a share of the hull's largest extent, the patch's half-side in pixels, the views averaged per depth, and the
     # score a move needs (NCC, and its gain over the hull's own surface).
     refine: bool = False
     refine_depth: float = 0.15
-    refine_patch: int = 7
+    refine_patch_radius: int = 3  # the patch is 2 r + 1 pixels a side
     refine_top_views: int = 2
     refine_min_ncc: float = 0.6
     refine_min_gain: float = 0.1
     refine_min_std: float = 4.0  # grey levels: flatter patches have nothing to match and stay
-
-    def __post_init__(self):
-        if self.refine_patch % 2 == 0:
-            raise ConfigValueError(("ReconstructConfig", "refine_patch"), f"must be odd, got {self.refine_patch}")
 
 
 def _cleaned(mesh):
@@ -373,13 +369,13 @@ def _ncc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def refine_photo_consistent(mesh, views: list[View], cfg: "ReconstructConfig", ssaa: int = 1):
     """The hull's vertices moved inward along their normals to where the views agree on the surface's texture: a
     plane sweep per vertex. A visual hull holds the object, so the surface lies at or inside it; for each depth d
-    in [0, ``refine_depth`` x the hull's largest extent], a ``refine_patch``-square patch on the plane through
-    v - d n, tangent to the hull, one pixel of the vertex's reference view (the one facing it most squarely) per
-    sample, is projected into every view that sees the vertex and compared with the reference's patch by
+    in [0, ``refine_depth`` x the hull's largest extent], a square patch (2 ``refine_patch_radius`` + 1 samples a
+    side) on the plane through v - d n, tangent to the hull, one pixel of the vertex's reference view (the one
+    facing it most squarely) per sample, is projected into every view that sees the vertex and compared with the reference's patch by
     normalised cross-correlation; the depth's score is the mean of its ``refine_top_views`` best views (a view
     that sees the hull's surface there may not see the object's, e.g. the bottom of a hole seen from the side).
     A vertex moves to its best depth when that score is at least ``refine_min_ncc`` and beats the hull's own (d = 0)
-    by ``refine_min_gain``; flat patches (no texture to match) stay. The displacements are then smoothed by a
+    by ``refine_min_gain``; patches flatter than ``refine_min_std`` grey levels (no texture to match) stay. The displacements are then smoothed by a
     median over each vertex's ring, twice, so lone outliers go. Same faces: a closed hull stays closed.
     Returns (mesh, {"moved_share", "median_moved_m", "max_moved_m"})."""
     import trimesh
@@ -398,7 +394,7 @@ def refine_photo_consistent(mesh, views: list[View], cfg: "ReconstructConfig", s
     t1 = np.cross(N, helper)
     t1 /= np.maximum(np.linalg.norm(t1, axis=1, keepdims=True), 1e-12)
     t2 = np.cross(N, t1)
-    half = cfg.refine_patch // 2
+    half = cfg.refine_patch_radius
     ab = np.stack(np.meshgrid(np.arange(-half, half + 1), np.arange(-half, half + 1)), -1).reshape(-1, 2)  # (P, 2)
     step = extent / cfg.resolution / 2  # half a voxel of the hull's grid
     depths = np.arange(0.0, cfg.refine_depth * extent + 1e-12, step)  # (D,)

@@ -281,9 +281,7 @@ def test_photo_consistency_digs_the_pit_the_hull_fills_and_leaves_flat_surfaces_
 
 
 def test_refinement_settings_are_checked():
-    from aias_augment.core.config import ConfigValueError
-
-    with pytest.raises(ConfigValueError, match="odd"):
-        ReconstructConfig(refine_patch=6)
+    with pytest.raises(ValueError, match="refine_patch_radius"):
+        ReconstructConfig(refine_patch_radius=0)
     with pytest.raises(ValueError, match="refine_depth"):
         ReconstructConfig(refine_depth=0.0)
