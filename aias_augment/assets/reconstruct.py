@@ -375,8 +375,8 @@ def refine_photo_consistent(mesh, views: list[View], cfg: "ReconstructConfig", s
     normalised cross-correlation; the depth's score is the mean of its ``refine_top_views`` best views (a view
     that sees the hull's surface there may not see the object's, e.g. the bottom of a hole seen from the side).
     A vertex moves to its best depth when that score is at least ``refine_min_ncc`` and beats the hull's own (d = 0)
-    by ``refine_min_gain``; patches flatter than ``refine_min_std`` grey levels (no texture to match) stay. The displacements are then smoothed by a
-    median over each vertex's ring, twice, so lone outliers go. Same faces: a closed hull stays closed.
+    by ``refine_min_gain``; patches flatter than ``refine_min_std`` grey levels (no texture to match) stay. The
+    displacements are then smoothed by a median over each vertex's ring, twice, so lone outliers go. Same faces: a closed hull stays closed.
     Returns (mesh, {"moved_share", "median_moved_m", "max_moved_m"})."""
     import trimesh
 
