@@ -176,10 +176,7 @@ def generate_arm_set(
                 )
     entries = [finished[j] for j in sorted(finished)]
     ok = [e for e in entries if not e.get("failed")]
-    failures: dict[str, int] = {}
-    for e in entries:
-        if e.get("failed"):
-            failures[e["failed"]] = failures.get(e["failed"], 0) + 1
+    failures = _failure_counts(entries)
     write_classes(out, cfg.class_names)
     (out / "manifest.json").write_text(json.dumps(entries, indent=1))
     seconds = [e["seconds"] for e in ok]
@@ -200,28 +197,45 @@ def generate_arm_set(
     return out
 
 
+def _pool_summary(done: dict) -> dict:
+    """What a derived pool records of a source pool's ``done.json``: a changed source regenerates it."""
+    return {k: done.get(k) for k in ("code_commit", "num_images", "num_boxes")}
+
+
+def _derived_pool(cfg: StudyConfig, arm: str, key: str, sources) -> tuple[Path, dict, bool]:
+    """(folder, parameters, cached) of a pool derived from other pools (``sources`` recorded under ``key``): cached
+    when its ``done.json`` matches the parameters; otherwise that marker is removed and the pool is to be made."""
+    out = repo_path(cfg.cache_dir) / arm / "pool"
+    done = out / "done.json"
+    wanted = json.loads(
+        json.dumps({"arm": arm, "flags": ARM_FLAGS[arm], "insertion": dataclasses.asdict(cfg.insertion), key: sources})
+    )
+    if done.exists() and all(json.loads(done.read_text()).get(k) == v for k, v in wanted.items()):
+        log.info("%s: using cached pool %s", arm, out)
+        return out, wanted, True
+    done.unlink(missing_ok=True)
+    return out, wanted, False
+
+
+def _failure_counts(entries: list[dict]) -> dict[str, int]:
+    """Failed copies counted by their reason."""
+    failures: dict[str, int] = {}
+    for e in entries:
+        if e.get("failed"):
+            failures[e["failed"]] = failures.get(e["failed"], 0) + 1
+    return failures
+
+
 def derive_closeup_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: list[int]) -> Path:
     """The ``inserted`` pool's copies, each cropped by :func:`closeup_crop` (copy j with ``default_rng([pool_seed,
     j, 17])``) to a height drawn from the real train boxes: the same insertions, framed closer, so the paired
     difference to ``inserted`` measures the framing alone. No rendering: seconds for the whole pool."""
     src = generate_arm_set(cfg, "inserted", train, empty)
     src_done = json.loads((src / "done.json").read_text())
-    out = repo_path(cfg.cache_dir) / arm / "pool"
-    done = out / "done.json"
-    wanted = json.loads(
-        json.dumps(
-            {
-                "arm": arm,
-                "flags": ARM_FLAGS[arm],
-                "insertion": dataclasses.asdict(cfg.insertion),
-                "source": {k: src_done.get(k) for k in ("code_commit", "num_images", "num_boxes")},
-            }
-        )
-    )
-    if done.exists() and all(json.loads(done.read_text()).get(k) == v for k, v in wanted.items()):
-        log.info("%s: using cached pool %s", arm, out)
+    out, wanted, cached = _derived_pool(cfg, arm, "source", _pool_summary(src_done))
+    if cached:
         return out
-    done.unlink(missing_ok=True)
+    done = out / "done.json"
     out.mkdir(parents=True, exist_ok=True)
     fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
     pool = load_yolo_dir(src, names=cfg.class_names)
@@ -289,25 +303,11 @@ def derive_mixed_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: li
     if any(ARM_FLAGS[s] is None or s in PER_SEED_ARMS or ARM_FLAGS[s].get("mix_pools") for s in sources):
         raise ValueError(f"{arm}: mixes only shared offline pools of insertion arms, got {sources}")
     src = {s: generate_arm_set(cfg, s, train, empty) for s in sources}
-    src_done = {s: json.loads((src[s] / "done.json").read_text()) for s in sources}
-    out = repo_path(cfg.cache_dir) / arm / "pool"
-    done = out / "done.json"
-    wanted = json.loads(
-        json.dumps(
-            {
-                "arm": arm,
-                "flags": ARM_FLAGS[arm],
-                "insertion": dataclasses.asdict(cfg.insertion),
-                "sources": {
-                    s: {k: d.get(k) for k in ("code_commit", "num_images", "num_boxes")} for s, d in src_done.items()
-                },
-            }
-        )
-    )
-    if done.exists() and all(json.loads(done.read_text()).get(k) == v for k, v in wanted.items()):
-        log.info("%s: using cached pool %s", arm, out)
+    summaries = {s: _pool_summary(json.loads((src[s] / "done.json").read_text())) for s in sources}
+    out, wanted, cached = _derived_pool(cfg, arm, "sources", summaries)
+    if cached:
         return out
-    done.unlink(missing_ok=True)
+    done = out / "done.json"
     manifests = {s: {e["copy"]: e for e in json.loads((src[s] / "manifest.json").read_text())} for s in sources}
     n = cfg.insertion.pool_size
     entries = []
@@ -327,10 +327,7 @@ def derive_mixed_pool(cfg: StudyConfig, arm: str, train: DetectionSet, empty: li
     ok = [e for e in entries if not e.get("failed")]
     write_classes(out, cfg.class_names)
     (out / "manifest.json").write_text(json.dumps(entries, indent=1))
-    failures: dict[str, int] = {}
-    for e in entries:
-        if e.get("failed"):
-            failures[e["failed"]] = failures.get(e["failed"], 0) + 1
+    failures = _failure_counts(entries)
     done.write_text(
         json.dumps(
             {
