@@ -18,6 +18,7 @@ analysed and planned at 2 MP and rendered at full size (:mod:`aias_augment.pipel
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -225,7 +226,7 @@ class InsertObjects(A.DualTransform):
                     None,
                     None,
                     np.random.default_rng(i),
-                    self.config,
+                    replace(self.config, naive_share=0.0),  # the pipeline's analysis (a naive paste needs little)
                     intrinsics=k,
                     depth=d,
                     bank=self._bank,

@@ -75,6 +75,7 @@ def insert_bounded(
         )
     if rng is None:
         raise ValueError("insert_bounded needs an explicit numpy Generator (rng) for reproducibility")
+    cfg = cfg.for_image(rng)  # naive_share: as insert_into_image draws it (the small route draws it there)
     boxes = np.zeros((0, 4)) if bboxes_xywh is None else np.asarray(bboxes_xywh, float).reshape(-1, 4)
     labels = [] if labels is None else list(labels)
     if len(labels) != len(boxes):
@@ -118,4 +119,6 @@ def insert_bounded(
     plan = replace(plan, objects=tuple(PlannedObject(full_px(o.placement), o.asset) for o in plan.objects))
     frame = Frame(img, analysis.intrinsics, depth=depth, meta=meta)
     applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
-    return assemble_result(analysis, plan, applied, boxes, labels, min_visibility, working_resolution=working)
+    return assemble_result(
+        analysis, plan, applied, boxes, labels, min_visibility, working_resolution=working, mode=cfg.mode
+    )

@@ -6,6 +6,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields, is_dataclass, replace
 from typing import Literal
 
+import numpy as np
+
 from aias_augment.analyse.lighting.estimate import LightingConfig
 from aias_augment.assets.deform import DeformConfig
 from aias_augment.core.config import CONFIG_DIR, ConfigValueError, UnknownConfigKeys, checked_config, load_config
@@ -37,6 +39,7 @@ EdgeBlendMode = Literal["rendered", "hard", "feather"]
         "motion_blur_px": "[0, inf) lo<=hi",
         "edge_feather_px": "[0, inf) lo<=hi",
         "deform_probability": "[0, 1]",
+        "naive_share": "[0, 1]",
         "decoys": "[0, inf) lo<=hi",
         "arrangement_spacing_m": "(0, inf) lo<=hi",
         "arrangement_cluster_radius_m": "(0.35, inf)",
@@ -57,6 +60,12 @@ class InsertionConfig:
     lighting: bool = True
     harmonize: bool = True
     naive_paste: bool = False
+    # Share of images made as naive pastes (as ``naive_paste``: the same objects at random 2D positions and sizes,
+    # no geometry, lighting, shadow or harmonization) while the rest go through the pipeline: a detector then sees
+    # cones both standing on the road in context and anywhere, at any size (results/study_core: the mixed pool).
+    # Decided per image by one uniform from the call's generator, drawn only when the share is above 0 (so every
+    # other config's draws are unchanged), and recorded (``InsertionRecord.mode``) so that a replay re-applies it.
+    naive_share: float = 0.0
     harmonize_method: HarmonizeMethod = "camera"
     harmonize_test_time_views: bool = True  # learnt harmonizers: average 6 views (False: 1 view, ~2-6x faster)
     # What the harmonizer may change on the objects: "full" (its output as is) or "luminance" (its brightness and
@@ -136,6 +145,10 @@ class InsertionConfig:
             raise ConfigValueError(
                 ("InsertionConfig", "analysis_max_width"), f"must be 0 (off) or >= 64, got {self.analysis_max_width}"
             )
+        if self.naive_paste and self.naive_share > 0:
+            raise ConfigValueError(
+                ("InsertionConfig", "naive_share"), "must be 0 when naive_paste is on (every image is a naive paste)"
+            )
         if self.decoys[1] > 0 and not self.decoy_categories:
             raise ConfigValueError(("InsertionConfig", "decoy_categories"), "must not be empty when decoys are drawn")
         if set(self.decoy_categories) & set(self.categories):
@@ -143,6 +156,25 @@ class InsertionConfig:
                 ("InsertionConfig", "decoy_categories"),
                 f"{sorted(set(self.decoy_categories) & set(self.categories))} are also annotated categories",
             )
+
+    def for_image(self, rng: np.random.Generator) -> "InsertionConfig":
+        """The config one image is made with: with ``naive_share`` above 0, a uniform drawn from ``rng`` makes it
+        a naive paste (below the share) or a pipeline insertion; the returned config has no share left, so what it
+        makes is what :attr:`mode` names. Without a share: this config, and ``rng`` untouched."""
+        if self.naive_share <= 0:
+            return self
+        return replace(self, naive_paste=bool(rng.random() < self.naive_share), naive_share=0.0)
+
+    @property
+    def mode(self) -> Literal["pipeline", "naive_paste"]:
+        """How an image made with this config (after :meth:`for_image`) was made, as its record says."""
+        return "naive_paste" if self.naive_paste else "pipeline"
+
+    def for_mode(self, mode: str) -> "InsertionConfig":
+        """This config as a recorded ``mode`` says the image was made (a replay's config)."""
+        if mode not in ("pipeline", "naive_paste"):
+            raise ValueError(f"unknown insertion mode {mode!r} (pipeline | naive_paste)")
+        return replace(self, naive_paste=mode == "naive_paste", naive_share=0.0)
 
     def effective(self) -> "InsertionConfig":
         """naive_paste switches the geometry, lighting, shadow and harmonization stages off."""

@@ -46,9 +46,12 @@ class InsertionRecord:
     working_resolution: WorkingResolution | None = None
     # per placement, the layer stages' parameters drawn in the plan (aias_augment.apply.layers)
     layer_params: list[dict] = field(default_factory=list)
+    # how the image was made: "pipeline" or "naive_paste" (InsertionConfig.naive_share draws it per image)
+    mode: str = "pipeline"
 
     def to_dict(self) -> dict:
         return {
+            "mode": self.mode,
             "harmonize_seed": self.harmonize_seed,
             "working_resolution": None if self.working_resolution is None else self.working_resolution.to_dict(),
             "placements": [asdict(p) for p in self.placements],
@@ -65,7 +68,7 @@ class InsertionRecord:
     def from_dict(cls, d: dict) -> "InsertionRecord":
         """The record :meth:`to_dict` wrote (e.g. read back from JSON): ``from_dict(r.to_dict()).to_dict()`` equals
         ``r.to_dict()``. A record without ``working_resolution`` (written before it was recorded) was analysed on
-        the image itself."""
+        the image itself; one without ``mode`` was made as its run's config says."""
         wr = d.get("working_resolution")
         return cls(
             [placement_from_dict(p) for p in d["placements"]],
@@ -77,6 +80,7 @@ class InsertionRecord:
             d["harmonize_seed"],
             None if wr is None else WorkingResolution.from_dict(wr),
             [dict(x) for x in d.get("layer_params", ())],
+            d.get("mode", "pipeline"),
         )
 
 
@@ -125,6 +129,7 @@ def insert_into_image(
     """
     if rng is None:
         raise ValueError("insert_into_image needs an explicit numpy Generator (rng) for reproducibility")
+    cfg = cfg.for_image(rng)  # naive_share: this image a naive paste or a pipeline insertion
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
         raise ValueError(f"image must be (H, W, 3) uint8 RGB, got {img.shape} {img.dtype}")
@@ -156,7 +161,7 @@ def insert_into_image(
         n_objects=n_objects,
     )
     applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
-    return assemble_result(analysis, plan, applied, boxes, labels, min_visibility)
+    return assemble_result(analysis, plan, applied, boxes, labels, min_visibility, mode=cfg.mode)
 
 
 def assemble_result(
@@ -168,10 +173,12 @@ def assemble_result(
     min_visibility: float,
     *,
     working_resolution: WorkingResolution | None = None,
+    mode: str = "pipeline",
 ) -> InsertionResult:
     """The result of one insertion from its three steps' records: the inserted objects' visible boxes appended to the
     input boxes that stay visible enough under what was drawn over them (``boxes`` xywh, in the output's pixels).
-    ``working_resolution``: the smaller copy the analysis and plan ran on (recorded for replay), None: the image."""
+    ``working_resolution``: the smaller copy the analysis and plan ran on (recorded for replay), None: the image.
+    ``mode``: how the image was made (:attr:`InsertionConfig.mode` of its config after ``for_image``)."""
     record = InsertionRecord(
         list(applied.placements),
         list(applied.annotations),
@@ -181,6 +188,7 @@ def assemble_result(
         harmonize_seed=plan.harmonize_seed,
         working_resolution=working_resolution,
         layer_params=list(applied.layer_params),
+        mode=mode,
     )
     inserted_boxes, inserted_labels = [], []
     for placement, ann in zip(applied.placements, applied.annotations):

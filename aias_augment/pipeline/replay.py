@@ -53,10 +53,12 @@ def replay(
     scene_cache: SceneCache | None = None,
 ) -> AppliedPlan:
     """Re-apply ``record`` (:meth:`InsertionRecord.to_dict`, e.g. an offline ``records/NNNNNN.json``) to ``frame``
-    with ``cfg`` (the run's config). ``assets(placement)`` returns the unscaled asset a placement was made from.
+    with ``cfg`` (the run's config; a recorded ``mode`` says whether this image was a naive paste). ``assets(placement)`` returns the unscaled asset a placement was made from.
     ``frame``: the image the record was made from, with the intrinsics, depth and scene facts it was given."""
     if record.get("harmonize_seed") is None:
         raise ValueError("record has no harmonize_seed (written before plans were recorded): cannot replay")
+    if "mode" in record:  # a naive_share run: this image as it was made (pipeline or naive paste)
+        cfg = cfg.for_mode(record["mode"])
     wr = record.get("working_resolution")
     if wr is None:  # analysed on the image itself (also every record written before the field existed)
         analysis = (scene_cache or SceneCache(max_items=0)).get(frame, cfg)

@@ -90,6 +90,9 @@ ARM_FLAGS: dict[str, dict | None] = {
     # pools.derive_mixed_pool). Ground context for some cones, free positions and sizes for the rest, at the same
     # amount: what mixing the two kinds of placement gives a detector, without rendering anything new.
     "inserted_mixed_naive": {"mix_pools": ("inserted", "naive_paste_procedural")},
+    # The same mix as the product makes it (InsertionConfig.naive_share): each image a naive paste of the family or
+    # a pipeline insertion by a uniform from its own draw stream, rendered through the image door.
+    "inserted_naive_share": {"naive_share": 0.5},
 }
 
 
@@ -123,7 +126,8 @@ def insertion_config_for_arm(cfg: StudyConfig, arm: str, train: DetectionSet):
     if ic.match_real_sizes:
         fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
         overrides["placement_cfg"] = dataclasses.replace(base, box_height_frac_samples=fracs)
-        if ARM_FLAGS[arm].get("naive_paste") or ARM_FLAGS[arm].get("placement") is False:
+        flags_of_arm = ARM_FLAGS[arm]
+        if flags_of_arm.get("naive_paste") or flags_of_arm.get("placement") is False or flags_of_arm.get("naive_share"):
             # random 2D positions (naive paste, no placement) draw their sizes from the same distribution
             overrides["naive_height_frac_samples"] = fracs
     if placement_flags:
