@@ -267,3 +267,23 @@ def test_envmap_option(tmp_path):
     s = np.asarray(light["sun_direction_in_cam"])
     assert np.degrees(np.arccos(np.clip(s @ (cam_from_env_look(0.0) @ d), -1, 1))) < 3.0 and s[0] < 0
     assert json.loads((out / "manifest.json").read_text())["options"]["envmap"][0] == str(tmp_path / "sky.hdr")
+
+
+def test_config_file_naive_share_is_recorded_per_image(tmp_path):
+    """``naive_share`` from --config: each image's record says how it was made, and the naive ones skipped the
+    stages a naive paste skips (the rest did not)."""
+    images = _backgrounds(tmp_path, n=5)
+    mesh = _box_mesh(tmp_path / "meshes" / "crate.glb")
+    cfg = tmp_path / "share.yaml"
+    cfg.write_text("naive_share: 0.5\n")
+    out = tmp_path / "out"
+    assert (
+        main(["--images", str(images), "--assets", f"crate={mesh}", "--config", str(cfg), *FAST, "--out", str(out)])
+        == 0
+    )
+    recs = _records(out)
+    assert len(recs) == 5 and all(r["config"]["naive_share"] == 0.5 for r in recs)
+    for i, r in enumerate(recs):  # image i draws from default_rng([seed, i]); its first uniform is the coin
+        assert r["mode"] == ("naive_paste" if np.random.default_rng([3, i]).random() < 0.5 else "pipeline")
+        assert ("placement" in r["skipped_stages"]) == (r["mode"] == "naive_paste")
+    assert {r["mode"] for r in recs} == {"pipeline", "naive_paste"}  # seed 3: both kinds, so both were checked
