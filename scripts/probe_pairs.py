@@ -72,7 +72,7 @@ PAIRS = [
     ("copy_paste n=200", "copy_paste"),
     ("copy_paste n=200", "original"),
     ("inserted_naive_share", "original"),
-    ("inserted_naive_share", "inserted_mixed_naive n=200"),
+    ("inserted_naive_share", "inserted_mixed_naive"),
     ("inserted_naive_share", "inserted_anchor n=200"),
     ("inserted_naive_share", "naive_paste_procedural n=200"),
     ("inserted_naive_share", "copy_paste n=200"),
