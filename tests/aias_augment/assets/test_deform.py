@@ -12,7 +12,10 @@ from PIL import Image
 
 from aias_augment.assets.asset import Asset, PathAssets, normalise_meshes
 from aias_augment.assets.bank.lift import bank_paths
+from aias_augment.assets.bank.taxonomy import load_taxonomy
+from aias_augment.assets.bank.validate import check_size
 from aias_augment.assets.deform import (
+    CATEGORY_KINDS,
     KINDS,
     DeformConfig,
     DeformParams,
@@ -279,3 +282,42 @@ def test_fracture_debris_are_closed_chips_on_the_ground_around_it(cylinder):
     again = apply_deformation(cylinder, DeformParams.from_dict(json.loads(json.dumps(p.to_dict()))))
     for m, n in zip(v.meshes, again.meshes):
         assert np.asarray(m.vertices).tobytes() == np.asarray(n.vertices).tobytes()
+
+
+def _source_for(category: str, height: float) -> Asset:
+    """The test cylinder with the category's name, its height set to ``height`` (width in the usual ratio)."""
+    a = textured_cylinder(radius=0.25 * height, height=height)
+    return Asset(f"{category}_proxy", category, a.meshes, "test")
+
+
+@pytest.mark.parametrize("category", sorted(CATEGORY_KINDS))
+def test_every_variant_placed_at_its_category_sizes_stays_within_the_range_the_bank_accepts(category):
+    """Placed the way the planner places it (source height drawn from the taxonomy's range), no variant of any kind
+    rises or spreads beyond what its deformation's geometry allows, and the bank's size check accepts it.
+
+    The source is ``h`` tall and ``w = h / 2`` wide. Height: only a bend can raise a point, the outer rim of the top
+    rising to (h / theta + w / 2) sin(theta) <= h + (w / 2) sin(theta_max). Along the ground: a dent moves inward, a
+    crush bulges by at most bulge x amount and leans by ``crush_max_lean`` h, a fall or a bend turns the section
+    (at most its diagonal). A fracture's top lies along its fall direction at most the widest gap beyond the base,
+    at most the source's diagonal long and w / 2 to each side, so every point lies within R = hypot(w / 2 + gap h +
+    diag, w / 2) of the axis; chips lie within 0.8 h; the footprint then spans at most 0.8 h + R."""
+    lo, hi = load_taxonomy().height_range_m(category)
+    cfg = DeformConfig()
+    rng = np.random.default_rng(7)
+    for kind in CATEGORY_KINDS[category]:
+        for h in (lo, hi):
+            source = _source_for(category, h)
+            w, diag = 0.5 * h, np.hypot(h, 0.5 * h)
+            rise = h + 0.5 * w * np.sin(np.radians(cfg.bend_angle_deg[1])) if kind == "bend" else h
+            spread = {
+                "dent": w,
+                "crush": w * (1 + cfg.crush_bulge[1] * cfg.crush_amount[1]) + cfg.crush_max_lean * h,
+                "fracture": 0.8 * h + np.hypot(0.5 * w + cfg.fracture_gap[1] * h + diag, 0.5 * w),
+            }.get(kind, diag)
+            for _ in range(3):
+                v = apply_deformation(source, sample_deformation(source, rng, kind=kind))
+                assert v.reference_height_m == pytest.approx(h, rel=1e-6)
+                ext = np.ptp(np.concatenate([m.vertices for m in v.meshes]), axis=0)
+                assert ext[2] <= rise * (1 + 1e-6), (kind, ext, rise)
+                assert max(ext[0], ext[1]) <= spread * (1 + 1e-6), (kind, ext, spread)
+                check_size(ext, category, (lo, hi), where=f"{category}/{kind}")
