@@ -176,6 +176,7 @@ class LightingEstimate:
         "cap_white_to_scene_percentile": "[50, 100]",
         "white_cap_linear": "(0, 1]",
         "ground_white_balance": "[0, 1]",
+        "max_sun_sky_chroma": "[1, inf)",
     }
 )
 @dataclass(frozen=True)
@@ -294,6 +295,9 @@ class LightingConfig:
     #: sleeves, 27 TraCon train photos: 37 % within 0.94-1.06 in R/G and B/G off, 15 % at 0.75; paired deviation
     #: -0.159 [-0.276, -0.067]; results/lighting/neutral_whites). Useful with ``ambient_colour="scene"``.
     ground_white_balance: float = 0.0
+    #: Most the sun's colour may differ from the sky's, per channel against green, before a lit/shadow pair's colour
+    #: is disbelieved (:func:`sun_over_sky_rgb`).
+    max_sun_sky_chroma: float = 2.5
     #: Colour of the fill for the sky the camera did not see ("white stays white"): "seen" keeps the
     #: Preetham model's brightness distribution but takes its chroma from the sky the camera saw above the horizon
     #: (its median; the ground's when too little is seen): the photo went through the camera's white balance, the
@@ -436,6 +440,21 @@ def neutral_ambient(sh: np.ndarray, up_in_cam: np.ndarray, colour: np.ndarray | 
     if not np.all(np.isfinite(c)) or c.min() <= 0 or lum <= 0:
         return sh
     return luminance(sh)[:, None] * (c / lum)[None, :]
+
+
+def sun_over_sky_rgb(lit_rgb: np.ndarray, shadow_rgb: np.ndarray, max_chroma: float) -> np.ndarray:
+    """Per channel r_c = E_sun,c cos z / E_sky,c = lit_c / shadow_c - 1 from a lit/shadowed pair of one surface.
+
+    The sun's colour against the sky's is bounded by physics: both are daylight, and even a low sun against a deep
+    blue sky stays within about 1.6 in r_R / r_G and 0.5 in r_B / r_G. A pair whose ratio leaves [1 / max_chroma,
+    max_chroma] in either (a shadow on a coloured patch, a nearly black channel: a green-less sun, r_R / r_G 25, was
+    measured on a TraCon photo) carries no colour evidence, so r keeps its luminance and becomes grey."""
+    r = np.clip(np.asarray(lit_rgb, np.float64) / np.maximum(np.asarray(shadow_rgb, np.float64), 1e-6) - 1.0, 0, None)
+    if r[1] > 0:
+        chroma = np.array([r[0] / r[1], r[2] / r[1]])
+        if np.all((chroma >= 1.0 / max_chroma) & (chroma <= max_chroma)):
+            return r
+    return np.full(3, float(luminance(r)))
 
 
 def sky_part_of_neutral(sh: np.ndarray, up_in_cam: np.ndarray, sun_sky_rgb: np.ndarray) -> np.ndarray:
@@ -751,7 +770,7 @@ def _finish(
     cos_z = max(float(sun_dir @ up_in_cam), min_cos)
     if measurement is not None and measurement.dominant_sun:
         # Per channel: lit / shadow - 1 = E_sun,c cos(z) / E_sky,c.
-        r_rgb = np.clip(measurement.lit_rgb / np.maximum(measurement.shadow_rgb, 1e-6) - 1.0, 0.0, None)
+        r_rgb = sun_over_sky_rgb(measurement.lit_rgb, measurement.shadow_rgb, config.max_sun_sky_chroma)
         ratio = measurement.sun_sky_ratio
         if config.ambient_colour == "neutral":
             sh = sky_part_of_neutral(sh, up_in_cam, r_rgb)

@@ -65,3 +65,24 @@ def test_shadow_axis_of_pole_shadow_bands():
     angle, strength = ratio.shadow_axis_on_ground(shadow, region, ground)
     assert abs(np.rad2deg(angle) - 30.0) < 4.0 and strength > 0.5
     assert ratio.shadow_axis_on_ground(np.zeros_like(shadow), region, ground) == (0.0, 0.0)
+
+
+def test_sun_over_sky_colour_from_a_lit_and_shadowed_pair_and_a_non_physical_pair_made_grey():
+    from aias_augment.analyse.lighting.estimate import LightingConfig, sun_over_sky_rgb
+    from aias_augment.core.hdr import luminance
+
+    # a warm sun and a blue sky on one coloured surface: lit = a (E_sky + E_sun cos z), shadow = a E_sky
+    albedo = np.array([0.55, 0.25, 0.08])
+    e_sky, e_sun_cosz = np.array([0.30, 0.36, 0.48]), np.array([2.4, 2.1, 1.7])
+    r = sun_over_sky_rgb(albedo * (e_sky + e_sun_cosz), albedo * e_sky, 2.5)
+    np.testing.assert_allclose(r, e_sun_cosz / e_sky, rtol=1e-9)  # the albedo cancels
+    # a shadow over a patch of another colour: no green left in the sun, which daylight cannot be
+    bad_lit, bad_shadow = np.array([0.30, 0.12, 0.10]), np.array([0.17, 0.116, 0.085])
+    raw = bad_lit / bad_shadow - 1
+    got = sun_over_sky_rgb(bad_lit, bad_shadow, 2.5)
+    assert got[0] == got[1] == got[2]
+    assert float(luminance(got)) == pytest.approx(float(luminance(raw)))
+    # darker in shadow in no channel: no sun at all
+    np.testing.assert_array_equal(sun_over_sky_rgb(np.full(3, 0.2), np.full(3, 0.3), 2.5), np.zeros(3))
+    with pytest.raises(ValueError, match="max_sun_sky_chroma"):
+        LightingConfig(max_sun_sky_chroma=0.9)
