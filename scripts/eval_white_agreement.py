@@ -114,7 +114,9 @@ def measure(a) -> list[dict]:
         frame = Frame(img, None)
         an = analyse_scene(frame, cfg)
         if an.region is not None:
-            plan = plan_insertion(an, cfg, np.random.default_rng([a.seed, len(rows)]), n_objects=3, existing_boxes_xyxy=boxes)
+            plan = plan_insertion(
+                an, cfg, np.random.default_rng([a.seed, len(rows)]), n_objects=3, existing_boxes_xyxy=boxes
+            )
             if plan.objects:
                 got = inserted_white_and_albedo(apply_plan(frame, an, plan, cfg).image, plan, an)
                 if got is not None:
