@@ -27,6 +27,7 @@ import json
 import sys
 import time
 import zlib
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -92,11 +93,15 @@ def half(stem: str) -> str:
 
 def measure(a) -> list[dict]:
     cfg = load_preset(a.preset)
+    if a.max_sun_sky_chroma is not None:
+        cfg = replace(cfg, lighting_cfg=replace(cfg.lighting_cfg, max_sun_sky_chroma=a.max_sun_sky_chroma))
     rows, t0 = [], time.perf_counter()
     for stem, img, boxes in labelled_cone_photos(a.seed):
         if len(rows) >= a.photos:
             break
         row = {"photo": stem, "half": half(stem)}
+        if a.half not in ("both", row["half"]):
+            continue
         lin = srgb_to_linear(img.astype(np.float32) / 255.0)
         est = achromatic_light_colour(lin)
         for e in ERODE:
@@ -171,7 +176,10 @@ def report(rows: list[dict], a) -> int:
     lines = [
         "# Inserted whites against a photo's own whites, and how much those agree among themselves\n",
         f"`python scripts/eval_white_agreement.py --photos {a.photos} --seed {a.seed} --preset {a.preset} --out "
-        f"{a.out}`: {len(rows)} TraCon train photos with labelled cones (val not looked at), split by a hash of the "
+        f"{a.out}"
+        + (f" --half {a.half}" if a.half != "both" else "")
+        + (f" --max-sun-sky-chroma {a.max_sun_sky_chroma}" if a.max_sun_sky_chroma is not None else "")
+        + f"`: {len(rows)} TraCon train photos with labelled cones (val not looked at), split by a hash of the "
         f"name into a choice half ({len(choice)}) and a report half ({len(test)}). Ratios (R/G, B/G) against the "
         f"median white sleeve of the photo's labelled cones; 'within' = both in {BAND[0]}-{BAND[1]}, with a 95 % "
         f"photo-bootstrap interval. Inserted cones: the {a.preset} preset's defaults, harmonized.\n",
@@ -205,6 +213,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--preset", default="balanced")
     ap.add_argument("--out", default="results/lighting/neutral_whites")
+    ap.add_argument("--half", choices=("both", "choice", "report"), default="both", help="measure one half only")
+    ap.add_argument("--max-sun-sky-chroma", type=float, default=None, help="LightingConfig override (a choice)")
     ap.add_argument("--from-rows", action="store_true", help="only summarize OUT/agreement_rows.json again")
     a = ap.parse_args(argv)
     out = Path(a.out)
