@@ -175,6 +175,30 @@ def direction_sheet(rows: list[dict], out: Path) -> None:
     cv2.imwrite(str(out), sheet)
 
 
+def worst_sheet(rows: list[dict], test: np.ndarray, out: Path, preset: str = "balanced", n: int = 10) -> list[dict]:
+    """The ``n`` photos the sun decision gets most wrong (largest gap between the recorded confidence and the
+    label), each titled with its index, half, label, confidence and the decision; returns those rows."""
+    from aias_augment.core.viz import contact_sheet
+
+    in_test = np.zeros(len(rows), bool)
+    in_test[test] = True
+    gap = [abs(float(r[f"{preset}_confidence"]) - int(r["direct_sun"])) for r in rows]
+    worst = [int(i) for i in np.argsort(gap, kind="stable")[::-1][:n]]
+    images, titles, picked = [], [], []
+    for i in worst:
+        r = rows[i]
+        img = cv2.cvtColor(cv2.imread(str(data_root() / r["photo"])), cv2.COLOR_BGR2RGB)
+        s = 480 / img.shape[1]
+        images.append(cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA))
+        label = "sun" if int(r["direct_sun"]) else "none"
+        decided = "sun" if int(r[f"{preset}_sun"]) else "none"
+        half = "test" if in_test[i] else "train"
+        titles.append(f"{r['index']} {half}: label {label}, p {float(r[f'{preset}_confidence']):.2f}: {decided}")
+        picked.append({"index": r["index"], "photo": r["photo"], "half": half, "confidence_gap": round(gap[i], 3)})
+    cv2.imwrite(str(out), cv2.cvtColor(contact_sheet(images, cols=4, cell_width=400, titles=titles), cv2.COLOR_RGB2BGR))
+    return picked
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--labels", type=Path, default=Path("results/lighting/benchmark/labels.csv"))
@@ -264,6 +288,8 @@ def main(argv=None) -> int:
     (a.out / "report.json").write_text(json.dumps(report, indent=1))
     (a.out / "shadow_direction_rows.json").write_text(json.dumps(directions, indent=1))
     direction_sheet([d for d in directions if d["preset"] == "balanced"], a.out / "shadow_directions.jpg")
+    report["worst_ten"] = worst_sheet(rows, test, a.out / "worst_ten.jpg")
+    (a.out / "report.json").write_text(json.dumps(report, indent=1))
     import matplotlib
 
     matplotlib.use("Agg")

@@ -57,8 +57,11 @@ def contact_sheet(
             c = cv2.resize(
                 np.ascontiguousarray(im), (w, h), interpolation=cv2.INTER_AREA if w < im.shape[1] else cv2.INTER_LINEAR
             )
-            if titles:
-                cv2.putText(c, str(titles[j]), (5, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
+            if titles:  # white on a dark outline: readable on bright and dark tiles alike
+                for colour, thickness in (((0, 0, 0), 3), ((255, 255, 255), 1)):
+                    cv2.putText(
+                        c, str(titles[j]), (5, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, thickness, cv2.LINE_AA
+                    )
             w = min(w, width - x)
             if w <= 0:
                 break
