@@ -31,7 +31,7 @@ from eval_unposed_odometry import report  # noqa: E402
 from aias_augment.core.config import data_root  # noqa: E402
 from aias_augment.core.geometry import invert_rigid, make_rigid  # noqa: E402
 from aias_augment.scenes.kitti import open_kitti_sequence, read_image_rgb  # noqa: E402
-from aias_augment.scenes.video import _grey, _lk, estimate_stereo_motion  # noqa: E402
+from aias_augment.scenes.video import estimate_stereo_motion, track_points  # noqa: E402
 
 GAPS = (1, 2, 4, 8, 16)
 
@@ -67,7 +67,7 @@ def direct_edges(greys: list, K: np.ndarray, gaps=GAPS) -> list:
         p = cv2.goodFeaturesToTrack(greys[i], 3000, 0.005, 7).reshape(-1, 2).astype(np.float64)
         cur, ok = p.copy(), np.ones(len(p), bool)
         for j in range(i, min(n - 1, i + max(gaps))):
-            cur, o = _lk(greys[j], greys[j + 1], cur, 0.5)
+            cur, o = track_points(greys[j], greys[j + 1], cur, 0.5)
             ok &= o
             if j + 1 - i not in gaps or ok.sum() < 40:
                 continue
@@ -114,7 +114,7 @@ def main(argv=None) -> int:
     rights = [read_image_rgb(p) for p in seq.right_paths]
     truth = np.stack([seq.cam_from_world(i) for i in range(n)])
     est = estimate_stereo_motion(lefts, rights, K, seq.baseline_m, np.random.default_rng(0)).cams_from_world
-    edges = direct_edges([_grey(f) for f in lefts], K.K)
+    edges = direct_edges([cv2.cvtColor(f, cv2.COLOR_RGB2GRAY) for f in lefts], K.K)
     averaged = average_rotations(est, edges)
 
     def contact(P):

@@ -4,6 +4,9 @@ width or height. Inserted boxes are mask-tight; a dataset whose labels carry mar
 
     python scripts/measure_box_convention.py --split train --out results/study_probe/box_convention.json
 
+The same measurement on any labelled folder: ``aias-assets box-convention --yolo DIR --class-names cone --label
+cone --out convention.json``, and ``aias-augment --box-convention convention.json`` makes inserted boxes follow it.
+
 GrabCut starts from the label box (outside it is background), so a label that cuts into the object shows as a
 margin of 0, never below: the numbers bound the labels' looseness from above only on that side.
 """
@@ -14,15 +17,11 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from aias_augment.assets.bank.lift import LiftConfig, cut_out  # noqa: E402
+from aias_augment.assets.bank.lift import LiftConfig, measure_box_convention  # noqa: E402
 from aias_augment.core.config import data_root  # noqa: E402
 from detection_eval.data import load_yolo_dir, read_image_rgb  # noqa: E402
-
-SIDES = ("left", "top", "right", "bottom")
 
 
 def main(argv=None) -> int:
@@ -32,28 +31,13 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
     ds = load_yolo_dir(data_root() / "tracon", a.split, names=("cone",))
-    margins, rejected = [], {}
-    for r in ds.records:
-        if len(r.boxes_xyxy) == 0:
-            continue
-        img = read_image_rgb(r.image_path)
-        for k, b in enumerate(r.boxes_xyxy):
-            others = [r.boxes_xyxy[j] for j in range(len(r.boxes_xyxy)) if j != k]
-            cut, why = cut_out(img, b, others, LiftConfig())
-            if cut is None:
-                rejected[why] = rejected.get(why, 0) + 1
-            else:
-                margins.append(cut.meta["label_margins_frac"])
-    m = np.asarray(margins)
+    items = ((r.image_path, read_image_rgb(r.image_path), r.boxes_xyxy) for r in ds.records if len(r.boxes_xyxy))
+    margins, measured = measure_box_convention(items, LiftConfig())
     report = {
         "command": f"python scripts/measure_box_convention.py --split {a.split} --out {a.out}",
         "dataset": f"TraCon {a.split}",
-        "instances_measured": len(m),
-        "rejected": rejected,
-        "margin_frac_percentiles": {
-            side: {str(q): round(float(np.percentile(m[:, i], q)), 4) for q in (10, 25, 50, 75, 90)}
-            for i, side in enumerate(SIDES)
-        },
+        "box_convention": list(margins),
+        **measured,
         "seconds": round(time.perf_counter() - t0, 1),
     }
     Path(a.out).write_text(json.dumps(report, indent=1))

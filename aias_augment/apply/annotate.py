@@ -1,5 +1,6 @@
 """COCO annotations of inserted objects: visible box from the rendered mask after occlusion, amodal box,
-visibility ratio, RLE mask; visibility of existing boxes under the inserted objects."""
+visibility ratio, RLE mask; visibility of existing boxes under the inserted objects. Boxes are mask-tight unless a
+labelling convention (:func:`follow_convention`: margins measured from the user's own labels) says otherwise."""
 
 from __future__ import annotations
 
@@ -60,6 +61,24 @@ def mask_box_xywh(mask: np.ndarray) -> tuple[float, float, float, float] | None:
     return float(x), float(y), float(w), float(h)
 
 
+def follow_convention(
+    box_xywh: tuple[float, float, float, float] | None, margins: tuple[float, float, float, float], frame_hw
+) -> tuple[float, float, float, float] | None:
+    """The box a dataset's labellers would draw around an object whose mask-tight box is ``box_xywh``: ``margins``
+    (left, top, right, bottom) are how far their label lies outside the mask on each side, as a fraction of the
+    label's own width or height (``assets.bank.lift.measure_box_convention``), so the label is ``w / (1 - left -
+    right)`` wide with ``left`` of that before the mask. Clipped to the frame ``(H, W)``; all-zero margins (the
+    default) return the box itself."""
+    if box_xywh is None or not any(margins):
+        return box_xywh
+    left, top, right, bottom = margins
+    x, y, w, h = box_xywh
+    lw, lh = w / (1.0 - left - right), h / (1.0 - top - bottom)
+    x0, y0 = max(0.0, x - left * lw), max(0.0, y - top * lh)
+    x1, y1 = min(float(frame_hw[1]), x + w + right * lw), min(float(frame_hw[0]), y + h + bottom * lh)
+    return x0, y0, x1 - x0, y1 - y0
+
+
 def encode_rle(mask: np.ndarray) -> dict:
     rle = mask_utils.encode(np.asfortranarray(mask, dtype=np.uint8))  # no copy when already uint8, column-major
     rle["counts"] = rle["counts"].decode("ascii")
@@ -116,13 +135,16 @@ def annotate_in_window(
     full_hw: tuple[int, int],
     threshold: float = 0.5,
     decoy: bool = False,
+    box_margins: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
 ) -> ObjectAnnotation:
     """:func:`annotate_object` of the full frame whose layers are 0 outside the window ``win`` (x0, y0, x1, y1),
-    computed on the window: the same boxes (shifted by its origin), visibility, area and RLE."""
+    computed on the window: the same boxes (shifted by its origin), visibility, area and RLE. ``box_margins``: the
+    labelling convention both boxes follow (:func:`follow_convention`); the mask stays the object's."""
     visible, vbox, abox, visibility, area = _annotation_parts(amodal_w, visible_w, threshold)
 
     def shift(b):
-        return None if b is None else (b[0] + win[0], b[1] + win[1], b[2], b[3])
+        b = None if b is None else (b[0] + win[0], b[1] + win[1], b[2], b[3])
+        return follow_convention(b, box_margins, full_hw)
 
     return ObjectAnnotation(
         category,

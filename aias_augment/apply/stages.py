@@ -236,9 +236,15 @@ def apply_plan(
         mods["colour"] = "luminance only: monochrome camera"
 
     annotations = [
-        annotate_in_window(obj.placement.category, win, alpha, vis_w, full, decoy=obj.placement.decoy)
+        annotate_in_window(
+            obj.placement.category, win, alpha, vis_w, full, decoy=obj.placement.decoy, box_margins=cfg.box_convention
+        )
         for (obj, alpha, _, _), vis_w in zip(layers, vis_alphas)
     ]
+    if any(cfg.box_convention):
+        mods["boxes"] = "labelling convention: margins (left, top, right, bottom) {} of the label".format(
+            list(cfg.box_convention)
+        )
     return AppliedPlan(
         result,
         tuple(o.placement for o, _, _, _ in layers),

@@ -6,6 +6,7 @@ aias-assets show "sh3f:Scopia#cone"
 aias-assets thumbnails --out out/assets/contact_sheet.png [--category dog rock] [--per-category 2]
 aias-assets from-labels --yolo DIR --class-names cone --category traffic_cone --out BANK   # your own instances
 aias-assets from-labels --input train.json --images DIR --label cone --category traffic_cone --out BANK
+aias-assets box-convention --yolo DIR --class-names cone --label cone --out convention.json   # for --box-convention
 aias-assets deform --category traffic_cone --count 8 --seed 0 --out BANK --sheet sheet.png   # dented, crushed...
 aias-assets reconstruct --views views.json --category traffic_cone --out BANK   # from photos (visual hull; SfM if unposed)
 """
@@ -116,19 +117,13 @@ def _cmd_thumbnails(a) -> int:
     return 0
 
 
-def _cmd_from_labels(a) -> int:
-    """Lift the labelled instances of one class into a bank folder (``aias_augment.assets.bank.lift``)."""
-    from aias_augment.adapters.boundary import InputError
-    from aias_augment.assets.bank.lift import LiftConfig, lift_instances
+def _labelled_items(a, label: str, skipped: collections.Counter):
+    """(path, image, boxes of ``label`` xyxy, the image's other boxes xyxy) for each image of ``--yolo`` or
+    ``--input``/``--images`` with a box of ``label``; unreadable or invalid images counted in ``skipped``. Raises
+    InputError for an unreadable label source."""
     from aias_augment.cli.offline import items_from_coco, items_from_yolo, read_rgb, resolve_yolo_boxes
 
-    try:
-        items = items_from_yolo(a.yolo, class_names=a.class_names) if a.yolo else items_from_coco(a.input, a.images)
-    except InputError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    label = a.label or (a.class_names[0] if a.class_names else a.category)
-    skipped = collections.Counter()
+    items = items_from_yolo(a.yolo, class_names=a.class_names) if a.yolo else items_from_coco(a.input, a.images)
 
     def labelled():
         for it in items:
@@ -146,9 +141,24 @@ def _cmd_from_labels(a) -> int:
             if boxes:
                 yield it.path, image, np.array(boxes, float), np.array(others, float).reshape(-1, 4)
 
+    return labelled()
+
+
+def _cmd_from_labels(a) -> int:
+    """Lift the labelled instances of one class into a bank folder (``aias_augment.assets.bank.lift``)."""
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.assets.bank.lift import LiftConfig, lift_instances
+
+    label = a.label or (a.class_names[0] if a.class_names else a.category)
+    skipped = collections.Counter()
+    try:
+        labelled = _labelled_items(a, label, skipped)
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     t0 = time.perf_counter()
     cfg = LiftConfig(min_box_px=a.min_box_px)
-    _, report = lift_instances(labelled(), a.category, a.out, cfg, height_m=a.height_m, mode=a.mode)
+    _, report = lift_instances(labelled, a.category, a.out, cfg, height_m=a.height_m, mode=a.mode)
     summary = {
         "lifted": report.lifted,
         "rejected": dict(report.rejected),
@@ -160,6 +170,38 @@ def _cmd_from_labels(a) -> int:
     if not report.lifted:
         print("error: no instance could be lifted (see 'rejected')", file=sys.stderr)
         return 1
+    return 0
+
+
+def _cmd_box_convention(a) -> int:
+    """Measure how the labels of one class sit around their objects; write it as ``box_convention`` (JSON) for
+    ``aias-augment --box-convention`` (``InsertionConfig.box_convention``)."""
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.assets.bank.lift import LiftConfig, measure_box_convention
+
+    skipped = collections.Counter()
+    t0 = time.perf_counter()
+    try:
+        margins, report = measure_box_convention(
+            _labelled_items(a, a.label, skipped), LiftConfig(min_box_px=a.min_box_px)
+        )
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    out = {
+        "box_convention": list(margins),
+        "sides": ["left", "top", "right", "bottom"],
+        "label": a.label,
+        **report,
+        "images_skipped": dict(skipped),
+        "seconds": round(time.perf_counter() - t0, 1),
+    }
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    a.out.write_text(json.dumps(out, indent=1))
+    print(json.dumps({k: out[k] for k in ("box_convention", "instances_measured", "rejected")}, indent=1))
     return 0
 
 
@@ -325,6 +367,17 @@ def main(argv: list[str] | None = None) -> int:
     )
     s.add_argument("--height-m", type=float, default=None, help="default: the middle of the category's height range")
     s.add_argument("--min-box-px", type=int, default=24)
+    s = sub.add_parser(
+        "box-convention", help="how your labels sit around their objects, for aias-augment --box-convention"
+    )
+    src = s.add_mutually_exclusive_group(required=True)
+    src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
+    src.add_argument("--input", help="COCO json (with --images)")
+    s.add_argument("--images", help="image folder for --input")
+    s.add_argument("--class-names", nargs="*", default=None, help="YOLO class names by index")
+    s.add_argument("--label", required=True, help="the label whose boxes are measured (e.g. cone)")
+    s.add_argument("--out", type=Path, required=True, help="JSON: box_convention [left, top, right, bottom]")
+    s.add_argument("--min-box-px", type=int, default=24, help="smaller boxes are not measured")
     s = sub.add_parser("deform", help="seeded dented, crushed, bent or knocked-over variants of a mesh into a bank")
     s.add_argument("--category", required=True, help="the category (its default mesh unless --asset)")
     s.add_argument("--asset", default=None, help="a mesh file or gazebo model folder to deform")
@@ -369,7 +422,7 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     if a.cmd == "deform" and a.count < 1:
         p.error("--count >= 1 please")
-    if a.cmd == "from-labels" and a.input and not a.images:
+    if a.cmd in ("from-labels", "box-convention") and a.input and not a.images:
         p.error("--input needs --images")
     logging.basicConfig(level=logging.INFO if a.verbose else logging.ERROR, format="%(levelname)s %(message)s")
     return {
@@ -378,6 +431,7 @@ def main(argv: list[str] | None = None) -> int:
         "show": _cmd_show,
         "thumbnails": _cmd_thumbnails,
         "from-labels": _cmd_from_labels,
+        "box-convention": _cmd_box_convention,
         "deform": _cmd_deform,
         "reconstruct": _cmd_reconstruct,
     }[a.cmd](a)

@@ -9,6 +9,7 @@ aias-augment --input tripod.avi --camera-height 4 --out clip_aug/     # a static
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 from pathlib import Path
@@ -62,6 +63,13 @@ def main(argv=None) -> int:
         default=None,
         help="YAML of InsertionConfig fields (nested placement_cfg etc.) applied over --preset; "
         "--categories and --per-image apply over it",
+    )
+    ap.add_argument(
+        "--box-convention",
+        metavar="FILE",
+        default=None,
+        help="the JSON `aias-assets box-convention` wrote: inserted boxes sit around their objects as your labels "
+        "do (margins per side; applied over --config)",
     )
     ap.add_argument(
         "--assets",
@@ -293,7 +301,7 @@ def main(argv=None) -> int:
 
             facts["envmap"] = envmap_fact(a.envmap)
             options["envmap"] = [a.envmap, file_hash(a.envmap)]
-        cfg = insertion_config(a.preset, a.config, a.categories, a.per_image, paths)
+        cfg = insertion_config(a.preset, a.config, a.categories, a.per_image, paths, a.box_convention)
         # Categories your --assets give need not be built-in ones (as InsertObjects(assets=...)).
         unknown = [c for c in cfg.categories if c not in (paths or {})]
         if unknown:
@@ -457,10 +465,35 @@ def envmap_fact(path: str):
         raise InputError(f"--envmap {path}: {' '.join(str(e).split())}") from None
 
 
-def insertion_config(preset: str, config_file: str | None, categories, per_image: int | None, asset_paths=None):
+def read_box_convention(path: str) -> list:
+    """The ``box_convention`` margins of a JSON written by ``aias-assets box-convention`` (InputError otherwise;
+    the values are checked by the config)."""
+    from aias_augment.adapters.boundary import InputError
+
+    try:
+        data = json.loads(Path(path).read_text())
+    except OSError as e:
+        raise InputError(f"--box-convention {path}: cannot read it ({e.strerror or e})") from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"--box-convention {path}: not valid JSON ({e})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("box_convention"), list):
+        raise InputError(
+            f"--box-convention {path}: expected a mapping with a 'box_convention' list (left, top, right, bottom)"
+        )
+    return data["box_convention"]
+
+
+def insertion_config(
+    preset: str,
+    config_file: str | None,
+    categories,
+    per_image: int | None,
+    asset_paths=None,
+    box_convention_file: str | None = None,
+):
     """The run's :class:`InsertionConfig`: ``preset``, then ``config_file``'s fields (YAML; nested configs as
-    mappings of some of their fields), then ``--categories`` / ``--per-image``. Checked by the typed config checker:
-    an error names the file and the field (InputError)."""
+    mappings of some of their fields), then ``--categories`` / ``--per-image`` / ``--box-convention``. Checked by
+    the typed config checker: an error names the file and the field (InputError)."""
     from aias_augment.adapters.boundary import InputError
     from aias_augment.core.config import ConfigError
 
@@ -489,6 +522,8 @@ def insertion_config(preset: str, config_file: str | None, categories, per_image
         flags["max_objects"] = per
         m = data.get("min_objects", 1)
         flags["min_objects"] = min(m, per) if isinstance(m, int) and not isinstance(m, bool) else m
+    if box_convention_file:
+        flags["box_convention"] = read_box_convention(box_convention_file)
     try:
         return load_preset(preset, **{**data, **flags})
     except ConfigError as e:

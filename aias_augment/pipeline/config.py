@@ -45,6 +45,7 @@ EdgeBlendMode = Literal["rendered", "hard", "feather"]
         "arrangement_cluster_radius_m": "(0.35, inf)",
         "contact_shadow_strength": "[0, 1]",
         "contact_shadow_radius": "(0, inf)",
+        "box_convention": "[0, 0.45]",
     },
     orders=["min_objects <= max_objects"],
 )
@@ -109,6 +110,12 @@ class InsertionConfig:
     arrangement: Literal["independent", "line", "cluster", "mixed"] = "independent"
     arrangement_spacing_m: tuple[float, float] = (1.0, 3.0)
     arrangement_cluster_radius_m: float = 1.2
+    # How the output boxes sit around the objects: per side (left, top, right, bottom), how far a label lies outside
+    # the object's mask as a fraction of the label's width or height, as the user's own labellers draw them
+    # (``aias-assets box-convention`` measures it from their labels: apply/annotate.follow_convention). A detector
+    # trained on boxes of another convention than its test labels loses AP at the high IoU thresholds. Zero:
+    # mask-tight (TraCon's labels are: median margins 0-0.6 %, results/study_probe/box_convention.json).
+    box_convention: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     ssaa: int = 2  # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Sun visibility on the ground: "catcher" (GL shadow map: ground patch rendered with/without the object) or
     # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL

@@ -242,7 +242,7 @@ def ground_distance_unit_step(
     if c is None or len(c) < cfg.ground_min_points:
         return None
     pts0 = c.reshape(-1, 2).astype(np.float32)
-    pts1, ok = _lk(g0, g1, pts0, cfg.fb_max_err_px)
+    pts1, ok = track_points(g0, g1, pts0, cfg.fb_max_err_px)
     pts0, pts1 = pts0[ok].astype(np.float64), pts1[ok].astype(np.float64)
     if len(pts0) < cfg.ground_min_points:
         return None
@@ -362,7 +362,7 @@ class StereoOdometryConfig:
     keyframe_every: int = 1
 
 
-def _lk(g0: np.ndarray, g1: np.ndarray, p0: np.ndarray, fb_max: float) -> tuple[np.ndarray, np.ndarray]:
+def track_points(g0: np.ndarray, g1: np.ndarray, p0: np.ndarray, fb_max: float) -> tuple[np.ndarray, np.ndarray]:
     """Lucas-Kanade from g0 to g1 with a forward-backward check: (p1, ok)."""
     q0 = p0.reshape(-1, 1, 2).astype(np.float32)
     q1, st1, _ = cv2.calcOpticalFlowPyrLK(g0, g1, q0, None, winSize=(21, 21), maxLevel=3)
@@ -419,7 +419,9 @@ def estimate_stereo_motion(
             px, qx, xyz = stereo_points(lefts[i], rights[i], intrinsics, baseline_m, cfg)
             key = [i, px, qx, xyz, px.copy(), np.ones(len(px), bool)]
         k, px, qx, xyz, cur, alive = key
-        nxt, ok = _lk(_grey(lefts[i]), _grey(lefts[i + 1]), cur, cfg.fb_max_err_px) if len(cur) else (cur, alive)
+        nxt, ok = (
+            track_points(_grey(lefts[i]), _grey(lefts[i + 1]), cur, cfg.fb_max_err_px) if len(cur) else (cur, alive)
+        )
         ok &= alive
         key[4], key[5] = nxt, ok
         if ok.sum() < cfg.min_inliers:
@@ -457,7 +459,7 @@ def estimate_stereo_motion(
 
 def _row_matches(left: np.ndarray, right: np.ndarray, p: np.ndarray, cfg: StereoOdometryConfig):
     """Right-image matches (M, 2) of left pixels ``p`` along their rows, and which passed the checks."""
-    q, ok = _lk(_grey(left), _grey(right), p, cfg.fb_max_err_px)
+    q, ok = track_points(_grey(left), _grey(right), p, cfg.fb_max_err_px)
     ok &= (np.abs(p[:, 1] - q[:, 1]) < cfg.max_row_error_px) & (p[:, 0] - q[:, 0] > cfg.min_disparity_px)
     return q, ok
 

@@ -352,6 +352,19 @@ class LiftReport:
         return {"lifted": self.lifted, "rejected": dict(self.rejected), "assets": self.assets}
 
 
+def _cut_instances(items, cfg: LiftConfig):
+    """(path, index in its image, box, cutout or None, reason) for every labelled box of ``items`` (``(image_path,
+    image_rgb, boxes_xyxy[, other_boxes_xyxy])``); the other boxes of the image, of its class or not, can occlude
+    it."""
+    for path, image, boxes, *rest in items:
+        boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+        other_class = [np.asarray(b, np.float64) for b in (rest[0] if rest else ())]
+        for k, box in enumerate(boxes):
+            others = [boxes[j] for j in range(len(boxes)) if j != k] + other_class
+            cut, reason = cut_out(image, box, others, cfg, source=str(path))
+            yield path, k, box, cut, reason
+
+
 def lift_instances(
     items,
     category: str,
@@ -376,39 +389,65 @@ def lift_instances(
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     report, assets = LiftReport(), []
-    for path, image, boxes, *rest in items:
-        boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
-        other_class = [np.asarray(b, np.float64) for b in (rest[0] if rest else ())]
-        for k, box in enumerate(boxes):
-            others = [boxes[j] for j in range(len(boxes)) if j != k] + other_class
-            cut, reason = cut_out(image, box, others, cfg, source=str(path))
-            if cut is not None and mode == "revolution" and profile_iou(cut.mask) < cfg.min_profile_iou:
-                cut, reason = None, "not a surface of revolution (tilted or cut)"
-            if cut is None:
-                report.rejected[reason] += 1
-                log.info("%s box %d: not lifted: %s", path, k, reason)
-                continue
-            mesh = lift_revolution(cut, h_m, cfg) if mode == "revolution" else lift_card(cut, h_m)
-            idx = len(assets)
-            meta = {"source_image": str(path), "source_box_xyxy": list(map(float, box)), "lift_mode": mode, **cut.meta}
-            name = f"lifted_{category}_{idx:04d}"
-            src = str(path)
-            if out is not None:
-                glb = out / f"{idx:04d}.glb"
-                y_up = mesh.copy()
-                y_up.apply_transform(np.linalg.inv(axis_rotation_to_z_up("Y")))  # glTF is y-up
-                y_up.export(glb)
-                src = str(glb)
-                report.assets.append({"file": glb.name, "category": category, "height_m": h_m, **meta})
-            assets.append(
-                Asset(name, category, normalise_meshes([mesh]), src, "the user's own labelled data", False, meta)
-            )
-            report.lifted += 1
+    for path, k, box, cut, reason in _cut_instances(items, cfg):
+        if cut is not None and mode == "revolution" and profile_iou(cut.mask) < cfg.min_profile_iou:
+            cut, reason = None, "not a surface of revolution (tilted or cut)"
+        if cut is None:
+            report.rejected[reason] += 1
+            log.info("%s box %d: not lifted: %s", path, k, reason)
+            continue
+        mesh = lift_revolution(cut, h_m, cfg) if mode == "revolution" else lift_card(cut, h_m)
+        idx = len(assets)
+        meta = {"source_image": str(path), "source_box_xyxy": list(map(float, box)), "lift_mode": mode, **cut.meta}
+        name = f"lifted_{category}_{idx:04d}"
+        src = str(path)
+        if out is not None:
+            glb = out / f"{idx:04d}.glb"
+            y_up = mesh.copy()
+            y_up.apply_transform(np.linalg.inv(axis_rotation_to_z_up("Y")))  # glTF is y-up
+            y_up.export(glb)
+            src = str(glb)
+            report.assets.append({"file": glb.name, "category": category, "height_m": h_m, **meta})
+        assets.append(Asset(name, category, normalise_meshes([mesh]), src, "the user's own labelled data", False, meta))
+        report.lifted += 1
     if out is not None:
         (out / "bank.json").write_text(
             json.dumps({"category": category, "config": asdict(cfg), "report": report.to_dict()}, indent=1)
         )
     return assets, report
+
+
+BOX_SIDES = ("left", "top", "right", "bottom")
+
+
+def measure_box_convention(items, cfg: LiftConfig = LiftConfig()) -> tuple[tuple[float, float, float, float], dict]:
+    """How the labellers of ``items`` (as :func:`lift_instances` takes them) draw a box around an object: per side,
+    the median over the instances :func:`cut_out` accepts of how far the label lies outside the object's mask, as a
+    fraction of the label's width or height (what ``InsertionConfig.box_convention`` takes). Returns ``(margins,
+    report)``: the report counts the instances measured and rejected (by reason) and gives each side's percentiles.
+
+    GrabCut starts from the label box (outside it is background), so a label that cuts into the object measures 0
+    on that side, never less: the margins bound a label's looseness from above where it is loose, and read 0 where
+    it is tight or cuts in. Raises ValueError when no instance can be measured."""
+    margins, rejected = [], Counter()
+    for _, _, _, cut, reason in _cut_instances(items, cfg):
+        if cut is None:
+            rejected[reason] += 1
+        else:
+            margins.append(cut.meta["label_margins_frac"])
+    if not margins:
+        raise ValueError(f"no labelled instance could be measured (rejected: {dict(rejected)})")
+    m = np.clip(np.asarray(margins, np.float64), 0.0, None)
+    median = tuple(round(float(v), 4) for v in np.median(m, axis=0))
+    report = {
+        "instances_measured": len(m),
+        "rejected": dict(rejected),
+        "margin_frac_percentiles": {
+            side: {str(q): round(float(np.percentile(m[:, i], q)), 4) for q in (10, 25, 50, 75, 90)}
+            for i, side in enumerate(BOX_SIDES)
+        },
+    }
+    return median, report
 
 
 def bank_paths(folder: str | Path) -> dict[str, list[str]]:

@@ -97,3 +97,17 @@ def test_box_visibility_under_a_window_cover_is_that_of_the_frame():
         box_visibility_under_cover(boxes, frame),
         atol=1e-12,
     )
+
+
+def test_a_box_following_a_convention_has_its_margins_around_the_mask():
+    from aias_augment.apply.annotate import follow_convention
+
+    mask_box = (40.0, 30.0, 50.0, 100.0)
+    margins = (0.1, 0.05, 0.08, 0.02)
+    X, Y, W, H = follow_convention(mask_box, margins, (480, 640))
+    got = [(40 - X) / W, (30 - Y) / H, (X + W - 90) / W, (Y + H - 130) / H]
+    assert np.allclose(got, margins, atol=1e-12)
+    assert follow_convention(mask_box, (0, 0, 0, 0), (480, 640)) is mask_box  # tight: the box itself
+    assert follow_convention(None, margins, (480, 640)) is None
+    X, Y, W, H = follow_convention((1.0, 2.0, 20.0, 40.0), margins, (480, 640))  # at the frame's corner: clipped
+    assert X == 0.0 and Y == 0.0 and X + W > 21 and Y + H > 42

@@ -50,3 +50,42 @@ def test_import_list_show(tmp_path, capsys):
     assert "nan_vertices" in out and "good_textured" not in out
     assert main(base + ["show", "sidecar:meshes/good_textured.obj"]) == 0
     assert "extents [0.5 0.5 0.5] m" in capsys.readouterr().out
+
+
+def test_box_convention_cli_measures_the_labels_and_augment_takes_it(tmp_path, capsys):
+    """A YOLO folder whose cone labels lie 10 % of their width outside the drawn cone on the left and right: the
+    command writes those margins, and aias-augment's --box-convention puts them in the run's config."""
+    import cv2
+    import numpy as np
+    import pytest
+
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.cli.augment import insertion_config
+    from tests.aias_augment.assets.bank.test_lift import _label_with_margins, draw_cone, noise_background
+
+    img_dir, lab_dir = tmp_path / "images", tmp_path / "labels"
+    img_dir.mkdir()
+    lab_dir.mkdir()
+    for k in range(2):
+        img = noise_background(240, 320, k)
+        tight = draw_cone(img, 140 + 40 * k, 200, 130, 35) + [0, 0, 1, 1]
+        b = _label_with_margins(tight, (0.1, 0.0, 0.1, 0.0))
+        cv2.imwrite(str(img_dir / f"{k}.png"), img[..., ::-1])
+        (lab_dir / f"{k}.txt").write_text(
+            f"0 {(b[0] + b[2]) / 640} {(b[1] + b[3]) / 480} {(b[2] - b[0]) / 320} {(b[3] - b[1]) / 240}\n"
+        )
+    out = tmp_path / "convention.json"
+    rc = main(["box-convention", "--yolo", str(img_dir), "--class-names", "cone", "--label", "cone", "--out", str(out)])
+    assert rc == 0
+    written = json.loads(out.read_text())
+    assert written["instances_measured"] == 2
+    assert np.allclose(written["box_convention"], [0.1, 0.0, 0.1, 0.0], atol=0.015)
+    cfg = insertion_config("fast", None, None, None, box_convention_file=str(out))
+    assert cfg.box_convention == tuple(written["box_convention"])
+    (tmp_path / "bad.json").write_text(json.dumps({"box_convention": [0.6, 0, 0, 0]}))
+    with pytest.raises(InputError, match="box_convention"):
+        insertion_config("fast", None, None, None, box_convention_file=str(tmp_path / "bad.json"))
+    with pytest.raises(InputError, match="--box-convention"):
+        insertion_config("fast", None, None, None, box_convention_file=str(tmp_path / "missing.json"))
+    rc = main(["box-convention", "--yolo", str(img_dir), "--class-names", "cone", "--label", "sign", "--out", str(out)])
+    assert rc == 1 and "no labelled instance" in capsys.readouterr().err

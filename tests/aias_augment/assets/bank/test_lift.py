@@ -18,6 +18,7 @@ from aias_augment.assets.bank.lift import (
     cut_out,
     lift_instances,
     lift_revolution,
+    measure_box_convention,
     profile_iou,
     silhouette_profile,
 )
@@ -89,6 +90,31 @@ def test_rejections_are_named(case, reason):
         img[:] = 128
     cut, why = cut_out(img, box, others)
     assert cut is None and why.startswith(reason)
+
+
+def _label_with_margins(tight_xyxy, margins):
+    """The label box whose margins (left, top, right, bottom; fractions of the label's width or height) around the
+    tight box ``tight_xyxy`` are ``margins``."""
+    left, top, right, bottom = margins
+    x0, y0, x1, y1 = tight_xyxy
+    w, h = (x1 - x0) / (1 - left - right), (y1 - y0) / (1 - top - bottom)
+    return np.array([x0 - left * w, y0 - top * h, x1 + right * w, y1 + bottom * h])
+
+
+def test_the_box_convention_measured_is_the_one_the_labels_were_drawn_with():
+    margins = (0.08, 0.05, 0.06, 0.0)
+    items = []
+    for k, (xc, yb, height, half) in enumerate([(100, 200, 120, 30), (200, 210, 150, 40), (160, 180, 100, 28)]):
+        img = noise_background(240, 320, k)
+        tight = draw_cone(img, xc, yb, height, half) + [0, 0, 1, 1]  # the last filled pixel's far edge
+        items.append((f"{k}.png", img, _label_with_margins(tight, margins)[None]))
+    small = noise_background(240, 320, 9)
+    items.append(("small.png", small, draw_cone(small, 160, 200, 16, 6)[None]))
+    measured, report = measure_box_convention(items)
+    assert report["instances_measured"] == 3 and report["rejected"] == {"too small": 1}
+    assert np.allclose(measured, margins, atol=0.015)
+    with pytest.raises(ValueError, match="no labelled instance"):
+        measure_box_convention(items[-1:])
 
 
 # ------------------------------------------------------------------ surfaces of revolution through the renderer
