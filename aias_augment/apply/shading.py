@@ -1,4 +1,5 @@
-"""Shading of an inserted object: SH ambient plus a shadowed directional sun, Lambertian.
+"""Shading of an inserted object: SH ambient plus a shadowed directional sun, Lambertian, with an optional glossy
+dielectric coating (:class:`Coating`: road plastics, painted metal).
 
 Output is linear radiance in the units of the lighting estimate: ``albedo / pi * (E_sh(n) + E_sun max(0, n.l) v)``
 with ``E_sh`` the SH irradiance (``sh``), ``E_sun`` the sun's normal-incidence irradiance, ``l`` the sun direction and
@@ -12,21 +13,85 @@ most). A texture cannot store reflectance above 1, so albedos of that colour (hu
 >= 0.5, measured on the sRGB-encoded albedo) get the luminance gain of :func:`fluorescent_gain` in
 :func:`shade_object`, the one shading function every render path calls; no channel is lifted above 1 (white's
 response), so e.g. (208, 64, 16) paint becomes (255, 80, 23)-like while (255, 72, 18) gains little.
+
+Coating: a dielectric's reflection at its surface, colourless, with Schlick's Fresnel term from ``f0`` (0.04 for
+plastics and paint, refractive index about 1.5). Of the sun, a GGX microfacet lobe (Smith-Schlick visibility, Walter
+et al. 2007): ``F D G / (4 n.v) E_sun v``. Of the sky, the SH ambient seen in the mirror direction r: its irradiance
+E_sh(r) / pi is the cosine-weighted mean radiance around r, the reflection of a rough surface. The diffuse part keeps
+``1 - F`` of the light. Needs the direction toward the camera at each pixel (:func:`view_directions`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.analyse.lighting.sh import sh_irradiance
 
-__all__ = ["shade_object", "shade_pixels", "irradiance_at_normals", "fluorescent_gain", "FLUORESCENT_GAIN"]
+__all__ = [
+    "Coating",
+    "shade_object",
+    "shade_pixels",
+    "irradiance_at_normals",
+    "fluorescent_gain",
+    "view_directions",
+    "FLUORESCENT_GAIN",
+]
 
 #: Luminance gain of a fully fluorescent-orange albedo: (255, 72, 18) reflects 0.26; x 1.6 = 0.41, mid-range of the
 #: daylight-fluorescent orange luminance factors (0.3-0.45). Read at call time (1.0: off, as the realism report's
 #: "fixes off" arm sets it).
 FLUORESCENT_GAIN = 1.6
+
+
+@dataclass(frozen=True)
+class Coating:
+    """A glossy dielectric surface layer: ``f0`` the reflectance at normal incidence (0: none, matte Lambertian;
+    0.04: plastic), ``roughness`` the GGX perceptual roughness (alpha = roughness^2)."""
+
+    f0: float = 0.0
+    roughness: float = 0.4
+
+    def __post_init__(self):
+        if not (0.0 <= self.f0 <= 0.2 and 0.05 <= self.roughness <= 1.0):
+            raise ValueError(f"Coating: f0 in [0, 0.2] and roughness in [0.05, 1], got {self}")
+
+
+def view_directions(roi: tuple[int, int, int, int], intrinsics) -> np.ndarray:
+    """(h, w, 3) unit vectors in the camera frame from the surface seen at each pixel centre of the window ``roi``
+    (x0, y0, x1, y1) toward the camera: minus the pixel's ray."""
+    x0, y0, x1, y1 = roi
+    u, v = np.meshgrid(np.arange(x0, x1) + 0.5, np.arange(y0, y1) + 0.5)
+    ray = np.stack([(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones_like(u)], -1)
+    return -ray / np.linalg.norm(ray, axis=-1, keepdims=True)
+
+
+def _coating_radiance(n, view, lighting: LightingEstimate, sun_visibility, coating: Coating):
+    """(Fresnel weight (N,), reflected radiance (N, 3)) of ``coating`` at unit normals ``n`` seen from ``view``."""
+    v = np.asarray(view, dtype=np.float64)
+    ndv = np.clip(np.einsum("ij,ij->i", n, v), 1e-3, 1.0)
+    fresnel = coating.f0 + (1.0 - coating.f0) * (1.0 - ndv) ** 5
+    mirror = 2.0 * ndv[:, None] * n - v
+    out = fresnel[:, None] * sh_irradiance(lighting.ambient_sh, mirror) / np.pi
+    if lighting.dominant_sun and lighting.sun_direction_in_cam is not None:
+        sun = np.asarray(lighting.sun_direction_in_cam, dtype=np.float64)
+        ndl = np.einsum("ij,j->i", n, sun)
+        half = sun + v
+        half /= np.maximum(np.linalg.norm(half, axis=1, keepdims=True), 1e-9)
+        ndh = np.clip(np.einsum("ij,ij->i", n, half), 0.0, 1.0)
+        vdh = np.clip(np.einsum("ij,ij->i", v, half), 0.0, 1.0)
+        a2 = coating.roughness**4
+        d = a2 / (np.pi * (ndh**2 * (a2 - 1.0) + 1.0) ** 2)
+        k = coating.roughness**2 / 2.0
+        g = ndl / (ndl * (1.0 - k) + k) * ndv / (ndv * (1.0 - k) + k)
+        f = coating.f0 + (1.0 - coating.f0) * (1.0 - vdh) ** 5
+        lobe = np.where(ndl > 0, f * d * g / (4.0 * ndv), 0.0)
+        if sun_visibility is not None:
+            lobe = lobe * np.clip(np.asarray(sun_visibility, dtype=np.float64), 0.0, 1.0)
+        out = out + lobe[:, None] * np.asarray(lighting.sun_irradiance_rgb, dtype=np.float64)
+    return fresnel, out
 
 
 def irradiance_at_normals(
@@ -69,9 +134,12 @@ def shade_object(
     mask: np.ndarray,
     lighting: LightingEstimate,
     sun_visibility: np.ndarray | None = None,
+    view: np.ndarray | None = None,
+    coating: Coating = Coating(),
 ) -> np.ndarray:
     """Linear RGB (H, W, 3) float32 of the object (0 outside ``mask``). Normals need not be exactly unit (renormalised);
-    zero normals inside the mask get ambient from the up direction rather than NaN."""
+    zero normals inside the mask get ambient from the up direction rather than NaN. ``view`` (H, W, 3): the
+    directions toward the camera (:func:`view_directions`), needed by a ``coating`` with ``f0`` above 0."""
     albedo = np.asarray(albedo_linear, dtype=np.float64)
     n = np.asarray(normals_in_cam, dtype=np.float64)
     m = np.asarray(mask, bool)
@@ -83,7 +151,12 @@ def shade_object(
         raise ValueError("shade_object: albedo or normals contain NaN or Inf inside the mask")
     out = np.zeros(albedo.shape, np.float32)
     out[m] = shade_pixels(
-        albedo[m], n[m], lighting, None if sun_visibility is None else np.asarray(sun_visibility, dtype=np.float64)[m]
+        albedo[m],
+        n[m],
+        lighting,
+        None if sun_visibility is None else np.asarray(sun_visibility, dtype=np.float64)[m],
+        None if view is None else np.asarray(view, dtype=np.float64)[m],
+        coating,
     )
     return out
 
@@ -93,10 +166,12 @@ def shade_pixels(
     normals_in_cam: np.ndarray,
     lighting: LightingEstimate,
     sun_visibility: np.ndarray | None = None,
+    view: np.ndarray | None = None,
+    coating: Coating = Coating(),
 ) -> np.ndarray:
     """:func:`shade_object` on a list of pixels: albedo (N, 3), normals (N, 3) (renormalised; a zero normal gets
-    the up direction), sun visibility (N,) or None -> (N, 3) float32 linear radiance (non-finite results as 0). The
-    caller checks finiteness (``shade_object`` does)."""
+    the up direction), sun visibility (N,) or None, directions toward the camera (N, 3) or None -> (N, 3) float32
+    linear radiance (non-finite results as 0). The caller checks finiteness (``shade_object`` does)."""
     n = np.asarray(normals_in_cam, dtype=np.float64)
     length = np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
     n = np.where(length > 1e-6, n / np.maximum(length, 1e-6), lighting.up_in_cam)  # eps: degenerate normals
@@ -104,4 +179,10 @@ def shade_pixels(
     a = np.clip(np.asarray(albedo_linear, dtype=np.float64), 0.0, None)
     # the gain never lifts a channel above white's response (albedo 1): the saturation guard on white holds for it
     a = np.minimum(a * fluorescent_gain(a, FLUORESCENT_GAIN)[:, None], np.maximum(a, 1.0))
-    return np.nan_to_num(a * E / np.pi, nan=0.0, posinf=0.0).astype(np.float32)
+    out = a * E / np.pi
+    if coating.f0 > 0:
+        if view is None:
+            raise ValueError("shade_pixels: a coating needs the view directions")
+        fresnel, reflected = _coating_radiance(n, view, lighting, sun_visibility, coating)
+        out = out * (1.0 - fresnel)[:, None] + reflected
+    return np.nan_to_num(out, nan=0.0, posinf=0.0).astype(np.float32)

@@ -20,7 +20,7 @@ from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window
 from aias_augment.apply.layers import ObjectLayer, apply_layer_stages
 from aias_augment.apply.projected_shadow import projected_ground
 from aias_augment.apply.render import render_ground_shadow, render_object_window
-from aias_augment.apply.shading import shade_object, shade_pixels
+from aias_augment.apply.shading import Coating, shade_object, shade_pixels, view_directions
 from aias_augment.apply.shadows import (
     contact_occlusion_of,
     occluder_distance_from_footprint,
@@ -95,6 +95,8 @@ def apply_plan(
     mods: dict = {}
     rendered, dropped = [], []
     n_cached = 0
+    # the glossy coating reflects the estimated light: not in a render without lighting (ablation, naive paste)
+    coating = Coating(cfg.coating_f0, cfg.coating_roughness) if cfg.lighting else Coating()
     for k, obj in enumerate(plan.objects):
         warped = None
         if cfg.render_method == "view_cache":
@@ -108,11 +110,14 @@ def apply_plan(
         if alpha.size == 0 or alpha.max() <= 0.5:
             dropped.append({"rejected": {"renders to no pixel": 1}})
             continue
+        view = view_directions(roi, intr) if coating.f0 > 0 else None
         if warped is not None:  # shaded on its covered pixels only
             shaded = np.zeros(alpha.shape + (3,), np.float32)
-            shaded[warped.inside] = shade_pixels(warped.albedo, warped.normals, lighting)
+            shaded[warped.inside] = shade_pixels(
+                warped.albedo, warped.normals, lighting, None, None if view is None else view[warped.inside], coating
+            )
         else:
-            shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, alpha > 0, lighting)
+            shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, alpha > 0, lighting, view=view, coating=coating)
         params = plan.layer_params[k] if k < len(plan.layer_params) else {}
         if params:
             motion = None if motions_px is None else motions_px[k]

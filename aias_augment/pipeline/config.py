@@ -46,6 +46,8 @@ EdgeBlendMode = Literal["rendered", "hard", "feather"]
         "contact_shadow_strength": "[0, 1]",
         "contact_shadow_radius": "(0, inf)",
         "box_convention": "[0, 0.45]",
+        "coating_f0": "[0, 0.2]",
+        "coating_roughness": "[0.05, 1]",
     },
     orders=["min_objects <= max_objects"],
 )
@@ -116,6 +118,11 @@ class InsertionConfig:
     # trained on boxes of another convention than its test labels loses AP at the high IoU thresholds. Zero:
     # mask-tight (TraCon's labels are: median margins 0-0.6 %, results/study_probe/box_convention.json).
     box_convention: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    # A glossy dielectric coating on every object (apply/shading.Coating): reflectance at normal incidence (0: matte
+    # Lambertian; 0.04: plastics and paint) and GGX roughness; it reflects the estimated sky and sun, so it is off
+    # where the lighting stage is.
+    coating_f0: float = 0.0
+    coating_roughness: float = 0.4
     ssaa: int = 2  # supersampling of the object render (edge quality vs time, cost ~ssaa^2)
     # Sun visibility on the ground: "catcher" (GL shadow map: ground patch rendered with/without the object) or
     # "projected" (the object's triangles projected along the sun onto the ground, filled in numpy/OpenCV; no GL

@@ -45,6 +45,9 @@ ARM_FLAGS: dict[str, dict | None] = {
     # Each object's boundary drawn from three blend modes (as rendered, hard, feathered; InsertionConfig.edge_blend),
     # so that no one kind of paste edge is the sign of a cone (Cut, Paste and Learn's blending invariance).
     "inserted_edges": {"edge_blend": ("rendered", "hard", "feather")},
+    # A glossy plastic coating on every object (InsertionConfig.coating_f0 = 0.04, GGX roughness 0.4): the sky and
+    # sun reflected at its surface, as real cones' PVC shows them; the defaults are matte Lambertian.
+    "inserted_glossy": {"coating_f0": 0.04},
     # The defaults with the contact shadow at 0.6 instead of 0.15 (InsertionConfig.contact_shadow_strength): 0.15 is
     # nearest the real cones' base darkening (results/lighting/contact_shadows); this arm asks what a detector takes
     # from a darker footprint.

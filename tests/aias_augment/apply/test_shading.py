@@ -167,3 +167,62 @@ def test_cast_shadow_of_a_sun_ahead_falls_toward_the_camera_away_from_the_sun(me
     c = np.array([(uu * w).sum(), (vv * w).sum()]) / w.sum() - b
     cos = float(c @ expected) / float(np.linalg.norm(c))
     assert cos > 0.95, (c, expected)
+
+
+def test_a_coating_under_a_uniform_sky_conserves_white_and_reflects_fresnel_off_black():
+    """Under a uniform sky of radiance L a white coated surface still shows L (what the coating reflects, the diffuse
+    part loses), and a black one shows Schlick's F(n.v) L: F0 L head-on, more toward grazing."""
+    from aias_augment.apply.shading import Coating
+
+    light = LightingEstimate(None, np.zeros(3), _uniform_sky(0.5), 0.0, False, 1.0, "test")
+    coat = Coating(0.04, 0.4)
+    view = np.zeros((1, 2, 3))
+    view[..., 2] = -1.0
+    n = np.zeros((1, 2, 3))
+    n[0, 0] = [0, 0, -1]  # head-on
+    n[0, 1] = [np.sin(np.radians(75)), 0, -np.cos(np.radians(75))]  # 75 deg from the view
+    mask = np.ones((1, 2), bool)
+    white = shade_object(np.ones((1, 2, 3)), n, mask, light, view=view, coating=coat)
+    assert np.allclose(white, 0.5, rtol=2e-3)
+    black = shade_object(np.zeros((1, 2, 3)), n, mask, light, view=view, coating=coat)
+    schlick = 0.04 + 0.96 * (1 - np.cos(np.radians(75))) ** 5
+    assert black[0, 0] == pytest.approx([0.04 * 0.5] * 3, rel=2e-3)
+    assert black[0, 1] == pytest.approx([schlick * 0.5] * 3, rel=2e-3)
+    with pytest.raises(ValueError, match="view directions"):
+        shade_object(np.ones((1, 2, 3)), n, mask, light, coating=coat)
+    with pytest.raises(ValueError):
+        Coating(0.5, 0.4)
+
+
+def test_the_suns_highlight_is_where_the_normal_halves_sun_and_view():
+    """On a hemisphere of normals, black and coated, lit by the sun alone, the brightest normal is the half vector of
+    the sun and view directions (mirror reflection), and a rougher coat spreads a lower peak."""
+    from aias_augment.apply.shading import Coating
+
+    sun = np.array([0.3, -0.8, -0.5])
+    sun /= np.linalg.norm(sun)
+    light = LightingEstimate(sun, np.full(3, 3.0), np.zeros((9, 3)), 5.0, True, 1.0, "test")
+    t, p = np.meshgrid(np.radians(np.linspace(0, 89, 90)), np.radians(np.linspace(0, 359, 360)))
+    n = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), -np.cos(t)], -1)  # facing the camera
+    view = np.zeros_like(n)
+    view[..., 2] = -1.0
+    mask = np.ones(n.shape[:2], bool)
+    peaks = []
+    for rough in (0.3, 0.6):
+        out = shade_object(np.zeros(n.shape), n, mask, light, view=view, coating=Coating(0.04, rough))[..., 0]
+        best = n[np.unravel_index(np.argmax(out), out.shape)]
+        half = (sun + view[0, 0]) / np.linalg.norm(sun + view[0, 0])
+        assert np.degrees(np.arccos(np.clip(best @ half, -1, 1))) < 1.5
+        peaks.append(out.max())
+    assert peaks[0] > 2 * peaks[1]
+
+
+def test_view_directions_point_back_along_each_pixels_ray():
+    from aias_augment.apply.shading import view_directions
+    from aias_augment.core.geometry import Intrinsics
+
+    K = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)
+    v = view_directions((300, 200, 340, 260), K)
+    assert v.shape == (60, 40, 3) and np.allclose(np.linalg.norm(v, axis=-1), 1.0)
+    p = -v[40, 20]  # pixel (320, 240)'s centre: (320.5, 240.5)
+    assert p[0] / p[2] * 500 + 320 == pytest.approx(320.5) and p[1] / p[2] * 500 + 240 == pytest.approx(240.5)
