@@ -14,19 +14,18 @@ Image conversions (explicit, recorded as a ``converted`` note):
 from __future__ import annotations
 
 import math
-import re
-import warnings
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from aias_augment.core.errors import InputError
+from aias_augment.core.image_io import DEFAULT_MAX_PIXELS, ImageReadError, read_image_with_notes
 
 IMAGE_SKIP_KINDS = (
     "unreadable image",
     "corrupt image",
     "unsupported image",
+    "image too large",
     "garbage label line",
     "class id out of range",
     "non-finite box",
@@ -62,60 +61,15 @@ def format_problem(p: dict) -> str:
 
 
 # ----------------------------------------------------------------------------------------------------- images
-def read_image_checked(path) -> tuple[np.ndarray, list[dict]]:
-    """Decode ``path`` to (H, W, 3) uint8 RGB or raise ``ValueError("<kind>: <reason>")``.
-
-    Truncated or corrupt files are detected by a full PIL decode with truncation errors on (libjpeg's warnings are
-    not enough: OpenCV decodes a third of a JPEG and fills the rest with grey). The pixels are OpenCV's (EXIF
-    orientation applied, as ``cv2.imread``). Returns the image and the conversion notes.
-    """
-    from PIL import Image, ImageFile
-
-    path = Path(path)
+def read_image_checked(path, max_pixels: int = DEFAULT_MAX_PIXELS) -> tuple[np.ndarray, list[dict]]:
+    """Decode ``path`` to (H, W, 3) uint8 RGB with :func:`~aias_augment.core.image_io.read_image_with_notes` (pixel
+    count checked from the header, truncated or corrupt files refused, EXIF orientation applied), or raise
+    :class:`ImageSkip` of the reader's kind. Returns the image and the conversion notes."""
     try:
-        data = path.read_bytes()
-    except OSError as e:
-        raise ImageSkip("unreadable image", str(e.strerror or e)) from None
-    if not data:
-        raise ValueError("unreadable image: empty file")
-    ImageFile.LOAD_TRUNCATED_IMAGES = False
-    import io
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")  # PIL's decoder warnings (e.g. corrupt EXIF) become errors
-            with Image.open(io.BytesIO(data)) as im:
-                im.verify()
-            with Image.open(io.BytesIO(data)) as im:
-                im.load()
-                mode = im.mode
-    except Exception as e:  # PIL raises OSError, SyntaxError, ValueError, UserWarning... for broken files
-        # PIL names an in-memory file by its address ("<_io.BytesIO object at 0x7f...>"): not part of a reproducible
-        # report, so the address is dropped
-        detail = re.sub(r"<[^<>]* at 0x[0-9a-fA-F]+>", "the file", str(e))
-        raise ImageSkip("corrupt image", f"{type(e).__name__}: {detail}") from None
-    if data[:2] == b"\xff\xd8" and b"\xff\xd9" not in data[-4096:]:
-        raise ValueError("corrupt image: JPEG without end-of-image marker (truncated)")
-    if mode in ("F", "I") or mode.startswith("BGR"):
-        raise ValueError(
-            f"unsupported image: PIL mode {mode!r} (float or 32-bit integer pixels are refused; "
-            "convert to 8- or 16-bit first)"
-        )
-    buf = np.frombuffer(data, np.uint8)
-    img = cv2.imdecode(buf, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
-    if img is None or img.size == 0:
-        raise ValueError("unreadable image: OpenCV cannot decode it")
-    notes = []
-    if img.dtype == np.uint16:
-        img = np.round(img.astype(np.float32) / 257.0).astype(np.uint8)
-        notes.append(problem("converted", path, "16-bit image converted to 8-bit (round(v / 257))"))
-    elif img.dtype != np.uint8:
-        raise ImageSkip("unsupported image", f"{img.dtype} pixels (only 8- and 16-bit integer images)")
-    if mode not in ("RGB", "I;16", "I;16B", "I;16L"):
-        notes.append(problem("converted", path, f"PIL mode {mode} converted to RGB"))
-    if min(img.shape[:2]) < 1:
-        raise ImageSkip("unreadable image", f"size {img.shape[1]}x{img.shape[0]}")
-    return np.ascontiguousarray(img[..., ::-1]), notes
+        img, notes = read_image_with_notes(path, max_pixels=max_pixels)
+    except ImageReadError as e:
+        raise ImageSkip(e.kind, e.reason) from None
+    return img, [problem("converted", path, n) for n in notes]
 
 
 def check_float_image(image: np.ndarray) -> np.ndarray:

@@ -1,0 +1,167 @@
+"""The one image reader of the package: (H, W, 3) RGB uint8, its cost bounded from the header before any decode.
+
+- The pixel count is read from the file's header (PIL opens lazily) and refused above ``max_pixels`` before a pixel
+  is decoded: a 1.2 MB PNG of 20000x20000 costs a header read, not 1.2 GB.
+- Truncated or corrupt files raise :class:`CorruptImage`: a full PIL decode with truncation errors on (libjpeg's
+  warnings are not enough: OpenCV decodes a third of a JPEG and fills the rest with grey), and a JPEG must end with
+  its end-of-image marker.
+- The pixels are OpenCV's (EXIF orientation applied, as ``cv2.imread``).
+- 16-bit PNG/TIFF: ``round(v / 257)`` to 8 bit (the full 16-bit range maps onto 0..255); grey / palette / RGBA:
+  OpenCV's colour conversion (alpha dropped); float or 32-bit integer pixels: :class:`UnsupportedImage`. Each
+  conversion is returned as a note by :func:`read_image_with_notes`.
+
+Every error is an :class:`ImageReadError` (an :class:`~aias_augment.core.errors.InputError`, so a ``ValueError``)
+with ``kind`` (``"unreadable image"``, ``"corrupt image"``, ``"unsupported image"``, ``"image too large"``),
+``reason`` and ``path``; its message reads ``"<kind>: <path>: <reason>"``.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from aias_augment.core.errors import InputError
+
+# 120 MP holds a 100-MP medium-format frame (11648x8736); decoding one costs about 10 bytes per pixel at the peak
+# (the file, PIL's copy, OpenCV's copy, the RGB view): ~1.2 GB for 8-bit, ~2.5 GB for 16-bit.
+DEFAULT_MAX_PIXELS = 120_000_000
+
+
+class ImageReadError(InputError):
+    """An image that cannot be used: ``kind`` names the class of problem (what reports count), ``reason`` the detail,
+    ``path`` the file (``None`` for bytes)."""
+
+    kind = "unreadable image"
+
+    def __init__(self, reason: str, path=None):
+        self.reason, self.path = reason, None if path is None else str(path)
+        super().__init__(f"{self.kind}: {self.path}: {reason}" if path is not None else f"{self.kind}: {reason}")
+
+    def __reduce__(self):  # pickled (Ray, spawned workers) with its fields
+        return (type(self), (self.reason, self.path))
+
+
+class UnreadableImage(ImageReadError):
+    """The file cannot be read (missing, a folder, no permission, empty) or decoded at all."""
+
+    kind = "unreadable image"
+
+
+class CorruptImage(ImageReadError):
+    """Truncated or corrupt data: a decoder error, a decoder warning, a JPEG without its end-of-image marker."""
+
+    kind = "corrupt image"
+
+
+class UnsupportedImage(ImageReadError):
+    """A readable image whose pixels are not 8- or 16-bit integers (float, 32-bit integer)."""
+
+    kind = "unsupported image"
+
+
+class ImageTooLarge(ImageReadError):
+    """More pixels (from the header) than the reader was allowed to decode."""
+
+    kind = "image too large"
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise UnreadableImage(str(e.strerror or e), path) from None
+    if not data:
+        raise UnreadableImage("empty file", path)
+    return data
+
+
+def _pil_detail(e: Exception) -> str:
+    # PIL names an in-memory file by its address ("<_io.BytesIO object at 0x7f...>"): not reproducible, dropped
+    return f"{type(e).__name__}: " + re.sub(r"<[^<>]* at 0x[0-9a-fA-F]+>", "the file", str(e))
+
+
+def _header(data: bytes, path: Path, max_pixels: int) -> tuple[int, int]:
+    """(width, height) from the header alone; :class:`ImageTooLarge` above ``max_pixels``."""
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # the bound is ours, checked below
+            with Image.open(io.BytesIO(data)) as im:
+                width, height = im.size
+    except Image.DecompressionBombError as e:  # PIL's own ceiling (2 x Image.MAX_IMAGE_PIXELS), below ours
+        raise ImageTooLarge(f"{e} (PIL's limit)", path) from None
+    except Exception as e:  # PIL raises OSError, SyntaxError, ValueError... for unrecognised or broken headers
+        raise CorruptImage(_pil_detail(e), path) from None
+    if width * height > max_pixels:
+        raise ImageTooLarge(
+            f"{width}x{height} = {width * height / 1e6:.1f} MP, above the {max_pixels / 1e6:g} MP limit "
+            "(resize it first)",
+            path,
+        )
+    return width, height
+
+
+def image_size(path, *, max_pixels: int = DEFAULT_MAX_PIXELS) -> tuple[int, int]:
+    """(width, height) of the image at ``path`` from its header, without decoding a pixel (EXIF orientation not
+    applied); :class:`ImageReadError` as :func:`read_image`."""
+    path = Path(path)
+    return _header(_read_bytes(path), path, max_pixels)
+
+
+def _full_decode_mode(data: bytes, path: Path) -> str:
+    """Decode every pixel with PIL, truncation and decoder warnings as errors; returns the PIL mode."""
+    from PIL import Image, ImageFile
+
+    ImageFile.LOAD_TRUNCATED_IMAGES = False
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # PIL's decoder warnings (e.g. corrupt EXIF) become errors
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # size checked from the header
+            with Image.open(io.BytesIO(data)) as im:
+                im.verify()
+            with Image.open(io.BytesIO(data)) as im:
+                im.load()
+                return im.mode
+    except Exception as e:
+        raise CorruptImage(_pil_detail(e), path) from None
+
+
+def read_image_with_notes(path, *, max_pixels: int) -> tuple[np.ndarray, list[str]]:
+    """:func:`read_image` and the conversions made to reach RGB uint8, as sentences (empty for an 8-bit RGB file)."""
+    path = Path(path)
+    data = _read_bytes(path)
+    _header(data, path, max_pixels)
+    mode = _full_decode_mode(data, path)
+    if data[:2] == b"\xff\xd8" and b"\xff\xd9" not in data[-4096:]:
+        raise CorruptImage("JPEG without end-of-image marker (truncated)", path)
+    if mode in ("F", "I") or mode.startswith("BGR"):
+        raise UnsupportedImage(
+            f"PIL mode {mode!r} (float or 32-bit integer pixels are refused; convert to 8- or 16-bit first)", path
+        )
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+    if img is None or img.size == 0:
+        raise UnreadableImage("OpenCV cannot decode it", path)
+    notes = []
+    if img.dtype == np.uint16:
+        img = np.round(img.astype(np.float32) / 257.0).astype(np.uint8)
+        notes.append("16-bit image converted to 8-bit (round(v / 257))")
+    elif img.dtype != np.uint8:
+        raise UnsupportedImage(f"{img.dtype} pixels (only 8- and 16-bit integer images)", path)
+    if mode not in ("RGB", "I;16", "I;16B", "I;16L"):
+        notes.append(f"PIL mode {mode} converted to RGB")
+    if min(img.shape[:2]) < 1:
+        raise UnreadableImage(f"size {img.shape[1]}x{img.shape[0]}", path)
+    return np.ascontiguousarray(img[..., ::-1]), notes
+
+
+def read_image(path, *, max_pixels: int) -> np.ndarray:
+    """The image at ``path`` as (H, W, 3) RGB uint8 (EXIF orientation applied); the pixel count is checked from the
+    header before decoding (:class:`ImageTooLarge` above ``max_pixels``); truncated or corrupt data raises
+    :class:`CorruptImage`, a missing or empty file :class:`UnreadableImage`, float pixels :class:`UnsupportedImage`."""
+    return read_image_with_notes(path, max_pixels=max_pixels)[0]
