@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
-import yaml
+
+from aias_augment.core.config_files import load_yaml_file
 
 T = TypeVar("T")
 
@@ -72,14 +73,14 @@ def from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "") -> T:
 
 
 def load_config(cls: type[T], path: str | Path) -> T:
-    """Load ``cls`` from a YAML file (a bare name is looked up in ``configs/``)."""
+    """Load ``cls`` from a YAML file (a bare name is looked up in ``configs/``) through the bounded loader
+    (:func:`~aias_augment.core.config_files.load_yaml_file`: size, UTF-8 and alias expansion checked)."""
     p = Path(path)
     if not p.exists() and not p.suffix:
         p = CONFIG_DIR / f"{path}.yaml"
     if not p.exists():
         raise FileNotFoundError(f"config not found: {path}")
-    with open(p) as f:
-        data = yaml.safe_load(f) or {}
+    data = load_yaml_file(p) or {}
     return from_dict(cls, data, where=str(p))
 
 
