@@ -17,10 +17,13 @@ from pathlib import Path
 
 import torch
 
+from aias_augment.core.logs import add_logging_args, configure_logging
+
 from .config import load_detector_config, replace_nested
 from .data import DetectionSet, load_dataset
 from .evaluate import format_metrics
 from .inference import evaluate_dataset
+from .predict import add_predict_args, cmd_predict
 from .train import load_checkpoint, save_checkpoint, train_detector
 
 COMMANDS = ("eval", "train", "predict")
@@ -93,7 +96,7 @@ def cmd_train(args) -> None:
     if args.iters:
         cfg = replace_nested(cfg, **{"train.max_iters": args.iters})
     dataset = load_dataset(args.data, args.split, tuple(args.names) if args.names else None)
-    result = train_detector(cfg, dataset, seed=args.seed, log_fn=print)
+    result = train_detector(cfg, dataset, seed=args.seed, log_fn=None if args.quiet else print)
     out = Path(args.out)
     meta = {
         "data": str(args.data),
@@ -116,15 +119,7 @@ def cmd_train(args) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "predict":
-        from .predict import main as predict_main
-
-        predict_main(argv[1:])
-        return
-    if not argv or argv[0] not in COMMANDS:
-        argv = ["eval", *argv]  # `detection-eval --weights W --data D` evaluates
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    argv = _default_to_eval(list(sys.argv[1:] if argv is None else argv))
     p = argparse.ArgumentParser(
         prog="detection-eval", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -147,12 +142,23 @@ def main(argv: list[str] | None = None) -> None:
     t.add_argument("--iters", type=int, default=None)
     t.add_argument("--seed", type=int, default=0)
     t.add_argument("--out", required=True)
+    add_predict_args(sub.add_parser("predict", help="draw the detections of saved weights on a folder of images"))
+    add_logging_args(p, subcommands=sub.choices.values())
     args = p.parse_args(argv)
+    configure_logging(args)
     torch.set_num_threads(1)
-    if args.command == "eval":
-        cmd_eval(args)
-    else:
-        cmd_train(args)
+    {"eval": cmd_eval, "train": cmd_train, "predict": cmd_predict}[args.command](args)
+
+
+def _default_to_eval(argv: list[str]) -> list[str]:
+    """``detection-eval --weights W --data D`` evaluates: insert ``eval`` after any leading logging flags unless a
+    subcommand or a help flag comes there."""
+    i = 0
+    while i < len(argv) and (argv[i] == "--quiet" or argv[i].startswith("--log-level")):
+        i += 1 if argv[i] == "--quiet" or "=" in argv[i] else 2
+    if i >= len(argv) or argv[i] in (*COMMANDS, "-h", "--help"):
+        return argv
+    return [*argv[:i], "eval", *argv[i:]]
 
 
 if __name__ == "__main__":

@@ -16,6 +16,8 @@ import cv2
 import numpy as np
 import torch
 
+from aias_augment.core.logs import add_logging_args, configure_logging
+
 from .data import IMAGE_SUFFIXES, read_image_rgb
 from .inference import predict_images
 from .train import load_checkpoint
@@ -67,18 +69,29 @@ def predict_folder(weights: str | Path, images: str | Path, out: str | Path, sco
     return results
 
 
-def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(
-        prog="detection-eval predict", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+def add_predict_args(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``detection-eval predict`` (read by :func:`cmd_predict`)."""
     p.add_argument("--weights", required=True)
     p.add_argument("--images", required=True, help="folder of images")
     p.add_argument("--out", required=True, help="folder for drawn images and detections.json")
     p.add_argument("--score", type=float, default=0.3, help="minimum score to keep a box")
-    args = p.parse_args(argv)
+
+
+def cmd_predict(args: argparse.Namespace) -> None:
     torch.set_num_threads(1)
     res = predict_folder(args.weights, args.images, args.out, args.score)
     print(f"{len(res)} detections written to {args.out}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(
+        prog="detection-eval predict", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    add_predict_args(p)
+    add_logging_args(p)
+    args = p.parse_args(argv)
+    configure_logging(args)
+    cmd_predict(args)
 
 
 if __name__ == "__main__":

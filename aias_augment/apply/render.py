@@ -79,7 +79,7 @@ def _block_triton_under_llvmpipe() -> None:
         return
     if b"llvmpipe" in name:
         sys.modules["triton"] = None
-        log.info(
+        log.debug(
             "render: %s holds its own LLVM; 'import triton' now raises ImportError in this process (loading "
             "libtriton's LLVM beside it crashes the interpreter)",
             name.decode(errors="replace"),

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import collections
 import json
-import logging
 import sys
 import time
 from pathlib import Path
@@ -28,6 +27,7 @@ from aias_augment.assets.bank.cache import MeshCache, default_cache_dir
 from aias_augment.assets.bank.catalog import save_catalog
 from aias_augment.assets.bank.sh3f import DEFAULT_SH3F_DIR
 from aias_augment.assets.bank.taxonomy import load_taxonomy
+from aias_augment.core.logs import add_logging_args, configure_logging
 
 
 def _cmd_import(a) -> int:
@@ -327,7 +327,7 @@ def _cmd_reconstruct(a) -> int:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="aias-assets", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--cache-dir", type=Path, default=None, help=f"default $AIAS_CACHE or {default_cache_dir()}")
-    p.add_argument("-v", "--verbose", action="store_true")
+    p.add_argument("-v", "--verbose", action="store_true", help="the same as --log-level INFO")
     sub = p.add_subparsers(dest="cmd", required=True)
     s = sub.add_parser("import", help="import, validate and cache every source; writes the catalog")
     s.add_argument("--sh3f-dir", type=Path, default=DEFAULT_SH3F_DIR)
@@ -336,7 +336,6 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--force", action="store_true", help="re-import even when cached")
     s.add_argument("--limit", type=int, default=0, help="only the first N records (debugging)")
     s.add_argument("--report", type=Path, default=None, help="write the import summary JSON here")
-    s.add_argument("--quiet", action="store_true")
     s = sub.add_parser("list", help="list catalog records")
     s.add_argument("--category", default=None)
     s.add_argument("--status", default=None, choices=["pending", "ok", "repaired", "rejected"])
@@ -419,12 +418,15 @@ def main(argv: list[str] | None = None) -> int:
         help="move the hull inward where the views agree on the texture (photo-consistency; slower, helps "
         "textured concave objects: results/assets/reconstruct/refinement.md)",
     )
+    add_logging_args(p, default="ERROR", subcommands=sub.choices.values())
     a = p.parse_args(argv)
     if a.cmd == "deform" and a.count < 1:
         p.error("--count >= 1 please")
     if a.cmd in ("from-labels", "box-convention") and a.input and not a.images:
         p.error("--input needs --images")
-    logging.basicConfig(level=logging.INFO if a.verbose else logging.ERROR, format="%(levelname)s %(message)s")
+    if a.verbose and a.log_level == "ERROR":
+        a.log_level = "INFO"
+    configure_logging(a, fmt="%(levelname)s %(message)s")
     return {
         "import": _cmd_import,
         "list": _cmd_list,

@@ -7,7 +7,6 @@ two cones knocked over in it (``out/demo/topple/``)."""
 from __future__ import annotations
 
 import argparse
-import logging
 from dataclasses import replace
 from pathlib import Path
 
@@ -15,6 +14,7 @@ import numpy as np
 
 from aias_augment.cli.offline import Item, run
 from aias_augment.core.config import data_root
+from aias_augment.core.logs import add_logging_args, configure_logging
 from aias_augment.pipeline.image import load_preset
 
 KITTI_K = [[707.0912, 0, 601.8873], [0, 707.0912, 183.1104], [0, 0, 1]]
@@ -64,8 +64,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--tracon", type=int, default=6, help="number of TraCon empty-road images")
     ap.add_argument("--clip-frames", type=int, default=16, help="frames of the KITTI clip demo (0: skip it)")
+    add_logging_args(ap)
     a = ap.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    configure_logging(a)
     out = Path(a.out)
     if (out / "records").exists():  # the demo always starts fresh (the CLI resumes; the demo shows)
         import shutil

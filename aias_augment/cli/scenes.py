@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aias_augment.core.logs import add_logging_args, configure_logging
 from aias_augment.scenes.retrieval.features import FeatureConfig
 from aias_augment.scenes.retrieval.index import QueryConfig, SceneIndex, build_index
 from aias_augment.scenes.retrieval.sources import iter_frames, read_image
@@ -108,7 +109,6 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--features", type=int, default=FeatureConfig.n_features)
     s.add_argument("--max-side", type=int, default=FeatureConfig.max_side_px)
     s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--quiet", action="store_true")
     s = sub.add_parser("query", help="query by an example image / region, or by named visual words")
     s.add_argument("--index", type=Path, required=True)
     s.add_argument("--image", type=Path)
@@ -123,7 +123,9 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--image", type=Path, action="append", required=True)
     s.add_argument("--region", type=int, nargs=4, action="append", required=True, metavar=("X", "Y", "W", "H"))
     s.add_argument("--n-words", type=int, default=64)
+    add_logging_args(p, subcommands=sub.choices.values())
     a = p.parse_args(argv)
+    configure_logging(a)
     return {"index": _cmd_index, "query": _cmd_query, "name": _cmd_name}[a.cmd](a)
 
 

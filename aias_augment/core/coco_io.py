@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import tempfile
@@ -82,5 +84,6 @@ class CocoBuilder:
     def write(self, path: str | Path) -> COCO:
         """Write and re-load with pycocotools (raises if the file is not a valid COCO dataset)."""
         atomic_write_json(path, self.to_dict())
-        coco = COCO(str(path))
+        with contextlib.redirect_stdout(io.StringIO()):  # pycocotools prints its progress
+            coco = COCO(str(path))
         return coco

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
+from aias_augment.core.logs import add_logging_args, configure_logging
 from detection_eval.config import load_detector_config
 from detection_eval.data import load_yolo_dir
 from detection_eval.study.arms import PER_SEED_ARMS, available_arms, uses_pool
@@ -32,8 +33,9 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seeds", nargs="*", type=int, help="subset of the config's seeds")
     p.add_argument("--amounts", nargs="*", type=int, help="subset of the config's amounts")
     p.add_argument("--force", action="store_true", help="re-run runs whose results exist")
+    add_logging_args(p, default="INFO")  # a study runs for hours: its INFO lines are the progress log
     args = p.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    configure_logging(args, fmt="%(asctime)s %(levelname)s %(name)s: %(message)s")
     torch.set_num_threads(1)
     cfg = load_study_config(args.config)
     arms = available_arms(args.arms or cfg.arms)

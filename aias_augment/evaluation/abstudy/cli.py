@@ -13,6 +13,7 @@ import logging
 import sys
 from pathlib import Path
 
+from aias_augment.core.logs import add_logging_args, configure_logging, log_level
 from aias_augment.evaluation.abstudy.build import DESIGNS, StudyError, build_study, load_study
 from aias_augment.evaluation.abstudy.report import compute_report, format_report, results_csv, votes_csv
 
@@ -55,14 +56,14 @@ def main(argv=None) -> int:
     s.add_argument("study")
     s.add_argument("--host", default="127.0.0.1")
     s.add_argument("--port", type=int, default=8000, help="0: any free port (the URL is printed)")
-    s.add_argument("--log-level", default="warning")
     r = sub.add_parser("report", help="print the human score per method and the rater agreement")
     r.add_argument("study")
     r.add_argument("--csv", help="write the comparison table as CSV")
     r.add_argument("--votes-csv", help="write every vote with its answer key as CSV")
     r.add_argument("--json", action="store_true", help="print the report as JSON")
+    add_logging_args(ap, subcommands=sub.choices.values())
     a = ap.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    configure_logging(a)
     try:
         if a.cmd == "build":
             summary = build_study(
@@ -81,7 +82,7 @@ def main(argv=None) -> int:
             from aias_augment.evaluation.abstudy.server import serve
 
             load_study(a.study)  # a clear error before the server starts
-            serve(a.study, a.host, a.port, a.log_level)
+            serve(a.study, a.host, a.port, logging.getLevelName(log_level(a)).lower())  # uvicorn's names
             return 0
         return _report(a)
     except StudyError as e:
