@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import sys
 from pathlib import Path
 
@@ -23,6 +22,7 @@ from aias_augment.cli.offline import (
     run,
 )
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M
+from aias_augment.core.logs import add_logging_args, configure_logging
 from aias_augment.pipeline.image import PRESETS, load_preset
 
 
@@ -199,8 +199,9 @@ def main(argv=None) -> int:
         action="store_true",
         help="track the ground under the object (KLT) and correct drifting poses per frame",
     )
+    add_logging_args(ap)
     a = ap.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    configure_logging(a)
     if not (a.input or a.yolo or a.images):
         ap.error("one of --input, --yolo or --images (a folder of unlabelled images) is required")
     if a.yolo and a.images:

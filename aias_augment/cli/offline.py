@@ -32,6 +32,7 @@ from aias_augment.cli.manifest import build_manifest, item_hash, output_lock, pr
 from aias_augment.cli.offline_job import Item, process_item, read_rgb, resolve_yolo_boxes, write_rgb  # noqa: F401  (public here too)
 from aias_augment.cli.offline_ray import run_jobs as run_ray_jobs
 from aias_augment.core.coco_io import CocoBuilder, atomic_write_json
+from aias_augment.core.logs import progress_disabled
 from aias_augment.core.viz import contact_sheet, draw_boxes
 from aias_augment.pipeline.image import InsertionConfig
 
@@ -258,17 +259,18 @@ def _run(
         for i, (it, h) in enumerate(zip(items, hashes))
     ]
     records = []
+    quiet = progress_disabled(log)
     if backend == "ray":  # Ray tasks (aias_augment.cli.offline_ray): the same process_item, the same bytes
-        with tqdm(total=len(jobs), desc="aias-augment[ray]", unit="img") as bar:
+        with tqdm(total=len(jobs), desc="aias-augment[ray]", unit="img", disable=quiet) as bar:
             records = run_ray_jobs(jobs, workers, ray_address, progress=bar)
     elif backend != "local":
         raise InputError(f"unknown backend {backend!r} (local or ray)")
     elif workers <= 1:
-        for j in tqdm(jobs, desc="aias-augment", unit="img"):
+        for j in tqdm(jobs, desc="aias-augment", unit="img", disable=quiet):
             records.append(_worker(j))
     else:
         with mp.get_context("spawn").Pool(workers) as pool:
-            for r in tqdm(pool.imap(_worker, jobs), total=len(jobs), desc="aias-augment", unit="img"):
+            for r in tqdm(pool.imap(_worker, jobs), total=len(jobs), desc="aias-augment", unit="img", disable=quiet):
                 records.append(r)
     coco = CocoBuilder(out_categories)
     sheet = []
@@ -320,6 +322,13 @@ def _run(
         "median_seconds_per_image": float(np.median(times)) if times else None,
     }
     atomic_write_json(out / "summary.json", summary)
+    log.info(
+        "%s: %d of %d images written, %d objects inserted (skips and notes in report.json)",
+        out,
+        summary["written"],
+        summary["images"],
+        summary["inserted"],
+    )
     return summary
 
 
