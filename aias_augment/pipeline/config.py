@@ -26,9 +26,14 @@ EdgeBlendMode = Literal["rendered", "hard", "feather"]
 # type or a value out of range raises, naming the field, instead of a skip on every call.
 @checked_config(
     {
-        "min_objects": "[0, inf)",
-        "max_objects": "[0, inf)",
-        "ssaa": "[1, inf)",
+        # Cost bounds: a range that can never finish an image is refused here, not met as a skip on every image.
+        # 64 objects: each needs its own render and placement tries (10000 took 510 s for one image); far more than
+        # one photo shows of one category (TraCon: at most 16 cones a photo).
+        "min_objects": "[0, 64]",
+        "max_objects": "[0, 64]",
+        # 4: 16 samples a pixel; the render is the frame's size times ssaa (a 4K frame at 4 is 15360 px wide, near
+        # the common 16384 GL limit) and costs ~ssaa^2.
+        "ssaa": "[1, 4]",
         "analysis_max_width": "[0, inf)",  # and 0 or >= 64 (__post_init__)
         "camera_height_m": "(0, inf)",
         "max_camera_pitch_deg": "[0, 90]",
@@ -36,11 +41,14 @@ EdgeBlendMode = Literal["rendered", "hard", "feather"]
         "default_hfov_deg": "(0, 180)",
         "naive_height_frac_range": "(0, 1] lo<=hi",
         "naive_height_frac_samples": "(0, 1]",
-        "motion_blur_px": "[0, inf) lo<=hi",
-        "edge_feather_px": "[0, inf) lo<=hi",
+        # The streak's kernel is ~length^2 pixels and the layer grows by it: 200 px is a fast object across a 4K
+        # frame, 1e6 made every image a MemoryError.
+        "motion_blur_px": "[0, 200] lo<=hi",
+        # The layer grows by 3 sigma on each side: 50 px feathers any edge a photo shows.
+        "edge_feather_px": "[0, 50] lo<=hi",
         "deform_probability": "[0, 1]",
         "naive_share": "[0, 1]",
-        "decoys": "[0, inf) lo<=hi",
+        "decoys": "[0, 64] lo<=hi",  # as max_objects
         "arrangement_spacing_m": "(0, inf) lo<=hi",
         "arrangement_cluster_radius_m": "(0.35, inf)",
         "contact_shadow_strength": "[0, 1]",

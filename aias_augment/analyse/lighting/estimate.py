@@ -150,7 +150,7 @@ class LightingEstimate:
         "min_sky_fraction_for_sun": "[0, 1]",
         "min_cue_confidence": "[0, 1]",
         "prior_hfov_deg": "(0, 180)",
-        "ambient_map_height": "[4, inf)",
+        "ambient_map_height": "[4, 1024]",  # a (h, 2h) map per cue: 1024 is 2 M texels, far finer than sky light needs
         "min_sun_cos": "(0, 1]",
         "min_sun_cos_image_cues": "(0, 1]",
         "camera_height_m": "(0, inf)",

@@ -23,7 +23,7 @@ ISSUE_CASES = [
     ({"ssaa": "2"}, TypeError, ["InsertionConfig.ssaa", "int", "'2'"]),
     ({"ssaa": 2.5}, TypeError, ["InsertionConfig.ssaa", "int", "2.5"]),
     ({"ssaa": 2.0}, TypeError, ["InsertionConfig.ssaa", "int"]),
-    ({"ssaa": 0}, ValueError, ["InsertionConfig.ssaa", "[1, inf)"]),
+    ({"ssaa": 0}, ValueError, ["InsertionConfig.ssaa", "[1, 4]"]),
     ({"camera_height_m": "1.6"}, TypeError, ["InsertionConfig.camera_height_m", "number", "'1.6'"]),
     ({"camera_height_m": -1.6}, ValueError, ["InsertionConfig.camera_height_m", "(0, inf)"]),
     (
@@ -64,6 +64,20 @@ ISSUE_CASES = [
     ({"categories": ()}, ValueError, ["InsertionConfig.categories", "empty"]),
     ({"min_objects": 4, "max_objects": 3}, ValueError, ["InsertionConfig.min_objects", "max_objects"]),
     ({"analysis_max_width": 32}, ValueError, ["InsertionConfig.analysis_max_width", "64"]),
+    # ranges whose extreme makes every image a MemoryError or an endless render: refused at construction
+    ({"max_objects": 10000}, ValueError, ["InsertionConfig.max_objects", "[0, 64]", "10000"]),
+    ({"max_objects": 65}, ValueError, ["InsertionConfig.max_objects", "[0, 64]"]),
+    ({"min_objects": 65, "max_objects": 64}, ValueError, ["InsertionConfig.min_objects", "[0, 64]"]),
+    ({"motion_blur_px": (1e6, 1e6)}, ValueError, ["InsertionConfig.motion_blur_px", "[0, 200]", "1000000.0"]),
+    ({"motion_blur_px": (0.0, 200.5)}, ValueError, ["InsertionConfig.motion_blur_px", "item 1", "[0, 200]"]),
+    ({"edge_feather_px": (1.0, 1e6)}, ValueError, ["InsertionConfig.edge_feather_px", "[0, 50]"]),
+    ({"decoys": (0, 1000)}, ValueError, ["InsertionConfig.decoys", "[0, 64]"]),
+    ({"ssaa": 64}, ValueError, ["InsertionConfig.ssaa", "[1, 4]"]),
+    (
+        {"lighting_cfg": {"ambient_map_height": 100000}},
+        ValueError,
+        ["InsertionConfig.lighting_cfg.ambient_map_height", "[4, 1024]"],
+    ),
 ]
 
 
@@ -104,6 +118,27 @@ def test_yaml_values_are_checked_and_the_error_names_the_file(tmp_path, text, er
     with pytest.raises(error) as e:
         load_config(InsertionConfig, path)
     assert str(path) in str(e.value) and field in str(e.value), str(e.value)
+
+
+def test_cost_bounds_are_inclusive():
+    cfg = InsertionConfig(
+        min_objects=64, max_objects=64, motion_blur_px=(200.0, 200.0), edge_feather_px=(50.0, 50.0), ssaa=4
+    )
+    assert (cfg.max_objects, cfg.motion_blur_px[1], cfg.edge_feather_px[1], cfg.ssaa) == (64, 200.0, 50.0, 4)
+    assert InsertionConfig(decoys=(64, 64), decoy_categories=("person",)).decoys == (64, 64)
+    assert LightingConfig(ambient_map_height=1024).ambient_map_height == 1024
+
+
+def test_billion_laughs_under_one_field_is_refused_naming_the_file(tmp_path):
+    from aias_augment.core.config_files import ConfigFileError
+
+    refs = ["&a [" + ",".join(["lol"] * 9) + "]"] + [
+        f"&{n} [" + ",".join([f"*{p}"] * 9) + "]" for p, n in zip("abcdefgh", "bcdefghi")
+    ]
+    path = tmp_path / "cfg.yaml"
+    path.write_text("motion_blur_px: [" + ", ".join(refs) + "]\n")
+    with pytest.raises(ConfigFileError, match="cfg.yaml: expands to more than"):
+        load_config(InsertionConfig, path)
 
 
 def test_valid_yaml_values_load(tmp_path):  # shadow: false is a YAML bool; lists become tuples
