@@ -5,7 +5,7 @@ The top-level names are imported lazily: ``import aias_augment.assets.bank`` mus
 
 from aias_augment.version import __version__ as __version__
 
-__all__ = ["InsertObjects", "InsertionConfig", "SceneInputs", "insert_into_image", "load_preset"]
+__all__ = ["InsertObjects", "InsertObjectsV2", "InsertionConfig", "SceneInputs", "insert_into_image", "load_preset"]
 
 
 def __getattr__(name):
@@ -13,6 +13,10 @@ def __getattr__(name):
         from aias_augment.adapters.transform import InsertObjects
 
         return InsertObjects
+    if name == "InsertObjectsV2":
+        from aias_augment.adapters.torchvision_v2 import InsertObjectsV2
+
+        return InsertObjectsV2
     if name in ("InsertionConfig", "insert_into_image", "load_preset"):
         from aias_augment.pipeline import image as pipeline
 

@@ -5,7 +5,13 @@ per-sample targets: ``camera_k`` (3x3 intrinsics of the image as passed in), ``d
 unknown) and ``scene`` (:class:`aias_augment.core.scene_inputs.SceneInputs`: e.g. a road mask where objects may stand;
 a bad one is a counted skip like any odd sample). Inserted boxes are appended with their label (``category_ids[name]`` or the category name); existing
 boxes whose visible fraction under the inserted objects falls below the Compose's ``min_visibility`` are dropped.
-Put it first in the pipeline: later geometric transforms do not update ``camera_k``/``depth``.
+Every target of a Compose (:mod:`aias_augment.adapters.targets`): instance ``masks`` stay in step with the boxes
+(hidden parts removed, the inserted objects' masks appended in the order of their boxes); the semantic ``mask`` gets
+``mask_values[category]`` on the inserted pixels; keypoints under an inserted object are hidden ones (removed when
+``KeypointParams(remove_invisible=True)``, the default); boxes in any ``BboxParams`` format. ``ReplayCompose`` and
+``Compose(save_applied_params=True)`` keep the insertion's JSON record as its parameters
+(:mod:`aias_augment.adapters.record_replay`): ``ReplayCompose.replay`` of it, JSON round trip or not, gives the same
+bytes. Put it first in the pipeline: later geometric transforms do not update ``camera_k``/``depth``.
 
 Inputs (:func:`aias_augment.adapters.boundary.image_for_insertion`): grey, RGB or RGBA; uint8; uint16 (converted to 8 bit by
 ``round(v / 257)`` for the insertion, inserted pixels written back as ``v * 257``); float in [0, 1] (``round(v * 255)``,
@@ -26,11 +32,18 @@ from typing import Any
 import albumentations as A
 import numpy as np
 from albumentations.core.bbox_utils import (
-    convert_bboxes_from_albumentations,
     convert_bboxes_to_albumentations,
-    denormalize_bboxes,
 )
 
+from aias_augment.adapters import record_replay, targets
+from aias_augment.adapters.bbox_encoding import (
+    _ENCODED_FORMATS,
+    _encode_boxes,
+    _encoded_labels,
+    _internal_from_xywh,
+    _pad_columns,
+    _xywh_from_internal,
+)
 from aias_augment.adapters.boundary import (
     SampleSkip,
     TransformCounts,
@@ -58,8 +71,6 @@ log = logging.getLogger(__name__)
 _NO_BOXES = np.zeros((0, 4))
 _NO_BOXES.flags.writeable = False
 _NO_TARGETS = MappingProxyType({})
-#: Bbox formats whose round trip through the Compose's processor :func:`_encode_boxes` reproduces.
-_ENCODED_FORMATS = ("coco", "pascal_voc", "yolo")
 
 
 def _same(image: np.ndarray) -> np.ndarray:
@@ -91,6 +102,8 @@ class InsertObjects(A.DualTransform):
             ``warm(images, variants=True)`` computes them all before training.
         variants_seed: the seed of the variants' own plans (a variant is a function of the sample, this and its
             index; the Compose seed picks which variant a call gets).
+        mask_values: the value of each category's pixels in a semantic ``mask`` target (e.g. {"traffic_cone": 3});
+            needed when the Compose is called with a ``mask``.
         p: probability of applying.
 
     Attributes:
@@ -103,6 +116,7 @@ class InsertObjects(A.DualTransform):
         A.core.type_definitions.Targets.IMAGE,
         A.core.type_definitions.Targets.MASK,
         A.core.type_definitions.Targets.BBOXES,
+        A.core.type_definitions.Targets.KEYPOINTS,
     )
 
     def __init__(
@@ -118,6 +132,7 @@ class InsertObjects(A.DualTransform):
         scene_cache_items: int = 128,
         variants_per_image: int | None = None,
         variants_seed: int = 0,
+        mask_values: dict[str, float] | None = None,
         p: float = 0.5,
     ):
         super().__init__(p=p)
@@ -157,6 +172,7 @@ class InsertObjects(A.DualTransform):
             missing = set(self.categories) - set(self.category_ids)
             if missing:
                 raise ValueError(f"category_ids lacks {sorted(missing)}")
+        self.mask_values = _checked_mask_values(mask_values, self.categories)
         self._bank = PathAssets(assets) if assets else None
         self.scene_cache = None if scene_cache is None else str(scene_cache)
         self.scene_cache_items = int(scene_cache_items)
@@ -168,6 +184,7 @@ class InsertObjects(A.DualTransform):
         self._variant_prefix = None  # hash of config, assets and seed (made on first use; not picklable)
         self.counts = TransformCounts()  # calls, insertions, skips and empty calls by reason (this process)
         self.last_record = None  # InsertionRecord of the latest call in this process (for debugging/replay)
+        self._live = None  # this call's result and restore, between the params and the apply steps
 
     def warm(
         self, images, camera_ks=None, depths=None, view_plans: int = 0, variants: bool = False, bboxes=None
@@ -357,10 +374,21 @@ class InsertObjects(A.DualTransform):
             "scene_cache_items",
             "variants_per_image",
             "variants_seed",
+            "mask_values",
         )
 
     # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
     def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+        """Runs the insertion (kept for this call's ``apply_*``); the parameters albumentations keeps are JSON:
+        ``{"insertion": record dict or None (image left unchanged)}`` when the Compose records parameters
+        (``ReplayCompose``, ``save_applied_params=True``), else none (a record costs a dict per call)."""
+        self._live = live = self._insert(data)
+        if not (self.deterministic or "applied_transforms" in data):
+            return {}
+        res = live["insert_result"]
+        return {"insertion": None if res is None else res.record.to_dict()}
+
+    def _insert(self, data: dict[str, Any]) -> dict[str, Any]:
         if self.variants_per_image:
             img = data["image"]
             boxes = data.get("bboxes")
@@ -459,6 +487,7 @@ class InsertObjects(A.DualTransform):
         state["params"] = {}
         state["_variant_prefix"] = None
         state["_last_record"] = None
+        state["_live"] = None
         return state
 
     def _boxes_as_called(self, boxes, h: int, w: int) -> np.ndarray:
@@ -482,22 +511,96 @@ class InsertObjects(A.DualTransform):
         except (AttributeError, KeyError):
             return None
 
+    def apply_with_params(self, params: dict[str, Any], *args: Any, **kwargs: Any) -> dict[str, Any]:
+        """Applies this call's insertion to every target; parameters without it (``ReplayCompose.replay``, or a
+        record kept from ``save_applied_params``) are replayed from their ``"insertion"`` record first."""
+        live, self._live = self._live, None
+        if live is None or self.replay_mode:
+            live = self._replayed(params, kwargs)
+        res = live["insert_result"]
+        call = {**params, **live}
+        if res is not None:
+            h, w = res.image.shape[:2]
+            proc = self._bbox_processor()
+            call["new_kept"] = targets.kept_new_boxes(
+                _internal_from_xywh(res.inserted_bboxes, h, w), (h, w), None if proc is None else proc.params
+            )
+        out = super().apply_with_params(call, *args, **kwargs)
+        masks = kwargs.get("masks")
+        if res is not None and isinstance(masks, (list, tuple)) and not masks:  # albumentations skips an empty list
+            out["masks"] = list(self._new_masks(res, call["new_kept"]).astype(np.uint8))
+        return out
+
+    def _replayed(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+        if "insertion" not in params:
+            raise ValueError(
+                "InsertObjects: these parameters hold no insertion record; record them with ReplayCompose or "
+                "Compose(save_applied_params=True)"
+            )
+        rgb, restore, _ = image_for_insertion(data["image"])
+        record = params["insertion"]
+        if record is None:
+            return {"insert_result": None, "restore": restore}
+        boxes = data.get("bboxes")
+        proc = self._bbox_processor()
+        res = record_replay.replayed_result(
+            record,
+            rgb,
+            data,
+            self.config,
+            self._bank,
+            0 if boxes is None else len(boxes),
+            0.0 if proc is None else float(proc.params.min_visibility),
+        )
+        return {"insert_result": res, "restore": restore}
+
     def apply(self, img: np.ndarray, insert_result=None, restore=None, **params: Any) -> np.ndarray:
         if insert_result is None:
             return img
         return restore(insert_result.image)
 
-    def apply_to_mask(self, mask: np.ndarray, **params: Any) -> np.ndarray:
-        # Inserted objects are not written into user masks (their instance ids are unknown to us).
-        return mask
+    def apply_to_mask(self, mask: np.ndarray, insert_result=None, **params: Any) -> np.ndarray:
+        if self.mask_values is None:
+            raise ValueError(
+                "InsertObjects: a semantic mask target needs mask_values={category: value}, the value of the "
+                f"inserted objects' pixels in it (categories {list(self.categories)})"
+            )
+        if insert_result is None:
+            return mask
+        return targets.paint_semantic(mask, insert_result.record.annotations, self.mask_values)
 
-    def apply_to_bboxes(self, bboxes: np.ndarray, insert_result=None, **params: Any) -> np.ndarray:
+    def apply_to_masks(self, masks: np.ndarray, insert_result=None, new_kept=None, **params: Any) -> np.ndarray:
+        if insert_result is None:
+            return masks
+        hw = insert_result.image.shape[:2]
+        hidden = targets.cover(insert_result.record.annotations, hw)
+        return targets.instance_masks_after(
+            masks, insert_result.keep_existing, self._new_masks(insert_result, new_kept), hidden
+        )
+
+    @staticmethod
+    def _new_masks(res, new_kept) -> np.ndarray:
+        """(K', H, W) bool: the masks of the inserted boxes the Compose keeps, in their order."""
+        new = targets.inserted_masks(res.record.annotations, res.image.shape[:2])
+        if len(new) != len(res.inserted_bboxes):
+            raise RuntimeError(f"{len(new)} inserted masks for {len(res.inserted_bboxes)} inserted boxes")
+        return new[new_kept]
+
+    def apply_to_keypoints(self, keypoints: np.ndarray, insert_result=None, **params: Any) -> np.ndarray:
+        if insert_result is None:
+            return keypoints
+        proc = self.get_processor("keypoints")
+        remove = True if proc is None else bool(proc.params.remove_invisible)
+        hidden = targets.cover(insert_result.record.annotations, insert_result.image.shape[:2])
+        return targets.keypoints_after(keypoints, hidden, remove)
+
+    def apply_to_bboxes(self, bboxes: np.ndarray, insert_result=None, new_kept=None, **params: Any) -> np.ndarray:
         if insert_result is None or (len(insert_result.inserted_labels) == 0 and insert_result.keep_existing.all()):
             return bboxes
         kept = bboxes[insert_result.keep_existing] if len(bboxes) else bboxes
         if len(insert_result.inserted_labels) == 0:
             return kept
-        new_rows = self._encode_new_boxes(insert_result, bboxes, params["shape"])
+        new_rows = self._encode_new_boxes(insert_result, bboxes, params["shape"])[new_kept]
         if len(kept) == 0:
             return new_rows
         return np.concatenate([kept, new_rows.astype(kept.dtype)], axis=0)
@@ -538,8 +641,9 @@ class InsertObjects(A.DualTransform):
     @staticmethod
     def _preprocess_new_boxes(res, proc, values: list, label_fields, h: int, w: int) -> np.ndarray:
         """The new boxes through ``proc.preprocess`` (the Compose's own conversion, checks and label encoding)."""
-        user_fmt = convert_bboxes_from_albumentations(
-            _internal_from_xywh(res.inserted_bboxes, h, w), proc.params.format, {"height": h, "width": w}
+        # to the user's format by the processor itself (any format, "albumentations" included), then back
+        user_fmt = proc.check_and_convert(
+            _internal_from_xywh(res.inserted_bboxes, h, w), {"height": h, "width": w}, direction="from"
         )
         temp = {"image": np.zeros((h, w, 1), np.uint8), "bboxes": user_fmt}
         for f in label_fields:
@@ -594,79 +698,18 @@ def _plan_labels(n: int, references: list | None) -> list:
     return list(range(n)) if references is None else list(references)
 
 
-def _xywh_from_internal(boxes_internal, h: int, w: int) -> np.ndarray:
-    """COCO xywh pixels (float64) of albumentations' normalised x_min, y_min, x_max, y_max boxes (extra columns
-    ignored): what a call reads from the Compose, and what warm() makes of its boxes."""
-    xyxy = denormalize_bboxes(np.asarray(boxes_internal)[:, :4], {"height": h, "width": w})
-    return np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]]
-
-
-def _internal_from_xywh(xywh, h: int, w: int) -> np.ndarray:
-    """(K, 4) float32 albumentations boxes (normalised x_min, y_min, x_max, y_max) of COCO xywh pixel boxes."""
-    xywh = np.asarray(xywh, np.float64).reshape(-1, 4)
-    xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
-    return (xyxy / np.array([w, h, w, h], np.float64)).astype(np.float32)
-
-
-def _pad_columns(rows: np.ndarray, bboxes: np.ndarray) -> np.ndarray:
-    """``rows`` with zero columns added up to ``bboxes``' (extra columns, e.g. bbox ids)."""
-    if len(bboxes) and rows.shape[1] < bboxes.shape[1]:
-        rows = np.c_[rows, np.zeros((len(rows), bboxes.shape[1] - rows.shape[1]), rows.dtype)]
-    return rows
-
-
-def _encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
-    """(K, 4) float32: COCO xywh pixel boxes as albumentations' processor (``clip`` and ``filter_invalid_bboxes``
-    off) encodes them when they arrive in ``fmt`` ("coco", "pascal_voc" or "yolo") from our normalised float32
-    boxes: ``convert_bboxes_from_albumentations`` then ``convert_bboxes_to_albumentations``, the same operations
-    in the same dtypes (float32 storage, float64 where albumentations scales), so the same bits. False when a box
-    is not strictly inside [0, 1] with x_max > x_min and y_max > y_min: the processor's ``check_bboxes`` must
-    then decide (its tolerance, its error)."""
-    scale = np.array([w, h, w, h], np.float64)
-    norm = _internal_from_xywh(xywh, h, w)  # what the boxes are in albumentations' format
-    user = np.empty_like(norm)  # convert_bboxes_from_albumentations(norm, fmt)
-    if fmt == "yolo":
-        user[:, :2] = (norm[:, :2] + norm[:, 2:]) / 2
-        user[:, 2:] = norm[:, 2:] - norm[:, :2]
-    else:
-        den = norm * scale  # denormalize_bboxes: float64
-        if fmt == "coco":
-            user[:, :2] = den[:, :2]
-            user[:, 2:] = den[:, 2:] - den[:, :2]
-        else:
-            user[:] = den
-    geo = np.empty_like(user)  # convert_bboxes_to_albumentations(user, fmt)
-    if fmt == "yolo":
-        half = user[:, 2:] / 2
-        geo[:, :2] = user[:, :2] - half
-        geo[:, 2:] = user[:, :2] + half
-    else:
-        if fmt == "coco":
-            geo[:, :2] = user[:, :2]
-            geo[:, 2:] = user[:, :2] + user[:, 2:]
-        else:
-            geo[:] = user
-        geo[:] = geo.astype(np.float64) / scale  # normalize_bboxes: float64, stored as float32
-    if not (((geo >= 0) & (geo <= 1)).all() and (geo[:, 2:] > geo[:, :2]).all()):
-        return False
-    geo.flags.writeable = False
-    return geo
-
-
-def _encoded_labels(manager, label_fields, values: list) -> list[np.ndarray]:
-    """``manager.process_field("bboxes", field, values)`` for each label field, as the processor's ``preprocess``
-    calls it: (K, 1) arrays. Where that call would change nothing in the manager (a field it has seen, holding
-    numbers; or strings its encoder knows all of) the same array is made here without it; else it is called."""
-    meta = manager.metadata.get("bboxes")
-    out = []
-    for f in label_fields:
-        m = None if meta is None else meta.get(f)
-        if m is not None and m.is_numerical:  # _encode_data of a list: float32
-            out.append(np.array(values, dtype=np.float32).reshape(-1, 1))
-            continue
-        e = None if m is None else m.encoder
-        if e is not None and not e.is_numerical and all(type(v) is str and v in e.classes_ for v in values):
-            out.append(np.array([e.classes_[v] for v in values]).reshape(-1, 1))  # LabelEncoder.transform
-            continue
-        out.append(manager.process_field("bboxes", f, list(values)))
-    return out
+def _checked_mask_values(values, categories: tuple[str, ...]) -> dict[str, float] | None:
+    """``mask_values`` as given, checked: a finite number for every category and for no other."""
+    if values is None:
+        return None
+    values = dict(values)
+    missing, extra = set(categories) - set(values), set(values) - set(categories)
+    if missing or extra:
+        raise ValueError(
+            f"mask_values must give a value for each category {list(categories)}: missing {sorted(missing)}, "
+            f"unknown {sorted(extra)}"
+        )
+    for c, v in values.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v):
+            raise ValueError(f"mask_values[{c!r}] must be a finite number, got {v!r}")
+    return values
