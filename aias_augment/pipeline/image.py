@@ -48,6 +48,8 @@ class InsertionRecord:
     layer_params: list[dict] = field(default_factory=list)
     # how the image was made: "pipeline" or "naive_paste" (InsertionConfig.naive_share draws it per image)
     mode: str = "pipeline"
+    # the 3x3 intrinsics of the output image (OpenCV pixels), which 3D label exports write beside their labels
+    camera_K: tuple | None = None
 
     def to_dict(self) -> dict:
         return {
@@ -62,6 +64,7 @@ class InsertionRecord:
             "placement_reports": self.placement_reports,
             "existing_visibility": self.existing_visibility,
             "layer_params": self.layer_params,
+            "camera_K": None if self.camera_K is None else [list(r) for r in self.camera_K],
         }
 
     @classmethod
@@ -81,6 +84,7 @@ class InsertionRecord:
             None if wr is None else WorkingResolution.from_dict(wr),
             [dict(x) for x in d.get("layer_params", ())],
             d.get("mode", "pipeline"),
+            None if d.get("camera_K") is None else tuple(tuple(map(float, r)) for r in d["camera_K"]),
         )
 
 
@@ -189,6 +193,7 @@ def assemble_result(
         working_resolution=working_resolution,
         layer_params=list(applied.layer_params),
         mode=mode,
+        camera_K=tuple(tuple(map(float, r)) for r in analysis.intrinsics.K),
     )
     inserted_boxes, inserted_labels = [], []
     for placement, ann in zip(applied.placements, applied.annotations):

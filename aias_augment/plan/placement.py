@@ -139,6 +139,9 @@ class Placement:
     asset_meta: dict = field(default_factory=dict, hash=False)
     # A decoy is inserted like any object but not annotated (InsertionConfig.decoy_categories).
     decoy: bool = False
+    # The scaled asset's axis-aligned bounds in the object frame, ((x0, y0, z0), (x1, y1, z1)) in metres (x the
+    # heading, z up): the 3D box that 3D label exports (KITTI) write; () when not known.
+    box_in_object_m: tuple = ()
 
     @property
     def cam_from_object_matrix(self) -> np.ndarray:
@@ -220,7 +223,13 @@ def placement_at(
         normal,
         d,
         source,
+        box_in_object_m=_bounds_tuple(asset.bounds_m),
     )
+
+
+def _bounds_tuple(bounds_m) -> tuple:
+    """(2, 3) bounds as the Placement's ``box_in_object_m``: ((x0, y0, z0), (x1, y1, z1))."""
+    return tuple(tuple(map(float, row)) for row in np.asarray(bounds_m, float))
 
 
 def _overlap_frac(box: np.ndarray, others: np.ndarray) -> float:
@@ -770,6 +779,7 @@ def sample_placement(
             ground_used=used,
             ground_num_inliers=int(plane.num_inliers),
             ground_rms_m=float(plane.rms_m),
+            box_in_object_m=_bounds_tuple(asset.bounds_m * scale),
         )
         return placement, report
     return None, report
