@@ -2,7 +2,8 @@
 
 The clip path of the paper: one object pose in the WORLD for the whole clip (:func:`aias_augment.pipeline.clip.
 insert_into_clip`), one sun fused over the clip's frames in world coordinates (:func:`aias_augment.analyse.lighting.
-estimate_lighting_clip`), every frame rendered through its own K [R | t]. Inputs:
+estimate_lighting_clip`), every frame rendered through its own K [R | t]. Inputs (read and checked before anything is
+written, :mod:`aias_augment.cli.clip_inputs`):
 
 * frames: a video file (anything OpenCV decodes) or a folder of images (sorted by name);
 * camera: a KITTI ``calib.txt`` (P0, or P2 with ``colour``), a pyslam/OpenCV ``KITTI*.yaml`` (``Camera.fx`` ...), or
@@ -15,8 +16,10 @@ estimate_lighting_clip`), every frame rendered through its own K [R | t]. Inputs
 Outputs in ``out``: ``frames/NNNNNN.jpg`` (augmented), ``annotations.json`` (COCO-video: ``videos``, each image's
 ``video_id`` and ``frame_id``, one ``track_id`` per inserted object with its visible mask as RLE and its amodal box;
 validated by pycocotools), ``mot.txt`` (MOTChallenge: frame, id, x, y, w, h, 1, -1, -1, -1, frames from 1),
-``record.json`` (everything needed to replay: seed, asset, world pose, contact, modules used), ``side_by_side.mp4`` (original | augmented with boxes) and ``contact_sheet.jpg``. Every file is
-written atomically; a finished clip (``record.json`` present with the same arguments) is not redone.
+``record.json`` (everything needed to replay: seed, asset, world pose, contact, modules used), ``side_by_side.mp4``
+(original | augmented with boxes), ``contact_sheet.jpg`` and ``manifest.json`` (the run key and the files, complete
+only after the last write; :mod:`aias_augment.cli.clip_output`). Every file is written atomically; a complete clip of
+the same run is not redone; a clip in which no object is ever visible writes nothing and is an error.
 """
 
 from __future__ import annotations
@@ -26,29 +29,53 @@ import json
 import logging
 import math
 import os
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from aias_augment.analyse.ground import prior_ground_plane
 from aias_augment.apply.annotate import encode_rle
-from aias_augment.cli.offline import read_rgb, write_rgb
-from aias_augment.core.coco_io import CocoBuilder, atomic_write_json, atomic_write_text
-from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics, invert_rigid
+from aias_augment.cli.clip_inputs import (
+    IMAGE_SUFFIXES,
+    VIDEO_SUFFIXES,
+    check_pose_count,
+    clip_frame_files,
+    is_video_input,
+    read_camera,
+    read_cams_from_world,
+    read_clip_frames,
+)
+from aias_augment.cli.clip_output import ClipInput, ClipOutput, clip_manifest, files_hash
+from aias_augment.cli.manifest import ManifestMismatch, check_out_apart, file_hash, output_lock
+from aias_augment.core.coco_io import CocoBuilder
+from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from aias_augment.core.report import skipped, skipped_stages
 from aias_augment.core.viz import contact_sheet, draw_boxes
 
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "VIDEO_SUFFIXES",
+    "ClipJob",
+    "ClipNotVisible",
+    "augment_clip",
+    "clip_command",
+    "is_video_input",
+    "read_camera",
+    "read_cams_from_world",
+    "read_clip_frames",
+]
+
 log = logging.getLogger(__name__)
 
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
 #: Draws of one object's plan before it is left out for meeting an object already placed in the clip.
 COLLISION_ATTEMPTS = 8
 COLLISION_STEP_M = 0.5
+#: Highest camera the clip command accepts (a mast or a roof; above it an object on the ground is a few pixels).
+MAX_CAMERA_HEIGHT_M = 100.0
 
 
 @dataclass(frozen=True)
@@ -120,117 +147,137 @@ class ClipJob:
             raise ValueError(
                 "--topple: a toppling object stands where it falls, not with --object-speed or --flow-refine"
             )
-        if not (np.isfinite(self.camera_height_m) and self.camera_height_m > 0):
-            raise ValueError(f"camera_height_m must be positive, got {self.camera_height_m}")
-
-
-# ------------------------------------------------------------------------------------------------------------ inputs
-def is_video_input(path: str | Path) -> bool:
-    return Path(path).suffix.lower() in VIDEO_SUFFIXES
-
-
-def read_clip_frames(
-    path: str | Path, start: int = 0, max_frames: int | None = None, stride: int = 1
-) -> tuple[list[np.ndarray], list[str]]:
-    """(RGB uint8 frames, names) of a video file or an image folder: frames start, start+stride, ..."""
-    p = Path(path)
-    if p.is_dir():
-        files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES)
-        files = files[start::stride][:max_frames]
-        if not files:
-            raise ValueError(f"{p}: no images (from frame {start})")
-        frames = [read_rgb(str(f)) for f in files]
-        return frames, [f.stem for f in files]
-    if not p.is_file():
-        raise FileNotFoundError(f"no such video or folder: {p}")
-    from aias_augment.scenes.video import read_video
-
-    n = None if max_frames is None else start + max_frames * stride
-    frames = read_video(str(p), max_frames=n)[start::stride][:max_frames]
-    if not frames:
-        raise ValueError(f"{p}: no frames from frame {start}")
-    return frames, [f"{start + i * stride:06d}" for i in range(len(frames))]
-
-
-def read_camera(path: str | Path, width: int, height: int, *, colour: bool = False) -> Intrinsics:
-    """Intrinsics from a KITTI calib.txt, a pyslam ``Camera.fx`` yaml, or a plain yaml with fx, fy, cx, cy."""
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"no such camera file: {p}")
-    if p.suffix.lower() in (".yaml", ".yml"):
-        text = p.read_text()
-        if "Camera.fx" in text:
-            from aias_augment.scenes.kitti import read_pyslam_yaml
-
-            v = read_pyslam_yaml(p)
-            keys = ("Camera.fx", "Camera.fy", "Camera.cx", "Camera.cy")
-        else:
-            v = yaml.safe_load(text) or {}
-            keys = ("fx", "fy", "cx", "cy")
-        missing = [k for k in keys if k not in v]
-        if missing:
-            raise ValueError(f"{p}: missing {missing} (need fx, fy, cx, cy)")
-        return Intrinsics(*(float(v[k]) for k in keys), width, height)
-    from aias_augment.scenes.kitti import read_projection_matrices
-
-    mats = read_projection_matrices(p)
-    key = "P2" if colour else "P0"
-    if key not in mats:
-        raise ValueError(f"{p}: no {key} projection matrix (found {sorted(mats)})")
-    return Intrinsics.from_matrix(mats[key][:, :3], width, height)
-
-
-def read_cams_from_world(path: str | Path) -> np.ndarray:
-    """(N, 4, 4) OpenCV cam_from_world from KITTI (12 numbers) or TUM (7, or 8 with a timestamp) pose lines."""
-    from aias_augment.scenes.kitti import read_kitti_poses
-    from aias_augment.scenes.nyu import read_tum_poses
-
-    p = Path(path)
-    rows = np.loadtxt(p, dtype=np.float64, ndmin=2, comments="#")
-    if rows.shape[1] == 12:
-        world_from_cams = read_kitti_poses(p)
-    elif rows.shape[1] in (7, 8):
-        if rows.shape[1] == 8:  # drop the timestamp column
-            tmp = p.with_name(p.name + ".tum7.tmp")
-            try:
-                np.savetxt(tmp, rows[:, 1:])
-                world_from_cams = read_tum_poses(tmp)
-            finally:
-                tmp.unlink(missing_ok=True)
-        else:
-            world_from_cams = read_tum_poses(p)
-    else:
-        raise ValueError(f"{p}: {rows.shape[1]} numbers per line; expected KITTI (12) or TUM (7 or 8)")
-    return np.stack([invert_rigid(T) for T in world_from_cams])
+        if not (np.isfinite(self.camera_height_m) and 0 < self.camera_height_m <= MAX_CAMERA_HEIGHT_M):
+            raise ValueError(
+                f"camera_height_m (--camera-height) must be in (0, {MAX_CAMERA_HEIGHT_M:g}] metres above the ground, "
+                f"got {self.camera_height_m:g}"
+            )
 
 
 # ------------------------------------------------------------------------------------------------------------- run
+class ClipNotVisible(RuntimeError):
+    """No inserted object is visible in any frame of the clip: nothing was written."""
+
+
+@dataclass
+class ClipInputs:
+    """A clip's inputs, read and checked (:mod:`aias_augment.cli.clip_inputs`) before anything is written."""
+
+    frames: list[np.ndarray]
+    names: list[str]
+    idx: np.ndarray  # index in the input of each frame used
+    intrinsics: Intrinsics | None  # --camera's, checked against the frame size
+    poses: np.ndarray | None  # (N, 4, 4) cam_from_world of the frames used, from --poses
+
+
+@dataclass
+class RenderedClip:
+    frames: list[np.ndarray]  # augmented
+    intrinsics: Intrinsics
+    objects: list  # (category, asset) of each placed object
+    results: list  # ClipResult of each placed object
+    plans: list
+    placed_params: list
+    draws: list[int]
+    skipped_objects: list[dict]
+    notes: dict
+    layer_params: list
+
+
+CLIP_FILES = ("annotations.json", "mot.txt", "side_by_side.mp4", "contact_sheet.jpg", "record.json")
+_PATH_FIELDS = ("input", "camera", "poses", "stereo_right")
+
+
 def _job_dict(job: ClipJob) -> dict:
     return json.loads(json.dumps(dataclasses.asdict(job)))
 
 
-def augment_clip(job: ClipJob) -> dict:
+def read_clip_inputs(job: ClipJob) -> ClipInputs:
+    """Frames, camera and poses of ``job``, every problem an :class:`InputError` (cheapest checks first)."""
+    all_poses = None if job.poses is None else read_cams_from_world(job.poses)
+    frames, names = read_clip_frames(job.input, job.start, job.max_frames, job.stride)
+    h, w = frames[0].shape[:2]
+    idx = np.arange(job.start, job.start + job.stride * len(frames), job.stride)
+    intr = None if job.camera is None else read_camera(job.camera, w, h, colour=job.colour)
+    poses = None
+    if all_poses is not None:
+        check_pose_count(len(all_poses), int(idx[-1]), job.poses, job.input)
+        poses = all_poses[idx]
+    return ClipInputs(frames, names, idx, intr, poses)
+
+
+def clip_run_manifest(job: ClipJob, names: list[str]) -> dict:
+    """The manifest of ``job``: what decides its output (options, inputs' content hashes) and the files it writes."""
+    inputs = []
+    for field in _PATH_FIELDS:
+        path = getattr(job, field)
+        if path is None:
+            continue
+        p = Path(path)
+        sha = files_hash(clip_frame_files(p, job.start, job.max_frames, job.stride)) if p.is_dir() else file_hash(p)
+        inputs.append(ClipInput(field, os.path.abspath(p), sha))
+    options = {k: v for k, v in _job_dict(job).items() if k not in (*_PATH_FIELDS, "out", "seed", "preset")}
+    blank = dataclasses.replace(job, out="", input="", camera=None, poses=None, stereo_right=None, seed=0)
+    files = [f"frames/{n}.jpg" for n in names] + list(CLIP_FILES)
+    return clip_manifest(blank, job.seed, job.preset, options, inputs, files)
+
+
+def augment_clip(job: ClipJob, *, overwrite: bool = False) -> dict:
     """Insert ``job.objects`` objects of ``job.categories`` (drawn with the seed) into the clip, each with its own
-    track; returns the record."""
+    track; returns the record (with ``wall_s``, this call's seconds).
+
+    Every input is read and checked before the output folder is touched (:class:`InputError`); a folder holding
+    another run is refused (:class:`ManifestMismatch`) unless ``overwrite``; a clip in which no object is ever
+    visible raises :class:`ClipNotVisible` before anything is written. See :mod:`aias_augment.cli.clip_output`."""
+    t0 = time.perf_counter()
+    check_out_apart(job.out, [(_flag(f), getattr(job, f)) for f in _PATH_FIELDS])
+    inputs = read_clip_inputs(job)
+    out = Path(job.out)
+    output = ClipOutput(out, clip_run_manifest(job, inputs.names))
+    with output_lock(out):
+        if output.done():
+            log.info("%s: already done with the same inputs and arguments, nothing to do", out)
+            record = json.loads((out / "record.json").read_text())
+            return {**record, "wall_s": round(time.perf_counter() - t0, 1)}
+        clip = render_clip(job, inputs)
+        if not any(b is not None for r in clip.results for b in r.boxes_xywh):
+            raise ClipNotVisible(_never_visible(job, inputs, clip))
+        for k, r in enumerate(clip.results):
+            if all(b is None for b in r.boxes_xywh):
+                log.warning("%s: object %d (%s) is visible in no frame", job.input, k + 1, clip.objects[k][0])
+        output.begin(overwrite)
+        record = write_clip(output, job, inputs, clip)
+        output.complete()
+    wall_s = round(time.perf_counter() - t0, 1)
+    log.info("%s: %d frames, object visible in %d, %.1fs", out, len(inputs.frames), record["visible_frames"], wall_s)
+    return {**record, "wall_s": wall_s}
+
+
+def _flag(field: str) -> str:
+    return f"--{field.replace('_', '-')}"
+
+
+def _never_visible(job: ClipJob, inputs: ClipInputs, clip: RenderedClip) -> str:
+    contact = np.append(clip.results[0].contact_in_world, 1.0)
+    cams = inputs.poses if inputs.poses is not None else np.eye(4)[None]
+    depth = [float((cam @ contact)[2]) for cam in (cams[0], cams[-1])]
+    return (
+        f"{job.input}: the inserted {clip.objects[0][0]} is visible in none of the {len(inputs.frames)} frames (its "
+        f"contact is {depth[0]:.1f} m in front of the first camera, {depth[1]:.1f} m of the last); nothing written to "
+        f"{job.out}; check that --poses are this clip's, --camera's K and --camera-height {job.camera_height_m:g}"
+    )
+
+
+def render_clip(job: ClipJob, inputs: ClipInputs) -> RenderedClip:
+    """Camera and poses, lighting, plans and the augmented frames of ``job`` (nothing written)."""
     from aias_augment.analyse.lighting.estimate import estimate_lighting_clip
     from aias_augment.apply.layers import draw_layer_params
-    from aias_augment.pipeline.clip import VideoInsertionConfig, apply_clip_objects, first_collision, plan_clip
+    from aias_augment.cli.clip_cameras import monocular_odometry_clip, static_camera_clip, stereo_odometry_clip
+    from aias_augment.pipeline.clip import VideoInsertionConfig, apply_clip_objects
     from aias_augment.pipeline.config import InsertionConfig, load_preset
     from aias_augment.plan.insertion import choose_asset
 
-    out = Path(job.out)
-    record_path = out / "record.json"
-    if record_path.exists():
-        old = json.loads(record_path.read_text())
-        if old.get("job") == _job_dict(job):
-            log.info("%s: already done with the same arguments, nothing to do", out)
-            return old
-    t0 = time.perf_counter()
-    frames, names = read_clip_frames(job.input, job.start, job.max_frames, job.stride)
-    h, w = frames[0].shape[:2]
-    if any(f.shape != frames[0].shape for f in frames):
-        raise ValueError(f"{job.input}: frames differ in size")
-    idx = np.arange(job.start, job.start + job.stride * len(frames), job.stride)
+    frames = inputs.frames
     moving = True  # a camera that goes somewhere: the object stands beside where it will be
     if job.stereo_right is not None:
         intr, poses, camera_note = stereo_odometry_clip(frames, job)
@@ -246,11 +293,7 @@ def augment_clip(job: ClipJob) -> dict:
         else:
             intr, poses, ground0, camera_note = static_camera_clip(frames, job)
     else:
-        intr = read_camera(job.camera, w, h, colour=job.colour)
-        all_poses = read_cams_from_world(job.poses)
-        if idx[-1] >= len(all_poses):
-            raise ValueError(f"{job.poses}: {len(all_poses)} poses, but frame {idx[-1]} of {job.input} is used")
-        poses = all_poses[idx]
+        intr, poses = inputs.intrinsics, inputs.poses
         ground0, camera_note = prior_ground_plane(job.camera_height_m), "given camera and poses"
     rng = np.random.default_rng([job.seed, 0])
     category = job.categories[int(rng.integers(len(job.categories)))]
@@ -276,27 +319,43 @@ def augment_clip(job: ClipJob) -> dict:
         accelerate_frames=round(job.object_accel_s * job.fps),
         topple_frames=max(1, round(job.topple_s * job.fps)) if job.topple_s else 0,
     )
-    objects = [(category, asset)]
-    placed_params, draws = [layer_params[0]], [1]
-    plans = [
-        plan_clip(
-            frames,
-            intr,
-            poses,
-            rng,
-            cfg,
-            asset=asset,
-            ground_in_cam0=ground0,
-            lighting=lighting,
-            layer_params=layer_params[0],
+
+    placed = plan_clip_objects(job, frames, intr, poses, rng, cfg, ground0, lighting, layer_params, (category, asset))
+    results = apply_clip_objects(frames, intr, placed["plans"], cfg)
+    out_frames, harmonize_note = _harmonize(job, results[0].frames, results, len(frames), rng)
+    # A grey clip (KITTI image_0/image_l) stays grey: an orange cone in a grey frame would be a give-away.
+    grey = all(np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2]) for f in frames)
+    if grey:
+        out_frames = [np.repeat(cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2) for f in out_frames]
+    notes = {
+        **results[0].modules,
+        "camera": camera_note,
+        "lighting": lighting_note,
+        "harmonize": harmonize_note,
+        "colour": "grey clip: output converted to grey" if grey else "colour clip",
+    }
+    return RenderedClip(out_frames, intr, results=results, notes=notes, layer_params=layer_params, **placed)
+
+
+def plan_clip_objects(job, frames, intr, poses, rng, cfg, ground0, lighting, layer_params, first) -> dict:
+    """Plans of ``job.objects`` objects, the first ``first`` = (category, asset); objects share the world: a plan
+    whose box meets a placed object's in any frame is redrawn (a new yaw, a new sampled pixel, or COLLISION_STEP_M
+    further from the path), and after COLLISION_ATTEMPTS it is left out."""
+    from aias_augment.pipeline.clip import first_collision, plan_clip
+    from aias_augment.pipeline.config import InsertionConfig
+    from aias_augment.plan.insertion import choose_asset
+
+    def plan(c, asset, params):
+        return plan_clip(
+            frames, intr, poses, rng, c, asset=asset, ground_in_cam0=ground0, lighting=lighting, layer_params=params
         )
-    ]
+
+    objects, placed_params, draws = [first], [layer_params[0]], [1]
+    plans = [plan(cfg, first[1], layer_params[0])]
     skipped_objects = []
     for k in range(1, job.objects):
         cat_k = job.categories[int(rng.integers(len(job.categories)))]
         asset_k = choose_asset(cat_k, rng, InsertionConfig(categories=(cat_k,)))
-        # Objects share the world: a plan whose box meets a placed object's in any frame is redrawn (a new yaw, a
-        # new sampled pixel, or COLLISION_STEP_M further from the path), and after COLLISION_ATTEMPTS it is left out.
         for attempt in range(COLLISION_ATTEMPTS):
             cfg_k = dataclasses.replace(
                 cfg,
@@ -304,17 +363,7 @@ def augment_clip(job: ClipJob) -> dict:
                 lateral_offset_m=(-1) ** k
                 * math.copysign(abs(cfg.lateral_offset_m) + COLLISION_STEP_M * attempt, cfg.lateral_offset_m),
             )
-            plan_k = plan_clip(
-                frames,
-                intr,
-                poses,
-                rng,
-                cfg_k,
-                asset=asset_k,
-                ground_in_cam0=ground0,
-                lighting=lighting,
-                layer_params=layer_params[k],
-            )
+            plan_k = plan(cfg_k, asset_k, layer_params[k])
             hits = [(j, first_collision(plan_k, p)) for j, p in enumerate(plans)]
             hit = next(((j, f) for j, f in hits if f is not None), None)
             if hit is None:
@@ -328,41 +377,51 @@ def augment_clip(job: ClipJob) -> dict:
         plans.append(plan_k)
         placed_params.append(layer_params[k])
         draws.append(attempt + 1)
-    results = apply_clip_objects(frames, intr, plans, cfg)
-    res = results[0]
-    out_frames = res.frames
+    return {
+        "objects": objects,
+        "plans": plans,
+        "placed_params": placed_params,
+        "draws": draws,
+        "skipped_objects": skipped_objects,
+    }
 
-    if job.harmonize != "none":
-        from aias_augment.apply.harmonize import harmonize_clip
 
-        union = [
-            None
-            if all(r.masks[i] is None for r in results)
-            else np.maximum.reduce([r.masks[i] for r in results if r.masks[i] is not None])
-            for i in range(len(frames))
-        ]
-        out_frames = harmonize_clip(out_frames, union, job.harmonize, rng.spawn(1)[0])
-        harmonize_note = (
-            f"{job.harmonize}: one colour transform for the clip (median of the per-frame predictions)"
-            if job.harmonize == "fast"
-            else f"{job.harmonize}, frame by frame"
-        )
-    else:
-        harmonize_note = skipped("--harmonize none")
-    # A grey clip (KITTI image_0/image_l) stays grey: an orange cone in a grey frame would be a give-away.
-    grey = all(np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2]) for f in frames)
-    if grey:
-        out_frames = [np.repeat(cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2) for f in out_frames]
-    categories = list(dict.fromkeys(c for c, _ in objects))
+def _harmonize(job: ClipJob, frames: list[np.ndarray], results, n: int, rng) -> tuple[list[np.ndarray], str]:
+    if job.harmonize == "none":
+        return frames, skipped("--harmonize none")
+    from aias_augment.apply.harmonize import harmonize_clip
+
+    union = [
+        None
+        if all(r.masks[i] is None for r in results)
+        else np.maximum.reduce([r.masks[i] for r in results if r.masks[i] is not None])
+        for i in range(n)
+    ]
+    note = (
+        f"{job.harmonize}: one colour transform for the clip (median of the per-frame predictions)"
+        if job.harmonize == "fast"
+        else f"{job.harmonize}, frame by frame"
+    )
+    return harmonize_clip(frames, union, job.harmonize, rng.spawn(1)[0]), note
+
+
+def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: RenderedClip) -> dict:
+    """Write the frames, the COCO-video and MOT annotations, the side-by-side video, the contact sheet and the
+    record through ``output`` (each file atomically); returns the record."""
+    from pycocotools.coco import COCO
+
+    names, idx, intr = inputs.names, inputs.idx, clip.intrinsics
+    h, w = inputs.frames[0].shape[:2]
+    categories = list(dict.fromkeys(c for c, _ in clip.objects))
     coco = CocoBuilder({c: j + 1 for j, c in enumerate(categories)})
     coco.videos.append({"id": 1, "name": Path(job.input).name, "width": w, "height": h, "fps": job.fps})
     drawn, mot = [], []
-    for i, (name, img) in enumerate(zip(names, out_frames)):
+    for i, (name, img) in enumerate(zip(names, clip.frames)):
         file_name = f"frames/{name}.jpg"
-        write_rgb(out / file_name, img)
+        output.write_image(file_name, img)
         image_id = coco.add_image(file_name, w, h, frame_index=int(idx[i]), video_id=1, frame_id=i)
         boxes, labels = [], []
-        for track, (r, (cat, _)) in enumerate(zip(results, objects), start=1):
+        for track, (r, (cat, _)) in enumerate(zip(clip.results, clip.objects), start=1):
             box = r.boxes_xywh[i]
             if box is None:
                 continue
@@ -380,30 +439,25 @@ def augment_clip(job: ClipJob) -> dict:
             mot.append(f"{i + 1},{track},{box[0]:.2f},{box[1]:.2f},{box[2]:.2f},{box[3]:.2f},1,-1,-1,-1")
             boxes.append(box), labels.append(cat)
         drawn.append(draw_boxes(img, boxes, labels, inserted=[True] * len(boxes)))
-    coco.write(out / "annotations.json")
-    atomic_write_text(out / "mot.txt", "".join(line + "\n" for line in mot))
-    _write_side_by_side(out / "side_by_side.mp4", frames, drawn, job.fps)
+    output.write_json("annotations.json", coco.to_dict(), check=lambda p: COCO(str(p)))  # pycocotools validates
+    output.write_bytes("mot.txt", "".join(line + "\n" for line in mot).encode())
+    output.write_with("side_by_side.mp4", lambda p: _write_side_by_side(p, inputs.frames, drawn, job.fps))
     picks = np.unique(np.linspace(0, len(drawn) - 1, min(6, len(drawn))).astype(int))
-    sheet = contact_sheet([drawn[i] for i in picks], cols=3, titles=[names[i] for i in picks])
-    write_rgb(out / "contact_sheet.jpg", sheet)
-    notes = {
-        **res.modules,
-        "camera": camera_note,
-        "lighting": lighting_note,
-        "harmonize": harmonize_note,
-        "colour": "grey clip: output converted to grey" if grey else "colour clip",
-    }
+    output.write_image(
+        "contact_sheet.jpg", contact_sheet([drawn[i] for i in picks], cols=3, titles=[names[i] for i in picks])
+    )
+    res = clip.results[0]
     record = {
-        "job": _job_dict(job),
-        "category": category,
-        "asset": asset.name,
-        "asset_height_m": float(asset.height_m),
-        "frames": len(frames),
+        "job": {k: v for k, v in _job_dict(job).items() if k != "out"},  # the folder may move: not part of it
+        "category": clip.objects[0][0],
+        "asset": clip.objects[0][1].name,
+        "asset_height_m": float(clip.objects[0][1].height_m),
+        "frames": len(names),
         "frame_indices": idx.tolist(),
         "intrinsics": [intr.fx, intr.fy, intr.cx, intr.cy, w, h],
         "world_from_object": res.world_from_object.tolist(),
         "contact_in_world": res.contact_in_world.tolist(),
-        "layer_params": layer_params[0],
+        "layer_params": clip.layer_params[0],
         "visible_frames": int(sum(b is not None for b in res.boxes_xywh)),
         "objects": [
             {
@@ -413,105 +467,73 @@ def augment_clip(job: ClipJob) -> dict:
                 "asset_height_m": float(a.height_m),
                 "world_from_object": r.world_from_object.tolist(),
                 "contact_in_world": r.contact_in_world.tolist(),
-                "layer_params": placed_params[k],
-                "draws": draws[k],
-                "topple": plans[k].topple,
+                "layer_params": clip.placed_params[k],
+                "draws": clip.draws[k],
+                "topple": clip.plans[k].topple,
                 "visible_frames": int(sum(b is not None for b in r.boxes_xywh)),
             }
-            for k, ((cat, a), r) in enumerate(zip(objects, results))
+            for k, ((cat, a), r) in enumerate(zip(clip.objects, clip.results))
         ],
-        "skipped_objects": skipped_objects,
-        "modules": notes,
-        "skipped_stages": skipped_stages(notes),
-        "wall_s": round(time.perf_counter() - t0, 1),
+        "skipped_objects": clip.skipped_objects,
+        "modules": clip.notes,
+        "skipped_stages": skipped_stages(clip.notes),
     }
-    atomic_write_json(record_path, record)  # last: its presence marks the clip as done
-    log.info("%s: %d frames, object visible in %d, %.1fs", out, len(frames), record["visible_frames"], record["wall_s"])
+    output.write_json("record.json", record)
     return record
 
 
-def stereo_odometry_clip(frames: list[np.ndarray], job: ClipJob):
-    """(K, cams_from_world, note) of a stereo clip without poses: the right frames read as the left ones were,
-    the baseline from the camera file, the poses by stereo odometry (world = the first left camera)."""
-    from aias_augment.scenes.kitti import read_kitti_calib
-    from aias_augment.scenes.video import estimate_stereo_motion
-
-    if job.camera is None:
-        raise ValueError("--stereo-right needs --camera with both cameras (KITTI P0/P1, or a yaml with Camera.bf)")
-    h, w = frames[0].shape[:2]
-    intr, baseline = read_kitti_calib(job.camera, w, h, colour=job.colour)
-    rights, _ = read_clip_frames(job.stereo_right, job.start, job.max_frames, job.stride)
-    if len(rights) != len(frames) or any(r.shape != frames[0].shape for r in rights):
-        raise ValueError(f"{job.stereo_right}: {len(rights)} right frames for {len(frames)} left ones, or another size")
-    motion = estimate_stereo_motion(frames, rights, intr, baseline, np.random.default_rng([job.seed, 2]))
-    failed = [s for s in motion.status if s != "moving"]
-    note = f"given camera; poses by stereo odometry (baseline {baseline:.3f} m, {len(frames) - 1 - len(failed)} of {len(frames) - 1} steps measured)"
-    if failed:
-        log.warning("%s: stereo odometry kept the previous pose in %d steps (%s)", job.input, len(failed), failed[0])
-    return intr, motion.cams_from_world, note
-
-
-def monocular_odometry_clip(frames: list[np.ndarray], job: ClipJob, check):
-    """(K, cams_from_world, note) of a moving camera's clip without poses or a right camera: essential-matrix
-    odometry, each step's length from the ground at ``job.camera_height_m`` (``scenes.video``, ``ground_height_m``).
-    It needs the camera (``--camera``): a focal length guessed from one frame would bend every step."""
-    from aias_augment.scenes.video import VideoMotionConfig, estimate_video_motion
-
-    if job.camera is None:
-        raise ValueError(
-            f"{job.input}: {check.reason()}; a moving camera needs --camera (then its poses are estimated from the "
-            "frames, scaled by --camera-height), or --poses, or --stereo-right"
+def clip_command(a) -> int:
+    """``aias-augment`` on a clip (parsed arguments ``a``): 0 done, 1 no object visible, 2 a bad input or
+    ``--out``; every error one line on stderr."""
+    try:
+        job = ClipJob(
+            a.input,
+            a.camera,
+            a.poses,
+            a.out,
+            tuple(a.categories or ["traffic_cone"]),
+            a.seed,
+            a.start,
+            a.max_frames,
+            a.stride,
+            a.colour,
+            a.camera_height,
+            lighting=a.lighting,
+            flow_refine=a.flow_refine,
+            harmonize=a.harmonize,
+            preset=a.preset,
+            fps=a.fps,
+            object_speed_mps=a.object_speed,
+            topple_s=a.topple,
+            stereo_right=a.stereo_right,
+            object_start_s=a.object_start,
+            object_accel_s=a.object_accel,
+            objects=a.objects,
         )
-    h, w = frames[0].shape[:2]
-    intr = read_camera(job.camera, w, h, colour=job.colour)
-    motion = estimate_video_motion(
-        frames,
-        np.random.default_rng([job.seed, 3]),
-        intrinsics=intr,
-        cfg=VideoMotionConfig(ground_height_m=job.camera_height_m),
-    )
-    failed = [s for s in motion.status if s != "moving"]
-    steps = motion.meta["ground_steps_m"]
-    note = (
-        f"given camera; {check.reason()}: poses by monocular odometry, steps scaled by the ground "
-        f"{job.camera_height_m} m below ({len(steps)} of {len(frames) - 1} steps measured on the ground, "
-        f"median {float(np.median(steps)) if steps else float('nan'):.2f} m)"
-    )
-    if failed:
-        log.warning("%s: monocular odometry kept the previous pose in %d steps (%s)", job.input, len(failed), failed[0])
-    return intr, motion.cams_from_world, note
+        record = augment_clip(job, overwrite=a.overwrite)
+    except ClipNotVisible as e:
+        return _fail(e, 1)
+    except (ValueError, ManifestMismatch) as e:  # InputError is a ValueError; OutputBusy a ManifestMismatch
+        log.debug("clip refused", exc_info=True)
+        return _fail(e, 2)
+    except OSError as e:  # an unwritable or full --out, a path through a file
+        where = f" ({e.filename})" if e.filename else ""
+        return _fail(f"{e.strerror or e}{where}: check that --out is a writable folder with free space", 2)
+    print({k: record[k] for k in ("category", "asset", "frames", "visible_frames", "wall_s")})
+    return 0
 
 
-def static_camera_clip(frames: list[np.ndarray], job: ClipJob):
-    """(intrinsics, identity poses, ground in the camera, note) of a clip without poses, which must come from a static
-    camera (:func:`aias_augment.scenes.video.static_camera_check`; a moving one raises, saying how far it moved).
-    K is ``job.camera``'s or estimated from the first frame, the ground from its horizon at ``job.camera_height_m``.
-    Its own generator: the insertion's draws are those of a posed clip with the same seed."""
-    from aias_augment.analyse.ground import GroundPlane
-    from aias_augment.scenes.single_image import estimate_camera_from_image
-    from aias_augment.scenes.video import static_camera_check
-
-    check = static_camera_check(frames)
-    if not check.static:
-        raise ValueError(f"{job.input}: {check.reason()}; not a static camera")
-    h, w = frames[0].shape[:2]
-    given = None if job.camera is None else read_camera(job.camera, w, h, colour=job.colour)
-    cam = estimate_camera_from_image(frames[0], np.random.default_rng([job.seed, 1]), intrinsics=given)
-    ground = GroundPlane(cam.ground.normal, job.camera_height_m, cam.ground.source, assumed_scale=True)
-    note = (
-        f"{check.reason()}: one camera for the clip, K {cam.focal_source}, horizon {cam.horizon_source}, "
-        f"camera {job.camera_height_m} m above the ground (assumed)"
-    )
-    return cam.intrinsics, np.repeat(np.eye(4)[None], len(frames), axis=0), ground, note
+def _fail(e, code: int) -> int:
+    print("aias-augment: error: " + " ".join(str(e).split()), file=sys.stderr)
+    return code
 
 
 def _write_side_by_side(path: Path, originals: list[np.ndarray], augmented: list[np.ndarray], fps: float) -> None:
-    """Original | augmented, one row per frame, as an mp4 (written to a temporary name, then renamed)."""
+    """Original | augmented, one row per frame, as an mp4."""
     h, w = originals[0].shape[:2]
     scale = min(1.0, 960 / (2 * w))
     size = (int(2 * w * scale) // 2 * 2, int(h * scale) // 2 * 2)
-    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
     if not writer.isOpened():
         raise OSError(f"cannot open a video writer for {path}")
     try:
@@ -520,4 +542,3 @@ def _write_side_by_side(path: Path, originals: list[np.ndarray], augmented: list
             writer.write(np.ascontiguousarray(pair[..., ::-1]))
     finally:
         writer.release()
-    os.replace(tmp, path)
