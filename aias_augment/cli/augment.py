@@ -226,36 +226,9 @@ def main(argv=None) -> int:
         ]
         if given:
             ap.error(f"{', '.join(given)}: for image datasets, not clips")
-        from aias_augment.cli.clip import ClipJob, augment_clip
+        from aias_augment.cli.clip import clip_command
 
-        record = augment_clip(
-            ClipJob(
-                a.input,
-                a.camera,
-                a.poses,
-                a.out,
-                tuple(a.categories or ["traffic_cone"]),
-                a.seed,
-                a.start,
-                a.max_frames,
-                a.stride,
-                a.colour,
-                a.camera_height,
-                lighting=a.lighting,
-                flow_refine=a.flow_refine,
-                harmonize=a.harmonize,
-                preset=a.preset,
-                fps=a.fps,
-                object_speed_mps=a.object_speed,
-                topple_s=a.topple,
-                stereo_right=a.stereo_right,
-                object_start_s=a.object_start,
-                object_accel_s=a.object_accel,
-                objects=a.objects,
-            )
-        )
-        print({k: record[k] for k in ("category", "asset", "frames", "visible_frames", "wall_s")})
-        return 0
+        return clip_command(a)
     if a.input and not a.images:
         ap.error("--input needs --images")
     from aias_augment.adapters.boundary import InputError, check_categories
