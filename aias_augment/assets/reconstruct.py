@@ -60,13 +60,17 @@ class View:
         "coarse_resolution": "[8, 128]",
         "padding_voxels": "[1, 16]",
         "max_faces": "[100, inf)",
-        "texture_px": "[16, 8192]",
+        "texture_px": "[16, 4096]",
         "refine_depth": "(0, 1]",
         "refine_patch_radius": "[1, 15]",
         "refine_top_views": "[1, 64]",
         "refine_min_ncc": "[-1, 1]",
         "refine_min_gain": "[0, 2]",
         "refine_min_std": "[0, inf)",
+        "min_view_iou": "[0, 1]",
+        "min_view_spread_deg": "[0, 180]",
+        "max_reprojection_px": "(0, inf)",
+        "size_slack": "[1, inf)",
     }
 )
 @dataclass(frozen=True)
@@ -76,7 +80,9 @@ class ReconstructConfig:
     padding_voxels: int = 3
     # Quadric decimation of the cleaned hull to at most this many faces (None: marching cubes' own, ~10^5 at 128).
     max_faces: int | None = None
-    # A texture atlas of this many texels a side baked from the views (xatlas UVs); None: vertex colours.
+    # A texture atlas of this many texels a side baked from the views (xatlas UVs); None: vertex colours. At most
+    # 4096: the bake keeps about 100 bytes per texel (owner, barycentrics, surface points, colours, weights), 1.7 GB
+    # at 4096; 8192 went past 8 GB.
     texture_px: int | None = None
     # Photo-consistency refinement of the hull (refine_photo_consistent): off, or the deepest inward move searched
     # as a share of the hull's largest extent, the patch's half-side in pixels, the views averaged per depth, and the
@@ -88,6 +94,13 @@ class ReconstructConfig:
     refine_min_ncc: float = 0.6
     refine_min_gain: float = 0.1
     refine_min_std: float = 4.0  # grey levels: flatter patches have nothing to match and stay
+    # The quality a reconstruction must reach to be filed (aias_augment.assets.reconstruct_quality, where the bounds
+    # are justified): each view's silhouette IoU, the spread of the views' directions, SfM's mean reprojection error,
+    # and the slack around the category's height range.
+    min_view_iou: float = 0.9
+    min_view_spread_deg: float = 60.0
+    max_reprojection_px: float = 2.0
+    size_slack: float = 1.25
 
 
 def _cleaned(mesh):
@@ -216,7 +229,9 @@ def visual_hull(
         raise ValueError("visual_hull: no surface in the fine grid")
     verts, faces, _, _ = marching_cubes(field, level=0.0, spacing=(step, step, step))
     verts = verts + lo - pad * step
-    return _cleaned(trimesh.Trimesh(verts, faces, process=True))
+    hull = _cleaned(trimesh.Trimesh(verts, faces, process=True))
+    hull.metadata["voxel_m"] = float(step)
+    return hull
 
 
 def _visibility(points, normals, mesh, views: list[View], ssaa: int = 1):
@@ -457,8 +472,23 @@ def reconstruct(
 ) -> Asset:
     """A textured :class:`Asset` (canonical frame: metres, z up, on z = 0) from posed views of an object. The poses'
     units are kept unless ``height_m`` is given (then the asset is scaled to it). ``meta`` records the number of
-    views, the grid and the share of vertices some view coloured."""
+    views, the grid, the share of vertices some view coloured and the quality measures.
+
+    Before it is textured, the hull measures its own quality (:mod:`aias_augment.assets.reconstruct_quality`: every
+    view's silhouette IoU, the views' spread) and the asset's height is checked against ``category``'s range:
+    :class:`~aias_augment.assets.reconstruct_quality.ReconstructionRefused` names the bad views."""
+    from aias_augment.assets.reconstruct_quality import check_height, check_hull
+
     hull = visual_hull(views, search_lo, search_hi, cfg, ground_z)
+    quality = check_hull(
+        hull,
+        views,
+        hull.metadata["voxel_m"],
+        cfg,
+        agreement=lambda: view_agreement(views, search_lo, search_hi, ground_z),
+    )
+    height = hull.extents[2] if height_m is None else float(height_m)
+    quality["height_range_m"] = check_height(float(height), category, cfg.size_slack)
     if cfg.max_faces is not None:
         hull = decimate(hull, cfg.max_faces)
     refined = None
@@ -481,6 +511,7 @@ def reconstruct(
             "faces": len(hull.faces),
             "texture_px": cfg.texture_px,
             **({} if refined is None else {"refinement": refined}),
+            "quality": quality,
             ("coloured_vertex_share" if cfg.texture_px is None else "coloured_texel_share"): round(seen, 4),
         },
     )
@@ -536,45 +567,11 @@ def grabcut_mask(image_rgb: np.ndarray, box_xyxy, iterations: int = 5) -> np.nda
 
 
 def read_views(path) -> tuple[list[tuple[np.ndarray, np.ndarray, Intrinsics, np.ndarray | None]], float | None]:
-    """The photos of a views file: ``{"ground_z": 0.0 | null, "views": [{"image": PATH, "mask": PATH | null, "box":
-    [x0, y0, x1, y1] | null, "K": 3x3, "cam_from_object": 4x4 (optional)}, ...]}`` (paths relative to the file; a
-    view without a mask is segmented by GrabCut from its box) as (image, mask, intrinsics, pose or None). Bad
-    entries: ValueError naming the view. Either every view has its pose or none has (then SfM finds them)."""
-    import json
-    from pathlib import Path
+    """The photos of a views file as (image, mask, intrinsics, pose or None) and its ground z: see
+    :func:`aias_augment.assets.views_file.read_views` (the format, the checks and the pixel bounds)."""
+    from aias_augment.assets.views_file import read_views as read
 
-    path = Path(path)
-    spec = json.loads(path.read_text())
-    out = []
-    for i, e in enumerate(spec.get("views", [])):
-        try:
-            bgr = cv2.imread(str(path.parent / e["image"]), cv2.IMREAD_COLOR)
-            if bgr is None:
-                raise ValueError(f"cannot read {e['image']}")
-            rgb = np.ascontiguousarray(bgr[:, :, ::-1])
-            if e.get("mask"):
-                m = cv2.imread(str(path.parent / e["mask"]), cv2.IMREAD_GRAYSCALE)
-                if m is None:
-                    raise ValueError(f"cannot read {e['mask']}")
-                mask = m > 127
-            elif e.get("box"):
-                mask = grabcut_mask(rgb, e["box"])
-            else:
-                raise ValueError("needs a mask or a box")
-            K = np.asarray(e["K"], float)
-            h, w = mask.shape
-            intr = Intrinsics(K[0, 0], K[1, 1], K[0, 2], K[1, 2], w, h)
-            pose = None if e.get("cam_from_object") is None else np.asarray(e["cam_from_object"], float)
-            if pose is not None:
-                View(rgb, mask, intr, pose)  # checks sizes and the mask
-            out.append((rgb, mask, intr, pose))
-        except (KeyError, ValueError, TypeError) as err:
-            raise ValueError(f"{path}: view {i}: {err}") from None
-    if len(out) < 2:
-        raise ValueError(f"{path}: needs at least two views, got {len(out)}")
-    if len({o[3] is None for o in out}) > 1:
-        raise ValueError(f"{path}: some views have cam_from_object and some do not: give all or none")
-    return out, spec.get("ground_z", 0.0)
+    return read(path)
 
 
 def load_views(path) -> tuple[list[View], float | None]:
@@ -585,27 +582,43 @@ def load_views(path) -> tuple[list[View], float | None]:
     return [View(*p) for p in photos], ground_z
 
 
+def _coarse_distances(views: list[View], search_lo, search_hi, ground_z, n_long: int):
+    """(V, N) signed distances of an ``n_long`` grid over the box to each view's silhouette, and the grid step."""
+    pts, step, _ = _grid(np.asarray(search_lo, float), np.asarray(search_hi, float), n_long)
+    d = np.stack([_view_distance(pts, v, _signed_distance_px(v.mask)) for v in views])
+    if ground_z is not None:
+        d = np.maximum(d, (ground_z - pts[:, 2]).astype(np.float32))
+    return d, step
+
+
+def _agreement(d: np.ndarray, step: float, keep: list[int]) -> np.ndarray:
+    out = np.full(len(d), np.nan)
+    for j in keep:
+        others = np.max(d[[k for k in keep if k != j]], axis=0) <= step
+        out[j] = float(np.mean(d[j][others] <= step)) if others.any() else 0.0
+    return out
+
+
+def view_agreement(views: list[View], search_lo, search_hi, ground_z: float | None = 0.0, n_long: int = 32):
+    """(V,) for each view, the share of the coarse hull of all the other views that projects inside its
+    silhouette: 1.0 when it agrees with them."""
+    d, step = _coarse_distances(views, search_lo, search_hi, ground_z, n_long)
+    return _agreement(d, step, list(range(len(views))))
+
+
 def consistent_views(
     views: list[View], search_lo, search_hi, ground_z: float | None = 0.0, min_agreement: float = 0.9, n_long: int = 32
 ) -> list[int]:
-    """Indices of the views that agree with the others: the coarse hull of all views but one, projected into that
-    view, must lie inside its silhouette for at least ``min_agreement`` of its voxels. The worst view is left out
-    and the check repeated, until every remaining view agrees (or two are left)."""
-    lo, hi = np.asarray(search_lo, float), np.asarray(search_hi, float)
-    pts, step, _ = _grid(lo, hi, n_long)
-    d = np.stack([_view_distance(pts, v, _signed_distance_px(v.mask)) for v in views])  # (V, N)
-    if ground_z is not None:
-        d = np.maximum(d, (ground_z - pts[:, 2]).astype(np.float32))
+    """Indices of the views that agree with the others (:func:`view_agreement` at least ``min_agreement``). The
+    worst view is left out and the check repeated, until every remaining view agrees (or two are left)."""
+    d, step = _coarse_distances(views, search_lo, search_hi, ground_z, n_long)
     keep = list(range(len(views)))
     while len(keep) > 2:
-        agreement = []
-        for j in keep:
-            others = np.max(d[[k for k in keep if k != j]], axis=0) <= step
-            agreement.append(float(np.mean(d[j][others] <= step)) if others.any() else 0.0)
-        worst = int(np.argmin(agreement))
+        agreement = _agreement(d, step, keep)
+        worst = keep[int(np.nanargmin(agreement[keep]))]
         if agreement[worst] >= min_agreement:
             break
-        keep.pop(worst)
+        keep.remove(worst)
     return keep
 
 
@@ -625,11 +638,13 @@ def reconstruct_unposed(
     (:func:`aias_augment.assets.sfm.estimate_poses`), moved to the object's frame on the plane it stands on
     (:func:`~aias_augment.assets.sfm.ground_gauge`), then the visual hull of the registered views, scaled to
     ``height_m`` (SfM has no metric scale). ``meta`` adds the views registered and the model's reprojection error."""
+    from aias_augment.assets.reconstruct_quality import check_reprojection
     from aias_augment.assets.sfm import estimate_poses, ground_gauge
 
     if len(images_rgb) != len(masks):
         raise ValueError(f"{len(images_rgb)} images but {len(masks)} masks")
     sfm = estimate_poses(images_rgb, intrinsics, seed, workdir)
+    check_reprojection(sfm.mean_reprojection_error_px, cfg.max_reprojection_px)
     posed = [(img, m, T) for img, m, T in zip(images_rgb, masks, sfm.cams_from_world) if T is not None]
     if len(posed) < 2:
         raise ValueError(f"structure from motion registered {len(posed)} of {len(images_rgb)} views: need 2")

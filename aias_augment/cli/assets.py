@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import collections
 import json
+import logging
 import sys
 import time
 from pathlib import Path
@@ -28,6 +29,57 @@ from aias_augment.assets.bank.catalog import save_catalog
 from aias_augment.assets.bank.sh3f import DEFAULT_SH3F_DIR
 from aias_augment.assets.bank.taxonomy import load_taxonomy
 from aias_augment.core.logs import add_logging_args, configure_logging
+
+log = logging.getLogger(__name__)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (``aias-assets <cmd>: error: ...``, exit 2): no usage block to scroll past."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _int_in(lo: int, hi: int):
+    """An argparse type: an integer in [lo, hi]."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{v} is outside [{lo}, {hi}]")
+        return v
+
+    return parse
+
+
+def _metres(text: str) -> float:
+    """An argparse type: a height in metres, finite, in (0, 100]."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0 < v <= 100:  # NaN fails too
+        raise argparse.ArgumentTypeError(f"{text} m is not a height in (0, 100] m")
+    return v
+
+
+def _fail(message: str) -> int:
+    print(f"error: {message}", file=sys.stderr)
+    return 2
+
+
+def _bank_out(folder: Path) -> str | None:
+    """Why ``folder`` cannot be a bank folder to append to (a file, an unreadable index), or None."""
+    from aias_augment.assets.bank.db import BankError, check_folder
+
+    try:
+        check_folder(folder)
+    except BankError as e:
+        return f"--out {e}"
+    return None
 
 
 def _cmd_import(a) -> int:
@@ -119,9 +171,11 @@ def _cmd_thumbnails(a) -> int:
 
 def _labelled_items(a, label: str, skipped: collections.Counter):
     """(path, image, boxes of ``label`` xyxy, the image's other boxes xyxy) for each image of ``--yolo`` or
-    ``--input``/``--images`` with a box of ``label``; unreadable or invalid images counted in ``skipped``. Raises
-    InputError for an unreadable label source."""
-    from aias_augment.cli.offline import items_from_coco, items_from_yolo, read_rgb, resolve_yolo_boxes
+    ``--input``/``--images`` with a box of ``label``; unreadable, corrupt (a truncated JPEG is not partly decoded),
+    too large (pixel count from the header, above the package reader's ``DEFAULT_MAX_PIXELS``, before any decode)
+    or invalid images counted by kind in ``skipped`` and logged. Raises InputError for an unreadable label source."""
+    from aias_augment.cli.offline import items_from_coco, items_from_yolo, resolve_yolo_boxes
+    from aias_augment.core.image_io import DEFAULT_MAX_PIXELS, ImageReadError, read_image
 
     items = items_from_yolo(a.yolo, class_names=a.class_names) if a.yolo else items_from_coco(a.input, a.images)
 
@@ -131,9 +185,10 @@ def _labelled_items(a, label: str, skipped: collections.Counter):
                 skipped[it.invalid.kind] += 1
                 continue
             try:
-                image = read_rgb(it.path)
-            except ValueError:
-                skipped["unreadable image"] += 1
+                image = read_image(it.path, max_pixels=DEFAULT_MAX_PIXELS)
+            except ImageReadError as e:
+                skipped[e.kind] += 1
+                log.warning("skipped: %s", e)
                 continue
             resolve_yolo_boxes(it, image, a.class_names)
             boxes = [[x, y, x + w, y + h] for (x, y, w, h), lab in zip(it.bboxes_xywh, it.labels) if lab == label]
@@ -147,18 +202,24 @@ def _labelled_items(a, label: str, skipped: collections.Counter):
 def _cmd_from_labels(a) -> int:
     """Lift the labelled instances of one class into a bank folder (``aias_augment.assets.bank.lift``)."""
     from aias_augment.adapters.boundary import InputError
+    from aias_augment.assets.bank.db import BankError
     from aias_augment.assets.bank.lift import LiftConfig, lift_instances
 
     label = a.label or (a.class_names[0] if a.class_names else a.category)
     skipped = collections.Counter()
+    bad_out = _bank_out(a.out)
+    if bad_out:
+        return _fail(bad_out)
     try:
         labelled = _labelled_items(a, label, skipped)
     except InputError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        return _fail(str(e))
     t0 = time.perf_counter()
     cfg = LiftConfig(min_box_px=a.min_box_px)
-    _, report = lift_instances(labelled, a.category, a.out, cfg, height_m=a.height_m, mode=a.mode)
+    try:
+        _, report = lift_instances(labelled, a.category, a.out, cfg, height_m=a.height_m, mode=a.mode)
+    except (BankError, OSError) as e:
+        return _fail(str(e))
     summary = {
         "lifted": report.lifted,
         "rejected": dict(report.rejected),
@@ -181,6 +242,8 @@ def _cmd_box_convention(a) -> int:
 
     skipped = collections.Counter()
     t0 = time.perf_counter()
+    if a.out.is_dir():
+        return _fail(f"--out {a.out} is a folder: give the JSON file to write")
     try:
         margins, report = measure_box_convention(
             _labelled_items(a, a.label, skipped), LiftConfig(min_box_px=a.min_box_px)
@@ -209,18 +272,26 @@ def _cmd_deform(a) -> int:
     import cv2
 
     from aias_augment.assets.asset import AssetError, default_asset, load_asset
+    from aias_augment.assets.bank.db import BankError
     from aias_augment.assets.deform import DeformConfig, apply_deformation, sample_deformation, write_variants
 
     t0 = time.perf_counter()
+    bad_out = _bank_out(a.out)
+    if bad_out:
+        return _fail(bad_out)
+    if a.sheet and a.sheet.is_dir():
+        return _fail(f"--sheet {a.sheet} is a folder: give the image file to write")
     try:
         source = load_asset(a.asset, category=a.category) if a.asset else default_asset(a.category)
         cfg = DeformConfig(kinds=tuple(a.kinds or ()))
     except (AssetError, KeyError, ValueError, OSError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        return _fail(str(e).strip("'\""))
     rng = np.random.default_rng(a.seed)
     params = [sample_deformation(source, rng, cfg) for _ in range(a.count)]
-    entries = write_variants(source, params, a.out)
+    try:
+        entries = write_variants(source, params, a.out)
+    except (BankError, OSError) as e:
+        return _fail(str(e))
     if a.sheet:
         from aias_augment.assets.bank.thumbnails import render_thumbnail
 
@@ -256,6 +327,7 @@ def _cmd_deform(a) -> int:
 
 
 def _cmd_reconstruct(a) -> int:
+    from aias_augment.assets.bank.db import BankError
     from aias_augment.assets.bank.folder import add_to_bank
     from aias_augment.assets.reconstruct import (
         ReconstructConfig,
@@ -267,6 +339,9 @@ def _cmd_reconstruct(a) -> int:
     )
 
     t0 = time.perf_counter()
+    bad_out = _bank_out(a.out)
+    if bad_out:
+        return _fail(bad_out)
     try:
         photos, ground_z = read_views(a.views)
         cfg = ReconstructConfig(
@@ -311,21 +386,17 @@ def _cmd_reconstruct(a) -> int:
         "registered_views",
         "sfm_reprojection_error_px",
     )
-    entry = add_to_bank(
-        a.out,
-        asset,
-        {
-            "source": f"reconstruction of {a.views}",
-            "views": len(photos),
-            **{k: asset.meta[k] for k in keys if k in asset.meta},
-        },
-    )
+    record = {"source": f"reconstruction of {a.views}", "views": len(photos)}
+    try:
+        entry = add_to_bank(a.out, asset, {**record, **{k: asset.meta[k] for k in keys if k in asset.meta}})
+    except (BankError, OSError) as e:
+        return _fail(str(e))
     print(json.dumps({**entry, "bank": str(a.out), "seconds": round(time.perf_counter() - t0, 1)}, indent=1))
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="aias-assets", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p = _Parser(prog="aias-assets", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--cache-dir", type=Path, default=None, help=f"default $AIAS_CACHE or {default_cache_dir()}")
     p.add_argument("-v", "--verbose", action="store_true", help="the same as --log-level INFO")
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -334,7 +405,7 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--gazebo-dir", type=Path, default=None, help="default $AIAS_DATA/meshes/gazebo_models")
     s.add_argument("--sidecar", type=Path, nargs="*", default=[], help="folders of meshes with YAML sidecars")
     s.add_argument("--force", action="store_true", help="re-import even when cached")
-    s.add_argument("--limit", type=int, default=0, help="only the first N records (debugging)")
+    s.add_argument("--limit", type=_int_in(0, 10**9), default=0, help="only the first N records (debugging)")
     s.add_argument("--report", type=Path, default=None, help="write the import summary JSON here")
     s = sub.add_parser("list", help="list catalog records")
     s.add_argument("--category", default=None)
@@ -345,10 +416,10 @@ def main(argv: list[str] | None = None) -> int:
     s = sub.add_parser("thumbnails", help="contact sheet of rendered thumbnails")
     s.add_argument("--out", type=Path, required=True)
     s.add_argument("--category", nargs="*", default=None)
-    s.add_argument("--per-category", type=int, default=1)
-    s.add_argument("--limit", type=int, default=120)
-    s.add_argument("--size", type=int, default=160)
-    s.add_argument("--columns", type=int, default=10)
+    s.add_argument("--per-category", type=_int_in(1, 2000), default=1)
+    s.add_argument("--limit", type=_int_in(1, 2000), default=120)
+    s.add_argument("--size", type=_int_in(16, 512), default=160)
+    s.add_argument("--columns", type=_int_in(1, 64), default=10)
     s = sub.add_parser("from-labels", help="lift your own labelled instances of one class into insertable assets")
     src = s.add_mutually_exclusive_group(required=True)
     src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
@@ -364,8 +435,8 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="default: revolution for cones, drums, bollards, posts, barrels; card otherwise",
     )
-    s.add_argument("--height-m", type=float, default=None, help="default: the middle of the category's height range")
-    s.add_argument("--min-box-px", type=int, default=24)
+    s.add_argument("--height-m", type=_metres, default=None, help="default: the middle of the category's height range")
+    s.add_argument("--min-box-px", type=_int_in(4, 100_000), default=24)
     s = sub.add_parser(
         "box-convention", help="how your labels sit around their objects, for aias-augment --box-convention"
     )
@@ -376,18 +447,24 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--class-names", nargs="*", default=None, help="YOLO class names by index")
     s.add_argument("--label", required=True, help="the label whose boxes are measured (e.g. cone)")
     s.add_argument("--out", type=Path, required=True, help="JSON: box_convention [left, top, right, bottom]")
-    s.add_argument("--min-box-px", type=int, default=24, help="smaller boxes are not measured")
+    s.add_argument("--min-box-px", type=_int_in(4, 100_000), default=24, help="smaller boxes are not measured")
     s = sub.add_parser("deform", help="seeded dented, crushed, bent or knocked-over variants of a mesh into a bank")
     s.add_argument("--category", required=True, help="the category (its default mesh unless --asset)")
     s.add_argument("--asset", default=None, help="a mesh file or gazebo model folder to deform")
     s.add_argument(
         "--kinds", nargs="*", default=None, help="dent crush bend knocked_over fracture (default: the category's)"
     )
-    s.add_argument("--count", type=int, default=8)
-    s.add_argument("--seed", type=int, required=True, help="the seed of the draws (a variant replays from its record)")
+    # at most 256 variants a run: the contact sheet of 257 tiles of 512 px is then about 200 MB
+    s.add_argument("--count", type=_int_in(1, 256), default=8, help="variants (1-256; more: another run, seed)")
+    s.add_argument(
+        "--seed",
+        type=_int_in(0, 2**63 - 1),
+        required=True,
+        help="the seed of the draws (a variant replays from its record)",
+    )
     s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")
     s.add_argument("--sheet", type=Path, default=None, help="write a contact sheet (source + variants) here")
-    s.add_argument("--size", type=int, default=160, help="contact sheet tile size (px)")
+    s.add_argument("--size", type=_int_in(32, 512), default=160, help="contact sheet tile size (px, 32-512)")
     s = sub.add_parser("reconstruct", help="an asset from photos of an object, posed or not (visual hull, textured)")
     s.add_argument(
         "--views",
@@ -395,10 +472,10 @@ def main(argv: list[str] | None = None) -> int:
         required=True,
         help="views.json: images, masks or boxes, K, cam_from_object (or none: SfM)",
     )
-    s.add_argument("--seed", type=int, default=0, help="SfM's RANSAC and mapper seed (unposed views)")
+    s.add_argument("--seed", type=_int_in(0, 2**31 - 1), default=0, help="SfM's RANSAC and mapper seed (unposed views)")
     s.add_argument("--category", required=True)
     s.add_argument("--out", type=Path, required=True, help="bank folder: NNNN.glb and bank.json (appended to)")
-    s.add_argument("--height-m", type=float, default=None, help="scale to this height (default: the poses' metres)")
+    s.add_argument("--height-m", type=_metres, default=None, help="scale to this height (default: the poses' metres)")
     s.add_argument("--resolution", type=int, default=128, help="voxels along the longest side")
     s.add_argument(
         "--max-faces",
@@ -420,8 +497,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     add_logging_args(p, default="ERROR", subcommands=sub.choices.values())
     a = p.parse_args(argv)
-    if a.cmd == "deform" and a.count < 1:
-        p.error("--count >= 1 please")
     if a.cmd in ("from-labels", "box-convention") and a.input and not a.images:
         p.error("--input needs --images")
     if a.verbose and a.log_level == "ERROR":

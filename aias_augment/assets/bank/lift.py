@@ -22,7 +22,6 @@ Every asset records its source (image, box) in ``meta``; :func:`lift_instances` 
 
 from __future__ import annotations
 
-import json
 import logging
 from collections import Counter
 from dataclasses import asdict, dataclass, field
@@ -374,20 +373,22 @@ def lift_instances(
     mode: str | None = None,
 ):
     """Lift every labelled instance of ``items`` (an iterable of ``(image_path, image_rgb, boxes_xyxy[,
-    other_boxes_xyxy])``: every box of the class in the image, and optionally the boxes of other classes, which can
-    occlude it too) into assets of ``category``. Returns ``(assets, report)``; with ``out_dir`` each
-    asset is also written as ``NNNN.glb`` and the bank as ``bank.json`` (category, source image and box, mode).
+        other_boxes_xyxy])``: every box of the class in the image, and optionally the boxes of other classes, which can
+        occlude it too) into assets of ``category``. Returns ``(assets, report)``; with ``out_dir`` each
+        asset is also appended to that bank folder (:func:`aias_augment.assets.bank.db.append_entry`: ``NNNN.glb`` and
+    its ``bank.json`` entry with category, source image and box, mode; the entries already there are kept).
 
-    ``mode``: "revolution" or "card" (default: revolution for :data:`REVOLUTION_CATEGORIES`)."""
-    from aias_augment.assets.asset import Asset, axis_rotation_to_z_up, normalise_meshes
+        ``mode``: "revolution" or "card" (default: revolution for :data:`REVOLUTION_CATEGORIES`)."""
+    from aias_augment.assets.asset import Asset, normalise_meshes
+    from aias_augment.assets.bank.db import append_entry, check_folder, set_rejected
+    from aias_augment.assets.bank.folder import glb_bytes
 
     mode = mode or ("revolution" if category in REVOLUTION_CATEGORIES else "card")
     if mode not in ("revolution", "card"):
         raise ValueError(f"mode must be 'revolution' or 'card', got {mode!r}")
     h_m = class_height_m(category) if height_m is None else float(height_m)
-    out = None if out_dir is None else Path(out_dir)
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
+    out = None if out_dir is None else check_folder(out_dir)
+    header = {"category": category, "config": asdict(cfg)}
     report, assets = LiftReport(), []
     for path, k, box, cut, reason in _cut_instances(items, cfg):
         if cut is not None and mode == "revolution" and profile_iou(cut.mask) < cfg.min_profile_iou:
@@ -402,18 +403,13 @@ def lift_instances(
         name = f"lifted_{category}_{idx:04d}"
         src = str(path)
         if out is not None:
-            glb = out / f"{idx:04d}.glb"
-            y_up = mesh.copy()
-            y_up.apply_transform(np.linalg.inv(axis_rotation_to_z_up("Y")))  # glTF is y-up
-            y_up.export(glb)
-            src = str(glb)
-            report.assets.append({"file": glb.name, "category": category, "height_m": h_m, **meta})
+            entry, _ = append_entry(out, glb_bytes([mesh]), {"category": category, "height_m": h_m, **meta}, header)
+            src = str(out / entry["file"])
+            report.assets.append(entry)
         assets.append(Asset(name, category, normalise_meshes([mesh]), src, "the user's own labelled data", False, meta))
         report.lifted += 1
     if out is not None:
-        (out / "bank.json").write_text(
-            json.dumps({"category": category, "config": asdict(cfg), "report": report.to_dict()}, indent=1)
-        )
+        set_rejected(out, dict(report.rejected), header)
     return assets, report
 
 
@@ -453,11 +449,13 @@ def measure_box_convention(items, cfg: LiftConfig = LiftConfig()) -> tuple[tuple
 def bank_paths(folder: str | Path) -> dict[str, list[str]]:
     """``{category: [GLB paths]}`` of a bank folder written by :func:`lift_instances`: what
     ``InsertObjects(assets=...)`` and the offline CLI's ``--assets`` take."""
+    from aias_augment.assets.bank.db import read_index
+
     folder = Path(folder)
     if not (folder / "bank.json").is_file():
         raise FileNotFoundError(f"{folder}: no bank.json (write one with `aias-assets from-labels`)")
     out: dict[str, list[str]] = {}
-    for e in json.loads((folder / "bank.json").read_text())["report"]["assets"]:
+    for e in read_index(folder)["report"]["assets"]:
         out.setdefault(e["category"], []).append(str(folder / e["file"]))
     if not out:
         raise ValueError(f"{folder}: the bank holds no lifted asset")
@@ -480,20 +478,23 @@ class LiftedAssets:
 
     @classmethod
     def from_dir(cls, folder: str | Path) -> "LiftedAssets":
+        from aias_augment.assets.bank.db import read_index
+
         folder = Path(folder)
         if not (folder / "bank.json").is_file():
             raise FileNotFoundError(f"{folder}: no bank.json (write one with `aias-assets from-labels`)")
-        bank = json.loads((folder / "bank.json").read_text())
+        bank = read_index(folder)
         if not bank["report"]["assets"]:
             raise ValueError(f"{folder}: the bank holds no lifted asset ({bank['report']['rejected']})")
         return cls({}, str(folder))
 
     def _load(self) -> None:
         from aias_augment.assets.asset import bank_entry_meta, load_asset
+        from aias_augment.assets.bank.db import read_index
 
         if self._assets or self.folder is None:
             return
-        bank = json.loads((Path(self.folder) / "bank.json").read_text())
+        bank = read_index(self.folder)
         out: dict[str, list] = {}
         for e in bank["report"]["assets"]:
             a = load_asset(Path(self.folder) / e["file"], category=e["category"], scale=1.0)

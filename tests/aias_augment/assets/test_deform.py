@@ -144,10 +144,11 @@ def test_same_seed_same_draws_and_bad_config_refused(cylinder):
 def test_bank_round_trip_keeps_the_record_and_the_reference_height(cylinder, tmp_path):
     rng = np.random.default_rng(1)
     params = [sample_deformation(cylinder, rng, kind=k) for k in ("knocked_over", "crush")]
-    entries = write_variants(cylinder, params, tmp_path)
-    write_variants(cylinder, params[:1], tmp_path)  # appended, never overwritten
+    entries = write_variants(cylinder, params[:1], tmp_path)
+    entries += write_variants(cylinder, params, tmp_path)  # the first again: listed once; the second appended
     paths = bank_paths(tmp_path)["barrel"]
-    assert [Path(p).name for p in paths] == ["0000.glb", "0001.glb", "0002.glb"]
+    assert [Path(p).name for p in paths] == ["0000.glb", "0001.glb"]
+    assert entries[0] == entries[1]
     bank = PathAssets({"barrel": paths})
     lying = bank._load("barrel", paths[0])
     assert lying.meta["deformation"] == entries[0]["deformation"]
