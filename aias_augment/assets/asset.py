@@ -311,8 +311,15 @@ def load_mesh_file(
     file_scale, file_up = 1.0, "Y_UP" if path.suffix.lower() in {".obj", ".gltf", ".glb"} else "Z_UP"
     if path.suffix.lower() == ".dae":
         file_scale, file_up = read_collada_unit(path)
+    from aias_augment.assets.references import ConfinedResolver, check_gltf_references
+
+    if path.suffix.lower() in (".gltf", ".glb"):
+        check_gltf_references(path)  # external files only from the asset's own folder
     try:
-        loaded = trimesh.load(str(path), process=False)  # no maintain_order: it drops OBJ UVs when vt != v counts
+        # no maintain_order: it drops OBJ UVs when vt != v counts
+        loaded = trimesh.load(str(path), process=False, resolver=ConfinedResolver(path))
+    except AssetError:
+        raise
     except Exception as e:  # trimesh raises many types for broken files
         raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
     meshes = _flatten(loaded, path)

@@ -14,18 +14,19 @@ import numpy as np
 import trimesh
 
 from aias_augment.assets.asset import MESH_SUFFIXES, AssetError, scene_parts
+from aias_augment.assets.references import ConfinedResolver
 
 log = logging.getLogger(__name__)
 
 __all__ = ["load_raw_parts", "missing_obj_textures", "part_texture_image", "part_base_color"]
 
 
-class _SearchResolver(trimesh.resolvers.FilePathResolver):
-    """Finds referenced files (MTL, textures) beside the mesh, else by base name in extra folders (gazebo keeps
-    textures in ``materials/textures`` and names them ``model://<model>/...``)."""
+class _SearchResolver(ConfinedResolver):
+    """Finds referenced files (MTL, textures) inside the mesh's folder, else by base name in extra folders (gazebo
+    keeps textures in ``materials/textures`` and names them ``model://<model>/...``)."""
 
     def __init__(self, mesh_path: Path, search_dirs: tuple[Path, ...]):
-        super().__init__(str(mesh_path))
+        super().__init__(mesh_path)
         self.search_dirs = search_dirs
 
     def get(self, name: str) -> bytes:
@@ -55,6 +56,10 @@ def load_raw_parts(path: str | Path, search_dirs: tuple[Path, ...] = ()) -> list
         raise AssetError(f"mesh file not found: {path}")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise AssetError(f"{path}: unsupported mesh format {path.suffix!r} (supported: {sorted(MESH_SUFFIXES)})")
+    from aias_augment.assets.references import check_gltf_references
+
+    if path.suffix.lower() in (".gltf", ".glb"):
+        check_gltf_references(path)  # external files only from the asset's own folder
     try:
         if search_dirs:
             with open(path, "rb") as f:
@@ -65,7 +70,9 @@ def load_raw_parts(path: str | Path, search_dirs: tuple[Path, ...] = ()) -> list
                     resolver=_SearchResolver(path, tuple(search_dirs)),
                 )
         else:
-            loaded = trimesh.load(str(path), process=False)
+            loaded = trimesh.load(str(path), process=False, resolver=ConfinedResolver(path))
+    except AssetError:
+        raise
     except Exception as e:  # trimesh raises many types for broken files
         raise AssetError(f"{path}: failed to load ({type(e).__name__}: {e})") from e
     parts = scene_parts(loaded, path)
