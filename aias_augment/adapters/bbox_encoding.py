@@ -14,7 +14,7 @@ _ENCODED_FORMATS = ("coco", "pascal_voc", "yolo")
 def _xywh_from_internal(boxes_internal, h: int, w: int) -> np.ndarray:
     """COCO xywh pixels (float64) of albumentations' normalised x_min, y_min, x_max, y_max boxes (extra columns
     ignored): what a call reads from the Compose, and what warm() makes of its boxes."""
-    xyxy = denormalize_bboxes(np.asarray(boxes_internal)[:, :4], {"height": h, "width": w})
+    xyxy = denormalize_bboxes(np.asarray(boxes_internal)[:, :4], (h, w))
     return np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]]
 
 

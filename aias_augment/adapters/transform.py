@@ -24,6 +24,7 @@ analysed and planned at 2 MP and rendered at full size (:mod:`aias_augment.pipel
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
@@ -34,6 +35,7 @@ import numpy as np
 from albumentations.core.bbox_utils import (
     convert_bboxes_to_albumentations,
 )
+from albumentations.core.type_definitions import Targets
 
 from aias_augment.adapters import record_replay, targets
 from aias_augment.adapters.bbox_encoding import (
@@ -78,6 +80,13 @@ def _same(image: np.ndarray) -> np.ndarray:
     return image
 
 
+#: Every 2D target. AlbumentationsX names instance masks apart (``Targets.MASKS``); albumentations 2.0.8's ``MASK``
+#: covers both ``mask`` and ``masks``.
+_TARGETS = tuple(
+    getattr(Targets, name) for name in ("IMAGE", "MASK", "MASKS", "BBOXES", "KEYPOINTS") if hasattr(Targets, name)
+)
+
+
 class InsertObjects(A.DualTransform):
     """Insert 3D objects photorealistically and append their COCO boxes.
 
@@ -112,12 +121,7 @@ class InsertObjects(A.DualTransform):
         skipped: the number of images left unchanged (all reasons).
     """
 
-    _targets = (
-        A.core.type_definitions.Targets.IMAGE,
-        A.core.type_definitions.Targets.MASK,
-        A.core.type_definitions.Targets.BBOXES,
-        A.core.type_definitions.Targets.KEYPOINTS,
-    )
+    _targets = _TARGETS
 
     def __init__(
         self,
@@ -301,13 +305,14 @@ class InsertObjects(A.DualTransform):
         j: int | None = None,
         key: str | None = None,
         references=None,
+        rng: np.random.Generator | None = None,
     ):
         """Variant ``j`` (None: drawn with the call's generator) of this sample, computed on a miss. ``key``: the
         sample's :func:`variant_key` when the caller has it (and found it missing: it is not looked up again).
         ``references``: per existing box, the inserted category it is an object of (its label is the one the
         inserted boxes get), else None."""
         if j is None:
-            j = int(self.random_generator.integers(self.variants_per_image))
+            j = int(rng.integers(self.variants_per_image))
         # Boxes to 1e-3 px, in the key and in the insertion alike: the Compose's normalise/denormalise round trip
         # (or warm's raw boxes) must find the same variant, and the variant is made from exactly what its key says.
         if len(existing_xywh):
@@ -378,17 +383,25 @@ class InsertObjects(A.DualTransform):
         )
 
     # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
-    def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
-        """Runs the insertion (kept for this call's ``apply_*``); the parameters albumentations keeps are JSON:
+    def _params_for_call(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+        """albumentations' ``get_params_dependent_on_data``. Runs the insertion (kept for this call's ``apply_*``); the parameters albumentations keeps are JSON:
         ``{"insertion": record dict or None (image left unchanged)}`` when the Compose records parameters
         (``ReplayCompose``, ``save_applied_params=True``), else none (a record costs a dict per call)."""
-        self._live = live = self._insert(data)
+        self._live = live = self._insert(data, self.random_generator)
         if not (self.deterministic or "applied_transforms" in data):
             return {}
         res = live["insert_result"]
         return {"insertion": None if res is None else res.record.to_dict()}
 
-    def _insert(self, data: dict[str, Any]) -> dict[str, Any]:
+    def sample_parameters(self, params, data, targets, sampling):
+        """AlbumentationsX's sampling hook: the insertion on the invocation's generator, its result passed to the
+        ``apply_*`` of this call (AlbumentationsX keeps no parameters between calls)."""
+        from albumentations.core.transform_params import SampledParams
+
+        live = self._insert(data, sampling.random_generator)
+        return SampledParams(params={**live, **self._call_extras(live["insert_result"])})
+
+    def _insert(self, data: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
         if self.variants_per_image:
             img = data["image"]
             boxes = data.get("bboxes")
@@ -404,14 +417,14 @@ class InsertObjects(A.DualTransform):
                 and data.get("depth") is None
                 and data.get("scene") is None
             ):
-                return self._plain_variant(img)
-        return self._general_params(data)
+                return self._plain_variant(img, rng)
+        return self._general_params(data, rng)
 
-    def _plain_variant(self, rgb: np.ndarray) -> dict[str, Any]:
+    def _plain_variant(self, rgb: np.ndarray, rng: np.random.Generator) -> dict[str, Any]:
         """A variant call on a uint8 RGB image (the training loop's usual input) without existing boxes, K, depth
         or scene facts: what :meth:`_general_params` does for it (the image passes the boundary as it is and
         ``restore`` is the identity), in fewer steps: a draw, the key, a lookup, a copy with the window pasted."""
-        j = int(self.random_generator.integers(self.variants_per_image))
+        j = int(rng.integers(self.variants_per_image))
         try:
             key = plain_image_key(rgb, self._key_prefix())
             v = self._variants.get(key, j)
@@ -428,7 +441,7 @@ class InsertObjects(A.DualTransform):
         self.counts.result(n, None if n else res.record.to_dict(), log)
         return {"insert_result": res, "restore": _same}
 
-    def _general_params(self, data: dict[str, Any]) -> dict[str, Any]:
+    def _general_params(self, data: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
         try:  # the sample's boundary: dtype/range/shape of the image, camera_k and depth (SampleSkip: counted)
             rgb, restore, conversion = image_for_insertion(data["image"])
             h, w = rgb.shape[:2]
@@ -448,13 +461,13 @@ class InsertObjects(A.DualTransform):
         references = self._references(boxes_internal, proc) if n_existing else None
         try:
             if self.variants_per_image:
-                res = self._variant(rgb, existing_xywh, min_vis, data, references=references)
+                res = self._variant(rgb, existing_xywh, min_vis, data, references=references, rng=rng)
             else:
                 res = insert_bounded(
                     rgb,
                     existing_xywh,
                     _plan_labels(n_existing, references),
-                    self.random_generator,
+                    rng,
                     self.config,
                     intrinsics=data.get("camera_k"),
                     depth=data.get("depth"),
@@ -514,22 +527,27 @@ class InsertObjects(A.DualTransform):
     def apply_with_params(self, params: dict[str, Any], *args: Any, **kwargs: Any) -> dict[str, Any]:
         """Applies this call's insertion to every target; parameters without it (``ReplayCompose.replay``, or a
         record kept from ``save_applied_params``) are replayed from their ``"insertion"`` record first."""
+        if not isinstance(params, Mapping):  # AlbumentationsX: SampledParams from sample_parameters, result inside
+            return super().apply_with_params(params, *args, **kwargs)
         live, self._live = self._live, None
         if live is None or self.replay_mode:
             live = self._replayed(params, kwargs)
         res = live["insert_result"]
-        call = {**params, **live}
-        if res is not None:
-            h, w = res.image.shape[:2]
-            proc = self._bbox_processor()
-            call["new_kept"] = targets.kept_new_boxes(
-                _internal_from_xywh(res.inserted_bboxes, h, w), (h, w), None if proc is None else proc.params
-            )
+        call = {**params, **live, **self._call_extras(res)}
         out = super().apply_with_params(call, *args, **kwargs)
         masks = kwargs.get("masks")
         if res is not None and isinstance(masks, (list, tuple)) and not masks:  # albumentations skips an empty list
             out["masks"] = list(self._new_masks(res, call["new_kept"]).astype(np.uint8))
         return out
+
+    def _call_extras(self, res) -> dict[str, Any]:
+        """``new_kept``: which inserted boxes the Compose's ``BboxParams`` keep (their masks go with them)."""
+        if res is None:
+            return {}
+        h, w = res.image.shape[:2]
+        proc = self._bbox_processor()
+        rows = _internal_from_xywh(res.inserted_bboxes, h, w)
+        return {"new_kept": targets.kept_new_boxes(rows, (h, w), None if proc is None else proc.params)}
 
     def _replayed(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
         if "insertion" not in params:
@@ -713,3 +731,10 @@ def _checked_mask_values(values, categories: tuple[str, ...]) -> dict[str, float
         if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v):
             raise ValueError(f"mask_values[{c!r}] must be a finite number, got {v!r}")
     return values
+
+
+# The sampling hook of each line: albumentations 2.0.8 calls ``get_params_dependent_on_data``; AlbumentationsX
+# calls ``sample_parameters`` and refuses a class that defines the former in its body, so it is attached here, for
+# the 2.0.8 line only.
+if not hasattr(A.BasicTransform, "sample_parameters"):
+    InsertObjects.get_params_dependent_on_data = InsertObjects._params_for_call
