@@ -60,7 +60,7 @@ class View:
         "coarse_resolution": "[8, 128]",
         "padding_voxels": "[1, 16]",
         "max_faces": "[100, inf)",
-        "texture_px": "[16, 4096]",
+        "texture_px": "[16, 2048]",
         "refine_depth": "(0, 1]",
         "refine_patch_radius": "[1, 15]",
         "refine_top_views": "[1, 64]",
@@ -81,8 +81,8 @@ class ReconstructConfig:
     # Quadric decimation of the cleaned hull to at most this many faces (None: marching cubes' own, ~10^5 at 128).
     max_faces: int | None = None
     # A texture atlas of this many texels a side baked from the views (xatlas UVs); None: vertex colours. At most
-    # 4096: the bake keeps about 100 bytes per texel (owner, barycentrics, surface points, colours, weights), 1.7 GB
-    # at 4096; 8192 went past 8 GB.
+    # 2048: the bake's peak is about 215 bytes per texel (owner, barycentrics, surface points, colours, weights;
+    # measured 0.86 GB above the process at 2048, 0.22 GB at 1024), so 4096 would take 3.6 GB and 8192 14 GB.
     texture_px: int | None = None
     # Photo-consistency refinement of the hull (refine_photo_consistent): off, or the deepest inward move searched
     # as a share of the hull's largest extent, the patch's half-side in pixels, the views averaged per depth, and the

@@ -487,7 +487,7 @@ def main(argv: list[str] | None = None) -> int:
         "--texture-px",
         type=int,
         default=None,
-        help="bake a texture atlas of this many texels a side from the views (default: vertex colours)",
+        help="bake a texture atlas of this many texels a side (16-2048) from the views (default: vertex colours)",
     )
     s.add_argument(
         "--refine",
