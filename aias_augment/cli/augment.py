@@ -232,7 +232,8 @@ def main(argv=None) -> int:
     if a.input and not a.images:
         ap.error("--input needs --images")
     from aias_augment.adapters.boundary import InputError, check_categories
-    from aias_augment.cli.manifest import ManifestMismatch
+    from aias_augment.cli.manifest import ManifestMismatch, check_out_apart, recorded_sun_now
+    from aias_augment.cli.offline import named_inputs
 
     clip_only = [
         f
@@ -256,6 +257,7 @@ def main(argv=None) -> int:
         ap.error("--per-image >= 0, --workers >= 1, --limit >= 1 and --max-megapixels >= 0 please")
     try:
         # Every option is checked here, before any image is read or any record written.
+        check_out_apart(a.out, named_inputs(a))  # first: nothing of the user's may be written over
         options = {"boxes": a.boxes}
         paths = asset_paths(a.assets, a.assets_bank)
         bank = None
@@ -267,9 +269,11 @@ def main(argv=None) -> int:
             except (AssetError, ValueError) as e:
                 raise InputError(f"--assets: {e}") from None
             options["assets"] = asset_fingerprint(paths)  # a rerun with other meshes never reuses records
-        facts = sun_facts(a.sun_from) if a.sun_from else {}
+        facts = sun_facts(a.sun_from, None if a.overwrite else recorded_sun_now(a.out)) if a.sun_from else {}
         if facts:
             options["sun_from"] = {k: str(v) for k, v in facts.items()}
+            if sun_is_now(a.sun_from):  # resolved once, recorded: a resume reuses that time
+                options["sun_from"]["utc_given"] = "now"
         if a.envmap:
             from aias_augment.cli.manifest import file_hash
 
@@ -327,6 +331,19 @@ def main(argv=None) -> int:
             file=sys.stderr,
         )
         return 1
+    if not summary["inserted"] and cfg.max_objects:  # a dataset without one new object is no augmentation
+        print(
+            f"aias-augment: error: no object inserted in any of the {summary['written']} images written; reasons "
+            f"in {a.out}/report.json (nothing_inserted)",
+            file=sys.stderr,
+        )
+        return 1
+    if summary["nothing_inserted"]:
+        print(
+            f"aias-augment: WARNING: no object inserted in {summary['nothing_inserted']} of {summary['written']} "
+            f"images written; reasons in {a.out}/report.json (nothing_inserted)",
+            file=sys.stderr,
+        )
     if summary["skipped"]:
         print(
             f"aias-augment: {summary['skipped']} of {summary['images']} images skipped; see {a.out}/report.json",
@@ -397,9 +414,20 @@ def asset_fingerprint(paths: dict[str, list[str]]) -> dict[str, list[list[str]]]
     return {cat: [[p, digest(Path(p))] for p in ps] for cat, ps in sorted(paths.items())}
 
 
-def sun_facts(spec: str) -> dict:
+SUN_NOW = ("now", "today")  # the times pandas reads as the current one
+
+
+def sun_is_now(spec: str) -> bool:
+    """``--sun-from``'s time is the current one (``now``)."""
+    parts = spec.split(",")
+    return len(parts) == 4 and parts[2].strip() in SUN_NOW
+
+
+def sun_facts(spec: str, recorded_now: str | None = None) -> dict:
     """``--sun-from LAT,LON,UTC,HEADING`` as scene facts (``meta`` keys lat, lon, utc, heading_deg), checked by
-    :meth:`aias_augment.core.scene_inputs.SceneInputs.checked` (ranges, an ISO time the solar position parses)."""
+    :meth:`aias_augment.core.scene_inputs.SceneInputs.checked` (ranges, an ISO time the solar position parses).
+    A time of ``now`` is resolved here, once, to a concrete UTC in whole seconds: ``recorded_now`` (the time the
+    run being resumed recorded) or the current time, so every image of a run has the same sun."""
     from aias_augment.adapters.boundary import InputError
     from aias_augment.core.scene_inputs import SceneInputs
 
@@ -409,6 +437,11 @@ def sun_facts(spec: str) -> dict:
             f"--sun-from {spec!r}: expected LAT,LON,UTC,HEADING (degrees, an ISO UTC time, the camera "
             "heading in degrees clockwise from north), e.g. 48.1,11.6,2024-06-01T12:00:00Z,90"
         )
+
+    if parts[2] in SUN_NOW:
+        from datetime import datetime, timezone
+
+        parts[2] = recorded_now or datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
     def number(v: str):
         try:

@@ -1,11 +1,17 @@
-"""The run manifest of an offline augmentation (``<out>/manifest.json``): what the output folder was made from.
+"""The run manifest of an offline augmentation (``<out>/manifest.json``): what the output folder was made from and
+what the run writes there.
 
 The *run key* (package version, seed, preset, config hash, options, the ordered list of input paths) must match for
 a rerun to resume; a different key is refused (:class:`ManifestMismatch`) unless ``overwrite``, which deletes the
-previous run's outputs first. Each input also has a content hash (image bytes, label file bytes, the item's boxes
-and labels): a record is reused only when its ``input_hash`` equals the current one and it is not a skip, so a
-fixed input is redone and a failed item is retried on resume, and the result equals a fresh run (each image draws
-from ``default_rng([seed, index])``).
+files the previous manifest lists (``outputs``), and only those. Each input also has a content hash (image bytes,
+label file bytes, the item's boxes and labels): a record is reused only when its ``input_hash`` equals the current
+one and it is not a skip, so a fixed input is redone and a failed item is retried on resume, and the result equals a
+fresh run (each image draws from ``default_rng([seed, index])``).
+
+Every file is written through a temporary file in its own folder inside ``out``, named with the run's
+``temp_prefix`` (``.aias-tmp-<run id>-``, recorded in the manifest), then renamed into place; start-up cleanup
+removes files with that prefix and no other. ``complete`` turns true only after the last output is in place.
+``--out`` may neither hold nor lie inside an input (:func:`check_out_apart`).
 """
 
 from __future__ import annotations
@@ -15,25 +21,20 @@ import fcntl
 import hashlib
 import json
 import os
-import shutil
+import signal
 import socket
 from dataclasses import asdict
 from pathlib import Path
 
 from aias_augment import __version__
-from aias_augment.core.coco_io import atomic_write_json
-
-RUN_OUTPUTS = (
-    "records",
-    "images",
-    "annotations.json",
-    "report.json",
-    "summary.json",
-    "contact_sheet.png",
-    "manifest.json",
-)
+from aias_augment.core.errors import InputError
 
 FINAL_OUTPUTS = ("annotations.json", "report.json", "summary.json", "contact_sheet.png")
+"""Written at the end of a run, from the records; removed when a run (re)starts, so a folder never holds stale ones."""
+
+TEMP_TAG = ".aias-tmp-"
+KILL_HOOK = "AIAS_TEST_KILL_AFTER_WRITES"
+"""Test hook: ``k`` kills this process (SIGKILL) at the k-th write step (a temporary file written, a rename done)."""
 
 
 class ManifestMismatch(RuntimeError):
@@ -81,16 +82,30 @@ def item_hash(item) -> str:
     return h.hexdigest()
 
 
-def build_manifest(items, cfg, seed: int, preset: str | None = None, options: dict | None = None) -> dict:
-    return {
+def build_manifest(
+    items,
+    cfg,
+    seed: int,
+    preset: str | None = None,
+    options: dict | None = None,
+    hashes: list[str] | None = None,
+    outputs: list[str] | tuple[str, ...] = (),
+) -> dict:
+    """The manifest of a run over ``items`` (``hashes``: their :func:`item_hash`, computed when not given).
+    ``outputs``: every path (relative to ``out``) the run may write, the only ones ``--overwrite`` removes later.
+    ``run_id`` is a digest of the run key, so the same run has the same id (and temporary-file prefix) on resume."""
+    hashes = hashes if hashes is not None else [item_hash(it) for it in items]
+    m = {
         "package": "aias-augment",
         "version": __version__,
         "seed": int(seed),
         "preset": preset,
         "config_hash": config_hash(cfg),
         "options": options or {},
-        "inputs": [{"path": it.path, "sha256": h} for it, h in zip(items, (item_hash(it) for it in items))],
+        "inputs": [{"path": it.path, "sha256": h} for it, h in zip(items, hashes)],
     }
+    run_id = hashlib.sha256(json.dumps(run_key(m), sort_keys=True, default=str).encode()).hexdigest()[:12]
+    return {**m, "run_id": run_id, "temp_prefix": f"{TEMP_TAG}{run_id}-", "outputs": list(outputs), "complete": False}
 
 
 def run_key(m: dict) -> dict:
@@ -151,37 +166,174 @@ def output_lock(out: Path):
         f.close()
 
 
-def prepare_output(out: Path, manifest: dict, overwrite: bool = False) -> dict[int, str]:
-    """Check ``out`` against ``manifest`` and write it. Returns {index: input hash} of the previous run (empty for
-    a new run): the records whose hash still matches may be reused."""
-    out.mkdir(parents=True, exist_ok=True)
-    mpath = out / "manifest.json"
-    previous = {}
-    if mpath.exists() or (out / "records").exists():
-        old = None
-        if mpath.exists():
-            try:
-                old = json.loads(mpath.read_text())
-            except ValueError:
-                old = None
-        if old is not None and run_key(old) == run_key(manifest):
-            previous = {i: x["sha256"] for i, x in enumerate(old["inputs"])}
-        elif not overwrite:
-            why = _describe(old, manifest) if old is not None else "no readable manifest.json (an older run?)"
-            raise ManifestMismatch(f"{out} holds another run ({why}); use another --out, or --overwrite to replace it")
+def image_name(index: int, source: str, suffix: str = ".png") -> str:
+    """The output image of input ``index`` (``source`` its path): ``images/<image_name>``."""
+    return f"{index:06d}_{Path(source).stem}{suffix}"
+
+
+def planned_outputs(sources) -> list[str]:
+    """Every path (relative to ``out``) an image run over ``sources`` (input paths, in order) may write."""
+    per_item = [p for i, s in enumerate(sources) for p in (f"records/{i:06d}.json", f"images/{image_name(i, s)}")]
+    return [*per_item, *FINAL_OUTPUTS, "manifest.json"]
+
+
+def read_manifest(out: Path) -> dict | None:
+    """``out/manifest.json`` if an aias-augment run wrote it (a readable mapping naming the package), else None."""
+    try:
+        m = json.loads((Path(out) / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return m if isinstance(m, dict) and m.get("package") == "aias-augment" else None
+
+
+def recorded_sun_now(out) -> str | None:
+    """The concrete UTC that the run in ``out`` resolved ``--sun-from LAT,LON,now,HEADING`` to, or None."""
+    sun = ((read_manifest(Path(out)) or {}).get("options") or {}).get("sun_from") or {}
+    return sun.get("utc") if isinstance(sun, dict) and sun.get("utc_given") == "now" else None
+
+
+def check_out_apart(out, inputs) -> None:
+    """``out`` must neither be, hold, nor lie inside any input: ``inputs`` are (what, path) pairs (e.g.
+    ("--images", "ds/images")), compared as resolved real paths (symlinks followed). InputError naming both."""
+    real_out = Path(os.path.realpath(out))
+    for what, path in inputs:
+        if not path:
+            continue
+        real = Path(os.path.realpath(path))
+        if real == real_out:
+            relation = "is"
+        elif real_out.is_relative_to(real):
+            relation = "lies inside"
+        elif real.is_relative_to(real_out):
+            relation = "holds"
         else:
-            for name in RUN_OUTPUTS:
-                p = out / name
-                if p.is_dir():
-                    shutil.rmtree(p)
-                elif p.exists():
-                    p.unlink()
+            continue
+        shown = f"{path} ({real})" if str(real) != str(path) else str(path)
+        raise InputError(
+            f"--out {out} {relation} {what} {shown}: choose an --out that neither holds nor lies inside any input"
+        )
+
+
+_write_steps = 0
+
+
+def _write_step() -> None:
+    """One durable step of a write (see :data:`KILL_HOOK`)."""
+    global _write_steps
+    kill_at = os.environ.get(KILL_HOOK)
+    if kill_at:
+        _write_steps += 1
+        if _write_steps >= int(kill_at):
+            os.kill(os.getpid(), signal.SIGKILL)
+
+
+def write_file(dest: Path, temp_prefix: str, write) -> None:
+    """Write ``dest`` atomically: ``write(tmp)`` fills ``<temp_prefix><name>`` in ``dest``'s folder, which is then
+    renamed over ``dest``; a killed run leaves ``dest`` as it was and, at most, the temporary file."""
+    dest = Path(dest)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dest.with_name(temp_prefix + dest.name)
+    tmp.unlink(missing_ok=True)  # a leftover (or a link placed there) is replaced, never written through
+    try:
+        write(tmp)
+        _write_step()
+        os.replace(tmp, dest)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _write_step()
+
+
+def write_json(dest: Path, obj, temp_prefix: str) -> None:
+    """:func:`write_file` of ``json.dumps(obj)``."""
+
+    def put(tmp: Path) -> None:
+        with open(tmp, "x") as f:
+            f.write(json.dumps(obj))
+
+    write_file(dest, temp_prefix, put)
+
+
+def _inside(out: Path, rel: str) -> Path | None:
+    """``out / rel`` when ``rel`` is a plain relative path whose folder resolves inside ``out``, else None."""
+    p = Path(rel)
+    if p.is_absolute() or ".." in p.parts or not p.parts:
+        return None
+    path = out / p
+    real_out = Path(os.path.realpath(out))
+    return path if Path(os.path.realpath(path.parent)).is_relative_to(real_out) else None
+
+
+def _remove_temp_files(out: Path, manifest: dict) -> None:
+    """Files named with ``manifest``'s temporary prefix in ``out`` and in the folders of its outputs."""
+    prefix = manifest.get("temp_prefix")
+    if not (isinstance(prefix, str) and prefix.startswith(TEMP_TAG) and len(prefix) > len(TEMP_TAG)):
+        return
+    folders = {"."} | {str(Path(rel).parent) for rel in manifest.get("outputs", []) if isinstance(rel, str)}
+    for rel in sorted(folders):
+        entry = _inside(out, f"{rel}/-")  # a name in that folder: the folder itself must resolve inside out
+        if entry is None or not entry.parent.is_dir():
+            continue
+        for f in entry.parent.iterdir():
+            if f.name.startswith(prefix) and (f.is_file() or f.is_symlink()):
+                f.unlink()
+
+
+def _remove_outputs(out: Path, manifest: dict) -> None:
+    """What ``manifest`` (a previous run's) lists, inside ``out``, and its temporary files; then its emptied
+    folders. Nothing else."""
+    listed = manifest.get("outputs")
+    if not isinstance(listed, list):  # a manifest without the list: the paths an image run over its inputs writes
+        listed = planned_outputs(i.get("path", "") for i in manifest.get("inputs", []))
+    _remove_temp_files(out, manifest)
+    folders = set()
+    for rel in listed:
+        path = _inside(out, rel) if isinstance(rel, str) else None
+        if path is not None and (path.is_symlink() or path.is_file()):
+            path.unlink()
+            folders.add(path.parent)
+    for folder in sorted(folders, key=lambda f: -len(f.parts)):
+        if folder != out and not any(folder.iterdir()):
+            folder.rmdir()
+
+
+def _refuse_foreign(out: Path, outputs: list[str]) -> None:
+    """A new run writes into ``out`` only where nothing is: a file in the way is someone else's."""
+    taken = [rel for rel in outputs if (out / rel).exists() or (out / rel).is_symlink()]
+    if taken:
+        more = f" and {len(taken) - 1} more" if len(taken) > 1 else ""
+        raise ManifestMismatch(
+            f"{out} already holds {taken[0]}{more}, which no aias-augment manifest there lists; it is never "
+            "written over: use another --out, or move those files away"
+        )
+
+
+def prepare_output(out: Path, manifest: dict, overwrite: bool = False) -> dict[int, str]:
+    """Check ``out`` against ``manifest`` and write it (``complete: false``). The same run resumes: its final
+    outputs and its temporary files are removed, its records kept. Another run (a different key) is refused unless
+    ``overwrite``, which removes the files that run's manifest lists, and only those. A path this run writes that
+    is taken by a file no manifest lists (the user's) is refused, never written over. Returns {index: input hash}
+    of the previous run (empty for a new run)."""
+    out.mkdir(parents=True, exist_ok=True)
+    old = read_manifest(out)
+    previous: dict[int, str] = {}
+    if old is not None and run_key(old) == run_key(manifest):
+        previous = {i: x["sha256"] for i, x in enumerate(old["inputs"])}
+    elif old is not None and not overwrite:
+        raise ManifestMismatch(
+            f"{out} holds another run ({_describe(old, manifest)}); use another --out, or --overwrite to replace it"
+        )
+    else:
+        if old is not None:
+            _remove_outputs(out, old)
+        _refuse_foreign(out, manifest["outputs"])
+    write_json(out / "manifest.json", manifest, manifest["temp_prefix"])  # not complete, before removing finals
     for name in FINAL_OUTPUTS:  # rewritten at the end: a run killed before then leaves none (never a stale one)
         (out / name).unlink(missing_ok=True)
-    # Temporary files of writes cut short by a kill (atomic_write_json's "<name>XXXX.tmp", write_rgb's "x.tmp.png").
-    for sub, pattern in (("records", "*.tmp"), ("images", "*.tmp.*"), (".", "*.tmp"), (".", "*.check")):
-        for p in (out / sub).glob(pattern):
-            if p.is_file():
-                p.unlink()
-    atomic_write_json(mpath, manifest)
+    _remove_temp_files(out, manifest)
     return previous
+
+
+def mark_complete(out: Path, manifest: dict) -> None:
+    """The last write of a run: the manifest with ``complete: true``, once every output is in place."""
+    write_json(out / "manifest.json", {**manifest, "complete": True}, manifest["temp_prefix"])

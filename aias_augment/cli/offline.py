@@ -13,7 +13,6 @@ import json
 import logging
 import math
 import multiprocessing as mp
-import os
 from pathlib import Path
 
 import numpy as np
@@ -28,10 +27,20 @@ from aias_augment.adapters.boundary import (
     check_output_record,
     parse_yolo_labels,
 )
-from aias_augment.cli.manifest import build_manifest, item_hash, output_lock, prepare_output
+from aias_augment.cli.manifest import (
+    build_manifest,
+    check_out_apart,
+    item_hash,
+    mark_complete,
+    output_lock,
+    planned_outputs,
+    prepare_output,
+    write_file,
+    write_json,
+)
 from aias_augment.cli.offline_job import Item, process_item, read_rgb, resolve_yolo_boxes, write_rgb  # noqa: F401  (public here too)
 from aias_augment.cli.offline_ray import run_jobs as run_ray_jobs
-from aias_augment.core.coco_io import CocoBuilder, atomic_write_json
+from aias_augment.core.coco_io import CocoBuilder
 from aias_augment.core.logs import progress_disabled
 from aias_augment.core.viz import contact_sheet, draw_boxes
 from aias_augment.pipeline.image import InsertionConfig
@@ -139,7 +148,7 @@ def items_from_yolo(
     that image a named skip (file and line); boxes of zero size are dropped, boxes outside the image clipped or
     dropped (``box_policy``), each counted. A missing label file means no objects (YOLO's convention)."""
     images_dir = Path(images_dir)
-    labels_dir = Path(labels_dir) if labels_dir else Path(str(images_dir).replace("images", "labels"))
+    labels_dir = Path(labels_dir) if labels_dir else default_labels_dir(images_dir)
     items = []
     for p in image_files(images_dir):
         lab = labels_dir / (p.stem + ".txt")
@@ -152,6 +161,37 @@ def items_from_yolo(
                 item.invalid = e
         items.append(item)
     return items
+
+
+def default_labels_dir(images_dir) -> Path:
+    """Where YOLO labels lie by default: the images folder's path with ``images`` replaced by ``labels``."""
+    return Path(str(images_dir).replace("images", "labels"))
+
+
+def named_inputs(args) -> list[tuple[str, str]]:
+    """(option, path) of everything an ``aias-augment`` image run reads, from its parsed arguments: the dataset
+    (json, images, YOLO images and labels), the config files, the assets and the envmap."""
+    named = [
+        ("--input", args.input),
+        ("--images", args.images),
+        ("--yolo", args.yolo),
+        ("--yolo labels", default_labels_dir(args.yolo) if args.yolo else None),
+        ("--config", args.config),
+        ("--box-convention", args.box_convention),
+        ("--envmap", args.envmap),
+        ("--assets-bank", args.assets_bank),
+    ]
+    named += [("--assets", spec.partition("=")[2].strip()) for spec in args.assets or ()]
+    return [(what, str(path)) for what, path in named if path]
+
+
+def input_paths(items: list[Item]) -> list[tuple[str, str]]:
+    """(what, path) of every file the items are read from and of their folders, for :func:`check_out_apart`."""
+    files = [("input image", it.path) for it in items]
+    files += [("label file", it.meta["label_file"]) for it in items if it.meta.get("label_file")]
+    files += [("right image", it.stereo_right) for it in items if it.stereo_right]
+    folders = {str(Path(p).parent) for _, p in files}
+    return files + [("the folder of input", f) for f in sorted(folders)]
 
 
 def _worker(args):
@@ -188,9 +228,11 @@ def run(
     category name -> id (:func:`coco_categories`), kept in the output (:func:`output_categories`).
     ``bank``: the asset source passed to every insertion (:func:`process_item`); what it holds belongs in
     ``options`` (the manifest), so that a run with other assets is not resumed from this one's records.
-    A second run into an ``out_dir`` that a run is writing is refused at start (OutputBusy)."""
+    A second run into an ``out_dir`` that a run is writing is refused at start (OutputBusy). An ``out_dir`` that
+    is, holds or lies inside an input file or its folder is refused before anything is written (InputError)."""
     if not items:
         raise InputError("no input images")
+    check_out_apart(out_dir, input_paths(items))
     with output_lock(Path(out_dir)):
         return _run(
             items,
@@ -240,9 +282,11 @@ def _run(
         seed,
         preset,
         {**(options or {}), "class_names": class_names, "max_pixels": max_pixels, "categories": out_categories},
+        hashes=hashes,
+        outputs=planned_outputs(it.path for it in items),
     )
-    manifest["inputs"] = [{"path": it.path, "sha256": h} for it, h in zip(items, hashes)]
     prepare_output(out, manifest, overwrite)
+    temp_prefix = manifest["temp_prefix"]
     jobs = [
         (
             i,
@@ -255,6 +299,7 @@ def _run(
             h,
             max_pixels,
             bank,
+            temp_prefix,
         )
         for i, (it, h) in enumerate(zip(items, hashes))
     ]
@@ -303,14 +348,10 @@ def _run(
                     read_rgb(str(out / "images" / rec["file_name"])), rec["boxes"], rec["labels"], rec["inserted"]
                 )
             )
-    tmp = out / "annotations.json.check"
-    coco.write(tmp)
-    check_coco_file(tmp, out / "images")
-    os.replace(tmp, out / "annotations.json")
     report = build_report(records)
-    atomic_write_json(out / "report.json", report)
+    write_json(out / "report.json", report, temp_prefix)
     if sheet:
-        write_rgb(out / "contact_sheet.png", contact_sheet(sheet))
+        write_rgb(out / "contact_sheet.png", contact_sheet(sheet), temp_prefix)
     times = [r["seconds"] for r in records if "seconds" in r]
     summary = {
         "images": len(records),
@@ -321,7 +362,14 @@ def _run(
         "box_notes": sum(v for k, v in report["notes"].items() if k.startswith("box")),
         "median_seconds_per_image": float(np.median(times)) if times else None,
     }
-    atomic_write_json(out / "summary.json", summary)
+    write_json(out / "summary.json", summary, temp_prefix)
+
+    def put_coco(tmp: Path) -> None:  # re-read by pycocotools and checked before it takes its name
+        coco.write(tmp)
+        check_coco_file(tmp, out / "images")
+
+    write_file(out / "annotations.json", temp_prefix, put_coco)  # the dataset appears last, whole
+    mark_complete(out, manifest)
     log.info(
         "%s: %d of %d images written, %d objects inserted (skips and notes in report.json)",
         out,
@@ -334,7 +382,7 @@ def _run(
 
 def build_report(records: list[dict]) -> dict:
     """``report.json``: skipped images by kind (file, line, reason), box notes and conversions by kind, images
-    where nothing was inserted by reason."""
+    where nothing was inserted (their count, and by reason)."""
     from collections import Counter
 
     skipped: dict[str, list] = {}
@@ -362,6 +410,7 @@ def build_report(records: list[dict]) -> dict:
         "skips": skipped,
         "notes": dict(sorted(notes.items())),
         "note_list": note_list,
+        "nothing_inserted_count": sum(len(v) for v in nothing.values()),
         "nothing_inserted": {k: len(v) for k, v in nothing.items()},
         "nothing_inserted_images": nothing,
     }

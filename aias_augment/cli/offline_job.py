@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -18,8 +17,7 @@ import cv2
 import numpy as np
 
 from aias_augment.adapters.boundary import ImageSkip, nothing_inserted_reason, problem, read_image_checked
-from aias_augment.cli.manifest import item_hash
-from aias_augment.core.coco_io import atomic_write_json
+from aias_augment.cli.manifest import TEMP_TAG, image_name, item_hash, write_file, write_json
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.pipeline.bounded import insert_bounded
 from aias_augment.pipeline.image import InsertionConfig
@@ -50,12 +48,14 @@ def read_rgb(path: str) -> np.ndarray:
     return np.ascontiguousarray(img[..., ::-1])
 
 
-def write_rgb(path: Path, image: np.ndarray) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    if not cv2.imwrite(str(tmp), image[..., ::-1]):
-        raise OSError(f"cannot write {path}")
-    os.replace(tmp, path)
+def write_rgb(path: Path, image: np.ndarray, temp_prefix: str = TEMP_TAG) -> None:
+    """Write an RGB image atomically through ``<temp_prefix><name>`` in its folder (the format from the suffix)."""
+
+    def put(tmp: Path) -> None:
+        if not cv2.imwrite(str(tmp), image[..., ::-1]):
+            raise OSError(f"cannot write {path}")
+
+    write_file(Path(path), temp_prefix, put)
 
 
 def resolve_yolo_boxes(item: Item, image: np.ndarray, class_names) -> None:
@@ -124,12 +124,14 @@ def process_item(
     input_hash: str | None = None,
     max_pixels: int | None = None,
     bank=None,
+    temp_prefix: str = TEMP_TAG,
 ) -> dict:
     """Augment one image; returns its record (also written to ``records/<index>.json``). ``scene_cache``: a folder
     of scene analyses shared by workers and runs (an image augmented again is not analysed again). A previous
     record is reused only when it is not a skip and its ``input_hash`` matches (failed and changed inputs are
     redone). ``bank``: the asset source of the insertion (e.g. :class:`aias_augment.assets.asset.PathAssets` of the
-    user's meshes; picklable, it goes to every worker); None: the default assets."""
+    user's meshes; picklable, it goes to every worker); None: the default assets. ``temp_prefix``: the run's
+    temporary-file prefix (the manifest's), the only names its start-up cleanup removes."""
     import copy
 
     item = copy.deepcopy(item)  # resolving labels and bounding the size change it
@@ -139,7 +141,7 @@ def process_item(
     previous = _load_record(rec_path, item, input_hash)
     if previous is not None:
         return previous
-    name = f"{index:06d}_{Path(item.path).stem}.png"
+    name = image_name(index, item.path)
     (out / "images" / name).unlink(missing_ok=True)  # never leave a stale image behind a new record
     import time
 
@@ -206,9 +208,9 @@ def process_item(
             "skip_line": line,
             "input_notes": notes,
         }
-        atomic_write_json(rec_path, rec)
+        write_json(rec_path, rec, temp_prefix)
         return rec
-    write_rgb(out / "images" / name, res.image)
+    write_rgb(out / "images" / name, res.image, temp_prefix)
     n_keep = int(res.keep_existing.sum())
     rec = {
         "index": index,
@@ -230,5 +232,5 @@ def process_item(
     }
     if not res.inserted_labels:  # counted with its reason in report.json
         rec["nothing_inserted"] = nothing_inserted_reason(res.record.to_dict())
-    atomic_write_json(rec_path, rec)
+    write_json(rec_path, rec, temp_prefix)
     return rec

@@ -1,5 +1,6 @@
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -98,9 +99,13 @@ def test_kill_9_mid_run_then_rerun_gives_byte_identical_outputs(tmp_path):
     proc.wait()
     done = len(list((killed / "records").glob("*.json")))
     assert 3 <= done < 10 and not (killed / "annotations.json").exists()
-    # What a kill in the middle of a write leaves (the atomic writers' temporary files): removed on resume.
-    (killed / "records" / "000009.jsonq1w2e3.tmp").write_text('{"index": 9, "sou')
-    (killed / "images" / "000009_im9.tmp.png").write_bytes(b"\x89PNG half")
+    # What a kill in the middle of a write leaves (temporary files named with the run's recorded prefix, in the
+    # folder of the file written): removed on resume.
+    manifest = json.loads((killed / "manifest.json").read_text())
+    prefix = manifest["temp_prefix"]
+    image = next(Path(o) for o in manifest["outputs"] if Path(o).name.startswith("000009_"))
+    (killed / "records" / f"{prefix}000009.json").write_text('{"index": 9, "sou')
+    (killed / image.parent / f"{prefix}{image.name}").write_bytes(b"\x89PNG half")
 
     assert main(args + ["--out", str(killed)]) == 0
     for name in ("annotations.json", "report.json"):
@@ -112,7 +117,7 @@ def test_kill_9_mid_run_then_rerun_gives_byte_identical_outputs(tmp_path):
         ids = [x["id"] for x in coco[key]]
         assert len(ids) == len(set(ids))
     assert len(coco["images"]) == 10
-    assert not [p for p in killed.rglob("*") if ".tmp" in p.name]
+    assert not [p for p in killed.rglob("*") if p.name.startswith(".aias-tmp-")]
 
 
 def test_cli_exits_1_when_every_image_is_skipped(tmp_path, capsys):

@@ -224,10 +224,12 @@ def test_overwrite_replaces_a_different_run(tmp_path):
     images = _yolo(tmp_path, {"t": ("truncated", None)})  # nothing rendered: the manifest logic alone
     out = tmp_path / "out"
     assert main(["--yolo", str(images), "--out", str(out), "--seed", "1"]) == 1  # ran; nothing written: exit 1
-    (out / "records" / "999999.json").write_text("{}")  # stale output of the previous run
+    (out / "records" / "000000.json").write_text('{"stale": 1}')  # the previous run's output, listed
+    (out / "records" / "999999.json").write_text("{}")  # not in its manifest: someone else's, kept
     assert main(["--yolo", str(images), "--out", str(out), "--seed", "2"]) == 2
     assert main(["--yolo", str(images), "--out", str(out), "--seed", "2", "--overwrite"]) == 1
-    assert not (out / "records" / "999999.json").exists()
+    assert json.loads((out / "records" / "000000.json").read_text())["skip_kind"] == "corrupt image"  # rewritten
+    assert (out / "records" / "999999.json").read_text() == "{}"
     assert json.loads((out / "manifest.json").read_text())["seed"] == 2
 
 
