@@ -1,13 +1,14 @@
 """Crash consistency of the offline image writer: ``aias-augment`` killed with SIGKILL at every write step.
 
 Each run is a process forked from a warm parent (imports done, no renderer: each child makes its own EGL context),
-so that ~25 kills and their reruns take about a minute. The hook ``AIAS_TEST_KILL_AFTER_WRITES=k`` makes the
+so that 25+ kills and their reruns take one to two minutes. The hook ``AIAS_TEST_KILL_AFTER_WRITES=k`` makes the
 writer SIGKILL its own process at its k-th write step (a temporary file written, or a rename done), so the kill
-points are every step of a run, in order. After each kill: the folder claims nothing it does not hold (the
-manifest is not ``complete``, an ``annotations.json`` there is the whole dataset); a rerun of the same command then
-gives the clean run's folder: the same files, byte for byte, except the fields that hold times or the process
-(:data:`TIME_FIELDS`, the lock file's holder line) and the folder's own path where a file names it (YOLO's
-``data.yaml`` ``path``).
+points are every step of a run over two images, in order (20 steps; more where the output format writes more
+files), and for every 4th of them a second kill in the rerun. After each kill the folder claims nothing it does not
+hold: a manifest that says ``complete`` stands beside the whole clean folder, an ``annotations.json`` there is the
+whole dataset. A rerun of the same command then gives the clean run's folder: the same files, byte for byte, except
+the fields that hold times or the process (:data:`TIME_FIELDS`, the lock file's holder line) and the folder's own
+path where a file names it (YOLO's ``data.yaml`` ``path``).
 """
 
 import hashlib
@@ -139,17 +140,18 @@ def test_kill_at_every_write_step_then_rerun_gives_the_clean_folder(tmp_path):
             if end == {"code": 0}:  # k is past the last write step: the run finished
                 break
             assert end == {"signal": signal.SIGKILL}, (k, end)
-            kill_points.append(k)
+            kill_points.append(("run", k))
             assert not claims(out, clean), (k, claims(out, clean))
             if k % 4 == 0:  # a second kill, while the rerun recovers from the first
                 assert runner.run([*args, "--out", str(out)], kill_after=3) == {"signal": signal.SIGKILL}, k
+                kill_points.append(("resume", k))
                 assert not claims(out, clean), (k, claims(out, clean))
             assert runner.run([*args, "--out", str(out)]) == {"code": 0}, k
             got = tree(out)
             assert sorted(got) == sorted(clean), (k, sorted(set(got) ^ set(clean)))
             assert [n for n in clean if got[n] != clean[n]] == [], k
             assert not [n for n in got if TEMP_TAG in n], k
-        assert len(kill_points) >= 20, kill_points
+        assert len(kill_points) >= 20, kill_points  # 20 steps of a run over two images, 5 in its resumes
     finally:
         runner.close()
     assert digest(data) == inputs
