@@ -30,6 +30,8 @@ import os
 import signal
 from pathlib import Path
 
+from aias_augment.assets.references import inside
+
 INDEX_NAME = "bank.json"
 LOCK_NAME = ".bank.lock"
 TEMP_PREFIX = ".aias-bank-"
@@ -102,11 +104,13 @@ def read_index(folder: str | Path) -> dict:
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
         raise BankError(f"{index}: entries {dup[:3]} are listed twice; repair the index")
-    bad = [n for n in names if Path(n).name != n or n.startswith(".")]
+    bad = [n for n in names if Path(n).is_absolute() or inside(Path(folder), n) in (None, Path(folder).resolve())]
     if bad:
-        raise BankError(f"{index}: entry file names must be plain names inside the folder, got {bad[:3]}")
-    if not isinstance(bank["report"].setdefault("rejected", {}), dict):
+        raise BankError(f"{index}: entry files must be relative paths inside the bank folder, got {bad[:3]}")
+    rejected = bank["report"].get("rejected") or {}  # absent or empty ([] in hand-written indexes): none
+    if not isinstance(rejected, dict):
         raise BankError(f"{index}: not a bank index (report.rejected must map reasons to counts)")
+    bank["report"]["rejected"] = rejected
     return bank
 
 

@@ -80,7 +80,10 @@ def test_a_bank_index_that_is_not_one_is_a_one_line_error(tmp_path):
             '{"report": {"assets": [{"file": "0000.glb", "category": "x"}, {"file": "0000.glb", "category": "x"}]}}',
             "listed twice",
         ),
-        ('{"report": {"assets": [{"file": "../../etc/passwd", "category": "x"}]}}', "plain names"),
+        (
+            '{"report": {"assets": [{"file": "../../etc/passwd", "category": "x"}]}}',
+            "relative paths inside the bank folder",
+        ),
     ]:
         (tmp_path / "bank.json").write_text(text)
         with pytest.raises(BankError, match=match) as e:
