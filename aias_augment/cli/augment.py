@@ -13,6 +13,7 @@ import json
 import sys
 from pathlib import Path
 
+from aias_augment.cli.dataset_out import add_output_arguments
 from aias_augment.cli.offline import (
     IMAGE_SUFFIXES,
     coco_categories,
@@ -36,14 +37,20 @@ def main(argv=None) -> int:
         help="COCO json of the dataset (with --images), or a clip: a video file or a folder "
         "of frames (with --camera and --poses; a static camera's clip needs neither)",
     )
-    src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
+    src.add_argument(
+        "--yolo",
+        help="a YOLO dataset: its data.yaml, a folder with images/<split>/ and labels/<split>/, or a folder of "
+        "images with YOLO txt labels (labels/ beside images/)",
+    )
     ap.add_argument(
         "--images",
         metavar="DIR",
         help="image folder for --input; alone: a folder of unlabelled background images "
         "(the output holds only the inserted objects)",
     )
-    ap.add_argument("--class-names", nargs="*", default=None, help="YOLO class names by index")
+    ap.add_argument(
+        "--class-names", nargs="*", default=None, help="YOLO class names by index (default: the data.yaml's names)"
+    )
     ap.add_argument(
         "--categories",
         nargs="+",
@@ -200,6 +207,7 @@ def main(argv=None) -> int:
         help="track the ground under the object (KLT) and correct drifting poses per frame",
     )
     add_logging_args(ap)
+    add_output_arguments(ap)
     a = ap.parse_args(argv)
     configure_logging(a)
     if not (a.input or a.yolo or a.images):
@@ -231,9 +239,11 @@ def main(argv=None) -> int:
         return clip_command(a)
     if a.input and not a.images:
         ap.error("--input needs --images")
-    from aias_augment.adapters.boundary import InputError, check_categories
+    from aias_augment.adapters.boundary import InputError, check_categories, known_categories
+    from aias_augment.cli.dataset_out import canonical_categories, output_from_args, yolo_names_from_rows
     from aias_augment.cli.manifest import ManifestMismatch, check_out_apart, recorded_sun_now
     from aias_augment.cli.offline import named_inputs
+    from aias_augment.cli.yolo_io import read_yolo_dataset
 
     clip_only = [
         f
@@ -279,15 +289,23 @@ def main(argv=None) -> int:
 
             facts["envmap"] = envmap_fact(a.envmap)
             options["envmap"] = [a.envmap, file_hash(a.envmap)]
-        cfg = insertion_config(a.preset, a.config, a.categories, a.per_image, paths, a.box_convention)
+        known = known_categories() | set(paths or {})
+        requested, given_labels = canonical_categories(a.categories or (), known)  # cone -> traffic_cone
+        cfg = insertion_config(a.preset, a.config, requested or None, a.per_image, paths, a.box_convention)
         # Categories your --assets give need not be built-in ones (as InsertObjects(assets=...)).
         unknown = [c for c in cfg.categories if c not in (paths or {})]
         if unknown:
             check_categories(unknown)
+        yolo_in, class_names, input_categories = None, a.class_names, None
         if a.input:
             items = items_from_coco(a.input, a.images, box_policy=a.boxes)
+            input_categories = coco_categories(a.input)
         elif a.yolo:
-            items = items_from_yolo(a.yolo, class_names=a.class_names, box_policy=a.boxes)
+            yolo_in = read_yolo_dataset(a.yolo)
+            split = yolo_in.split(a.split)
+            class_names = a.class_names or (list(yolo_in.names) if yolo_in.names else None)
+            items = items_from_yolo(str(split.images), str(split.labels), class_names, box_policy=a.boxes)
+            class_names = class_names or yolo_names_from_rows(items)
         else:  # unlabelled background images: no boxes, the output holds only the inserted objects
             items = items_from_images(a.images)
         items = items[: a.limit] if a.limit else items
@@ -295,13 +313,15 @@ def main(argv=None) -> int:
             raise InputError(f"no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in {a.yolo or a.images}")
         for it in items:
             it.meta.update(facts)
+        user_names = list(input_categories or class_names or ())
+        output = output_from_args(a, cfg.categories, user_names, known, given_labels, yolo_in)
         summary = run(
             items,
             cfg,
             a.seed,
             a.out,
             workers=a.workers,
-            class_names=a.class_names,
+            class_names=class_names,
             scene_cache=a.scene_cache,
             preset=a.preset,
             overwrite=a.overwrite,
@@ -309,8 +329,9 @@ def main(argv=None) -> int:
             options=options,
             backend=a.backend,
             ray_address=a.address,
-            categories=coco_categories(a.input) if a.input else None,
+            categories=input_categories,
             bank=bank,
+            output=output,
         )
     except (InputError, ManifestMismatch) as e:
         print(f"aias-augment: error: {e}", file=sys.stderr)

@@ -27,6 +27,8 @@ from aias_augment.adapters.boundary import (
     check_output_record,
     parse_yolo_labels,
 )
+from aias_augment.cli.dataset_out import DatasetOutput, write_outputs
+from aias_augment.cli.dataset_out import planned_outputs as dataset_outputs
 from aias_augment.cli.manifest import (
     build_manifest,
     check_out_apart,
@@ -216,6 +218,7 @@ def run(
     ray_address: str | None = None,
     categories: dict[str, int] | None = None,
     bank=None,
+    output: DatasetOutput | None = None,
 ) -> dict:
     """Augment all items, then write ``annotations.json`` (COCO, validated), ``report.json`` and
     ``contact_sheet.png``.
@@ -228,8 +231,10 @@ def run(
     category name -> id (:func:`coco_categories`), kept in the output (:func:`output_categories`).
     ``bank``: the asset source passed to every insertion (:func:`process_item`); what it holds belongs in
     ``options`` (the manifest), so that a run with other assets is not resumed from this one's records.
-    A second run into an ``out_dir`` that a run is writing is refused at start (OutputBusy). An ``out_dir`` that
-    is, holds or lies inside an input file or its folder is refused before anything is written (InputError)."""
+    ``output``: the layout, image format and labels written (:class:`aias_augment.cli.dataset_out.DatasetOutput`;
+    None: COCO, PNG images, the project's category names). A second run into an ``out_dir`` that a run is writing
+    is refused at start (OutputBusy). An ``out_dir`` that is, holds or lies inside an input file or its folder is
+    refused before anything is written (InputError)."""
     if not items:
         raise InputError("no input images")
     check_out_apart(out_dir, input_paths(items))
@@ -251,6 +256,7 @@ def run(
             ray_address=ray_address,
             categories=categories,
             bank=bank,
+            output=output,
         )
 
 
@@ -272,18 +278,27 @@ def _run(
     ray_address: str | None = None,
     categories: dict[str, int] | None = None,
     bank=None,
+    output: DatasetOutput | None = None,
 ) -> dict:
     out = Path(out_dir)
     hashes = [item_hash(it) for it in items]
-    out_categories = output_categories(categories, class_names, tuple(cfg.categories))
+    output = output or DatasetOutput()
+    sources = [it.path for it in items]
+    out_categories = output_categories(categories, class_names, tuple(output.label(c) for c in cfg.categories))
     manifest = build_manifest(
         items,
         cfg,
         seed,
         preset,
-        {**(options or {}), "class_names": class_names, "max_pixels": max_pixels, "categories": out_categories},
+        {
+            **(options or {}),
+            "class_names": class_names,
+            "max_pixels": max_pixels,
+            "categories": out_categories,
+            "output": output.manifest(),
+        },
         hashes=hashes,
-        outputs=planned_outputs(it.path for it in items),
+        outputs=list(dict.fromkeys([*planned_outputs(sources), *dataset_outputs(sources, output)])),
     )
     prepare_output(out, manifest, overwrite)
     temp_prefix = manifest["temp_prefix"]
@@ -300,6 +315,7 @@ def _run(
             max_pixels,
             bank,
             temp_prefix,
+            output.image,
         )
         for i, (it, h) in enumerate(zip(items, hashes))
     ]
@@ -341,7 +357,7 @@ def _run(
                     "amodal_bbox": a["amodal_box_xywh"],
                     "visibility": a["visibility"],
                 }
-            coco.add_box(image_id, lab, box, inserted=ins, **extra)
+            coco.add_box(image_id, output.label(lab, ins), box, inserted=ins, **extra)
         if len(sheet) < sheet_size:
             sheet.append(
                 draw_boxes(
@@ -349,6 +365,7 @@ def _run(
                 )
             )
     report = build_report(records)
+    report["output"] = write_outputs(out, records, output, coco.categories, temp_prefix)
     write_json(out / "report.json", report, temp_prefix)
     if sheet:
         write_rgb(out / "contact_sheet.png", contact_sheet(sheet), temp_prefix)

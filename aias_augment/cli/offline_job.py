@@ -17,7 +17,8 @@ import cv2
 import numpy as np
 
 from aias_augment.adapters.boundary import ImageSkip, nothing_inserted_reason, problem, read_image_checked
-from aias_augment.cli.manifest import TEMP_TAG, image_name, item_hash, write_file, write_json
+from aias_augment.cli.dataset_out import ImageOut
+from aias_augment.cli.manifest import TEMP_TAG, item_hash, write_file, write_json
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.pipeline.bounded import insert_bounded
 from aias_augment.pipeline.image import InsertionConfig
@@ -125,13 +126,15 @@ def process_item(
     max_pixels: int | None = None,
     bank=None,
     temp_prefix: str = TEMP_TAG,
+    image_out: ImageOut | None = None,
 ) -> dict:
     """Augment one image; returns its record (also written to ``records/<index>.json``). ``scene_cache``: a folder
     of scene analyses shared by workers and runs (an image augmented again is not analysed again). A previous
     record is reused only when it is not a skip and its ``input_hash`` matches (failed and changed inputs are
     redone). ``bank``: the asset source of the insertion (e.g. :class:`aias_augment.assets.asset.PathAssets` of the
     user's meshes; picklable, it goes to every worker); None: the default assets. ``temp_prefix``: the run's
-    temporary-file prefix (the manifest's), the only names its start-up cleanup removes."""
+    temporary-file prefix (the manifest's), the only names its start-up cleanup removes. ``image_out``: the
+    image's name and format (:class:`aias_augment.cli.dataset_out.ImageOut`; None: PNG under ``images/``)."""
     import copy
 
     item = copy.deepcopy(item)  # resolving labels and bounding the size change it
@@ -141,7 +144,8 @@ def process_item(
     previous = _load_record(rec_path, item, input_hash)
     if previous is not None:
         return previous
-    name = image_name(index, item.path)
+    image_out = image_out or ImageOut()
+    name = image_out.file_name(index, item.path)
     (out / "images" / name).unlink(missing_ok=True)  # never leave a stale image behind a new record
     import time
 
@@ -210,7 +214,7 @@ def process_item(
         }
         write_json(rec_path, rec, temp_prefix)
         return rec
-    write_rgb(out / "images" / name, res.image, temp_prefix)
+    image_out.write(out / "images" / name, res.image, temp_prefix)
     n_keep = int(res.keep_existing.sum())
     rec = {
         "index": index,

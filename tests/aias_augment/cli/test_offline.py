@@ -80,6 +80,7 @@ def test_kill_9_mid_run_then_rerun_gives_byte_identical_outputs(tmp_path):
         cv2.imwrite(str(images / f"im{i}.png"), img[..., ::-1])
         (tmp_path / "labels" / f"im{i}.txt").write_text("0 0.5 0.8 0.1 0.1\n")
     args = ["--yolo", str(images), "--class-names", "sign", "--preset", "fast", "--per-image", "1", "--seed", "7"]
+    args += ["--format", "coco"]  # images/ flat, as this test reads them
     assert main(args + ["--out", str(tmp_path / "whole")]) == 0
 
     killed = tmp_path / "killed"
@@ -146,7 +147,7 @@ def test_cli_exits_1_when_every_image_is_skipped(tmp_path, capsys):
 
 
 def test_coco_category_ids_come_out_as_they_went_in(tmp_path):
-    """Input ``cone`` has id 7 and ``sign`` id 3; the first image has no input boxes (only inserted objects):
+    """Input ``pole`` has id 7 and ``sign`` id 3; the first image has no input boxes (only inserted objects):
     the output keeps 7 and 3 and gives the inserted category the next id, whichever image comes first."""
     from aias_augment.cli.augment import main
 
@@ -163,7 +164,7 @@ def test_coco_category_ids_come_out_as_they_went_in(tmp_path):
             {"id": 1, "image_id": 2, "category_id": 7, "bbox": [5, 5, 20, 20]},
             {"id": 2, "image_id": 2, "category_id": 3, "bbox": [50, 5, 20, 20]},
         ],
-        "categories": [{"id": 3, "name": "sign"}, {"id": 7, "name": "cone"}],
+        "categories": [{"id": 3, "name": "sign"}, {"id": 7, "name": "pole"}],
     }
     (tmp_path / "in.json").write_text(json.dumps(coco_in))
     rc = main(
@@ -183,8 +184,8 @@ def test_coco_category_ids_come_out_as_they_went_in(tmp_path):
     assert rc == 0
     out = json.loads((tmp_path / "out" / "annotations.json").read_text())
     ids = {c["name"]: c["id"] for c in out["categories"]}
-    assert ids == {"sign": 3, "cone": 7, "traffic_cone": 8}
+    assert ids == {"sign": 3, "pole": 7, "traffic_cone": 8}
     names = {c["id"]: c["name"] for c in out["categories"]}
     inserted = [names[a["category_id"]] for a in out["annotations"] if a["inserted"]]
     real = sorted(names[a["category_id"]] for a in out["annotations"] if not a["inserted"])
-    assert inserted and set(inserted) == {"traffic_cone"} and real == ["cone", "sign"]
+    assert inserted and set(inserted) == {"traffic_cone"} and real == ["pole", "sign"]

@@ -176,6 +176,7 @@ def test_bad_corpus_report_resume_refuse_retry(tmp_path):
     )
     out = tmp_path / "out"
     args = ["--yolo", str(images), "--class-names", "cone", "--preset", "fast", "--per-image", "1", "--out", str(out)]
+    args += ["--format", "coco"]  # images/ flat, as this test reads them
     assert main(args + ["--seed", "3"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["skipped_by_kind"] == {"class id out of range": 1, "corrupt image": 1, "garbage label line": 1}
