@@ -297,6 +297,17 @@ def _remove_outputs(out: Path, manifest: dict) -> None:
             folder.rmdir()
 
 
+def _refuse_links_out(out: Path, outputs: list[str]) -> None:
+    """Every folder the run writes in must resolve inside ``out`` (a link such as ``out/images -> ~/photos`` would
+    lead the writes outside it)."""
+    for folder in sorted({str(Path(rel).parent) for rel in outputs}):
+        if _inside(out, f"{folder}/-") is None:
+            raise InputError(
+                f"{out / folder} leads outside --out {out} ({os.path.realpath(out / folder)}): a run writes only "
+                "inside --out; use another --out"
+            )
+
+
 def _refuse_foreign(out: Path, outputs: list[str]) -> None:
     """A new run writes into ``out`` only where nothing is: a file in the way is someone else's."""
     taken = [rel for rel in outputs if (out / rel).exists() or (out / rel).is_symlink()]
@@ -315,6 +326,7 @@ def prepare_output(out: Path, manifest: dict, overwrite: bool = False) -> dict[i
     is taken by a file no manifest lists (the user's) is refused, never written over. Returns {index: input hash}
     of the previous run (empty for a new run)."""
     out.mkdir(parents=True, exist_ok=True)
+    _refuse_links_out(out, manifest["outputs"])
     old = read_manifest(out)
     previous: dict[int, str] = {}
     if old is not None and run_key(old) == run_key(manifest):

@@ -205,6 +205,20 @@ def test_a_user_file_where_the_run_would_write_is_refused(tmp_path, capsys):
     }
 
 
+@needs_data
+def test_a_link_in_out_leading_elsewhere_is_refused(tmp_path, capsys):
+    """``out/records`` a link to the user's folder: the run would write through it; refused, that folder intact."""
+    truncated(tmp_path / "src" / "t.jpg")
+    picture(tmp_path / "photos" / "holiday.png")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "records").symlink_to(tmp_path / "photos")
+    before = snapshot(tmp_path / "photos")
+    assert main(["--images", str(tmp_path / "src"), "--out", str(out), *FAST]) == 2
+    assert "leads outside --out" in capsys.readouterr().err
+    assert snapshot(tmp_path / "photos") == before
+
+
 # ------------------------------------------------------------------------------------ runs that insert nothing
 @needs_data
 def test_a_run_that_inserts_no_object_fails_and_a_partial_one_warns(tmp_path, capsys):
