@@ -399,7 +399,7 @@ class InsertObjects(A.DualTransform):
         from albumentations.core.transform_params import SampledParams
 
         live = self._insert(data, sampling.random_generator)
-        return SampledParams(params={**live, **self._call_extras(live["insert_result"])})
+        return SampledParams(params={**live, **self._call_extras(live["insert_result"], data)})
 
     def _insert(self, data: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
         if self.variants_per_image:
@@ -533,16 +533,17 @@ class InsertObjects(A.DualTransform):
         if live is None or self.replay_mode:
             live = self._replayed(params, kwargs)
         res = live["insert_result"]
-        call = {**params, **live, **self._call_extras(res)}
+        call = {**params, **live, **self._call_extras(res, kwargs)}
         out = super().apply_with_params(call, *args, **kwargs)
         masks = kwargs.get("masks")
         if res is not None and isinstance(masks, (list, tuple)) and not masks:  # albumentations skips an empty list
             out["masks"] = list(self._new_masks(res, call["new_kept"]).astype(np.uint8))
         return out
 
-    def _call_extras(self, res) -> dict[str, Any]:
-        """``new_kept``: which inserted boxes the Compose's ``BboxParams`` keep (their masks go with them)."""
-        if res is None:
+    def _call_extras(self, res, data) -> dict[str, Any]:
+        """``new_kept``, with instance masks: which inserted boxes the Compose's ``BboxParams`` keep, so that their
+        masks go with them (boxes alone are filtered by the Compose itself)."""
+        if res is None or data.get("masks") is None:
             return {}
         h, w = res.image.shape[:2]
         proc = self._bbox_processor()
@@ -602,7 +603,7 @@ class InsertObjects(A.DualTransform):
         new = targets.inserted_masks(res.record.annotations, res.image.shape[:2])
         if len(new) != len(res.inserted_bboxes):
             raise RuntimeError(f"{len(new)} inserted masks for {len(res.inserted_bboxes)} inserted boxes")
-        return new[new_kept]
+        return new if new_kept is None else new[new_kept]
 
     def apply_to_keypoints(self, keypoints: np.ndarray, insert_result=None, **params: Any) -> np.ndarray:
         if insert_result is None:
@@ -618,7 +619,9 @@ class InsertObjects(A.DualTransform):
         kept = bboxes[insert_result.keep_existing] if len(bboxes) else bboxes
         if len(insert_result.inserted_labels) == 0:
             return kept
-        new_rows = self._encode_new_boxes(insert_result, bboxes, params["shape"])[new_kept]
+        new_rows = self._encode_new_boxes(insert_result, bboxes, params["shape"])
+        if new_kept is not None:
+            new_rows = new_rows[new_kept]
         if len(kept) == 0:
             return new_rows
         return np.concatenate([kept, new_rows.astype(kept.dtype)], axis=0)
