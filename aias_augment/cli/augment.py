@@ -194,6 +194,18 @@ def main(argv=None) -> int:
         metavar="N",
         help="objects inserted into the clip, each with its own track (alternating sides of the path, nearer each)",
     )
+    clip.add_argument(
+        "--labels",
+        metavar="FILE",
+        help="the clip's own track labels (MOTChallenge gt.txt or COCO-video json): carried into the output with "
+        "their track ids, occluding inserted objects behind them",
+    )
+    clip.add_argument(
+        "--labels-format", choices=("coco-video", "mot"), default=None, help="of --labels (default: detected)"
+    )
+    clip.add_argument(
+        "--labels-category", default="object", metavar="NAME", help="the class of --labels' MOT rows (MOT names none)"
+    )
     clip.add_argument("--lighting", choices=("clip", "ambient"), default="clip")
     clip.add_argument(
         "--harmonize",
@@ -253,6 +265,9 @@ def main(argv=None) -> int:
             ("--object-start", a.object_start != 0),
             ("--object-accel", a.object_accel != 0),
             ("--topple", a.topple != 0),
+            ("--labels", a.labels is not None),
+            ("--labels-format", a.labels_format is not None),
+            ("--labels-category", a.labels_category != "object"),
         )
         if v
     ]

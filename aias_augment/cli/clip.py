@@ -12,10 +12,15 @@ written, :mod:`aias_augment.cli.clip_inputs`):
   or without a leading timestamp); one per frame of the clip (after ``start`` and ``stride``).
 * ground: the camera ``camera_height_m`` above level ground (vehicle rigs), the same camera-relative plane for every
   frame (see ``choose_world_contact``).
+* labels (optional): the clip's own tracks, a MOTChallenge ``gt.txt`` or a COCO-video json
+  (:mod:`aias_augment.core.track_labels`); they go into the output with their track ids (the inserted objects take
+  the ids after theirs), hide the inserted objects behind them (:mod:`aias_augment.pipeline.clip_occluders`), and
+  carry their visibility under the inserted objects in front of them.
 
 Outputs in ``out``: ``frames/NNNNNN.jpg`` (augmented), ``annotations.json`` (COCO-video: ``videos``, each image's
-``video_id`` and ``frame_id``, one ``track_id`` per inserted object with its visible mask as RLE and its amodal box;
-validated by pycocotools), ``mot.txt`` (MOTChallenge: frame, id, x, y, w, h, 1, -1, -1, -1, frames from 1),
+``video_id`` and ``frame_id``, one ``track_id`` per inserted object with its visible mask as RLE and its amodal box,
+the labelled tracks beside them; validated by pycocotools; :mod:`aias_augment.cli.clip_annotations`), ``mot.txt``
+(MOTChallenge: frame, id, bb_left, bb_top, w, h, conf, -1, -1, -1, frames and pixels from 1),
 ``record.json`` (everything needed to replay: seed, asset, world pose, contact, modules used), ``side_by_side.mp4``
 (original | augmented with boxes), ``contact_sheet.jpg`` and ``manifest.json`` (the run key and the files, complete
 only after the last write; :mod:`aias_augment.cli.clip_output`). Every file is written atomically; a complete clip of
@@ -38,7 +43,6 @@ import cv2
 import numpy as np
 
 from aias_augment.analyse.ground import prior_ground_plane
-from aias_augment.apply.annotate import encode_rle
 from aias_augment.cli.clip_inputs import (
     IMAGE_SUFFIXES,
     VIDEO_SUFFIXES,
@@ -48,10 +52,10 @@ from aias_augment.cli.clip_inputs import (
     read_camera,
     read_cams_from_world,
     read_clip_frames,
+    read_clip_labels,
 )
 from aias_augment.cli.clip_output import ClipInput, ClipOutput, clip_manifest, files_hash
 from aias_augment.cli.manifest import ManifestMismatch, check_out_apart, file_hash, output_lock
-from aias_augment.core.coco_io import CocoBuilder
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from aias_augment.core.report import skipped, skipped_stages
 from aias_augment.core.viz import contact_sheet, draw_boxes
@@ -111,6 +115,12 @@ class ClipJob:
     # Objects never meet: one whose box would meet another's in any frame is redrawn (record: "draws",
     # "skipped_objects").
     objects: int = 1
+    # The clip's own track labels (MOT or COCO-video; format None: detected), carried into the output with their
+    # track ids, occluding inserted objects behind them (aias_augment.pipeline.clip_occluders). MOT rows name no
+    # class: they are labels_category.
+    labels: str | None = None
+    labels_format: str | None = None
+    labels_category: str = "object"
 
     def __post_init__(self):
         if self.lighting not in ("clip", "ambient"):
@@ -147,6 +157,14 @@ class ClipJob:
             raise ValueError(
                 "--topple: a toppling object stands where it falls, not with --object-speed or --flow-refine"
             )
+        from aias_augment.core.track_labels import FORMATS
+
+        if self.labels_format is not None and self.labels_format not in FORMATS:
+            raise ValueError(f"--labels-format must be one of {', '.join(FORMATS)}, got {self.labels_format!r}")
+        if self.labels is None and (self.labels_format is not None or self.labels_category != "object"):
+            raise ValueError("--labels-format and --labels-category need --labels (the clip's label file)")
+        if not self.labels_category.strip():
+            raise ValueError("--labels-category must name a class")
         if not (np.isfinite(self.camera_height_m) and 0 < self.camera_height_m <= MAX_CAMERA_HEIGHT_M):
             raise ValueError(
                 f"camera_height_m (--camera-height) must be in (0, {MAX_CAMERA_HEIGHT_M:g}] metres above the ground, "
@@ -168,6 +186,8 @@ class ClipInputs:
     idx: np.ndarray  # index in the input of each frame used
     intrinsics: Intrinsics | None  # --camera's, checked against the frame size
     poses: np.ndarray | None  # (N, 4, 4) cam_from_world of the frames used, from --poses
+    labels: list[list] | None = None  # per frame its labelled boxes (core.track_labels.TrackBox), from --labels
+    labels_outside: int = 0  # labelled boxes in input frames the clip does not use
 
 
 @dataclass
@@ -182,10 +202,12 @@ class RenderedClip:
     skipped_objects: list[dict]
     notes: dict
     layer_params: list
+    labels_visibility: list | None = None  # per frame, each labelled box's fraction left uncovered
+    occluders: dict | None = None  # how the labelled objects' masks were made
 
 
 CLIP_FILES = ("annotations.json", "mot.txt", "side_by_side.mp4", "contact_sheet.jpg", "record.json")
-_PATH_FIELDS = ("input", "camera", "poses", "stereo_right")
+_PATH_FIELDS = ("input", "camera", "poses", "stereo_right", "labels")
 
 
 def _job_dict(job: ClipJob) -> dict:
@@ -203,7 +225,12 @@ def read_clip_inputs(job: ClipJob) -> ClipInputs:
     if all_poses is not None:
         check_pose_count(len(all_poses), int(idx[-1]), job.poses, job.input)
         poses = all_poses[idx]
-    return ClipInputs(frames, names, idx, intr, poses)
+    inputs = ClipInputs(frames, names, idx, intr, poses)
+    if job.labels is not None:
+        inputs.labels, inputs.labels_outside = read_clip_labels(
+            job.labels, job.labels_format, names, idx, job.labels_category
+        )
+    return inputs
 
 
 def clip_run_manifest(job: ClipJob, names: list[str]) -> dict:
@@ -217,7 +244,10 @@ def clip_run_manifest(job: ClipJob, names: list[str]) -> dict:
         sha = files_hash(clip_frame_files(p, job.start, job.max_frames, job.stride)) if p.is_dir() else file_hash(p)
         inputs.append(ClipInput(field, os.path.abspath(p), sha))
     options = {k: v for k, v in _job_dict(job).items() if k not in (*_PATH_FIELDS, "out", "seed", "preset")}
-    blank = dataclasses.replace(job, out="", input="", camera=None, poses=None, stereo_right=None, seed=0)
+    labels = None if job.labels is None else ""  # its content is hashed in the inputs
+    blank = dataclasses.replace(
+        job, out="", input="", camera=None, poses=None, stereo_right=None, labels=labels, seed=0
+    )
     files = [f"frames/{n}.jpg" for n in names] + list(CLIP_FILES)
     return clip_manifest(blank, job.seed, job.preset, options, inputs, files)
 
@@ -321,7 +351,12 @@ def render_clip(job: ClipJob, inputs: ClipInputs) -> RenderedClip:
     )
 
     placed = plan_clip_objects(job, frames, intr, poses, rng, cfg, ground0, lighting, layer_params, (category, asset))
-    results = apply_clip_objects(frames, intr, placed["plans"], cfg)
+    occluders = None
+    if inputs.labels is not None:
+        from aias_augment.pipeline.clip_occluders import occluder_depths
+
+        occluders = occluder_depths(frames, intr, placed["plans"], inputs.labels)
+    results = apply_clip_objects(frames, intr, placed["plans"], cfg, None if occluders is None else occluders.depths)
     out_frames, harmonize_note = _harmonize(job, results[0].frames, results, len(frames), rng)
     # A grey clip (KITTI image_0/image_l) stays grey: an orange cone in a grey frame would be a give-away.
     grey = all(np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2]) for f in frames)
@@ -334,7 +369,20 @@ def render_clip(job: ClipJob, inputs: ClipInputs) -> RenderedClip:
         "harmonize": harmonize_note,
         "colour": "grey clip: output converted to grey" if grey else "colour clip",
     }
-    return RenderedClip(out_frames, intr, results=results, notes=notes, layer_params=layer_params, **placed)
+    clip = RenderedClip(out_frames, intr, results=results, notes=notes, layer_params=layer_params, **placed)
+    if occluders is not None:
+        from aias_augment.pipeline.clip_occluders import labelled_visibility
+
+        object_z = [  # each inserted object's contact z per frame (its origin stands on its contact)
+            [None if p.cams_from_object[i] is None else float(p.cams_from_object[i][2, 3]) for p in placed["plans"]]
+            for i in range(len(frames))
+        ]
+        clip.labels_visibility = [
+            labelled_visibility(boxes, occluders.contact_z[i], [r.masks[i] for r in results], object_z[i]).tolist()
+            for i, boxes in enumerate(inputs.labels)
+        ]
+        clip.occluders = {"grabcut_masks": occluders.grabcut, "whole_box_masks": occluders.whole_box}
+    return clip
 
 
 def plan_clip_objects(job, frames, intr, poses, rng, cfg, ground0, lighting, layer_params, first) -> dict:
@@ -410,43 +458,26 @@ def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: Rende
     record through ``output`` (each file atomically); returns the record."""
     from pycocotools.coco import COCO
 
+    from aias_augment.cli.clip_annotations import clip_annotations, inserted_track_offset
+
     names, idx, intr = inputs.names, inputs.idx, clip.intrinsics
     h, w = inputs.frames[0].shape[:2]
-    categories = list(dict.fromkeys(c for c, _ in clip.objects))
-    coco = CocoBuilder({c: j + 1 for j, c in enumerate(categories)})
-    coco.videos.append({"id": 1, "name": Path(job.input).name, "width": w, "height": h, "fps": job.fps})
-    drawn, mot = [], []
+    video = {"name": Path(job.input).name, "width": w, "height": h, "fps": job.fps}
+    cats = [c for c, _ in clip.objects]
+    ann = clip_annotations(video, names, idx, clip.results, cats, inputs.labels, clip.labels_visibility)
+    drawn = []
     for i, (name, img) in enumerate(zip(names, clip.frames)):
-        file_name = f"frames/{name}.jpg"
-        output.write_image(file_name, img)
-        image_id = coco.add_image(file_name, w, h, frame_index=int(idx[i]), video_id=1, frame_id=i)
-        boxes, labels = [], []
-        for track, (r, (cat, _)) in enumerate(zip(clip.results, clip.objects), start=1):
-            box = r.boxes_xywh[i]
-            if box is None:
-                continue
-            visible = r.masks[i] > 0.5
-            coco.add_box(
-                image_id,
-                cat,
-                box,
-                segmentation=encode_rle(visible),
-                area=float(visible.sum()),
-                inserted=True,
-                track_id=track,
-                amodal_bbox=[float(v) for v in r.amodal_boxes_xywh[i]],
-            )
-            mot.append(f"{i + 1},{track},{box[0]:.2f},{box[1]:.2f},{box[2]:.2f},{box[3]:.2f},1,-1,-1,-1")
-            boxes.append(box), labels.append(cat)
-        drawn.append(draw_boxes(img, boxes, labels, inserted=[True] * len(boxes)))
-    output.write_json("annotations.json", coco.to_dict(), check=lambda p: COCO(str(p)))  # pycocotools validates
-    output.write_bytes("mot.txt", "".join(line + "\n" for line in mot).encode())
+        output.write_image(f"frames/{name}.jpg", img)
+        drawn.append(draw_boxes(img, ann.boxes[i], ann.labels[i], inserted=ann.inserted[i]))
+    output.write_json("annotations.json", ann.coco, check=lambda p: COCO(str(p)))  # pycocotools validates
+    output.write_bytes("mot.txt", "".join(line + "\n" for line in ann.mot_lines).encode())
     output.write_with("side_by_side.mp4", lambda p: _write_side_by_side(p, inputs.frames, drawn, job.fps))
     picks = np.unique(np.linspace(0, len(drawn) - 1, min(6, len(drawn))).astype(int))
     output.write_image(
         "contact_sheet.jpg", contact_sheet([drawn[i] for i in picks], cols=3, titles=[names[i] for i in picks])
     )
     res = clip.results[0]
+    offset = inserted_track_offset(inputs.labels)
     record = {
         "job": {k: v for k, v in _job_dict(job).items() if k != "out"},  # the folder may move: not part of it
         "category": clip.objects[0][0],
@@ -461,7 +492,7 @@ def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: Rende
         "visible_frames": int(sum(b is not None for b in res.boxes_xywh)),
         "objects": [
             {
-                "track_id": k + 1,
+                "track_id": offset + k + 1,
                 "category": cat,
                 "asset": a.name,
                 "asset_height_m": float(a.height_m),
@@ -475,11 +506,25 @@ def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: Rende
             for k, ((cat, a), r) in enumerate(zip(clip.objects, clip.results))
         ],
         "skipped_objects": clip.skipped_objects,
+        **({} if inputs.labels is None else {"labels": _labels_record(job, inputs, clip)}),
         "modules": clip.notes,
         "skipped_stages": skipped_stages(clip.notes),
     }
     output.write_json("record.json", record)
     return record
+
+
+def _labels_record(job: ClipJob, inputs: ClipInputs, clip: RenderedClip) -> dict:
+    from aias_augment.cli.clip_annotations import visibility_table
+    from aias_augment.core.track_labels import detect_format
+
+    return {
+        "format": job.labels_format or detect_format(job.labels),
+        "boxes": sum(len(b) for b in inputs.labels),
+        "outside_clip": inputs.labels_outside,
+        "occluder_masks": clip.occluders,
+        "tracks": visibility_table(inputs.labels, clip.labels_visibility),
+    }
 
 
 def clip_command(a) -> int:
@@ -509,6 +554,9 @@ def clip_command(a) -> int:
             object_start_s=a.object_start,
             object_accel_s=a.object_accel,
             objects=a.objects,
+            labels=a.labels,
+            labels_format=a.labels_format,
+            labels_category=a.labels_category,
         )
         record = augment_clip(job, overwrite=a.overwrite)
     except ClipNotVisible as e:

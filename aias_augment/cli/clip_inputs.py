@@ -226,3 +226,49 @@ def check_pose_count(n_poses: int, last_frame: int, poses: str, frames: str) -> 
             f"--poses {poses}: {n_poses} poses, but frame {last_frame} of {frames} is used ({last_frame + 1} "
             "needed); one pose per frame of the input (check --start, --stride, --max-frames)"
         )
+
+
+# ------------------------------------------------------------------------------------------------------------ labels
+def read_clip_labels(
+    path: str | Path, fmt: str | None, names: list[str], idx: np.ndarray, category: str = "object"
+) -> tuple[list[list], int]:
+    """(per frame of the clip, its labelled boxes; how many labelled boxes lie in input frames the clip does not use)
+    from a MOTChallenge or COCO-video file (``fmt`` None: detected, :func:`aias_augment.core.track_labels.
+    detect_format`). A MOT row's frame is its input frame (frame 1 = the input's first); a COCO-video image's is the
+    frame of --input with its file name when every image names one (a frame folder), else its ``frame_id``
+    (0-based in the input). ``category``: the class of MOT rows (MOT files name none)."""
+    from aias_augment.core.track_labels import FORMATS, detect_format, read_coco_video, read_mot
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"--labels {p}: no such file")
+    fmt = fmt or detect_format(p)
+    if fmt not in FORMATS:
+        raise InputError(f"--labels-format {fmt!r}: use one of {', '.join(FORMATS)}")
+    boxes = read_mot(p, category) if fmt == "mot" else read_coco_video(p)
+    if fmt == "coco-video" and not all(b.frame_name in set(names) for b in boxes):
+        no_frame = next((b for b in boxes if b.frame < 0), None)
+        if no_frame is not None:
+            raise InputError(
+                f"--labels {p}: image {no_frame.frame_name} is no frame of --input and has no frame_id; name the "
+                "images as the input's frames or give each its frame_id"
+            )
+        by_name = None
+    else:
+        by_name = fmt == "coco-video"
+    slot = {n: i for i, n in enumerate(names)} if by_name else {int(f): i for i, f in enumerate(idx)}
+    per_frame: list[list] = [[] for _ in names]
+    outside = 0
+    for b in boxes:
+        i = slot.get(b.frame_name if by_name else b.frame)
+        if i is None:
+            outside += 1
+        else:
+            per_frame[i].append(b)
+    if boxes and outside == len(boxes):
+        first, last = (names[0], names[-1]) if by_name else (int(idx[0]), int(idx[-1]))
+        raise InputError(
+            f"--labels {p}: none of its {len(boxes)} boxes is in the clip's frames {first}..{last}; check that they "
+            "are this clip's labels (and --start, --stride, --max-frames)"
+        )
+    return per_frame, outside

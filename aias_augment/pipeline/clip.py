@@ -124,6 +124,7 @@ class ClipInsertion:
     masks: list[np.ndarray | None] = field(default_factory=list)  # per frame: the object's visible soft alpha
     modules: dict[str, str] = field(default_factory=dict)
     contact_track_in_world: np.ndarray | None = None  # (N, 3) the contact per frame (a moving object moves it)
+    visibilities: list[float | None] = field(default_factory=list)  # per frame: visible / amodal pixels
 
     def coco_annotations(self, category: str, first_image_id: int = 0) -> list[dict]:
         """One COCO annotation per frame where the object is visible (image_id = first_image_id + frame index)."""
@@ -474,7 +475,9 @@ def apply_clip_objects(
     own (one transform for the clip, :func:`aias_augment.apply.harmonize.harmonize_clip`), not per frame.
 
     Returns one :class:`ClipInsertion` per plan; their ``frames`` are the same list (every object drawn in it),
-    ``boxes``/``masks`` each object's own visible part."""
+    ``boxes``/``masks`` each object's own visible part. ``depths``: per frame None or an (H, W) z-depth map (0:
+    unknown) of the scene, in front of which nothing inserted is drawn (e.g. labelled objects,
+    :func:`aias_augment.pipeline.clip_occluders.occluder_depths`)."""
     from aias_augment.analyse.analysis import SceneAnalysis
     from aias_augment.apply.stages import apply_plan  # lazy: the apply step imports the renderer
     from aias_augment.core.frame import Frame
@@ -496,6 +499,7 @@ def apply_clip_objects(
     boxes = [[] for _ in plans]
     amodal = [[] for _ in plans]
     masks = [[] for _ in plans]
+    visibilities = [[] for _ in plans]
     for i, img in enumerate(frames):
         img = np.asarray(img)
         live = [k for k, plan in enumerate(plans) if plan.cams_from_object[i] is not None]
@@ -529,12 +533,13 @@ def apply_clip_objects(
         for k in range(len(plans)):
             j = rendered.get(id(placements[k])) if k in placements else None
             if j is None:
-                boxes[k].append(None), amodal[k].append(None), masks[k].append(None)
+                boxes[k].append(None), amodal[k].append(None), masks[k].append(None), visibilities[k].append(None)
                 continue
             ann = res.annotations[j]
             boxes[k].append(ann.visible_box_xywh)
             amodal[k].append(ann.amodal_box_xywh)
             masks[k].append(res.object_cover(j))
+            visibilities[k].append(float(ann.visibility))
     return [
         ClipInsertion(
             out_frames,
@@ -548,6 +553,7 @@ def apply_clip_objects(
             masks[k],
             dict(plan.modules),
             plan.contact_track_in_world,
+            visibilities[k],
         )
         for k, plan in enumerate(plans)
     ]

@@ -158,7 +158,8 @@ def test_a_static_cameras_clip_needs_no_poses_and_its_object_stays_put(tmp_path,
 
 def test_clip_outputs_are_coco_video_with_masks_and_motchallenge(clip_run):
     """pycocotools reads the COCO-video file; each visible mask (RLE) has the annotation's box as its own bounding box
-    and its pixel count as the area; mot.txt has MOTChallenge's ten columns, frames from 1, the same boxes."""
+    and its pixel count as the area; mot.txt has MOTChallenge's ten columns, frames from 1, the same boxes in its
+    pixels from 1 (bb_left = x + 1, as motmetrics reads them)."""
     from pycocotools import mask as mask_utils
 
     out, _ = clip_run
@@ -177,7 +178,8 @@ def test_clip_outputs_are_coco_video_with_masks_and_motchallenge(clip_run):
     assert rows and all(len(r) == 10 and r[1] == "1" and r[6:] == ["1", "-1", "-1", "-1"] for r in rows)
     assert {int(r[0]): [float(v) for v in r[2:6]] for r in rows}.keys() == by_frame.keys()
     for r in rows:
-        assert np.allclose([float(v) for v in r[2:6]], by_frame[int(r[0])], atol=0.01)
+        x, y, w, h = by_frame[int(r[0])]
+        assert np.allclose([float(v) for v in r[2:6]], [x + 1, y + 1, w, h], atol=0.01)
 
 
 def test_several_objects_each_have_their_own_track(clip_run, tmp_path):
