@@ -155,7 +155,7 @@ def read_coco_video(path: str | Path, flag: str = "--labels") -> list[TrackBox]:
 
 def format_number(v: float) -> str:
     """``v`` rounded to 1e-4 px, without trailing zeros (``100``, ``10.37``)."""
-    return np.format_float_positional(round(float(v), 4), trim="-")
+    return np.format_float_positional(round(float(v), 4) + 0.0, trim="-")  # + 0.0: no "-0"
 
 
 def mot_line(frame: int, track_id: int, box_xywh, conf: float = 1.0) -> str:
