@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -282,9 +283,9 @@ def main(argv=None) -> int:
         ap.error("--per-image >= 0, --workers >= 1, --limit >= 1 and --max-megapixels >= 0 please")
     try:
         # Every option is checked here, before any image is read or any record written.
-        check_out_apart(a.out, named_inputs(a))  # first: nothing of the user's may be written over
+        paths = asset_paths(a.assets, a.assets_bank)  # reads only: a bad spec is named as itself
+        check_out_apart(a.out, named_inputs(a))  # before any write: nothing of the user's may be written over
         options = {"boxes": a.boxes}
-        paths = asset_paths(a.assets, a.assets_bank)
         bank = None
         if paths:
             from aias_augment.assets.asset import AssetError, PathAssets
@@ -388,6 +389,28 @@ def main(argv=None) -> int:
     return 0
 
 
+MAX_ASSET_FOLDER_ENTRIES = 20000  # a folder of meshes, not a disk: the scan stops here with an error
+
+
+def _mesh_files_in(folder: Path, spec: str, kinds: str) -> list[Path]:
+    """The mesh files under ``folder`` (sorted, recursively), after visiting at most
+    :data:`MAX_ASSET_FOLDER_ENTRIES` entries: a spec such as ``traffic_cone=/`` is refused, not scanned."""
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.assets.asset import MESH_SUFFIXES
+
+    found, seen = [], 0
+    for root, dirs, names in os.walk(folder):
+        seen += len(dirs) + len(names)
+        if seen > MAX_ASSET_FOLDER_ENTRIES:
+            raise InputError(
+                f"--assets {spec}: the folder {folder} holds more than {MAX_ASSET_FOLDER_ENTRIES} entries; "
+                f"give a mesh file or a folder of meshes ({kinds})"
+            )
+        dirs.sort()
+        found += [Path(root) / n for n in names if Path(n).suffix.lower() in MESH_SUFFIXES]
+    return sorted(f for f in found if f.is_file())
+
+
 def asset_paths(specs: list[str] | None, bank_dir: str | None = None) -> dict[str, list[str]] | None:
     """``--assets CATEGORY=PATH ...`` and ``--assets-bank DIR`` as :class:`aias_augment.assets.asset.PathAssets` takes
     them: {category: [mesh file or gazebo model folder, ...]}; a folder of meshes gives each mesh file in it (sorted,
@@ -407,7 +430,7 @@ def asset_paths(specs: list[str] | None, bank_dir: str | None = None) -> dict[st
         if p.is_dir() and (p / "model.sdf").is_file():  # a gazebo model folder is one asset
             files = [p]
         elif p.is_dir():
-            files = sorted(f for f in p.rglob("*") if f.is_file() and f.suffix.lower() in MESH_SUFFIXES)
+            files = _mesh_files_in(p, spec, kinds)
             if not files:
                 raise InputError(f"--assets {spec}: no mesh files ({kinds}) in the folder {p}")
         elif p.is_file():

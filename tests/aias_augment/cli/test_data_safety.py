@@ -271,3 +271,16 @@ def test_sun_now_is_one_time_recorded_and_kept_by_a_resume(tmp_path):
     assert len(images) == 2 and images == {
         p.name: p.read_bytes() for p in (tmp_path / "fixed" / "images").rglob("*.png")
     }
+
+
+def test_an_assets_folder_that_is_a_disk_is_named_as_itself_before_any_scan_or_write(tmp_path, capsys):
+    """``--assets traffic_cone=/`` is an --assets error (the folder is not a folder of meshes), not an --out one,
+    and the scan stops at a bounded number of entries."""
+    dataset(tmp_path / "ds")
+    before = snapshot(tmp_path)
+    argv = ["--images", str(tmp_path / "ds" / "images"), "--out", str(tmp_path / "out"), "--assets", "traffic_cone=/", *FAST]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("aias-augment: error: --assets traffic_cone=/:"), err
+    assert "--out" not in err
+    assert snapshot(tmp_path) == before
