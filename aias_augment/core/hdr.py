@@ -9,11 +9,14 @@ Conventions:
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
+
+from aias_augment.core.image_io import ImageTooLarge
 
 __all__ = [
     "srgb_to_linear",
@@ -23,6 +26,9 @@ __all__ = [
     "inverse_tone_map",
     "tone_map_to_uint8",
     "read_exr",
+    "exr_size",
+    "radiance_hdr_size",
+    "MAX_HDR_PIXELS",
     "write_exr",
     "read_radiance_hdr",
     "write_radiance_hdr",
@@ -34,6 +40,22 @@ __all__ = [
 #: Rec.709 / sRGB luminance weights for linear RGB.
 LUMINANCE_WEIGHTS = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
 HDR_SUFFIXES = (".exr", ".hdr")
+# 8192x4096 (an "8K" equirectangular map, 0.4 GB as float32 RGB) is the largest HDR image decoded: an environment map
+# is used for its light, which a 2K map already resolves (the sun disc is ~0.5 deg); a 16K map (1.6 GB decoded, past
+# 8 GB through the lighting) is refused from its header, before any pixel is read.
+MAX_HDR_PIXELS = 8192 * 4096
+
+
+def _check_hdr_size(path: Path, width: int, height: int, max_pixels: int, samples: float = 1.0) -> None:
+    if width < 1 or height < 1:
+        raise ValueError(f"{path}: empty image ({width}x{height}) in its header")
+    if width * height * samples > max_pixels:
+        extra = f" x {samples * 3:g} channels / 3" if samples != 1.0 else ""
+        raise ImageTooLarge(
+            f"{width}x{height}{extra} is above the {max_pixels / 1e6:g} MP limit of an HDR image (8192x4096); "
+            "downsample it first (e.g. oiiotool IN --resize 4096x2048 -o OUT)",
+            path,
+        )
 
 
 def _as_unit_float(image: np.ndarray) -> np.ndarray:
@@ -126,13 +148,31 @@ def inverse_tone_map(image: np.ndarray, params: InverseToneMapParams = InverseTo
 # ----------------------------------------------------------------------------------------------------------- file IO
 
 
-def read_exr(path: str | Path) -> np.ndarray:
-    """Read an OpenEXR file's RGB as float32 (H, W, 3). Accepts a packed 'RGB'/'RGBA' channel or separate R, G, B."""
+def exr_size(path: str | Path) -> tuple[int, int, int]:
+    """(width, height, channels) of an OpenEXR file's first part, from its header alone (the data window)."""
     import OpenEXR
 
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"EXR not found: {path}")
+    try:
+        header = OpenEXR.File(str(path), header_only=True).header()
+        (x0, y0), (x1, y1) = (np.asarray(v, dtype=np.int64) for v in header["dataWindow"])
+        channels = len(header["channels"])
+    except Exception as e:  # the bindings raise RuntimeError, KeyError... on a file that is no EXR
+        raise ValueError(f"{path}: not a readable EXR header ({' '.join(str(e).split())})") from None
+    return int(x1 - x0 + 1), int(y1 - y0 + 1), channels
+
+
+def read_exr(path: str | Path, *, max_pixels: int = MAX_HDR_PIXELS) -> np.ndarray:
+    """Read an OpenEXR file's RGB as float32 (H, W, 3). Accepts a packed 'RGB'/'RGBA' channel or separate R, G, B.
+    The size (every channel counted: all are decoded) is checked from the header first: :class:`ImageTooLarge` above
+    ``max_pixels`` RGB pixels."""
+    import OpenEXR
+
+    path = Path(path)
+    width, height, n_channels = exr_size(path)
+    _check_hdr_size(path, width, height, max_pixels, samples=max(n_channels, 3) / 3)
     with OpenEXR.File(str(path)) as f:
         channels = f.channels()
         if "RGB" in channels:
@@ -165,13 +205,34 @@ def write_exr(path: str | Path, rgb: np.ndarray, half: bool = False) -> None:
         f.write(str(path))
 
 
-def read_radiance_hdr(path: str | Path) -> np.ndarray:
-    """Read a Radiance RGBE ``.hdr`` file as float32 RGB (H, W, 3) with OpenCV."""
-    import cv2
+_RADIANCE_RESOLUTION = re.compile(rb"^([-+])([XY]) +(\d+) +([-+])([XY]) +(\d+)$")
 
+
+def radiance_hdr_size(path: str | Path) -> tuple[int, int]:
+    """(width, height) of a Radiance ``.hdr`` file from its header (the resolution line after the blank line)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"HDR not found: {path}")
+    with open(path, "rb") as f:
+        head = f.read(1 << 16)
+    if not head.startswith((b"#?", b"#?RADIANCE", b"#?RGBE")) or b"\n\n" not in head:
+        raise ValueError(f"{path}: not a Radiance HDR file (no '#?' signature or header end in the first 64 KB)")
+    line = head.split(b"\n\n", 1)[1].split(b"\n", 1)[0].strip()
+    m = _RADIANCE_RESOLUTION.match(line)
+    if not m or m[2] == m[5]:
+        raise ValueError(f"{path}: bad Radiance resolution line {line[:40]!r}")
+    first, second = int(m[3]), int(m[6])
+    return (second, first) if m[2] == b"Y" else (first, second)
+
+
+def read_radiance_hdr(path: str | Path, *, max_pixels: int = MAX_HDR_PIXELS) -> np.ndarray:
+    """Read a Radiance RGBE ``.hdr`` file as float32 RGB (H, W, 3) with OpenCV, its size checked from the header
+    first (:class:`ImageTooLarge` above ``max_pixels``)."""
+    import cv2
+
+    path = Path(path)
+    width, height = radiance_hdr_size(path)
+    _check_hdr_size(path, width, height, max_pixels)
     bgr = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
     if bgr is None:
         raise ValueError(f"{path}: OpenCV could not decode it as Radiance HDR")
@@ -192,18 +253,19 @@ def write_radiance_hdr(path: str | Path, rgb: np.ndarray) -> None:
         raise OSError(f"OpenCV failed to write {path}")
 
 
-def read_hdr_image(path: str | Path) -> np.ndarray:
-    """Read an EXR or Radiance .hdr by suffix; negative values (compression noise) are clipped to 0."""
+def read_hdr_image(path: str | Path, *, max_pixels: int = MAX_HDR_PIXELS) -> np.ndarray:
+    """Read an EXR or Radiance .hdr by suffix; negative values (compression noise) are clipped to 0. The size is
+    checked from the header before decoding (:class:`ImageTooLarge` above ``max_pixels``)."""
     suffix = Path(path).suffix.lower()
     if suffix == ".exr":
-        rgb = read_exr(path)
+        rgb = read_exr(path, max_pixels=max_pixels)
     elif suffix == ".hdr":
-        rgb = read_radiance_hdr(path)
+        rgb = read_radiance_hdr(path, max_pixels=max_pixels)
     else:
         raise ValueError(f"unsupported HDR file type {suffix!r} for {path}; expected one of {HDR_SUFFIXES}")
-    if not np.all(np.isfinite(rgb)):
+    if not np.isfinite(rgb).all():
         raise ValueError(f"{path}: contains NaN or Inf pixels")
-    return np.clip(rgb, 0.0, None)
+    return np.maximum(rgb, 0.0, out=rgb)
 
 
 def write_hdr_image(path: str | Path, rgb: np.ndarray) -> None:

@@ -76,3 +76,84 @@ def test_inverse_tone_map_never_nan(r, g, b):
     img[2:4, 2:4] = 255
     out = hdr.inverse_tone_map(img)
     assert np.all(np.isfinite(out)) and out.min() >= 0
+
+
+# ------------------------------------------------------------------------------ size checked from the header
+def _exr_claiming(tmp_path, width: int, height: int):
+    """A small real EXR whose header's data window is rewritten to ``width`` x ``height``: its pixel data is that of
+    a 16x8 image, so decoding it would allocate the claimed size and then fail; its header costs nothing."""
+    import struct
+
+    p = tmp_path / "huge.exr"
+    hdr.write_exr(p, np.ones((8, 16, 3), np.float32))
+    data = bytearray(p.read_bytes())
+    key = b"dataWindow\0box2i\0" + struct.pack("<i", 16)
+    at = data.index(key) + len(key)
+    assert struct.unpack("<4i", data[at : at + 16]) == (0, 0, 15, 7)
+    data[at : at + 16] = struct.pack("<4i", 0, 0, width - 1, height - 1)
+    p.write_bytes(bytes(data))
+    return p
+
+
+def test_exr_size_from_the_header(tmp_path):
+    hdr.write_exr(tmp_path / "a.exr", np.zeros((8, 16, 3), np.float32))
+    assert hdr.exr_size(tmp_path / "a.exr") == (16, 8, 3)
+    assert hdr.exr_size(_exr_claiming(tmp_path, 16384, 8192)) == (16384, 8192, 3)
+
+
+def test_16k_exr_refused_from_the_header(tmp_path):
+    from aias_augment.core.image_io import ImageTooLarge
+
+    with pytest.raises(ImageTooLarge, match=r"huge.exr: 16384x8192 is above the 33.5544 MP limit"):
+        hdr.read_hdr_image(_exr_claiming(tmp_path, 16384, 8192))
+
+
+def _radiance_claiming(tmp_path, resolution: bytes):
+    p = tmp_path / "huge.hdr"
+    p.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + resolution + b"\n" + b"\x02\x02\x40\x00" * 4)
+    return p
+
+
+def test_radiance_size_from_the_header(tmp_path):
+    hdr.write_hdr_image(tmp_path / "a.hdr", np.ones((8, 16, 3), np.float32))
+    assert hdr.radiance_hdr_size(tmp_path / "a.hdr") == (16, 8)
+    assert hdr.radiance_hdr_size(_radiance_claiming(tmp_path, b"+X 300 -Y 200")) == (300, 200)
+
+
+def test_16k_radiance_hdr_refused_from_the_header(tmp_path):
+    from aias_augment.core.image_io import ImageTooLarge
+
+    with pytest.raises(ImageTooLarge, match="16384x8192 is above"):
+        hdr.read_hdr_image(_radiance_claiming(tmp_path, b"-Y 8192 +X 16384"))
+
+
+def test_hdr_at_the_bound_is_read(tmp_path):
+    rgb = np.ones((8, 16, 3), np.float32)
+    hdr.write_exr(tmp_path / "a.exr", rgb)
+    assert np.array_equal(hdr.read_hdr_image(tmp_path / "a.exr", max_pixels=128), rgb)
+    with pytest.raises(ValueError, match="above the"):
+        hdr.read_hdr_image(tmp_path / "a.exr", max_pixels=127)
+
+
+@pytest.mark.parametrize("body", [b"not an hdr", b"#?RADIANCE\n\n-Y x +X 3\n", b"#?RADIANCE\n\n-Y 2 -Y 3\n"])
+def test_bad_radiance_header_one_line(tmp_path, body):
+    (tmp_path / "b.hdr").write_bytes(body)
+    with pytest.raises(ValueError, match="b.hdr: ") as e:
+        hdr.read_hdr_image(tmp_path / "b.hdr")
+    assert "\n" not in str(e.value)
+
+
+def test_bad_exr_header_one_line(tmp_path):
+    (tmp_path / "b.exr").write_bytes(b"\x76\x2f\x31\x01garbage")
+    with pytest.raises(ValueError, match="b.exr: not a readable EXR header") as e:
+        hdr.read_hdr_image(tmp_path / "b.exr")
+    assert "\n" not in str(e.value)
+
+
+def test_envmap_flag_refuses_a_16k_map_in_one_line(tmp_path):
+    from aias_augment.cli.augment import envmap_fact
+    from aias_augment.core.errors import InputError
+
+    with pytest.raises(InputError, match=r"^--envmap .*huge.exr: .*16384x8192 is above") as e:
+        envmap_fact(str(_exr_claiming(tmp_path, 16384, 8192)))
+    assert "\n" not in str(e.value)

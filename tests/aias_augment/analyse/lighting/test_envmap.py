@@ -83,3 +83,21 @@ def test_assemble_envmap_long_focal_lengths_average_what_the_frame_sees(fx):
         assert np.allclose(vals, 2.5, atol=0.05), vals
     else:
         assert 1.0 <= vals.min() and vals.max() <= 3.0
+
+
+def test_large_map_averaged_down_keeping_its_power(tmp_path):
+    from aias_augment.core.hdr import write_exr
+
+    rng = np.random.default_rng(0)
+    big = rng.uniform(0.2, 1.0, (64, 128, 3)).astype(np.float32)
+    big[12:16, 40:44] = 1e4  # a sun, 4x4 px
+    write_exr(tmp_path / "m.exr", big)
+    env = em.EnvironmentMap.from_file(tmp_path / "m.exr", max_height=16)
+    assert env.shape == (16, 32)
+
+    def power(r):  # radiance integrated over the sphere, per channel
+        return (r * em.pixel_solid_angles(r.shape[0])[..., None]).sum(axis=(0, 1))
+
+    assert np.allclose(power(env.radiance), power(big), rtol=0.02)
+    assert np.unravel_index(np.argmax(env.radiance[..., 0]), env.shape) == (3, 10)  # the sun's block, 4x smaller
+    assert em.EnvironmentMap.from_file(tmp_path / "m.exr").shape == (64, 128)  # under the default bound: as read
