@@ -1,7 +1,9 @@
 """Performance regression guard: a reference commit against the working tree, run alternately in one sitting.
 
-    taskset -c 0 nice python benchmarks/bench_regression_guard.py --ref <commit>     # default run, ~6-8 min
-    taskset -c 0 nice python benchmarks/bench_regression_guard.py --ref <commit> --quick
+    taskset -c 0 nice python benchmarks/bench_regression_guard.py --ref <commit>           # 3 rounds, ~8 min
+    taskset -c 0 nice python benchmarks/bench_regression_guard.py --ref <commit> --quick   # 2 rounds, ~3 min
+
+(Minutes on the project's 2-core machine shared with other jobs, load average 7-10: 4 rounds took 704 s.)
 
 The reference is checked out with ``git worktree add`` into a temporary folder under /tmp (removed at the end) and
 imported through ``PYTHONPATH`` in a subprocess; the working tree (or ``--tree <commit>``, checked out the same way)
@@ -209,27 +211,37 @@ METRICS = (
 )
 
 
+def _values(run: dict, key: str) -> list:
+    return run[key] if isinstance(run[key], list) else [run[key]]
+
+
 def summarize(samples: dict) -> dict:
+    """Per metric: each side's median over every sample, their ratio tree/ref, and the ratio within each round (the
+    two sides measured back to back: its spread shows how far the machine's load moved the pooled ratio)."""
     out = {}
     for name, unit, kind, key in METRICS:
         row = {"unit": unit}
         for side in ("ref", "tree"):
-            runs = samples[side][kind]
-            vals = [v for run in runs for v in (run[key] if isinstance(run[key], list) else [run[key]])]
+            vals = [v for run in samples[side][kind] for v in _values(run, key)]
             row[side] = _median(vals)
             row[f"{side}_n"] = len([v for v in vals if v is not None])
         row["ratio"] = row["tree"] / row["ref"] if row["ref"] and row["tree"] is not None else None
+        rounds = zip(samples["ref"][kind], samples["tree"][kind])
+        per_round = [(_median(_values(t, key)), _median(_values(r, key))) for r, t in rounds]
+        row["round_ratios"] = [t / r if r and t is not None else None for t, r in per_round]
         out[name] = row
     return out
 
 
 def table(metrics: dict) -> str:
-    lines = ["| measurement | ref | tree | tree/ref |", "|---|---:|---:|---:|"]
+    lines = ["| measurement | ref | tree | tree/ref | per round (min-max) |", "|---|---:|---:|---:|---:|"]
     for name, r in metrics.items():
-        fmt = (lambda v: "-" if v is None else f"{v:.1f} {r['unit']}") if r["unit"] == "ms" else None
-        fmt = fmt or (lambda v: "-" if v is None else f"{v:.2f} {r['unit']}")
+        digits = 1 if r["unit"] == "ms" else 2
+        fmt = lambda v: "-" if v is None else f"{v:.{digits}f} {r['unit']}"
         ratio = "-" if r["ratio"] is None else f"{r['ratio']:.3f}"
-        lines.append(f"| {name} | {fmt(r['ref'])} | {fmt(r['tree'])} | {ratio} |")
+        rr = [x for x in r["round_ratios"] if x is not None]
+        spread = f"{min(rr):.2f}-{max(rr):.2f}" if rr else "-"
+        lines.append(f"| {name} | {fmt(r['ref'])} | {fmt(r['tree'])} | {ratio} | {spread} |")
     return "\n".join(lines)
 
 
@@ -286,7 +298,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     ap.add_argument("--ref", default=None, help="reference commit (default: git merge-base HEAD main)")
     ap.add_argument("--tree", default=None, help="a commit to measure instead of the working tree")
     ap.add_argument("--quick", action="store_true", help="2 rounds, fewer calls, 2 CLI images (~2-3 min)")
-    ap.add_argument("--rounds", type=int, default=None, help="default 4 (--quick: 2)")
+    ap.add_argument("--rounds", type=int, default=None, help="default 3 (--quick: 2)")
     ap.add_argument("--warmup", type=int, default=None, help="transform calls before timing (default 120; quick 40)")
     ap.add_argument("--calls", type=int, default=None, help="timed fresh calls per run (default 60; quick 24)")
     ap.add_argument("--first-sight", type=int, default=None, help="first-sight calls per run (default 6; quick 3)")
@@ -296,7 +308,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--root", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
-    defaults = {"rounds": (4, 2), "warmup": (120, 40), "calls": (60, 24), "first_sight": (6, 3), "images": (4, 2)}
+    defaults = {"rounds": (3, 2), "warmup": (120, 40), "calls": (60, 24), "first_sight": (6, 3), "images": (4, 2)}
     for k, (full, quick) in defaults.items():
         if getattr(a, k) is None:
             setattr(a, k, quick if a.quick else full)
