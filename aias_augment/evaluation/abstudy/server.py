@@ -15,6 +15,9 @@ Routes (all errors are JSON ``{"detail": ...}``):
     GET  /api/results               the report (JSON)        GET  /api/results.csv, /api/votes.csv   CSV exports
     GET  /healthz
 
+Refused before any route (``guard.py``): a ``Host`` other than the address served (400), a body over 64 KiB (413),
+JSON with NaN/Infinity or an overflowing number (422).
+
 The rater is the ``rater`` field of a vote, else the ``rater`` query parameter, else the cookie set by
 ``/api/rater``.
 """
@@ -41,6 +44,7 @@ except ImportError as exc:  # the web app's dependencies are an extra: the pipel
     raise ImportError(f"the A/B study server needs its extra: pip install 'aias-augment[abstudy]' ({exc})") from exc
 
 from aias_augment.evaluation.abstudy.build import MEDIA_TYPES, PAIR_ID_RE, load_study
+from aias_augment.evaluation.abstudy.guard import RequestGuard, host_names
 from aias_augment.evaluation.abstudy.report import compute_report, results_csv, votes_csv
 from aias_augment.evaluation.abstudy.store import DuplicateVote, VoteStore
 
@@ -81,12 +85,16 @@ def clean_rater(name: str | None) -> str | None:
     return name
 
 
-def create_app(study_dir: str | Path) -> FastAPI:
+def create_app(study_dir: str | Path, allowed_hosts=None) -> FastAPI:
+    """The app of the study in ``study_dir``; ``allowed_hosts``: the ``Host`` headers it answers (``host:port``;
+    None: any, until :func:`serve` sets them once its port is bound). Bodies and JSON are guarded (``guard.py``)."""
     study = load_study(study_dir)
     store = VoteStore(Path(study_dir) / "votes.sqlite")
     order_seed = int(study.meta.get("seed", 0))
     app = FastAPI(title="aias-abstudy", docs_url=None, redoc_url=None, openapi_url=None)
     app.state.study, app.state.store = study, store
+    app.state.allowed_hosts = None if allowed_hosts is None else frozenset(h.lower() for h in allowed_hosts)
+    app.add_middleware(RequestGuard, state=app.state)  # inside the headers middleware: its refusals get them too
 
     @app.middleware("http")
     async def headers(request: Request, call_next):
@@ -256,6 +264,7 @@ def serve(study_dir: str | Path, host: str = "127.0.0.1", port: int = 8000, log_
     sock.bind((host, port))
     sock.listen(128)
     bound = sock.getsockname()[1]
+    app.state.allowed_hosts = host_names(host, bound)
     shown = f"[{host}]" if ":" in host else host
     print(f"serving {app.state.study.root} on http://{shown}:{bound}/ (results: /results; Ctrl-C stops)", flush=True)
     config = uvicorn.Config(app, log_level=log_level, access_log=False, timeout_graceful_shutdown=5)

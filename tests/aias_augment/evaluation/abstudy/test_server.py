@@ -250,3 +250,96 @@ def test_a_vote_the_store_cannot_write_is_a_json_503_and_not_recorded(tmp_path, 
         monkeypatch.undo()
         assert request(srv, "GET", "/api/me?rater=ann")[1]["done"] == 0
         assert _vote(srv, "ann", pid)[0] == 201
+
+
+# ------------------------------------------------------------------------- what the guard refuses before a route
+@pytest.mark.parametrize(
+    "raw",
+    [
+        b'{"pair_id": "P", "choice": "left", "rater": "nan1", "ms": NaN}',
+        b'{"pair_id": "P", "choice": "left", "rater": "nan2", "ms": Infinity}',
+        b'{"pair_id": "P", "choice": "left", "rater": "nan3", "ms": -Infinity}',
+        b'{"pair_id": "P", "choice": "left", "rater": "nan4", "ms": 1e400}',
+        b'{"pair_id": NaN, "choice": "left", "rater": "nan5"}',
+    ],
+    ids=["NaN", "Infinity", "-Infinity", "1e400", "NaN-pair"],
+)
+def test_non_finite_json_is_a_422_not_a_500(served, raw):
+    srv, study = served
+    raw = raw.replace(b'"P"', json.dumps(sorted(study.pairs)[1]).encode())
+    st, body, h = request(srv, "POST", "/api/vote", raw=raw, headers={"Content-Type": "application/json"})
+    assert st == 422 and "JSON" in body["detail"], (st, body)
+    assert "default-src 'self'" in h["content-security-policy"]
+    assert not [v for v in VoteStore(study.root / "votes.sqlite").votes() if v["rater"].startswith("nan")]
+    assert request(srv, "GET", "/healthz")[0] == 200
+
+
+def test_body_over_the_cap_is_413_from_its_length_without_reading_it(served):
+    import socket
+
+    from aias_augment.evaluation.abstudy.guard import MAX_BODY_BYTES
+
+    srv, _ = served
+    # the header claims 200 MB and no byte of it follows: an answer proves the server did not wait to read it
+    with socket.create_connection((srv.host, srv.port), timeout=10) as s:
+        s.sendall(
+            f"POST /api/vote HTTP/1.1\r\nHost: {srv.host}:{srv.port}\r\nContent-Type: application/json\r\n"
+            f"Content-Length: {200 * 2**20}\r\n\r\n".encode()
+        )
+        head = s.recv(4096).decode("latin-1")
+    assert head.startswith("HTTP/1.1 413"), head
+    big = b'{"pair_id": "' + b"x" * MAX_BODY_BYTES + b'"}'
+    st, body, _ = request(srv, "POST", "/api/rater", raw=big, headers={"Content-Type": "application/json"})
+    assert st == 413 and str(MAX_BODY_BYTES) in body["detail"]
+
+
+def test_chunked_body_over_the_cap_is_413(served):
+    import http.client
+
+    srv, _ = served
+    con = http.client.HTTPConnection(srv.host, srv.port, timeout=30)
+    try:
+        con.request(
+            "POST",
+            "/api/vote",
+            body=iter([b"{" + b" " * 16384] * 8),  # 128 KiB in chunks, no Content-Length
+            headers={"Content-Type": "application/json"},
+            encode_chunked=True,
+        )
+        resp = con.getresponse()
+        assert resp.status == 413 and "request body over" in json.loads(resp.read())["detail"]
+    finally:
+        con.close()
+
+
+def test_body_under_the_cap_reaches_the_route(served):
+    srv, study = served
+    pad = " " * 60000  # JSON whitespace: a 60 KB body that is a valid vote
+    raw = f'{{"pair_id": "{sorted(study.pairs)[2]}", "choice": "tie", "rater": "padded"{pad}}}'.encode()
+    st, body, _ = request(srv, "POST", "/api/vote", raw=raw, headers={"Content-Type": "application/json"})
+    assert st == 201 and body["done"] == 1
+
+
+@pytest.mark.parametrize(
+    "host, served_ok",
+    [
+        ("{host}:{port}", True),
+        ("localhost:{port}", True),
+        ("LOCALHOST:{port}", True),
+        ("127.0.0.1:{port}", True),
+        ("attacker.example:{port}", False),
+        ("attacker.example", False),
+        ("127.0.0.1:{other}", False),
+        ("", False),
+    ],
+)
+def test_only_the_served_host_is_answered(served, host, served_ok):
+    srv, _ = served
+    host = host.format(host=srv.host, port=srv.port, other=srv.port + 1)
+    st, body, _ = request(srv, "GET", "/api/study", headers={"Host": host})
+    if served_ok:
+        assert st == 200 and body["pairs"] > 0
+    else:
+        assert st == 400 and "does not answer for host" in body["detail"]
+        st, _, _ = request(srv, "POST", "/api/rater", {"name": "rebound"}, headers={"Host": host})
+        assert st == 400
