@@ -130,7 +130,8 @@ def parse_yolo_label_file(path: Path, width: int, height: int) -> tuple[np.ndarr
 
 def load_yolo_dir(root: str | Path, split: str | None = None, names: tuple[str, ...] | None = None) -> DetectionSet:
     """Read ``root/images[/split]`` with ``root/labels[/split]`` (or an ``.../images/<split>`` folder directly).
-    Images without a label file are skipped and counted (a missing file is not the same as 'no objects')."""
+    Images without a label file, and images whose header cannot be read, are skipped and counted (a missing file is
+    not the same as 'no objects')."""
     image_dir, label_dir = _yolo_dirs(Path(root), split)
     records, skipped = [], {}
     for img in sorted(p for p in image_dir.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES):
@@ -138,7 +139,12 @@ def load_yolo_dir(root: str | Path, split: str | None = None, names: tuple[str, 
         if not label_path.exists():
             skipped["no label file"] = skipped.get("no label file", 0) + 1
             continue
-        w, h = image_size(img)
+        try:
+            w, h = image_size(img)
+        except (OSError, ValueError, SyntaxError) as e:  # PIL: not an image, a broken header
+            skipped["unreadable image"] = skipped.get("unreadable image", 0) + 1
+            log.warning("skipping unreadable image %s: %s", img, " ".join(str(e).split()))
+            continue
         boxes, labels = parse_yolo_label_file(label_path, w, h)
         records.append(DetectionRecord(str(img), w, h, boxes, labels))
     if skipped:

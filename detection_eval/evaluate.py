@@ -99,7 +99,8 @@ def format_metrics(m: dict) -> str:
 
     head = "  ".join(f"{k}={f(m[k])}" for k in ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large"))
     cats = "  ".join(f"{k}={f(v)}" for k, v in m["per_category_AP"].items())
+    skipped = f" ({len(m['skipped_images'])} unreadable images skipped)" if m.get("skipped_images") else ""
     return (
         f"{head}\nper category: {cats}\n{m['num_detections']} detections, {m['num_gt']} gt boxes, "
-        f"{m['num_images']} images"
+        f"{m['num_images']} images{skipped}"
     )

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
+import logging
+
+import cv2
 import numpy as np
 import torch
 
@@ -11,6 +15,8 @@ from .data import DetectionSet, coco_gt_dict
 from .evaluate import coco_evaluate, detections_to_coco
 from .loader import CachedImage, cache_image, images_to_tensor, pad_to_square
 from .model import Detector, postprocess
+
+log = logging.getLogger(__name__)
 
 
 def _to_numpy(det: dict, lb, width: int, height: int) -> dict:
@@ -55,10 +61,35 @@ def evaluate_dataset(
     cached: list[CachedImage] | None = None,
     batch_size: int = 8,
 ) -> dict:
-    """COCO metrics of ``model`` on ``dataset`` (image ids = 1-based record positions, as in ``coco_gt_dict``)."""
+    """COCO metrics of ``model`` on ``dataset`` (image ids = 1-based record positions, as in ``coco_gt_dict``).
+
+    Without ``cached``, an image that cannot be read is a logged, counted skip (its labels leave the evaluation
+    with it): the metrics then hold ``skipped_images`` {file: reason}; no readable image at all raises ValueError."""
+    skipped: dict[str, str] = {}
     if cached is None:
-        cached = [cache_image(r, img_size) for r in dataset.records]
+        dataset, cached, skipped = cache_readable(dataset, img_size)
     sizes = [(r.width, r.height) for r in dataset.records]
     dets = predict_cached(model, cached, sizes, cfg, batch_size)
     results = detections_to_coco(range(1, len(dets) + 1), dets, dataset.category_ids)
-    return coco_evaluate(coco_gt_dict(dataset), results)
+    metrics = coco_evaluate(coco_gt_dict(dataset), results)
+    return {**metrics, "skipped_images": skipped} if skipped else metrics
+
+
+def cache_readable(dataset: DetectionSet, img_size: int) -> tuple[DetectionSet, list[CachedImage], dict[str, str]]:
+    """The records whose image decodes, their cached images, and {file: reason} of the others (each logged)."""
+    keep, cached, skipped = [], [], {}
+    for i, r in enumerate(dataset.records):
+        try:
+            cached.append(cache_image(r, img_size))
+        except (OSError, ValueError, cv2.error) as e:
+            skipped[str(r.image_path)] = " ".join(str(e).split())
+            log.warning("skipping unreadable image %s: %s", r.image_path, skipped[str(r.image_path)])
+            continue
+        keep.append(i)
+    if not keep:
+        raise ValueError(f"none of the {len(dataset.records)} images could be read (e.g. {next(iter(skipped))})")
+    if skipped:
+        log.warning("evaluating %d images; %d unreadable images skipped", len(keep), len(skipped))
+        counts = {**dataset.skipped, "unreadable image": dataset.skipped.get("unreadable image", 0) + len(skipped)}
+        dataset = dataclasses.replace(dataset.subset(keep), skipped=counts)
+    return dataset, cached, skipped

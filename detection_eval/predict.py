@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import logging
 from pathlib import Path
 
 import cv2
@@ -21,6 +22,8 @@ from aias_augment.core.logs import add_logging_args, configure_logging
 from .data import IMAGE_SUFFIXES, read_image_rgb
 from .inference import predict_images
 from .train import load_checkpoint
+
+log = logging.getLogger(__name__)
 
 
 def draw_detections(image_rgb: np.ndarray, det: dict, names: list[str]) -> np.ndarray:
@@ -42,7 +45,13 @@ def draw_detections(image_rgb: np.ndarray, det: dict, names: list[str]) -> np.nd
     return cv2.cvtColor(out, cv2.COLOR_BGR2RGB)
 
 
-def predict_folder(weights: str | Path, images: str | Path, out: str | Path, score: float = 0.3) -> list[dict]:
+def predict_folder(
+    weights: str | Path, images: str | Path, out: str | Path, score: float = 0.3, skipped: dict | None = None
+) -> list[dict]:
+    """Detections of every image of the folder (drawn into ``out``, listed in ``out/detections.json``). An image
+    that cannot be read is a logged skip, recorded in ``skipped`` ({file name: reason}) when given; none readable:
+    ValueError."""
+    skipped = {} if skipped is None else skipped
     model, names, _ = load_checkpoint(weights)
     cfg = dataclasses.replace(model.cfg.inference, score_threshold=score)
     paths = sorted(p for p in Path(images).iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
@@ -50,9 +59,15 @@ def predict_folder(weights: str | Path, images: str | Path, out: str | Path, sco
         raise ValueError(f"no images ({', '.join(IMAGE_SUFFIXES)}) in {images}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    results = []
+    results, unread = [], []
     for p in paths:
-        image = read_image_rgb(p)
+        try:
+            image = read_image_rgb(p)
+        except (OSError, ValueError, cv2.error) as e:
+            skipped[p.name] = " ".join(str(e).split())
+            unread.append(p.name)
+            log.warning("skipping unreadable image %s: %s", p, skipped[p.name])
+            continue
         det = predict_images(model, [image], model.cfg.train.img_size, cfg)[0]
         drawn = draw_detections(image, det, names)
         cv2.imwrite(str(out / f"{p.stem}.jpg"), cv2.cvtColor(drawn, cv2.COLOR_RGB2BGR))
@@ -65,6 +80,8 @@ def predict_folder(weights: str | Path, images: str | Path, out: str | Path, sco
                     "bbox_xywh": [float(box[0]), float(box[1]), float(box[2] - box[0]), float(box[3] - box[1])],
                 }
             )
+    if len(unread) == len(paths):
+        raise ValueError(f"none of the {len(paths)} images in {images} could be read (e.g. {unread[0]})")
     (out / "detections.json").write_text(json.dumps(results, indent=1))
     return results
 
@@ -79,8 +96,10 @@ def add_predict_args(p: argparse.ArgumentParser) -> None:
 
 def cmd_predict(args: argparse.Namespace) -> None:
     torch.set_num_threads(1)
-    res = predict_folder(args.weights, args.images, args.out, args.score)
-    print(f"{len(res)} detections written to {args.out}")
+    skipped: dict[str, str] = {}
+    res = predict_folder(args.weights, args.images, args.out, args.score, skipped)
+    note = f"; {len(skipped)} unreadable images skipped" if skipped else ""
+    print(f"{len(res)} detections written to {args.out}{note}")
 
 
 def main(argv: list[str] | None = None) -> None:
