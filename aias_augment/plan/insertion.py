@@ -22,6 +22,7 @@ from aias_augment.plan.placement import (
     Placement,
     draw_box_height_target,
     placement_at,
+    reference_heights_m,
     sample_placement,
     scaled_ground,
     scene_scale_for_sizes,
@@ -99,11 +100,13 @@ def plan_insertion(
             f"3D checks: {0 if scene_points is None else len(scene_points)} scene points, "
             f"{len(boxes_3d)} existing 3D boxes, earlier insertions"
         )
-    references = size_references(taken, existing_labels, cfg.categories, cfg.placement_cfg)
+    ref_kinds = size_reference_kinds(taken, existing_labels, cfg.categories, cfg.placement_cfg)
+    references = [b for b, _ in ref_kinds]
     pcfg = scene_sized_placement(cfg.placement_cfg, references, analysis.image_shape[0])
     if pcfg is not cfg.placement_cfg:
         mods["sizes"] = (
             f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes of the inserted kind"
+            "; an object of a labelled kind as tall as one of them on the ground"
         )
     object_cfgs = [pcfg] * k
     targets = None
@@ -113,10 +116,15 @@ def plan_insertion(
         targets = None if targets[0] is None else targets
     objects, reports = [], []
 
+    ref_heights: dict = {}  # per labelled kind: its objects' heights on the (scaled) ground, measured once
+
     def place(category: str, base: Asset, object_cfg, decoy: bool, near=None) -> None:
         """Place ``base`` (or paste it, without placement) and append it to the plan; a failed search is reported.
         ``near``: (H, W) bool, the ground pixels an arranged object may stand on (with the scene's region)."""
         if cfg.placement:
+            if ref_kinds and not ref_heights:
+                ref_heights.update(_heights_by_kind(ref_kinds, ground, intr))
+            height = _height_like_references(ref_heights.get(category), rng, pcfg.reference_height_jitter)
             placement, report = sample_placement(
                 base,
                 ground,
@@ -129,6 +137,7 @@ def plan_insertion(
                 height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
                 points_in_cam=scene_points,
                 existing_objects=boxes_3d if "collision" in mods else None,
+                object_height_m=height,
             )
             reports.append(report.to_dict())
             if placement is None:
@@ -166,8 +175,9 @@ def plan_insertion(
         if cfg.placement and targets is not None and i == 0:
             hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
             scale = None
-            if references:  # the scene's own objects on their ground rows fix its scale
-                scale, mods["scene_scale"] = scene_scale_from_boxes(ground, intr, references, float(np.mean(hr)), pcfg)
+            if references:  # the scene's own objects on their ground rows fix its scale, each at its kind's height
+                heights = [_kind_height(kind, base) for _, kind in ref_kinds]
+                scale, mods["scene_scale"] = scene_scale_from_boxes(ground, intr, references, np.array(heights), pcfg)
             if scale is None:
                 scale, mods["scene_scale"] = scene_scale_for_sizes(
                     ground, intr, rng, pcfg, float(np.mean(hr)), max(targets), region.mask
@@ -278,9 +288,15 @@ def arrangement_pixels(
 
 
 def size_references(boxes_xyxy: list, labels: list | None, categories, pcfg) -> list:
-    """The boxes of ``boxes_xyxy`` that are objects of an inserted kind: their label is one of ``categories``, is
-    classified into one by the taxonomy's name rules (e.g. "cone", "Traffic cone" -> traffic_cone) or is listed in
-    ``pcfg.size_reference_labels`` (a None label names no kind). None without labels or with
+    """The boxes of ``boxes_xyxy`` that are objects of an inserted kind (:func:`size_reference_kinds`)."""
+    return [b for b, _ in size_reference_kinds(boxes_xyxy, labels, categories, pcfg)]
+
+
+def size_reference_kinds(boxes_xyxy: list, labels: list | None, categories, pcfg) -> list[tuple]:
+    """(box, category) for the boxes of ``boxes_xyxy`` that are objects of an inserted kind: their label is one of
+    ``categories``, is classified into one by the taxonomy's name rules (e.g. "cone", "Traffic cone" ->
+    traffic_cone) or is listed in ``pcfg.size_reference_labels`` (its category: the taxonomy's, else the inserted
+    category when there is one, else None; a None label names no kind). Empty without labels or with
     ``pcfg.sizes_from_existing`` off."""
     if not pcfg.sizes_from_existing or labels is None or not len(boxes_xyxy):
         return []
@@ -288,11 +304,47 @@ def size_references(boxes_xyxy: list, labels: list | None, categories, pcfg) -> 
         raise ValueError(f"{len(boxes_xyxy)} existing boxes but {len(labels)} labels")
     from aias_augment.assets.bank.taxonomy import load_taxonomy  # the bank package imports trimesh: only when needed
 
-    taxonomy, cats, extra = load_taxonomy(), set(categories), set(map(str, pcfg.size_reference_labels))
-    kinds = {None: False}
+    taxonomy, cats, extra = load_taxonomy(), list(dict.fromkeys(categories)), set(map(str, pcfg.size_reference_labels))
+    kinds: dict = {None: False}
     for lab in {str(x) for x in labels if x is not None}:
-        kinds[lab] = lab in cats or lab in extra or taxonomy.classify(lab.replace("_", " ")) in cats
-    return [b for b, lab in zip(boxes_xyxy, labels) if kinds[None if lab is None else str(lab)]]
+        named = lab if lab in cats else taxonomy.classify(lab.replace("_", " "))
+        if named in cats:
+            kinds[lab] = named
+        elif lab in extra:
+            kinds[lab] = cats[0] if len(cats) == 1 else None
+        else:
+            kinds[lab] = False
+    out = []
+    for b, lab in zip(boxes_xyxy, labels):
+        kind = kinds[None if lab is None else str(lab)]
+        if kind is not False:
+            out.append((b, kind))
+    return out
+
+
+def _kind_height(kind: str | None, base: Asset) -> float:
+    """The height (m) a labelled object of ``kind`` is taken to have: its category's mean height; ``base``'s
+    (the first object drawn) for a kind without a known range."""
+    hr = CATEGORY_HEIGHT_RANGE_M.get(kind) if kind is not None else None
+    return float(np.mean(hr)) if hr is not None else float(base.reference_height_m)
+
+
+def _heights_by_kind(ref_kinds: list[tuple], ground, intr: Intrinsics) -> dict:
+    """{category: (M,) heights in metres of the image's labelled objects of it on ``ground``} (whole boxes only)."""
+    boxes = np.array([b for b, _ in ref_kinds], float).reshape(-1, 4)
+    heights = reference_heights_m(ground, intr, boxes)
+    out: dict = {}
+    for h, (_, kind) in zip(heights, ref_kinds):
+        if kind is not None and np.isfinite(h) and h > 0:
+            out.setdefault(kind, []).append(float(h))
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def _height_like_references(heights: np.ndarray | None, rng: np.random.Generator, jitter: float) -> float | None:
+    """A height near one of the labelled objects' ``heights`` (M,) (log-normal jitter), or None without any."""
+    if heights is None or not len(heights):
+        return None
+    return float(heights[int(rng.integers(len(heights)))] * np.exp(rng.normal(0.0, jitter)))
 
 
 def scene_sized_placement(pcfg, existing_xyxy: list, image_height: int):

@@ -99,6 +99,10 @@ class PlacementConfig:
     # the real ones on the same ground row. Images without such boxes are unaffected.
     sizes_from_existing: bool = True
     size_reference_labels: tuple[str, ...] = ()
+    # An inserted object of a kind the image has labelled takes its height from one of those objects (their height
+    # on the scene's ground, :func:`reference_heights_m`) times exp(N(0, reference_height_jitter)): the objects of one
+    # site are mostly one model, and a same-row neighbour of another height would be a different size.
+    reference_height_jitter: float = 0.06
     # A single photo's ground has no measured scale: its plane comes from a camera-height prior
     # (``GroundPlane.assumed_scale``), and a level road camera 1.65 m up cannot see a cone on the ground taller than
     # ~0.25 of the frame, while close-ups and product shots are full of them. With ``scene_scale_from_sizes`` and a
@@ -458,25 +462,28 @@ def scene_scale_from_boxes(
     ground: GroundPlane,
     intrinsics: Intrinsics,
     boxes_xyxy: np.ndarray,
-    object_height_m: float,
+    object_height_m: float | np.ndarray,
     cfg: PlacementConfig,
 ) -> tuple[float | None, str]:
     """Factor ``k`` by which to scale an assumed-scale scene about the camera centre so that objects of
-    ``object_height_m`` standing on the ground at the bottom centres of ``boxes_xyxy`` (the scene's own objects of
-    the inserted kind) are as tall in the image as those boxes: the median over the boxes of the per-box factor,
+    ``object_height_m`` (one for all, or (N,): each box's kind's height) standing on the ground at the bottom centres
+    of ``boxes_xyxy`` (the scene's own objects of the inserted kinds) are as tall in the image as those boxes: the
+    median over the boxes of the per-box factor,
     the camera height ``k * ground.d`` kept inside ``cfg.camera_height_range_m``. Boxes cut by the frame's top or
     bottom edge (their height or base unknown) and bases above the horizon give none. ``(None, reason)`` when no
     box gives a factor; ``(1.0, reason)`` for a measured ground."""
     if not ground.assumed_scale:
         return 1.0, f"measured ground ({ground.source}): its scale is kept"
     b = np.asarray(boxes_xyxy, float).reshape(-1, 4)
+    heights = np.broadcast_to(np.asarray(object_height_m, float), (len(b),))
     h_px = b[:, 3] - b[:, 1]
-    inside = (b[:, 1] > 1.0) & (b[:, 3] < intrinsics.height - 2.0) & (h_px >= 4.0)
+    inside = _whole_boxes(b, intrinsics)
     if not inside.any() or not (ground.d > 0):
         return None, f"none of {len(b)} reference boxes is whole in the frame"
-    b, h_px = b[inside], h_px[inside]
+    b, h_px, heights = b[inside], h_px[inside], heights[inside]
     uv = np.c_[(b[:, 0] + b[:, 2]) / 2, b[:, 3]]
-    k = _scales_for_heights(uv, h_px, object_height_m, ground, intrinsics)
+    k = _scales_for_heights(uv, h_px, heights, ground, intrinsics)
+    object_height_m = float(np.mean(heights))
     k = k[np.isfinite(k)]
     if len(k) == 0:
         return None, f"no reference box stands on the visible ground ({len(b)} whole in the frame)"
@@ -490,10 +497,29 @@ def scene_scale_from_boxes(
     )
 
 
+def _whole_boxes(b: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
+    """(N,) bool: boxes (N, 4) xyxy not cut by the frame's top or bottom edge (height and base seen), >= 4 px tall."""
+    return (b[:, 1] > 1.0) & (b[:, 3] < intrinsics.height - 2.0) & (b[:, 3] - b[:, 1] >= 4.0)
+
+
+def reference_heights_m(ground: GroundPlane, intrinsics: Intrinsics, boxes_xyxy: np.ndarray) -> np.ndarray:
+    """(N,) height in metres of the upright object whose box is each of ``boxes_xyxy`` (N, 4), standing on ``ground``
+    at the box's bottom centre: the height whose projection (:func:`predicted_box_heights_px`) is the box's height.
+    nan for a box cut by the frame's top or bottom edge or whose base is not on the visible ground."""
+    b = np.asarray(boxes_xyxy, float).reshape(-1, 4)
+    out = np.full(len(b), np.nan)
+    ok = _whole_boxes(b, intrinsics)
+    if ok.any() and ground.d > 0:
+        uv = np.c_[(b[ok, 0] + b[ok, 2]) / 2, b[ok, 3]]
+        out[ok] = 1.0 / _scales_for_heights(uv, b[ok, 3] - b[ok, 1], np.ones(int(ok.sum())), ground, intrinsics)
+    return out
+
+
 def _scales_for_heights(
-    uv: np.ndarray, target_px: np.ndarray, object_height_m: float, ground: GroundPlane, intrinsics: Intrinsics
+    uv: np.ndarray, target_px: np.ndarray, object_height_m, ground: GroundPlane, intrinsics: Intrinsics
 ) -> np.ndarray:
-    """Per ground pixel, the scene scale ``k`` at which an object of ``object_height_m`` standing there is
+    """Per ground pixel, the scene scale ``k`` at which an object of ``object_height_m`` (scalar or one per pixel)
+    standing there is
     ``target_px`` tall (nan where none). Scaling the scene by ``k`` shows an object of height ``h`` as the unscaled
     scene shows one of ``h / k``: a fixed-point iteration on the predicted heights, nearly proportional to 1 / k, so
     a few steps converge."""
@@ -508,9 +534,15 @@ def _scales_for_heights(
 
 def _pred_scaled(uv: np.ndarray, heights_m: np.ndarray, ground: GroundPlane, intrinsics: Intrinsics) -> np.ndarray:
     """:func:`predicted_box_heights_px` with one object height per pixel."""
-    base = ground.intersect_pixels(uv, intrinsics)
+    return _pred_from_bases(ground.intersect_pixels(uv, intrinsics), heights_m, ground, intrinsics)
+
+
+def _pred_from_bases(
+    base: np.ndarray, heights_m: np.ndarray, ground: GroundPlane, intrinsics: Intrinsics
+) -> np.ndarray:
+    """(N,) image heights of vertical segments of ``heights_m`` (N,) standing at the ground points ``base`` (N, 3)."""
     top = base + heights_m[:, None] * ground.normal[None, :]
-    out = np.full(len(uv), np.nan)
+    out = np.full(len(base), np.nan)
     ok = np.all(np.isfinite(base), axis=1) & np.isfinite(heights_m) & (base[:, 2] > 0.05) & (top[:, 2] > 0.05)
     if ok.any():
         ub, _ = project_points(base[ok], intrinsics.K)
@@ -603,13 +635,15 @@ class _GroundCandidates:
         return entry
 
     def predicted(self, entry: dict, object_height_m: float, ground: GroundPlane, intrinsics: Intrinsics) -> np.ndarray:
-        pred = entry["pred"].get(object_height_m)
-        if pred is None:
+        """The candidates' :func:`predicted_box_heights_px` for ``object_height_m``: their ground points are kept
+        (heights are continuous draws: one projection per call, from the same points a fresh computation gives)."""
+        base = entry["pred"].get("base")
+        if base is None:
             v, u = np.divmod(entry["cand"], intrinsics.width)
-            pred = predicted_box_heights_px(np.c_[u, v].astype(np.float64), object_height_m, ground, intrinsics)
-            pred.setflags(write=False)
-            entry["pred"][object_height_m] = pred
-        return pred
+            base = ground.intersect_pixels(np.c_[u, v].astype(np.float64), intrinsics)
+            base.setflags(write=False)
+            entry["pred"]["base"] = base
+        return _pred_from_bases(base, np.full(len(base), float(object_height_m)), ground, intrinsics)
 
 
 _GROUND_CANDIDATES = _GroundCandidates()
@@ -629,6 +663,7 @@ def sample_placement(
     points_in_cam: np.ndarray | None = None,
     existing_objects: list | None = None,
     collision_cfg=None,
+    object_height_m: float | None = None,
 ) -> tuple[Placement | None, PlacementReport]:
     """Choose a ground point, scale and yaw for ``asset``; ``None`` (with reasons) when no candidate passes.
 
@@ -640,6 +675,9 @@ def sample_placement(
     records ``ground_used``). Then checked: distance range, scene depth agrees with the plane at that pixel (when
     depth is known), projected box inside the image, pixel size, overlap with existing boxes, and the 3D checks
     of :mod:`.collision` when ``points_in_cam`` or ``existing_objects`` (OrientedBox list) are given.
+
+    Height: ``object_height_m`` when given, else drawn uniformly from ``height_range_m`` (the category's range);
+    with a box-height target it is drawn once, before the candidates are chosen for it.
     """
     w, h = intrinsics.width, intrinsics.height
     K = (
@@ -662,17 +700,19 @@ def sample_placement(
         report.rejected["no ground pixels in view"] += 1
         return None, report
     size_note = ""
+    fixed_h = None if object_height_m is None else float(object_height_m)
     target_frac = draw_box_height_target(cfg, rng)
     if target_frac is not None:
-        obj_h = float(np.mean(hr))
+        # the object's own height, drawn once: the candidates are the pixels where this object has the target size
+        fixed_h = float(rng.uniform(*hr)) if fixed_h is None else fixed_h
         cand, size_note = candidates_for_box_height(
             cand,
             target_frac,
-            obj_h,
+            fixed_h,
             ground,
             intrinsics,
             cfg.box_height_tolerance,
-            pred=_GROUND_CANDIDATES.predicted(entry, obj_h, ground, intrinsics),
+            pred=_GROUND_CANDIDATES.predicted(entry, fixed_h, ground, intrinsics),
         )
         report.target_box_height_px = target_frac * h
     # A child generator for the refits, so that how many points the scene has does not change the draws of
@@ -718,7 +758,7 @@ def sample_placement(
             if np.isfinite(d_scene) and d_scene > 0 and abs(d_scene - p[2]) > cfg.depth_tolerance_rel * p[2]:
                 report.rejected["scene depth disagrees with the ground plane (not free ground)"] += 1
                 continue
-        target_h = rng.uniform(*hr)
+        target_h = rng.uniform(*hr) if fixed_h is None else fixed_h
         scale = target_h / max(asset.reference_height_m, 1e-9)
         yaw = rng.uniform(-np.pi, np.pi)
         cam_from_object = object_pose_on_ground(p, plane, yaw)

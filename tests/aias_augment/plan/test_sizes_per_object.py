@@ -1,0 +1,115 @@
+"""Per-object sizes beside the scene's labelled objects: each inserted object is sized for its own drawn height, and
+the scene's scale comes from the labelled kind (a barrel drawn first does not rescale the cones).
+
+The scene: the assumed-scale road of ``road_image`` seen from a camera 0.8 m above the ground (the assumed plane
+scaled about the camera), with four labelled 0.7 m cones whose boxes are the projected corners of a real cone
+mesh. What an inserted cone is compared with is derived from that truth alone: the box the same real cone has
+when it stands where the inserted one stands (same contact pixel, same ground)."""
+
+from dataclasses import replace
+
+import numpy as np
+
+from aias_augment.analyse.analysis import analyse_scene
+from aias_augment.assets.bank.procedural import procedural_asset_from_seed
+from aias_augment.core.frame import Frame
+from aias_augment.core.geometry import project_points, transform_points
+from aias_augment.plan.insertion import plan_insertion
+from aias_augment.plan.placement import object_pose_on_ground, scaled_ground
+from tests.aias_augment.analyse.test_analysis import CFG, K, road_image
+from tests.aias_augment.fixtures import box_asset
+
+REAL_CONE_M = 0.7
+REAL_PIXELS = [[110.0, 300.0], [330.0, 340.0], [520.0, 390.0], [220.0, 440.0]]
+
+
+class ConesAndBarrels:
+    """A bank: a new procedural cone per draw (its own height, 0.3-1.0 m) and a 1 m barrel-sized box."""
+
+    def __init__(self):
+        self.barrel = box_asset(extents=(0.6, 0.6, 1.0), category="barrel")
+
+    def sample(self, category, rng):
+        if category == "barrel":
+            return self.barrel
+        return procedural_asset_from_seed("traffic_cone", int(rng.integers(2**31)))
+
+
+def _real_cone():
+    a = procedural_asset_from_seed("traffic_cone", 12345)
+    return a.scaled(REAL_CONE_M / a.height_m)
+
+
+def _box_on_ground(asset, ground, pixel, yaw=0.3):
+    p = ground.intersect_pixels(np.asarray([pixel], float), K)[0]
+    uv, _ = project_points(transform_points(object_pose_on_ground(p, ground, yaw), asset.corners_m()), K.K)
+    return np.r_[uv.min(0), uv.max(0)]
+
+
+def _scene():
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    truth = scaled_ground(an.ground, 0.8 / an.ground.d)
+    real = _real_cone()
+    boxes = np.array([_box_on_ground(real, truth, px) for px in REAL_PIXELS])
+    return an, truth, real, boxes
+
+
+def test_inserted_cones_are_the_size_of_the_real_cones_on_their_row_even_after_a_barrel():
+    an, truth, real, boxes = _scene()
+    cfg = replace(CFG, categories=("barrel", "traffic_cone"))
+    bank = ConesAndBarrels()
+    ratios, barrel_first, analytic = [], 0, []
+    for s in range(30):
+        plan = plan_insertion(
+            an,
+            cfg,
+            np.random.default_rng(s),
+            bank=bank,
+            n_objects=3,
+            existing_boxes_xyxy=boxes,
+            existing_labels=["traffic_cone"] * len(boxes),
+        )
+        cats = [o.placement.category for o in plan.objects]
+        barrel_first += bool(cats) and cats[0] == "barrel" and "traffic_cone" in cats
+        for o in plan.objects:
+            if o.placement.category != "traffic_cone":
+                continue
+            x0, y0, x1, y1 = o.placement.amodal_box_xyxy
+            rx0, ry0, rx1, ry1 = _box_on_ground(real, truth, o.placement.contact_pixel, o.placement.yaw_rad)
+            ratios.append((y1 - y0) / (ry1 - ry0))
+            # the drawn height projected at the contact point, against the box (a cone's box adds its base's depth)
+            base = np.asarray(o.placement.contact_point_in_cam)
+            top = base + o.asset.height_m * np.asarray(o.placement.ground_normal_in_cam)
+            seg = abs(K.fy * (base[1] / base[2] - top[1] / top[2]))
+            analytic.append((y1 - y0) / seg)
+    ratios = np.array(ratios)
+    assert barrel_first >= 3, "the sample must hold plans whose first object is a barrel"
+    assert len(ratios) >= 20
+    inside = np.mean((ratios >= 0.8) & (ratios <= 1.25))
+    assert inside >= 0.9, (inside, np.round(np.sort(ratios), 2))
+    analytic = np.array(analytic)
+    assert np.all((analytic >= 1.0) & (analytic <= 1.2)), np.round(analytic, 3)
+
+
+def test_scene_scale_comes_from_the_labelled_kind_not_the_first_object():
+    """Barrel first or cone first, every object of the plan stands on the truth's 0.8 m camera height."""
+    an, truth, real, boxes = _scene()
+    bank = ConesAndBarrels()
+    cfg = replace(CFG, categories=("barrel", "traffic_cone"))
+    firsts = set()
+    for s in range(12):
+        plan = plan_insertion(
+            an,
+            cfg,
+            np.random.default_rng(s),
+            bank=bank,
+            n_objects=2,
+            existing_boxes_xyxy=boxes,
+            existing_labels=["traffic_cone"] * len(boxes),
+        )
+        assert plan.objects and "reference boxes" in plan.modules["scene_scale"]
+        firsts.add(plan.objects[0].placement.category)
+        for o in plan.objects:
+            # the real cones' boxes are their mesh's box (base depth included): within 5 % of the truth
+            assert abs(o.placement.ground_d / 0.8 - 1) < 0.05, (s, plan.modules["scene_scale"])
+    assert firsts == {"barrel", "traffic_cone"}
