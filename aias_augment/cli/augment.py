@@ -9,7 +9,6 @@ aias-augment --input tripod.avi --camera-height 4 --out clip_aug/     # a static
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from pathlib import Path
@@ -535,13 +534,9 @@ def read_box_convention(path: str) -> list:
     """The ``box_convention`` margins of a JSON written by ``aias-assets box-convention`` (InputError otherwise;
     the values are checked by the config)."""
     from aias_augment.adapters.boundary import InputError
+    from aias_augment.core.config_files import load_json_file
 
-    try:
-        data = json.loads(Path(path).read_text())
-    except OSError as e:
-        raise InputError(f"--box-convention {path}: cannot read it ({e.strerror or e})") from None
-    except json.JSONDecodeError as e:
-        raise InputError(f"--box-convention {path}: not valid JSON ({e})") from None
+    data = load_json_file(path, f"--box-convention {path}")  # bounded, strict JSON; ConfigFileError: an InputError
     if not isinstance(data, dict) or not isinstance(data.get("box_convention"), list):
         raise InputError(
             f"--box-convention {path}: expected a mapping with a 'box_convention' list (left, top, right, bottom)"
@@ -565,15 +560,10 @@ def insertion_config(
 
     data: dict = {}
     if config_file:
-        import yaml
+        from aias_augment.core.config_files import load_yaml_file
 
-        try:
-            with open(config_file) as f:
-                data = yaml.safe_load(f) or {}
-        except OSError as e:
-            raise InputError(f"--config {config_file}: cannot read it ({e.strerror or e})") from None
-        except yaml.YAMLError as e:
-            raise InputError(f"--config {config_file}: not valid YAML ({' '.join(str(e).split())})") from None
+        # bounded: size, UTF-8, alias expansion; its ConfigFileError is an InputError naming --config
+        data = load_yaml_file(config_file, f"--config {config_file}") or {}
         if not isinstance(data, dict):
             raise InputError(
                 f"--config {config_file}: expected a mapping of InsertionConfig fields, got {type(data).__name__}"

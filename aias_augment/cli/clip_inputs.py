@@ -21,9 +21,9 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-import yaml
 from scipy.spatial.transform import Rotation
 
+from aias_augment.core.config_files import parse_yaml
 from aias_augment.core.errors import InputError
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, make_rigid
 
@@ -115,10 +115,7 @@ def read_camera(path: str | Path, width: int, height: int, *, colour: bool = Fal
             v: object = read_pyslam_yaml(p)
             keys = ("Camera.fx", "Camera.fy", "Camera.cx", "Camera.cy")
         else:
-            try:
-                v = yaml.safe_load(text) or {}
-            except yaml.YAMLError as e:
-                raise InputError(f"--camera {p}: not valid YAML ({str(e).splitlines()[0]})") from None
+            v = parse_yaml(text, f"--camera {p}") or {}  # bounded: alias expansion (ConfigFileError, an InputError)
             keys = ("fx", "fy", "cx", "cy")
         if not isinstance(v, dict):
             raise InputError(f"--camera {p}: expected a mapping with {', '.join(keys)}, got {type(v).__name__}")

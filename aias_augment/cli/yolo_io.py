@@ -20,6 +20,7 @@ import yaml
 
 from aias_augment.adapters.boundary import InputError
 from aias_augment.cli.manifest import write_file
+from aias_augment.core.config_files import load_yaml_file
 
 log = logging.getLogger(__name__)
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp"}
@@ -109,10 +110,7 @@ def read_yolo_dataset(path: str | Path) -> YoloDataset:
     if yaml_path is None and p.is_dir() and (p / "data.yaml").is_file():
         yaml_path = p / "data.yaml"
     if yaml_path is not None:
-        try:
-            data = yaml.safe_load(yaml_path.read_text())
-        except (OSError, yaml.YAMLError) as e:
-            raise InputError(f"cannot read {yaml_path}: {' '.join(str(e).split())}") from None
+        data = load_yaml_file(yaml_path)  # bounded: size, UTF-8, alias expansion (ConfigFileError, an InputError)
         if not isinstance(data, dict):
             raise InputError(f"{yaml_path}: expected a mapping (path, train, val, names)")
         root = Path(str(data.get("path") or "."))

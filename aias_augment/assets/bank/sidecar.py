@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-import yaml
 
 from aias_augment.assets.asset import MESH_SUFFIXES, AssetError, axis_rotation_to_z_up, normalise_meshes
 from aias_augment.assets.bank.catalog import CatalogRecord
@@ -26,6 +25,7 @@ from aias_augment.assets.bank.meshio import load_raw_parts, missing_obj_textures
 from aias_augment.assets.bank.taxonomy import Taxonomy
 from aias_augment.assets.bank.validate import repair_parts
 from aias_augment.core.config import from_dict
+from aias_augment.core.config_files import load_yaml_file
 
 __all__ = ["Sidecar", "read_sidecar", "read_sidecar_records", "load_sidecar_parts"]
 
@@ -53,8 +53,7 @@ class Sidecar:
 
 def read_sidecar(path: str | Path) -> Sidecar:
     path = Path(path)
-    with open(path) as f:
-        data = yaml.safe_load(f) or {}
+    data = load_yaml_file(path) or {}  # bounded: size, UTF-8, alias expansion (ConfigFileError, a ValueError)
     try:
         return from_dict(Sidecar, data, where=str(path))
     except (TypeError, ValueError, KeyError) as e:

@@ -7,9 +7,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-import yaml
-
 from aias_augment.core.config import CONFIG_DIR, from_dict
+from aias_augment.core.config_files import load_yaml_file
 
 __all__ = ["CategorySpec", "Taxonomy", "load_taxonomy"]
 
@@ -91,5 +90,4 @@ def _parse(data: dict, where: str) -> Taxonomy:
 def load_taxonomy(path: str | Path | None = None) -> Taxonomy:
     """Load the taxonomy (default ``configs/taxonomy.yaml``); unknown keys and bad patterns raise."""
     p = Path(path) if path else CONFIG_DIR / "taxonomy.yaml"
-    with open(p) as f:
-        return _parse(yaml.safe_load(f) or {}, str(p))
+    return _parse(load_yaml_file(p) or {}, str(p))  # bounded: size, UTF-8, alias expansion

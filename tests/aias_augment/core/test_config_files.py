@@ -21,6 +21,7 @@ from aias_augment.core.config_files import (
     parse_json,
     parse_yaml,
 )
+from aias_augment.core.errors import InputError
 from aias_augment.pipeline.config import InsertionConfig
 
 
@@ -172,3 +173,69 @@ def test_fuzz_json_gives_a_finite_value_or_one_line_error(text):
             stack.extend(x.values())
         elif isinstance(x, list):
             stack.extend(x)
+
+
+# ------------------------------------------------------------------- every config reader goes through the loader
+def _read_with(reader: str, path):
+    if reader == "aias-augment --config":
+        from aias_augment.cli.augment import insertion_config
+
+        return insertion_config("fast", str(path), None, None)
+    if reader == "aias-augment --box-convention":
+        from aias_augment.cli.augment import read_box_convention
+
+        return read_box_convention(str(path))
+    if reader == "--yolo data.yaml":
+        from aias_augment.cli.yolo_io import read_yolo_dataset
+
+        return read_yolo_dataset(path)
+    if reader == "clip --camera":
+        from aias_augment.cli.clip_inputs import read_camera
+
+        return read_camera(path, 640, 480)
+    if reader == "asset sidecar":
+        from aias_augment.assets.bank.sidecar import read_sidecar
+
+        return read_sidecar(path)
+    if reader == "taxonomy":
+        from aias_augment.assets.bank.taxonomy import load_taxonomy
+
+        return load_taxonomy(path)
+    if reader == "detector config":
+        from detection_eval.config import load_detector_config
+
+        return load_detector_config(path)
+    if reader == "study config":
+        from detection_eval.study.config import load_study_config
+
+        return load_study_config(path)
+    raise AssertionError(reader)
+
+
+READERS = [
+    "aias-augment --config",
+    "--yolo data.yaml",
+    "clip --camera",
+    "asset sidecar",
+    "taxonomy",
+    "detector config",
+    "study config",
+]
+
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize("bad", ["laughs", "latin1"])
+def test_every_yaml_reader_is_bounded(tmp_path, reader, bad):
+    p = tmp_path / f"{bad}.yaml"
+    p.write_bytes(laughs(9, field="fx").encode() if bad == "laughs" else "fx: 1  # caf\xe9\n".encode("latin-1"))
+    # an InputError (ConfigFileError, or the clip reader's own UTF-8 check): one line naming the file
+    with pytest.raises(InputError, match="expands to more than" if bad == "laughs" else "not UTF-8") as e:
+        _read_with(reader, p)
+    assert f"{bad}.yaml" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_box_convention_json_is_strict(tmp_path):
+    p = tmp_path / "bc.json"
+    p.write_text('{"box_convention": [NaN, 0, 0, 0]}')
+    with pytest.raises(ConfigFileError, match=r"^--box-convention .*bc.json: not valid JSON \(NaN is not"):
+        _read_with("aias-augment --box-convention", p)
