@@ -49,10 +49,19 @@ def strict_json_problem(body: bytes) -> str | None:
 
 def host_names(host: str, port: int) -> frozenset[str]:
     """The ``Host`` headers a server bound to ``host``:``port`` answers: that address and the loopback names, with
-    the port (lower case; an IPv6 address in brackets)."""
-    shown = f"[{host}]" if ":" in host and not host.startswith("[") else host
-    names = {shown, "localhost", "127.0.0.1", "[::1]"}
-    return frozenset(f"{n.lower()}:{port}" for n in names)
+    the port (lower case; an IPv6 address in brackets). Bound to every interface (``0.0.0.0``, ``::``), raters on
+    other machines reach it by this machine's names and addresses: those too."""
+    names = {host, "localhost", "127.0.0.1", "::1"}
+    if host in ("", "0.0.0.0", "::"):
+        import socket
+
+        hostname = socket.gethostname()
+        names |= {hostname, socket.getfqdn()}
+        try:
+            names |= {info[4][0] for info in socket.getaddrinfo(hostname, None)}
+        except OSError:  # a host name that does not resolve: its names only
+            pass
+    return frozenset(f"[{n}]:{port}".lower() if ":" in n else f"{n}:{port}".lower() for n in names if n)
 
 
 class RequestGuard:

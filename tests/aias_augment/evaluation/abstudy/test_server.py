@@ -343,3 +343,14 @@ def test_only_the_served_host_is_answered(served, host, served_ok):
         assert st == 400 and "does not answer for host" in body["detail"]
         st, _, _ = request(srv, "POST", "/api/rater", {"name": "rebound"}, headers={"Host": host})
         assert st == 400
+
+
+def test_host_names_of_a_loopback_and_a_wildcard_bind():
+    import socket
+
+    from aias_augment.evaluation.abstudy.guard import host_names
+
+    assert host_names("127.0.0.1", 8000) == {"127.0.0.1:8000", "localhost:8000", "[::1]:8000"}
+    assert "[::1]:9" in host_names("::1", 9)
+    every = host_names("0.0.0.0", 8000)
+    assert f"{socket.gethostname().lower()}:8000" in every and "localhost:8000" in every
