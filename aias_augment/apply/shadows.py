@@ -17,6 +17,7 @@ __all__ = [
     "soften_shadow",
     "occluder_distance_from_footprint",
     "contact_occlusion",
+    "fill_nearest",
     "SUN_ANGULAR_RADIUS_RAD",
 ]
 
@@ -42,7 +43,8 @@ def shadow_ratio_from_sun_sky(
     return ((a + r * v) / (1.0 + r)).astype(np.float32)
 
 
-def _fill_nearest(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+def fill_nearest(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``values`` with each invalid pixel taken from its nearest valid one (all zeros when none is valid)."""
     if valid.all():
         return values
     if not valid.any():
@@ -86,7 +88,7 @@ def soften_shadow(
     else:
         d = np.broadcast_to(np.asarray(occluder_distance_m, dtype=np.float64), s.shape)
         known = np.isfinite(d) & (d > 0)
-        d = _fill_nearest(np.where(known, d, 0.0), known) if not known.all() else np.array(d)
+        d = fill_nearest(np.where(known, d, 0.0), known) if not known.all() else np.array(d)
         if not known.any():
             d = np.full(s.shape, float(default_distance_m))
     ppm = np.broadcast_to(np.asarray(pixels_per_metre, dtype=np.float64), s.shape)

@@ -18,11 +18,13 @@ from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window
 from aias_augment.apply.layers import ObjectLayer, apply_layer_stages
+from aias_augment.apply.occluders import image_occluders, visibility_under_nearer
 from aias_augment.apply.projected_shadow import projected_ground
 from aias_augment.apply.render import render_ground_shadow, render_object_window
-from aias_augment.apply.shading import Coating, shade_object, shade_pixels, view_directions
+from aias_augment.apply.shading import Coating, object_coating, shade_object, shade_pixels, view_directions
 from aias_augment.apply.shadows import (
     contact_occlusion_of,
+    fill_nearest,
     occluder_distance_from_footprint,
     shadow_ratio_from_sun_sky,
     soften_shadow,
@@ -46,7 +48,9 @@ class AppliedPlan:
     visible coverage (what hides existing boxes; 0 outside the window; :attr:`cover` is it on the whole frame), and
     per stage what was done ('shadow', 'harmonize') and which planned objects were dropped. ``layer_params``: the
     layer stages' parameters of the objects that rendered (aligned with ``placements``). ``object_cover_windows``:
-    per rendered object, its own visible coverage over ``window`` (behind the scene and nearer objects removed)."""
+    per rendered object, its own visible coverage over ``window`` (behind the scene and nearer objects removed).
+    ``labelled_visibility``: per labelled box given to :func:`apply_plan`, the share of it not covered by the
+    inserted objects nearer than it (None: no labelled boxes were given, or they could not be ordered)."""
 
     image: np.ndarray
     placements: tuple[Placement, ...]
@@ -57,6 +61,7 @@ class AppliedPlan:
     dropped: tuple[dict, ...] = ()
     layer_params: tuple[dict, ...] = ()
     object_cover_windows: tuple[np.ndarray, ...] = ()
+    labelled_visibility: np.ndarray | None = None
 
     @property
     def cover(self) -> np.ndarray:
@@ -76,12 +81,15 @@ def apply_plan(
     *,
     view_cache: ViewCache | None = None,
     motions_px: tuple | None = None,
+    labelled_xywh: np.ndarray | None = None,
 ) -> AppliedPlan:
     """Render the plan's objects into ``frame.image`` (see the module docstring). ``cfg``: ssaa, render method,
     shadow and harmonization switches (the plan fixed everything random). ``view_cache``: where
     ``render_method="view_cache"`` keeps its views (None: the process-wide :func:`default_view_cache`).
     ``motions_px``: per object, its image motion during one frame interval ((2,) px) for the layer stages, or None
-    (a still image; a clip frame passes its objects' motion).
+    (a still image; a clip frame passes its objects' motion). ``labelled_xywh``: (N, 4) COCO boxes of the frame's
+    labelled objects, which occlude the inserted objects they stand in front of and are covered by those in front of
+    them (:mod:`aias_augment.apply.occluders`; not in a naive paste, which places nothing on the ground).
 
     All float work happens inside one window: the union of the objects' and their shadows' render windows (the
     sRGB -> linear -> sRGB round trip is exact on uint8, so the pixels outside it are the input's)."""
@@ -97,6 +105,14 @@ def apply_plan(
     n_cached = 0
     # the glossy coating reflects the estimated light: not in a render without lighting (ablation, naive paste)
     coating = Coating(cfg.coating_f0, cfg.coating_roughness) if cfg.lighting else Coating()
+    labelled = None
+    if labelled_xywh is not None and len(labelled_xywh):
+        if cfg.placement:
+            placements = [o.placement for o in plan.objects]
+            labelled, mods["occlusion"] = image_occluders(img, labelled_xywh, analysis.ground, intr, placements)
+        else:
+            mods["occlusion"] = skipped("naive paste: objects pasted over the labelled ones")
+    ldepth = None if labelled is None else labelled.depth
     for k, obj in enumerate(plan.objects):
         warped = None
         if cfg.render_method == "view_cache":
@@ -111,13 +127,15 @@ def apply_plan(
             dropped.append({"rejected": {"renders to no pixel": 1}})
             continue
         view = view_directions(roi, intr) if coating.f0 > 0 else None
+        parts = object_coating(obj.asset, obj.cam_from_object, roi, odepth, intr, coating)  # matte parts: none
         if warped is not None:  # shaded on its covered pixels only
             shaded = np.zeros(alpha.shape + (3,), np.float32)
-            shaded[warped.inside] = shade_pixels(
-                warped.albedo, warped.normals, lighting, None, None if view is None else view[warped.inside], coating
+            inside = warped.inside
+            shaded[inside] = shade_pixels(
+                warped.albedo, warped.normals, lighting, None, None if view is None else view[inside], parts.at(inside)
             )
         else:
-            shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, alpha > 0, lighting, view=view, coating=coating)
+            shaded = shade_object(rl.albedo_linear, rl.normals_in_cam, alpha > 0, lighting, view=view, coating=parts)
         params = plan.layer_params[k] if k < len(plan.layer_params) else {}
         if params:
             motion = None if motions_px is None else motions_px[k]
@@ -140,6 +158,7 @@ def apply_plan(
                 depth,
                 cfg.shadow_method,
                 (cfg.contact_shadow_strength, cfg.contact_shadow_radius),
+                labelled_depth=ldepth,
             )
             for o, *_ in rendered
         ]
@@ -159,11 +178,22 @@ def apply_plan(
     if not rois:
         if not cfg.harmonize:
             mods["harmonize"] = skipped("disabled (ablation or naive paste)")
-        return AppliedPlan(img.copy(), (), (), np.zeros((0, 0), np.float32), (0, 0, 0, 0), mods, tuple(dropped))
+        none = None if labelled is None else np.ones(len(labelled.contact_z))
+        return AppliedPlan(
+            img.copy(),
+            (),
+            (),
+            np.zeros((0, 0), np.float32),
+            (0, 0, 0, 0),
+            mods,
+            tuple(dropped),
+            labelled_visibility=none,
+        )
     win = (min(r[0] for r in rois), min(r[1] for r in rois), max(r[2] for r in rois), max(r[3] for r in rois))
     X0, Y0, X1, Y1 = win
     wshape = (Y1 - Y0, X1 - X0)
     sdepth = None if depth is None else depth[Y0:Y1, X0:X1]
+    swin = None if ldepth is None else ldepth[Y0:Y1, X0:X1]
 
     # Each object's coverage and depth placed in the common window (its shading stays in its own window).
     layers = [
@@ -194,12 +224,12 @@ def apply_plan(
     for i in order:
         (x0, y0, x1, y1), alpha, odepth, shaded = layers[i][3]
         sl = np.s_[y0 - Y0 : y1 - Y0, x0 - X0 : x1 - X0]
-        a = alpha if sdepth is None else alpha * comp.visible_fraction_against_depth(odepth, sdepth[sl])
+        a = alpha * _unhidden(odepth, sdepth, swin, sl)
         out[sl] = comp.alpha_over(out[sl], shaded, a)
     # Visible part of each object: not behind the scene, not behind nearer inserted objects.
     vis_alphas = []
     for i, (_, a_i, d_i, _) in enumerate(layers):
-        vis = a_i * comp.visible_fraction_against_depth(d_i, sdepth)
+        vis = a_i * _unhidden(d_i, sdepth, swin)
         for j, (_, a_j, d_j, _) in enumerate(layers):
             if j == i:
                 continue
@@ -246,6 +276,10 @@ def apply_plan(
         )
         for (obj, alpha, _, _), vis_w in zip(layers, vis_alphas)
     ]
+    labelled_vis = None
+    if labelled is not None:
+        object_z = [o.placement.contact_point_in_cam[2] for o, *_ in layers]
+        labelled_vis = visibility_under_nearer(labelled_xywh, labelled.contact_z, vis_alphas, object_z, win[:2], full)
     if any(cfg.box_convention):
         mods["boxes"] = "labelling convention: margins (left, top, right, bottom) {} of the label".format(
             list(cfg.box_convention)
@@ -260,7 +294,18 @@ def apply_plan(
         tuple(dropped),
         tuple(p for *_, p in rendered),
         tuple(vis_alphas),
+        labelled_vis,
     )
+
+
+def _unhidden(object_depth, scene_depth, labelled_depth, sl=np.s_[:, :]) -> np.ndarray | float:
+    """Where an inserted surface of ``object_depth`` is not behind the scene (its measured depth, with the noise
+    margin) nor behind a labelled object (its contact depth, exact: both stand on one ground plane); the depth maps
+    are cut to ``sl``, None: nothing there occludes."""
+    v = 1.0 if scene_depth is None else comp.visible_fraction_against_depth(object_depth, scene_depth[sl])
+    if labelled_depth is not None:
+        v = v * comp.visible_fraction_against_depth(object_depth, labelled_depth[sl], margin_rel=0.0)
+    return v
 
 
 def _in_window(wshape: tuple, win: tuple, roi: tuple, arr: np.ndarray, fill: float = 0.0) -> np.ndarray:
@@ -301,9 +346,11 @@ def _object_shadow_window(
     scene_depth: np.ndarray | None,
     method: str = "catcher",
     contact: tuple[float, float] = (0.6, 0.25),
+    labelled_depth: np.ndarray | None = None,
 ) -> tuple[tuple[int, int, int, int], np.ndarray]:
     """(roi, ratio inside roi) of :func:`object_shadow_ratio`; ``method``: "catcher" (GL) or "projected";
-    ``contact``: the contact shadow's (strength, radius as a fraction of the object's height)."""
+    ``contact``: the contact shadow's (strength, radius as a fraction of the object's height); ``labelled_depth``:
+    the labelled objects' depth map (:mod:`aias_augment.apply.occluders`), which hides the shadow behind them."""
     R = cam_from_object[:3, :3]
     sun_cam = lighting.sun_direction_in_cam if lighting.dominant_sun else None
     # Below-horizon direction: the catcher then returns the ground geometry with full visibility.
@@ -341,7 +388,10 @@ def _object_shadow_window(
         ppm = np.where(gm, intr.fy / np.maximum(gdepth, 1e-3), 0.0)  # eps: no division by zero depth
         ratio = soften_shadow(ratio, dist, pixels_per_metre=ppm)
     # The real scene in front of the shadowed ground hides the shadow.
-    unoccluded = 1.0 if scene_depth is None else comp.visible_fraction_against_depth(gdepth, scene_depth[y0:y1, x0:x1])
+    win = np.s_[y0:y1, x0:x1]
+    unoccluded = _unhidden(gdepth, scene_depth, None, win)
+    if labelled_depth is not None:  # the penumbra reaches past the ground patch: the nearest patch pixel's ground
+        unoccluded = unoccluded * _unhidden(fill_nearest(gdepth, gm), None, labelled_depth, win)
     return sl.roi, (1.0 - (1.0 - ratio) * unoccluded).astype(np.float32)
 
 

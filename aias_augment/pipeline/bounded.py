@@ -118,7 +118,7 @@ def insert_bounded(
 
     plan = replace(plan, objects=tuple(PlannedObject(full_px(o.placement), o.asset) for o in plan.objects))
     frame = Frame(img, analysis.intrinsics, depth=depth, meta=meta)
-    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
+    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache, labelled_xywh=boxes)
     return assemble_result(
         analysis, plan, applied, boxes, labels, min_visibility, working_resolution=working, mode=cfg.mode
     )

@@ -50,6 +50,8 @@ class InsertionRecord:
     mode: str = "pipeline"
     # the 3x3 intrinsics of the output image (OpenCV pixels), which 3D label exports write beside their labels
     camera_K: tuple | None = None
+    # the input's labelled boxes (COCO xywh, output pixels) that occluded by depth order (replay passes them again)
+    labelled_boxes_xywh: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return {
@@ -65,6 +67,7 @@ class InsertionRecord:
             "existing_visibility": self.existing_visibility,
             "layer_params": self.layer_params,
             "camera_K": None if self.camera_K is None else [list(r) for r in self.camera_K],
+            "labelled_boxes_xywh": [list(map(float, b)) for b in self.labelled_boxes_xywh],
         }
 
     @classmethod
@@ -85,6 +88,7 @@ class InsertionRecord:
             [dict(x) for x in d.get("layer_params", ())],
             d.get("mode", "pipeline"),
             None if d.get("camera_K") is None else tuple(tuple(map(float, r)) for r in d["camera_K"]),
+            [list(map(float, b)) for b in d.get("labelled_boxes_xywh", ())],
         )
 
 
@@ -164,7 +168,7 @@ def insert_into_image(
         bank=bank,
         n_objects=n_objects,
     )
-    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache)
+    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache, labelled_xywh=boxes)
     return assemble_result(analysis, plan, applied, boxes, labels, min_visibility, mode=cfg.mode)
 
 
@@ -180,7 +184,8 @@ def assemble_result(
     mode: str = "pipeline",
 ) -> InsertionResult:
     """The result of one insertion from its three steps' records: the inserted objects' visible boxes appended to the
-    input boxes that stay visible enough under what was drawn over them (``boxes`` xywh, in the output's pixels).
+    input boxes that stay visible enough under what was drawn over them (``boxes`` xywh, in the output's pixels; when
+    ``applied`` ordered them by depth, only the inserted objects nearer than a box count, else all of them).
     ``working_resolution``: the smaller copy the analysis and plan ran on (recorded for replay), None: the image.
     ``mode``: how the image was made (:attr:`InsertionConfig.mode` of its config after ``for_image``)."""
     record = InsertionRecord(
@@ -200,10 +205,14 @@ def assemble_result(
         if ann.visible_box_xywh is not None and not placement.decoy:
             inserted_boxes.append(ann.visible_box_xywh)
             inserted_labels.append(placement.category)
-    existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
-    existing_vis = box_visibility_under_cover(
-        existing_xyxy, applied.cover_window, applied.window[:2], applied.image.shape[:2]
-    )
+    if applied.labelled_visibility is not None:
+        existing_vis = np.asarray(applied.labelled_visibility, float)
+        record.labelled_boxes_xywh = boxes.tolist()
+    else:
+        existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
+        existing_vis = box_visibility_under_cover(
+            existing_xyxy, applied.cover_window, applied.window[:2], applied.image.shape[:2]
+        )
     keep = existing_vis >= min_visibility
     record.existing_visibility = existing_vis.tolist()
     ins = np.array(inserted_boxes, float).reshape(-1, 4)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import Callable
 
+import numpy as np
+
 from aias_augment.analyse.cache import SceneCache
 from aias_augment.apply.stages import AppliedPlan, apply_plan
 from aias_augment.assets.asset import DEFAULT_ASSETS, Asset, default_asset
@@ -73,4 +75,5 @@ def replay(
         objects.append(PlannedObject(p, base.scaled(p.scale)))
     layer_params = tuple(dict(x) for x in record.get("layer_params", ()))
     plan = InsertionPlan(tuple(objects), int(record["harmonize_seed"]), len(objects), layer_params=layer_params)
-    return apply_plan(frame, analysis, plan, cfg)
+    labelled = record.get("labelled_boxes_xywh") or None  # the input's boxes that occluded by depth order
+    return apply_plan(frame, analysis, plan, cfg, labelled_xywh=None if labelled is None else np.array(labelled))
