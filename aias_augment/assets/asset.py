@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from aias_augment.assets.errors import AssetError
 from aias_augment.assets.texture import pad_mesh_textures
 from aias_augment.core.config import data_root
 from aias_augment.core.errors import InputError
@@ -52,10 +53,6 @@ DEFAULT_ASSETS: dict[str, list[str]] = {
     "car": ["meshes/gazebo_models/hatchback", "meshes/gazebo_models/suv"],
     "parking_block": ["meshes/gazebo_models/drc_practice_yellow_parking_block"],
 }
-
-
-class AssetError(ValueError):
-    """A mesh could not be loaded or is unusable (reason in the message)."""
 
 
 #: Plausible heights (metres) of categories that have no sampling range in :data:`CATEGORY_HEIGHT_RANGE_M`.

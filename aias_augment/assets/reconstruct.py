@@ -31,27 +31,12 @@ import cv2
 import numpy as np
 
 from aias_augment.assets.asset import Asset, normalise_meshes
+from aias_augment.assets.reconstruct_quality import check_height, check_hull
+from aias_augment.assets.view_masks import View
+from aias_augment.assets.view_masks import signed_distance_px as _signed_distance_px
+from aias_augment.assets.views_file import read_views as _read_views_file
 from aias_augment.core.config import checked_config
 from aias_augment.core.geometry import Intrinsics
-
-
-@dataclass(frozen=True)
-class View:
-    """One photo of the object: RGB uint8, its object mask, its camera (OpenCV ``cam_from_object``, metres)."""
-
-    image_rgb: np.ndarray
-    mask: np.ndarray
-    intrinsics: Intrinsics
-    cam_from_object: np.ndarray
-
-    def __post_init__(self):
-        h, w = self.mask.shape[:2]
-        if self.image_rgb.shape[:2] != (h, w) or self.image_rgb.dtype != np.uint8 or self.image_rgb.ndim != 3:
-            raise ValueError("View: image_rgb must be (H, W, 3) uint8 and the mask (H, W)")
-        if (self.intrinsics.width, self.intrinsics.height) != (w, h):
-            raise ValueError(f"View: intrinsics are {self.intrinsics.width}x{self.intrinsics.height}, image {w}x{h}")
-        if not np.asarray(self.mask, bool).any():
-            raise ValueError("View: empty mask (the object is not in this view)")
 
 
 @checked_config(
@@ -132,15 +117,6 @@ def decimate(mesh, max_faces: int):
             return out
         tried.append(f"{len(out.faces)} faces, {'closed' if out.is_watertight else 'open'}")
     raise ValueError(f"decimate: no closed hull within {max_faces} faces ({'; '.join(tried)}); allow more faces")
-
-
-def _signed_distance_px(mask: np.ndarray) -> np.ndarray:
-    """(H, W) float32: distance in pixels to the silhouette's boundary, negative inside, positive outside."""
-    m = np.asarray(mask, bool).astype(np.uint8)
-    inside = cv2.distanceTransform(m, cv2.DIST_L2, 5)
-    outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, 5)
-    # pixel centres: the boundary runs half a pixel from the outermost inside and innermost outside pixels
-    return (np.where(m > 0, 0.5 - inside, outside - 0.5)).astype(np.float32)
 
 
 def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -477,7 +453,6 @@ def reconstruct(
     Before it is textured, the hull measures its own quality (:mod:`aias_augment.assets.reconstruct_quality`: every
     view's silhouette IoU, the views' spread) and the asset's height is checked against ``category``'s range:
     :class:`~aias_augment.assets.reconstruct_quality.ReconstructionRefused` names the bad views."""
-    from aias_augment.assets.reconstruct_quality import check_height, check_hull
 
     hull = visual_hull(views, search_lo, search_hi, cfg, ground_z)
     quality = check_hull(
@@ -544,34 +519,11 @@ def search_box(views: list[View]) -> tuple[np.ndarray, np.ndarray]:
     return centre - 2 * reach, centre + 2 * reach
 
 
-def grabcut_mask(image_rgb: np.ndarray, box_xyxy, iterations: int = 5) -> np.ndarray:
-    """The object's mask inside ``box_xyxy`` by GrabCut initialised from the box (OpenCV; no learnt weights)."""
-    x0, y0, x1, y1 = (int(round(float(c))) for c in box_xyxy)
-    h, w = image_rgb.shape[:2]
-    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w - 1), min(y1, h - 1)
-    if x1 - x0 < 4 or y1 - y0 < 4:
-        raise ValueError(f"grabcut_mask: box {box_xyxy} is too small or outside the {w}x{h} image")
-    mask = np.zeros((h, w), np.uint8)
-    bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
-    cv2.setRNGSeed(0)  # GrabCut's GMM initialisation draws from OpenCV's generator: fixed, so masks repeat
-    cv2.grabCut(
-        cv2.cvtColor(image_rgb, cv2.COLOR_RGB2BGR),
-        mask,
-        (x0, y0, x1 - x0, y1 - y0),
-        bgd,
-        fgd,
-        iterations,
-        cv2.GC_INIT_WITH_RECT,
-    )
-    return (mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)
-
-
 def read_views(path) -> tuple[list[tuple[np.ndarray, np.ndarray, Intrinsics, np.ndarray | None]], float | None]:
     """The photos of a views file as (image, mask, intrinsics, pose or None) and its ground z: see
     :func:`aias_augment.assets.views_file.read_views` (the format, the checks and the pixel bounds)."""
-    from aias_augment.assets.views_file import read_views as read
 
-    return read(path)
+    return _read_views_file(path)
 
 
 def load_views(path) -> tuple[list[View], float | None]:

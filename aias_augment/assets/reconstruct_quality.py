@@ -50,7 +50,7 @@ def silhouette_iou(hull, views, voxel_m: float) -> np.ndarray:
 
     from aias_augment.apply.render import render_object
     from aias_augment.assets.asset import Asset
-    from aias_augment.assets.reconstruct import _signed_distance_px
+    from aias_augment.assets.view_masks import signed_distance_px as _signed_distance_px
 
     plain = Asset("hull", "object", (trimesh.Trimesh(hull.vertices, hull.faces, process=False),), "reconstruction")
     centre = np.asarray(hull.bounds, float).mean(axis=0)

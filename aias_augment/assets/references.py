@@ -18,7 +18,7 @@ from urllib.parse import unquote, urlsplit
 
 import trimesh
 
-from aias_augment.assets.asset import AssetError
+from aias_augment.assets.errors import AssetError
 
 __all__ = ["ConfinedResolver", "check_gltf_references", "inside"]
 

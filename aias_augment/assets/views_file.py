@@ -100,7 +100,7 @@ def read_views(path) -> tuple[list[tuple[np.ndarray, np.ndarray, Intrinsics, np.
     """The photos of a views file as (image, mask, intrinsics, pose or None), downscaled to the pixel bounds above (a
     view without a mask is segmented by GrabCut from its box). Bad entries: ValueError naming the file and view.
     Either every view has its pose or none has (then SfM finds them)."""
-    from aias_augment.assets.reconstruct import View, grabcut_mask
+    from aias_augment.assets.view_masks import View, grabcut_mask
     from aias_augment.core.image_io import DEFAULT_MAX_PIXELS, image_size, read_image
 
     path = Path(path)

@@ -21,7 +21,6 @@ from aias_augment.assets.asset import Asset, normalise_meshes
 from aias_augment.assets.reconstruct import (
     ReconstructConfig,
     View,
-    grabcut_mask,
     load_views,
     read_views,
     reconstruct,
@@ -29,6 +28,7 @@ from aias_augment.assets.reconstruct import (
     search_box,
     visual_hull,
 )
+from aias_augment.assets.view_masks import grabcut_mask
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
 from eval_reconstruction import align_yaw, cameras, compare, floor_texture, on_floor, shoot, write_views  # noqa: E402
