@@ -94,8 +94,13 @@ def _header(data: bytes, path: Path, max_pixels: int) -> tuple[int, int]:
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # the bound is ours, checked below
             with Image.open(io.BytesIO(data)) as im:
                 width, height = im.size
-    except Image.DecompressionBombError as e:  # PIL's own ceiling (2 x Image.MAX_IMAGE_PIXELS), below ours
-        raise ImageTooLarge(f"{e} (PIL's limit)", path) from None
+    except Image.DecompressionBombError:  # PIL's own ceiling, 2 x Image.MAX_IMAGE_PIXELS: it gives no size
+        ceiling = 2 * (Image.MAX_IMAGE_PIXELS or 0)
+        raise ImageTooLarge(
+            f"over {ceiling / 1e6:.0f} MP by its header, above the {min(max_pixels, ceiling) / 1e6:g} MP limit "
+            "(resize it first)",
+            path,
+        ) from None
     except Exception as e:  # PIL raises OSError, SyntaxError, ValueError... for unrecognised or broken headers
         raise CorruptImage(_pil_detail(e), path) from None
     if width * height > max_pixels:

@@ -161,3 +161,10 @@ def test_image_bytes_decoded_by_pil_agree(tmp_path):
     Image.fromarray(img).save(buf, format="PNG")
     (tmp_path / "b.png").write_bytes(buf.getvalue())
     assert np.array_equal(read_image(tmp_path / "b.png", max_pixels=10**6), np.asarray(Image.open(buf)))
+
+
+def test_header_above_pils_own_ceiling_is_too_large_not_corrupt(tmp_path):
+    p = tmp_path / "bomb.png"
+    p.write_bytes(_png_header_only(20000, 20000))  # 400 MP: PIL refuses to open it at all
+    with pytest.raises(ImageTooLarge, match=r"bomb.png: over 179 MP by its header, above the 120 MP limit"):
+        read_image(p, max_pixels=120_000_000)
