@@ -19,6 +19,14 @@ plastics and paint, refractive index about 1.5). Of the sun, a GGX microfacet lo
 et al. 2007): ``F D G / (4 n.v) E_sun v``. Of the sky, the SH ambient seen in the mirror direction r: its irradiance
 E_sh(r) / pi is the cosine-weighted mean radiance around r, the reflection of a rough surface. The diffuse part keeps
 ``1 - F`` of the light. Needs the direction toward the camera at each pixel (:func:`view_directions`).
+
+Materials per part: an asset whose ``meta["parts"]`` lists parts as height bands of its canonical frame (``z_m``
+(lo, hi) in the unscaled asset's metres, a ``material`` of :data:`MATERIALS`; ``meta["material"]`` for the rest)
+gets the coating per pixel (:func:`part_coating`): the config's coating where the material is glossy (with the
+material's roughness), none where it is matte (a rubber base: its grazing Fresnel would mirror the sky). The part of
+a pixel is read from the surface point it sees (depth unprojected into the object frame), so the full render and
+the view cache's warp take it the same way. A deformed variant (``meta`` "deformation" or "tipped") has moved its
+surface off those bands: it keeps the uniform coating.
 """
 
 from __future__ import annotations
@@ -32,6 +40,12 @@ from aias_augment.analyse.lighting.sh import sh_irradiance
 
 __all__ = [
     "Coating",
+    "PixelCoating",
+    "SurfaceMaterial",
+    "MATERIALS",
+    "part_coating",
+    "object_coating",
+    "points_in_object",
     "shade_object",
     "shade_pixels",
     "irradiance_at_normals",
@@ -58,6 +72,106 @@ class Coating:
         if not (0.0 <= self.f0 <= 0.2 and 0.05 <= self.roughness <= 1.0):
             raise ValueError(f"Coating: f0 in [0, 0.2] and roughness in [0.05, 1], got {self}")
 
+    @property
+    def any(self) -> bool:
+        return self.f0 > 0
+
+    def at(self, mask: np.ndarray) -> "Coating":
+        """The coating of the pixels ``mask`` selects: the same everywhere."""
+        return self
+
+
+@dataclass(frozen=True, eq=False)
+class PixelCoating:
+    """A coating per pixel: ``f0`` and ``roughness`` arrays of one shape ((H, W) over a window, or (N,) over a list
+    of pixels), each pixel's values in :class:`Coating`'s ranges (f0 0: matte there)."""
+
+    f0: np.ndarray
+    roughness: np.ndarray
+
+    @property
+    def any(self) -> bool:
+        return bool(np.any(self.f0 > 0))
+
+    def at(self, mask: np.ndarray) -> "PixelCoating":
+        """(N,) arrays of the pixels ``mask`` (H, W) selects."""
+        m = np.asarray(mask, bool)
+        return PixelCoating(self.f0[m], self.roughness[m])
+
+
+@dataclass(frozen=True)
+class SurfaceMaterial:
+    """How a part's surface takes the config's coating: ``glossy`` (the coating's f0) or matte (none), with its own
+    GGX ``roughness`` (None: the config's)."""
+
+    glossy: bool
+    roughness: float | None = None
+
+
+#: Surface materials that asset parts name (``meta["parts"][i]["material"]``, ``meta["material"]``).
+MATERIALS: dict[str, SurfaceMaterial] = {
+    "glossy_plastic": SurfaceMaterial(True),
+    # retroreflective sheeting: glass beads or prisms sealed under a smooth acrylic film (index ~1.49: f0 0.04)
+    "retroreflective": SurfaceMaterial(True, 0.25),
+    "matte_rubber": SurfaceMaterial(False),
+}
+
+#: A pixel's surface point is taken to lie in a part's height band within this fraction of the asset's height: the
+#: view cache's warp shows a view from up to half a bin away, which moves a point by ~1 % of the object's size.
+PART_BAND_TOLERANCE = 0.015
+
+
+def points_in_object(
+    roi: tuple[int, int, int, int], depth: np.ndarray, intrinsics, cam_from_object: np.ndarray
+) -> np.ndarray:
+    """(h, w, 3) the surface point seen at each pixel centre of the window ``roi`` (x0, y0, x1, y1) at z-depth
+    ``depth`` (h, w) metres, in the object frame of ``cam_from_object`` (4x4 rigid)."""
+    x0, y0, x1, y1 = roi
+    u, v = np.meshgrid(np.arange(x0, x1, dtype=np.float64), np.arange(y0, y1, dtype=np.float64))
+    z = np.asarray(depth, np.float64)
+    p = np.stack([(u - intrinsics.cx) / intrinsics.fx * z, (v - intrinsics.cy) / intrinsics.fy * z, z], -1)
+    T = np.asarray(cam_from_object, np.float64)
+    return (p - T[:3, 3]) @ T[:3, :3]  # R^T (p - t), row-wise
+
+
+def object_coating(asset, cam_from_object: np.ndarray, roi, depth: np.ndarray, intrinsics, coating: Coating):
+    """:func:`part_coating` over the render window ``roi`` of ``asset`` (its ``depth`` (h, w) z-depth, 0 where
+    uncovered) at ``cam_from_object``: ``coating`` itself for an asset without parts."""
+    if not asset.meta.get("parts") or not coating.any:
+        return coating
+    return part_coating(asset.meta, coating, points_in_object(roi, depth, intrinsics, cam_from_object))
+
+
+def part_coating(meta: dict, coating: Coating, points_obj: np.ndarray) -> Coating | PixelCoating:
+    """The coating at surface points ``points_obj`` (*, 3) of an asset with ``meta`` (see the module docstring):
+    ``coating`` itself when the asset names no parts, is deformed, or ``coating`` is none; else a
+    :class:`PixelCoating` of shape ``points_obj.shape[:-1]``. Parts are taken in their listed order (the first band
+    holding a point wins); a name outside :data:`MATERIALS` is an error."""
+    parts = meta.get("parts")
+    if not parts or not coating.any or "deformation" in meta or "tipped" in meta:
+        return coating
+
+    def material(name):
+        if name not in MATERIALS:
+            raise ValueError(f"asset material {name!r} is not one of {sorted(MATERIALS)}")
+        return MATERIALS[name]
+
+    scale = float(meta.get("scale", 1.0))
+    z = np.asarray(points_obj, np.float64)[..., 2] / scale  # the unscaled asset's heights, as the bands are
+    tol = PART_BAND_TOLERANCE * float(meta.get("height_m", np.ptp(z) if z.size else 0.0))
+    rest = material(meta.get("material", "glossy_plastic"))
+    f0 = np.full(z.shape, coating.f0 if rest.glossy else 0.0)
+    rough = np.full(z.shape, coating.roughness if rest.roughness is None else rest.roughness)
+    free = np.ones(z.shape, bool)
+    for part in parts:
+        mat = material(part["material"])
+        lo, hi = part["z_m"]
+        m = free & (z >= lo - tol) & (z <= hi + tol)
+        f0[m] = coating.f0 if mat.glossy else 0.0
+        rough[m] = coating.roughness if mat.roughness is None else mat.roughness
+        free &= ~m
+    return PixelCoating(f0, rough)
+
 
 def view_directions(roi: tuple[int, int, int, int], intrinsics) -> np.ndarray:
     """(h, w, 3) unit vectors in the camera frame from the surface seen at each pixel centre of the window ``roi``
@@ -68,11 +182,13 @@ def view_directions(roi: tuple[int, int, int, int], intrinsics) -> np.ndarray:
     return -ray / np.linalg.norm(ray, axis=-1, keepdims=True)
 
 
-def _coating_radiance(n, view, lighting: LightingEstimate, sun_visibility, coating: Coating):
-    """(Fresnel weight (N,), reflected radiance (N, 3)) of ``coating`` at unit normals ``n`` seen from ``view``."""
+def _coating_radiance(n, view, lighting: LightingEstimate, sun_visibility, coating: Coating | PixelCoating):
+    """(Fresnel weight (N,), reflected radiance (N, 3)) of ``coating`` (one, or (N,) per pixel) at unit normals
+    ``n`` seen from ``view``."""
     v = np.asarray(view, dtype=np.float64)
     ndv = np.clip(np.einsum("ij,ij->i", n, v), 1e-3, 1.0)
-    fresnel = coating.f0 + (1.0 - coating.f0) * (1.0 - ndv) ** 5
+    coated = np.asarray(coating.f0) > 0  # f0 0 is no coating at all, not a grazing-only one
+    fresnel = np.where(coated, coating.f0 + (1.0 - coating.f0) * (1.0 - ndv) ** 5, 0.0)
     mirror = 2.0 * ndv[:, None] * n - v
     out = fresnel[:, None] * sh_irradiance(lighting.ambient_sh, mirror) / np.pi
     if lighting.dominant_sun and lighting.sun_direction_in_cam is not None:
@@ -87,7 +203,7 @@ def _coating_radiance(n, view, lighting: LightingEstimate, sun_visibility, coati
         k = coating.roughness**2 / 2.0
         g = ndl / (ndl * (1.0 - k) + k) * ndv / (ndv * (1.0 - k) + k)
         f = coating.f0 + (1.0 - coating.f0) * (1.0 - vdh) ** 5
-        lobe = np.where(ndl > 0, f * d * g / (4.0 * ndv), 0.0)
+        lobe = np.where((ndl > 0) & coated, f * d * g / (4.0 * ndv), 0.0)
         if sun_visibility is not None:
             lobe = lobe * np.clip(np.asarray(sun_visibility, dtype=np.float64), 0.0, 1.0)
         out = out + lobe[:, None] * np.asarray(lighting.sun_irradiance_rgb, dtype=np.float64)
@@ -135,11 +251,12 @@ def shade_object(
     lighting: LightingEstimate,
     sun_visibility: np.ndarray | None = None,
     view: np.ndarray | None = None,
-    coating: Coating = Coating(),
+    coating: Coating | PixelCoating = Coating(),
 ) -> np.ndarray:
     """Linear RGB (H, W, 3) float32 of the object (0 outside ``mask``). Normals need not be exactly unit (renormalised);
     zero normals inside the mask get ambient from the up direction rather than NaN. ``view`` (H, W, 3): the
-    directions toward the camera (:func:`view_directions`), needed by a ``coating`` with ``f0`` above 0."""
+    directions toward the camera (:func:`view_directions`), needed by a ``coating`` with ``f0`` above 0; a
+    :class:`PixelCoating` is (H, W)."""
     albedo = np.asarray(albedo_linear, dtype=np.float64)
     n = np.asarray(normals_in_cam, dtype=np.float64)
     m = np.asarray(mask, bool)
@@ -156,7 +273,7 @@ def shade_object(
         lighting,
         None if sun_visibility is None else np.asarray(sun_visibility, dtype=np.float64)[m],
         None if view is None else np.asarray(view, dtype=np.float64)[m],
-        coating,
+        coating.at(m),
     )
     return out
 
@@ -167,10 +284,11 @@ def shade_pixels(
     lighting: LightingEstimate,
     sun_visibility: np.ndarray | None = None,
     view: np.ndarray | None = None,
-    coating: Coating = Coating(),
+    coating: Coating | PixelCoating = Coating(),
 ) -> np.ndarray:
     """:func:`shade_object` on a list of pixels: albedo (N, 3), normals (N, 3) (renormalised; a zero normal gets
-    the up direction), sun visibility (N,) or None, directions toward the camera (N, 3) or None -> (N, 3) float32
+    the up direction), sun visibility (N,) or None, directions toward the camera (N, 3) or None, a
+    :class:`PixelCoating` (N,) or one :class:`Coating` -> (N, 3) float32
     linear radiance (non-finite results as 0). The caller checks finiteness (``shade_object`` does)."""
     n = np.asarray(normals_in_cam, dtype=np.float64)
     length = np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
@@ -180,7 +298,7 @@ def shade_pixels(
     # the gain never lifts a channel above white's response (albedo 1): the saturation guard on white holds for it
     a = np.minimum(a * fluorescent_gain(a, FLUORESCENT_GAIN)[:, None], np.maximum(a, 1.0))
     out = a * E / np.pi
-    if coating.f0 > 0:
+    if coating.any:
         if view is None:
             raise ValueError("shade_pixels: a coating needs the view directions")
         fresnel, reflected = _coating_radiance(n, view, lighting, sun_visibility, coating)

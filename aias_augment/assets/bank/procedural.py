@@ -6,6 +6,8 @@
 - ``crumpled_sheet``: a folded, crumpled thin sheet (plastic/cardboard/metal), double sided.
 - ``traffic_cone``: a seeded family of cones (and delineator posts): colour, proportions, 0-3 reflective bands,
   square or round base, dirt; a smooth surface of revolution with a drawn texture, every draw recorded in ``meta``.
+  Its parts carry materials (``meta["parts"]``, :mod:`aias_augment.apply.shading`): the body glossy plastic, the
+  sleeves retroreflective sheeting (with a fine prism-cell texture), the base matte rubber.
 Each generator draws its size from the category's real range and all randomness from the passed generator.
 """
 
@@ -296,6 +298,11 @@ def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image
     grain = rng.normal(0, 1, (th, tw))
     img *= (1 + 0.04 * low + 0.015 * grain)[..., None]
     img[band] *= (1 + 0.03 * rng.normal(0, 1, (int(band.sum()), tw)))[..., None]
+    # the sheeting's prism cells: a fine diamond lattice, its period (8 texels) dividing the width so that it closes
+    # round the seam and keeps the cone's 4-fold symmetry
+    i, j = np.nonzero(band)[0][:, None], np.arange(tw)[None, :]
+    cell = (np.abs((i + j) % 8 - 3.5) + np.abs((i - j) % 8 - 3.5)) / 7.0  # 0 at a cell's centre, 1 at its corners
+    img[band] *= (1 + 0.06 * (0.5 - cell))[..., None]
     if p["dirt"] > 0:
         blot = _wrapped_blur(rng.normal(0, 1, (th // 4, tw // 4)), 3.0)  # patchy, periodic around the cone
         blot = cv2.resize(np.clip(blot / max(blot.std(), 1e-9) * 0.6 + 0.1, 0, 1), (tw, th))  # eps: flat noise
@@ -353,7 +360,15 @@ def make_traffic_cone(
     m = trimesh.Trimesh(
         verts, faces, vertex_normals=normals, process=False, visual=trimesh.visual.TextureVisuals(uv=uv, material=mat)
     )
-    m.metadata["procedural_params"] = {**p, "height_m": h, "segments": int(segments)}
+    parts = [{"name": "base", "z_m": [0.0, zb], "material": "matte_rubber"}]
+    parts += [{"name": "sleeve", "z_m": list(b), "material": "retroreflective"} for b in p["bands_z_m"]]
+    m.metadata["procedural_params"] = {
+        **p,
+        "height_m": h,
+        "segments": int(segments),
+        "parts": parts,
+        "material": "glossy_plastic",  # the body: everything no part names
+    }
     return m
 
 
