@@ -9,6 +9,8 @@ radiance). Full shadow of an open-sky point is ``1 / (1 + r)``; measured on a ph
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy import ndimage, spatial
 
@@ -19,10 +21,51 @@ __all__ = [
     "contact_occlusion",
     "fill_nearest",
     "SUN_ANGULAR_RADIUS_RAD",
+    "SunShadowLimits",
+    "sun_shadow_limits",
 ]
 
 #: Half the sun's apparent diameter (0.53 deg).
 SUN_ANGULAR_RADIUS_RAD = float(np.deg2rad(0.265))
+
+#: Below this sun confidence no sun shadow is darker than :data:`UNCERTAIN_SUN_DARKEST` of the lit ground: a false
+#: sun's black hard shadow costs far more than a missed sun's faint one (issue 53: never under 0.5 below 0.8; 0.55
+#: leaves room for the output's 8-bit rounding).
+UNCERTAIN_SUN_CONFIDENCE = 0.8
+UNCERTAIN_SUN_DARKEST = 0.55
+#: At confidence c the sun is drawn as a disc widened by (1 - c) x this (rad) and the penumbra is at least
+#: (1 - c) x :data:`UNCERTAIN_SUN_MIN_SIGMA_PX` wider: an uncertain direction gives a soft edge, not a crisp one.
+UNCERTAIN_SUN_SPREAD_RAD = float(np.deg2rad(6.0))
+UNCERTAIN_SUN_MIN_SIGMA_PX = 4.0
+
+
+@dataclass(frozen=True)
+class SunShadowLimits:
+    """How dark and how hard a sun shadow may be: ``darkest`` the least share of the lit ground's light a sun
+    shadow leaves (0: no limit), ``angular_radius_rad`` the sun disc's for the penumbra, ``min_sigma_px`` the
+    penumbra's least Gaussian sigma."""
+
+    darkest: float
+    angular_radius_rad: float
+    min_sigma_px: float
+
+    def sun_sky_ratio(self, ratio: float) -> float:
+        """``ratio`` limited so that a full shadow of an open-sky point (``1 / (1 + r)``) is at least ``darkest``."""
+        return ratio if self.darkest <= 0 else min(ratio, 1.0 / self.darkest - 1.0)
+
+
+def sun_shadow_limits(confidence: float) -> SunShadowLimits:
+    """The shadow a sun of ``confidence`` (the sun decision's, in [0, 1]) may cast. The shadow's depth (1 - the
+    darkest share) grows linearly from 0 at confidence 0 to ``1 - UNCERTAIN_SUN_DARKEST`` at
+    :data:`UNCERTAIN_SUN_CONFIDENCE`, then to no limit at 1; its edge softens linearly as the confidence drops."""
+    c = float(np.clip(confidence, 0.0, 1.0))
+    c0, deepest = UNCERTAIN_SUN_CONFIDENCE, 1.0 - UNCERTAIN_SUN_DARKEST
+    depth = deepest * c / c0 if c < c0 else deepest + (1.0 - deepest) * (c - c0) / (1.0 - c0)
+    return SunShadowLimits(
+        1.0 - depth,
+        SUN_ANGULAR_RADIUS_RAD + (1.0 - c) * UNCERTAIN_SUN_SPREAD_RAD,
+        0.5 + (1.0 - c) * UNCERTAIN_SUN_MIN_SIGMA_PX,
+    )
 
 
 def shadow_ratio_from_sun_sky(

@@ -28,6 +28,7 @@ from aias_augment.apply.shadows import (
     occluder_distance_from_footprint,
     shadow_ratio_from_sun_sky,
     soften_shadow,
+    sun_shadow_limits,
 )
 from aias_augment.apply.view_cache import ViewCache, warp_from_view_cache
 from aias_augment.assets.asset import Asset
@@ -376,17 +377,19 @@ def _object_shadow_window(
     ao = np.ones(gm.shape, np.float32)  # off the ground patch: far from the object, no contact occlusion
     ao[gm] = contact_occlusion_of(np.hypot(dx, dy), asset.height_m, *contact)  # >= 0, finite: the ground points are
     # Without a sun the ratio is the contact occlusion alone ((a + 0 v) / 1).
-    ratio = (
-        shadow_ratio_from_sun_sky(sl.visibility, lighting.sun_sky_ratio, ambient_occlusion=ao)
-        if sun_cam is not None
-        else ao
-    )
+    ratio = ao
     if sun_cam is not None:
+        # As dark and as hard as the sun decision's confidence allows; never darker than that where the contact
+        # occlusion alone (the shadow without a sun) is not.
+        limits = sun_shadow_limits(lighting.confidence)
+        r = limits.sun_sky_ratio(lighting.sun_sky_ratio)
+        ratio = shadow_ratio_from_sun_sky(sl.visibility, r, ambient_occlusion=ao)
         elevation = float(np.arcsin(np.clip(sun_obj[2], -1.0, 1.0)))
         dist = np.full(gm.shape, np.nan)
         dist[gm] = occluder_distance_from_footprint(pts_obj[:, :2], asset.corners_m()[:, :2], elevation)
         ppm = np.where(gm, intr.fy / np.maximum(gdepth, 1e-3), 0.0)  # eps: no division by zero depth
-        ratio = soften_shadow(ratio, dist, pixels_per_metre=ppm)
+        ratio = soften_shadow(ratio, dist, limits.angular_radius_rad, ppm, min_sigma_px=limits.min_sigma_px)
+        ratio = np.maximum(ratio, np.minimum(ao, limits.darkest))
     # The real scene in front of the shadowed ground hides the shadow.
     win = np.s_[y0:y1, x0:x1]
     unoccluded = _unhidden(gdepth, scene_depth, None, win)
