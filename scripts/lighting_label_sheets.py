@@ -77,7 +77,25 @@ def main(argv=None) -> int:
         help="sheets of N more TraCon train photos outside the benchmark (seeded draw), labelled into "
         "labels_extra.csv: training data for the sun-evidence model only, never scored",
     )
+    ap.add_argument(
+        "--more",
+        type=int,
+        default=0,
+        help="sheets of N more TraCon train photos outside the benchmark and labels_extra.csv (seeded draw), "
+        "labelled into labels_more.csv: the asymmetric sun decision's dev and held-out parts",
+    )
     a = ap.parse_args(argv)
+    if a.more:
+        extra = a.labels.with_name("labels_extra.csv")
+        taken = {p.name for p in benchmark_photos(a.tracon)} | {
+            Path(r["photo"]).name for r in csv.DictReader(open(extra))
+        }
+        rest = [p for p in sorted((data_root() / "tracon" / "images" / "train").iterdir()) if p.name not in taken]
+        pick = np.random.default_rng(2).choice(len(rest), size=min(a.more, len(rest)), replace=False)
+        photos = [rest[i] for i in sorted(pick)]
+        write_sheets(photos, a.out, "more_")
+        print(len(photos), "more photos in", a.out)
+        return 0
     if a.extra:
         root = data_root()
         taken = {p.name for p in benchmark_photos(a.tracon)}
