@@ -17,6 +17,8 @@ from pathlib import Path
 
 import torch
 
+from aias_augment.core.arg_parser import OneLineArgumentParser
+from aias_augment.core.config import ConfigError
 from aias_augment.core.logs import add_logging_args, configure_logging
 
 from .config import load_detector_config, replace_nested
@@ -120,7 +122,7 @@ def cmd_train(args) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     argv = _default_to_eval(list(sys.argv[1:] if argv is None else argv))
-    p = argparse.ArgumentParser(
+    p = OneLineArgumentParser(
         prog="detection-eval", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     sub = p.add_subparsers(dest="command", required=True)
@@ -130,7 +132,9 @@ def main(argv: list[str] | None = None) -> None:
     e.add_argument("--split", default=None, help="YOLO split subfolder, e.g. val")
     e.add_argument("--names", nargs="*", help="YOLO class names (else classes.txt or class_<i>)")
     e.add_argument("--image-root", default=None, help="COCO: folder of the images (default: beside the json)")
-    e.add_argument("--img-size", type=int, default=None, help="default: the training size stored with the weights")
+    e.add_argument(
+        "--img-size", type=_int_in(32, 4096), default=None, help="default: the training size stored with the weights"
+    )
     e.add_argument("--out", default=None, help="write the metrics as JSON here")
     t = sub.add_parser("train", help="train a detector on one dataset")
     t.add_argument("--config", default="lite0_320", help="configs/detector/<name>.yaml or a path")
@@ -139,15 +143,34 @@ def main(argv: list[str] | None = None) -> None:
     t.add_argument("--names", nargs="*")
     t.add_argument("--val", default=None)
     t.add_argument("--val-split", default=None)
-    t.add_argument("--iters", type=int, default=None)
-    t.add_argument("--seed", type=int, default=0)
+    t.add_argument("--iters", type=_int_in(1, 10**9), default=None, help="default: the config's max_iters")
+    t.add_argument("--seed", type=_int_in(0, 2**32 - 1), default=0)
     t.add_argument("--out", required=True)
     add_predict_args(sub.add_parser("predict", help="draw the detections of saved weights on a folder of images"))
     add_logging_args(p, subcommands=sub.choices.values())
     args = p.parse_args(argv)
     configure_logging(args)
     torch.set_num_threads(1)
-    {"eval": cmd_eval, "train": cmd_train, "predict": cmd_predict}[args.command](args)
+    try:
+        {"eval": cmd_eval, "train": cmd_train, "predict": cmd_predict}[args.command](args)
+    except (ValueError, OSError, ConfigError) as e:  # bad weights, data or config: one line (DEBUG: the traceback)
+        logging.getLogger(__name__).debug("detection-eval %s failed", args.command, exc_info=True)
+        p.exit(2, f"detection-eval {args.command}: error: {' '.join(str(e).split())}\n")
+
+
+def _int_in(lo: int, hi: int):
+    """An argparse type: a whole number in [lo, hi]."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{v} is outside [{lo}, {hi}]")
+        return v
+
+    return parse
 
 
 def _default_to_eval(argv: list[str]) -> list[str]:

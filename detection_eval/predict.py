@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 import torch
 
+from aias_augment.core.arg_parser import OneLineArgumentParser
 from aias_augment.core.logs import add_logging_args, configure_logging
 
 from .data import IMAGE_SUFFIXES, read_image_rgb
@@ -103,7 +104,7 @@ def cmd_predict(args: argparse.Namespace) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(
+    p = OneLineArgumentParser(
         prog="detection-eval predict", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     add_predict_args(p)

@@ -7,6 +7,7 @@ import copy
 import dataclasses
 import logging
 import math
+import pickle
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -194,8 +195,11 @@ def save_checkpoint(path: str | Path, model: Detector, category_names, meta: dic
 
 def load_checkpoint(path: str | Path, device="cpu") -> tuple[Detector, list[str], dict]:
     """Rebuild the model from the stored config (no pretrained download or file needed) and load its weights."""
-    ckpt = torch.load(path, map_location=device, weights_only=True)
-    if ckpt.get("format") != "detection_eval/1":
+    try:
+        ckpt = torch.load(path, map_location=device, weights_only=True)
+    except (pickle.UnpicklingError, RuntimeError, EOFError, KeyError, UnicodeDecodeError) as e:  # not a torch file
+        raise ValueError(f"{path}: not a detection_eval checkpoint ({' '.join(str(e).split())[:200]})") from None
+    if not isinstance(ckpt, dict) or ckpt.get("format") != "detection_eval/1":
         raise ValueError(f"{path}: not a detection_eval checkpoint")
     cfg = detector_config_from_dict(ckpt["config"])
     cfg = replace_nested(cfg, **{"model.pretrained": False})

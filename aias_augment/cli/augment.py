@@ -22,13 +22,14 @@ from aias_augment.cli.offline import (
     items_from_yolo,
     run,
 )
+from aias_augment.core.arg_parser import OneLineArgumentParser
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M
 from aias_augment.core.logs import add_logging_args, configure_logging
 from aias_augment.pipeline.image import PRESETS, load_preset
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(
+    ap = OneLineArgumentParser(
         prog="aias-augment", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     src = ap.add_mutually_exclusive_group()

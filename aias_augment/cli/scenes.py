@@ -17,10 +17,26 @@ from pathlib import Path
 
 import numpy as np
 
+from aias_augment.core.arg_parser import OneLineArgumentParser
 from aias_augment.core.logs import add_logging_args, configure_logging
 from aias_augment.scenes.retrieval.features import FeatureConfig
 from aias_augment.scenes.retrieval.index import QueryConfig, SceneIndex, build_index
 from aias_augment.scenes.retrieval.sources import iter_frames, read_image
+
+
+def _count(lo: int):
+    """An argparse type: a whole number >= ``lo``."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{v} is below {lo}")
+        return v
+
+    return parse
 
 
 def _cmd_index(a) -> int:
@@ -71,7 +87,7 @@ def _cmd_query(a) -> int:
         hits = index.query_words(a.words, top_k=a.top)
     else:
         if a.image is None:
-            raise SystemExit("aias-scenes query: give --image (optionally --region) or --words")
+            raise ValueError("give --image (optionally --region) or --words")
         hits = index.query_image(
             read_image(a.image),
             QueryConfig(top_k=a.top, rerank=a.rerank),
@@ -84,7 +100,7 @@ def _cmd_query(a) -> int:
 def _cmd_name(a) -> int:
     index = SceneIndex.load(a.index)
     if len(a.image) != len(a.region):
-        raise SystemExit("aias-scenes name: give one --region per --image")
+        raise ValueError("give one --region per --image")
     examples = []
     for path, (x, y, w, h) in zip(a.image, a.region):
         img = read_image(path)
@@ -98,35 +114,38 @@ def _cmd_name(a) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="aias-scenes", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p = OneLineArgumentParser(prog="aias-scenes", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
     s = sub.add_parser("index", help="build a persisted index of clips (folders of images, videos, images)")
     s.add_argument("sources", nargs="+", type=Path)
     s.add_argument("--out", type=Path, required=True)
-    s.add_argument("--every", type=int, default=1, help="take every N-th frame of each clip")
-    s.add_argument("--max-frames", type=int, default=None, help="per clip")
-    s.add_argument("--words", type=int, default=2048, help="vocabulary size (capped at features / 10)")
-    s.add_argument("--features", type=int, default=FeatureConfig.n_features)
-    s.add_argument("--max-side", type=int, default=FeatureConfig.max_side_px)
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--every", type=_count(1), default=1, help="take every N-th frame of each clip")
+    s.add_argument("--max-frames", type=_count(1), default=None, help="per clip")
+    s.add_argument("--words", type=_count(2), default=2048, help="vocabulary size (capped at features / 10)")
+    s.add_argument("--features", type=_count(1), default=FeatureConfig.n_features)
+    s.add_argument("--max-side", type=_count(16), default=FeatureConfig.max_side_px)
+    s.add_argument("--seed", type=_count(0), default=0)
     s = sub.add_parser("query", help="query by an example image / region, or by named visual words")
     s.add_argument("--index", type=Path, required=True)
     s.add_argument("--image", type=Path)
-    s.add_argument("--region", type=int, nargs=4, metavar=("X", "Y", "W", "H"))
+    s.add_argument("--region", type=_count(0), nargs=4, metavar=("X", "Y", "W", "H"))
     s.add_argument("--words", nargs="*", default=None, help="named visual words (see `name`)")
-    s.add_argument("--top", type=int, default=5)
-    s.add_argument("--rerank", type=int, default=QueryConfig.rerank)
+    s.add_argument("--top", type=_count(1), default=5)
+    s.add_argument("--rerank", type=_count(0), default=QueryConfig.rerank)
     s.add_argument("--json", action="store_true")
     s = sub.add_parser("name", help="name visual words from example regions (stored in the index)")
     s.add_argument("--index", type=Path, required=True)
     s.add_argument("--name", required=True)
     s.add_argument("--image", type=Path, action="append", required=True)
-    s.add_argument("--region", type=int, nargs=4, action="append", required=True, metavar=("X", "Y", "W", "H"))
-    s.add_argument("--n-words", type=int, default=64)
+    s.add_argument("--region", type=_count(0), nargs=4, action="append", required=True, metavar=("X", "Y", "W", "H"))
+    s.add_argument("--n-words", type=_count(1), default=64)
     add_logging_args(p, subcommands=sub.choices.values())
     a = p.parse_args(argv)
     configure_logging(a)
-    return {"index": _cmd_index, "query": _cmd_query, "name": _cmd_name}[a.cmd](a)
+    try:
+        return {"index": _cmd_index, "query": _cmd_query, "name": _cmd_name}[a.cmd](a)
+    except (ValueError, OSError) as e:  # an unreadable index, image or clip: one line, exit 2
+        p.exit(2, f"aias-scenes {a.cmd}: error: {' '.join(str(e).split())}\n")
 
 
 if __name__ == "__main__":

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import logging
 
+from aias_augment.core.arg_parser import OneLineArgumentParser
+from aias_augment.core.config import ConfigError
 from aias_augment.core.logs import add_logging_args, configure_logging
 from detection_eval.config import load_detector_config
 from detection_eval.data import load_yolo_dir
@@ -19,12 +21,9 @@ log = logging.getLogger("detection_eval.study")
 
 
 def main(argv: list[str] | None = None) -> None:
-    import shlex
-    import sys
-
     import torch
 
-    p = argparse.ArgumentParser(
+    p = OneLineArgumentParser(
         prog="aias-study", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     p.add_argument("--config", default="configs/study/tracon_cones.yaml")
@@ -37,6 +36,17 @@ def main(argv: list[str] | None = None) -> None:
     args = p.parse_args(argv)
     configure_logging(args, fmt="%(asctime)s %(levelname)s %(name)s: %(message)s")
     torch.set_num_threads(1)
+    try:
+        _run(args, argv)
+    except (ValueError, OSError, ConfigError) as e:  # a bad config or dataset: one line (DEBUG: the traceback)
+        log.debug("aias-study failed", exc_info=True)
+        p.exit(2, f"aias-study: error: {' '.join(str(e).split())}\n")
+
+
+def _run(args, argv) -> None:
+    import shlex
+    import sys
+
     cfg = load_study_config(args.config)
     arms = available_arms(args.arms or cfg.arms)
     seeds = args.seeds if args.seeds is not None else list(cfg.seeds)

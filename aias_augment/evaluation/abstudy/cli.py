@@ -13,6 +13,7 @@ import logging
 import sys
 from pathlib import Path
 
+from aias_augment.core.arg_parser import OneLineArgumentParser
 from aias_augment.core.logs import add_logging_args, configure_logging, log_level
 from aias_augment.evaluation.abstudy.build import DESIGNS, StudyError, build_study, load_study
 from aias_augment.evaluation.abstudy.report import compute_report, format_report, results_csv, votes_csv
@@ -34,7 +35,7 @@ def _report(a) -> int:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(
+    ap = OneLineArgumentParser(
         prog="aias-abstudy", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     sub = ap.add_subparsers(dest="cmd", required=True)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import time
+import zipfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Iterable
@@ -281,10 +282,17 @@ class SceneIndex:
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"index not found: {path}")
+        try:
+            return cls._load(path)
+        except (ValueError, KeyError, TypeError, OSError, zipfile.BadZipFile) as e:  # not an index this code wrote
+            raise ValueError(f"{path}: not a scene index ({e}); build one with aias-scenes index") from None
+
+    @classmethod
+    def _load(cls, path: Path) -> "SceneIndex":
         with np.load(path) as z:
             meta = json.loads(z["meta"].tobytes().decode())
             if meta.get("version") != INDEX_VERSION:
-                raise ValueError(f"{path}: index version {meta.get('version')} != {INDEX_VERSION}; rebuild it")
+                raise ValueError(f"index version {meta.get('version')} != {INDEX_VERSION}; rebuild it")
             counts = sp.csr_matrix((z["c_data"], z["c_indices"], z["c_indptr"]), shape=tuple(z["c_shape"]))
             return cls(
                 Vocabulary(z["centers"]),
