@@ -169,8 +169,9 @@ class ViewCache:
         return got[0]
 
     def _asset_folder(self, root: Asset) -> Path | None:
-        """``directory / asset_digest(root)``, or None (no directory, or a procedural asset: each is new)."""
-        if self.directory is None or root.procedural:
+        """``directory / asset_digest(root)``, or None (no directory, or a procedural asset drawn anew per object; a
+        finite family's member, ``meta["family"]``, is reused and keeps its views on disk)."""
+        if self.directory is None or (root.procedural and "family" not in root.meta):
             return None
         got = self._digests.get(id(root))
         if got is None or got[1] is not root:

@@ -56,6 +56,8 @@ EdgeBlendMode = Literal["rendered", "hard", "feather"]
         "box_convention": "[0, 0.45]",
         "coating_f0": "[0, 0.2]",
         "coating_roughness": "[0.05, 1]",
+        "family_members": "[1, 65536]",  # family_cache.MAX_MEMBERS
+        "family_seed": "[0, inf)",
     },
     orders=["min_objects <= max_objects"],
 )
@@ -103,6 +105,11 @@ class InsertionConfig:
     # from the bank; "procedural": a new seeded procedural asset per object where the category has a generator
     # (traffic_cone), else as "default".
     asset_source: Literal["default", "bank", "procedural"] = "default"
+    # With asset_source "procedural": None draws a new member of the family per object; N draws one of N members
+    # made from ``family_seed`` (required then: every worker and epoch sees the same members), each built once per
+    # process, so the view cache reuses its views (assets/bank/family_cache.py; the member index is in the record).
+    family_members: int | None = None
+    family_seed: int | None = None
     # Share of objects inserted as a seeded physical variant of their asset (aias_augment/assets/deform.py: dented,
     # crushed, bent, knocked over; kinds and ranges in ``deform_cfg``), drawn in the plan and recorded in the
     # placement's ``asset_meta["deformation"]``, so a replay rebuilds the same variant. 0: off.
@@ -170,6 +177,12 @@ class InsertionConfig:
         if self.naive_paste and self.naive_share > 0:
             raise ConfigValueError(
                 ("InsertionConfig", "naive_share"), "must be 0 when naive_paste is on (every image is a naive paste)"
+            )
+        if self.family_members is not None and (self.family_seed is None or self.asset_source != "procedural"):
+            raise ConfigValueError(
+                ("InsertionConfig", "family_members"),
+                f"{self.family_members} needs asset_source 'procedural' (got {self.asset_source!r}) and a "
+                f"family_seed >= 0 (got {self.family_seed}): set both, or family_members None",
             )
         if self.decoys[1] > 0 and not self.decoy_categories:
             raise ConfigValueError(("InsertionConfig", "decoy_categories"), "must not be empty when decoys are drawn")

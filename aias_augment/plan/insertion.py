@@ -399,6 +399,10 @@ def choose_asset(category: str, rng, cfg: InsertionConfig, bank=None) -> Asset:
     if cfg.asset_source == "procedural":
         from aias_augment.assets.bank.procedural import CATEGORY_SPECS, procedural_asset
 
+        if category in CATEGORY_SPECS and cfg.family_members is not None:  # one draw of rng: the member index
+            from aias_augment.assets.bank.family_cache import default_family
+
+            return default_family(category, cfg.family_members, cfg.family_seed).sample(rng)
         if category in CATEGORY_SPECS:  # a new seeded one per object (one draw of rng: its seed)
             return procedural_asset(category, rng)
     if cfg.asset_source in ("default", "procedural") and category in DEFAULT_ASSETS:
