@@ -172,34 +172,38 @@ def _loft(
     there (creases). A ring with r == 0 is a pole (one vertex). Returns vertices, faces (outward, CCW), vertex
     normals (smooth within a section, seamless across the UV seam) and UVs (u = angle, v as given)."""
     theta = np.linspace(0.0, 2 * np.pi, segments + 1)
+    cos_t, sin_t, u = np.cos(theta[:-1]), np.sin(theta[:-1]), theta / (2 * np.pi)
+    j = np.arange(segments)
     verts, faces, normals, uvs = [], [], [], []
     base = 0
     for sec in sections:
-        ids, pos, uv = [], [], []
-        for z, r, n, v in sec:
+        ids, pos, uv, n = [], [], [], 0
+        for z, r, sn, v in sec:
             if r <= 0:
-                ids.append([len(pos)])
-                pos.append([0.0, 0.0, z])
-                uv.append([0.5, v])
+                ids.append(np.array([n]))
+                pos.append(np.array([[0.0, 0.0, z]]))
+                uv.append(np.array([[0.5, v]]))
+                n += 1
             else:
-                rr = r * _superellipse(theta[:-1], n)
-                ring = np.c_[rr * np.cos(theta[:-1]), rr * np.sin(theta[:-1]), np.full(segments, z)]
-                ids.append(list(range(len(pos), len(pos) + segments + 1)))
-                pos += ring.tolist() + [ring[0].tolist()]  # the seam column repeats column 0
-                uv += np.c_[theta / (2 * np.pi), np.full(segments + 1, v)].tolist()
-        pos = np.array(pos)
+                rr = r * _superellipse(theta[:-1], sn)
+                ring = np.c_[rr * cos_t, rr * sin_t, np.full(segments, z)]
+                ids.append(np.arange(n, n + segments + 1))
+                pos.append(np.r_[ring, ring[:1]])  # the seam column repeats column 0
+                uv.append(np.c_[u, np.full(segments + 1, v)])
+                n += segments + 1
+        pos = np.concatenate(pos)
         sf = []
         for a, b in zip(ids[:-1], ids[1:]):
             if len(a) == 1 and len(b) == 1:
                 continue
             if len(a) == 1:  # bottom pole: fan, outward = down
-                sf += [[a[0], b[j + 1], b[j]] for j in range(segments)]
+                sf.append(np.c_[np.full(segments, a[0]), b[j + 1], b[j]])
             elif len(b) == 1:  # top pole
-                sf += [[a[j], a[j + 1], b[0]] for j in range(segments)]
-            else:
-                for j in range(segments):
-                    sf += [[a[j], a[j + 1], b[j + 1]], [a[j], b[j + 1], b[j]]]
-        sf = np.array(sf)
+                sf.append(np.c_[a[j], a[j + 1], np.full(segments, b[0])])
+            else:  # per column j: (a_j, a_j+1, b_j+1) then (a_j, b_j+1, b_j)
+                quad = np.stack([np.c_[a[j], a[j + 1], b[j + 1]], np.c_[a[j], b[j + 1], b[j]]], axis=1)
+                sf.append(quad.reshape(-1, 3))
+        sf = np.concatenate(sf).astype(np.int64)
         # smooth normals on the geometric vertices (seam column merged into column 0), area weighted
         geo = np.arange(len(pos))
         for ring in ids:
@@ -215,7 +219,7 @@ def _loft(
         verts.append(pos)
         faces.append(sf + base)
         normals.append(nrm)
-        uvs.append(np.array(uv))
+        uvs.append(np.concatenate(uv))
         base += len(pos)
     return np.concatenate(verts), np.concatenate(faces), np.concatenate(normals), np.concatenate(uvs)
 
@@ -313,12 +317,18 @@ def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image
         d = np.clip(p["dirt"] * blot * ground, 0, 0.85)[..., None]
         grime = np.array([0.28, 0.24, 0.2])  # brownish road dirt
         grey = img.mean(-1, keepdims=True)
-        img = (img * (1 - 0.5 * d) + grey * 0.5 * d) * (1 - 0.45 * d) + grime * 0.15 * d  # desaturate, darken
+        # desaturate, darken: (img (1 - d/2) + grey d/2) (1 - 0.45 d) + 0.15 grime d, without full-size temporaries
+        img *= 1 - 0.5 * d
+        img += grey * 0.5 * d
+        img *= 1 - 0.45 * d
+        img += grime * 0.15 * d
         for _ in range(int(p["dirt"] * 40)):  # scuffs: short dark horizontal streaks
             r0, c0 = rng.integers(th), rng.integers(tw)
             ln, wd = rng.integers(4, 30), rng.integers(1, 3)
             img[r0 : r0 + wd, c0 : c0 + ln] *= rng.uniform(0.55, 0.85)
-    return Image.fromarray(np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8))
+    img *= 255
+    img += 0.5
+    return Image.fromarray(np.clip(img, 0, 255, out=img).astype(np.uint8))
 
 
 def make_traffic_cone(
