@@ -30,6 +30,7 @@ __all__ = [
     "MIN_MASK_FRACTION",
     "LabelledDepth",
     "contact_depth",
+    "ground_scale",
     "image_occluders",
     "labelled_depth",
     "object_mask_from_box",
@@ -137,21 +138,25 @@ def visibility_under_nearer(
     return out
 
 
+def ground_scale(ground: GroundPlane, placement) -> float:
+    """The factor by which a placement scaled the scene about the camera (an assumed-scale ground,
+    :func:`aias_augment.plan.placement.scaled_ground`): its contact point's distance from the camera along
+    ``ground``'s normal over ``ground``'s own (1 where either is not positive). Depths on ``ground`` times it are
+    depths on the placement's ground: each inserted object is ordered against the labelled ones on its own."""
+    d = -float(np.asarray(ground.normal, float) @ np.asarray(placement.contact_point_in_cam, float))
+    return d / ground.d if ground.d > 0 and d > 0 else 1.0
+
+
 def image_occluders(
     image_rgb: np.ndarray, boxes_xywh, ground: GroundPlane | None, intrinsics: Intrinsics, placements
 ) -> tuple[LabelledDepth | None, str]:
-    """The labelled boxes of one image as occluders of its planned ``placements`` (their ``amodal_box_xyxy`` and
-    ``contact_point_in_cam``), with what was done. A placement may have scaled the scene about the camera (an
-    assumed-scale ground, :func:`aias_augment.plan.placement.scaled_ground`): the labelled contacts are taken on the
-    plane with ``ground``'s normal through the placements' contact points (the median distance), so both stand on
-    one ground. None (and why) without a ground or a placement."""
+    """The labelled boxes of one image as occluders of its planned ``placements`` (their ``amodal_box_xyxy``),
+    with what was done; depths on ``ground`` (scale them by :func:`ground_scale` for each placement). None (and
+    why) without a ground or a placement."""
     boxes = np.asarray(boxes_xywh, float).reshape(-1, 4)
     if ground is None or not placements:
         return None, "no ground or nothing placed: labelled objects are not occluders"
-    n = np.asarray(ground.normal, float)
-    d = float(np.median([-(n @ np.asarray(p.contact_point_in_cam, float)) for p in placements]))
-    scale = d / ground.d if ground.d > 0 and d > 0 else 1.0
-    zs = [None if z is None else z * scale for z in (contact_depth(b, ground, intrinsics) for b in boxes)]
+    zs = [contact_depth(b, ground, intrinsics) for b in boxes]
     out = labelled_depth(image_rgb, boxes, zs, [np.asarray(p.amodal_box_xyxy, float) for p in placements])
     far = sum(z is None for z in zs)
     return out, (

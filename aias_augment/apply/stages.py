@@ -18,7 +18,7 @@ from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window
 from aias_augment.apply.layers import ObjectLayer, apply_layer_stages
-from aias_augment.apply.occluders import image_occluders, visibility_under_nearer
+from aias_augment.apply.occluders import ground_scale, image_occluders, visibility_under_nearer
 from aias_augment.apply.projected_shadow import projected_ground
 from aias_augment.apply.render import render_ground_shadow, render_object_window
 from aias_augment.apply.shading import Coating, object_coating, shade_object, shade_pixels, view_directions
@@ -114,6 +114,10 @@ def apply_plan(
         else:
             mods["occlusion"] = skipped("naive paste: objects pasted over the labelled ones")
     ldepth = None if labelled is None else labelled.depth
+
+    def labelled_for(placement, arr):  # the labelled depths on the ground this object stands on
+        return None if arr is None else arr * np.float32(ground_scale(analysis.ground, placement))
+
     for k, obj in enumerate(plan.objects):
         warped = None
         if cfg.render_method == "view_cache":
@@ -159,7 +163,7 @@ def apply_plan(
                 depth,
                 cfg.shadow_method,
                 (cfg.contact_shadow_strength, cfg.contact_shadow_radius),
-                labelled_depth=ldepth,
+                labelled_depth=labelled_for(o.placement, ldepth),
             )
             for o, *_ in rendered
         ]
@@ -225,12 +229,12 @@ def apply_plan(
     for i in order:
         (x0, y0, x1, y1), alpha, odepth, shaded = layers[i][3]
         sl = np.s_[y0 - Y0 : y1 - Y0, x0 - X0 : x1 - X0]
-        a = alpha * _unhidden(odepth, sdepth, swin, sl)
+        a = alpha * _unhidden(odepth, sdepth, labelled_for(layers[i][0].placement, swin), sl)
         out[sl] = comp.alpha_over(out[sl], shaded, a)
     # Visible part of each object: not behind the scene, not behind nearer inserted objects.
     vis_alphas = []
-    for i, (_, a_i, d_i, _) in enumerate(layers):
-        vis = a_i * _unhidden(d_i, sdepth, swin)
+    for i, (obj_i, a_i, d_i, _) in enumerate(layers):
+        vis = a_i * _unhidden(d_i, sdepth, labelled_for(obj_i.placement, swin))
         for j, (_, a_j, d_j, _) in enumerate(layers):
             if j == i:
                 continue
@@ -279,7 +283,10 @@ def apply_plan(
     ]
     labelled_vis = None
     if labelled is not None:
-        object_z = [o.placement.contact_point_in_cam[2] for o, *_ in layers]
+        # each object's contact z on the labelled objects' ground
+        object_z = [
+            o.placement.contact_point_in_cam[2] / ground_scale(analysis.ground, o.placement) for o, *_ in layers
+        ]
         labelled_vis = visibility_under_nearer(labelled_xywh, labelled.contact_z, vis_alphas, object_z, win[:2], full)
     if any(cfg.box_convention):
         mods["boxes"] = "labelling convention: margins (left, top, right, bottom) {} of the label".format(
