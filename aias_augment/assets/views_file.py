@@ -83,7 +83,7 @@ def _scaled(rgb: np.ndarray, mask: np.ndarray | None, K: np.ndarray, max_pixels:
 def _spec(path: Path) -> tuple[list[dict], float | None]:
     try:
         spec = json.loads(path.read_bytes().decode("utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as e:
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:  # RecursionError: nested too deep
         raise ValueError(f"{path}: not a readable views file ({type(e).__name__}: {e})") from None
     views = spec.get("views") if isinstance(spec, dict) else None
     if not isinstance(views, list) or not all(isinstance(e, dict) for e in views):

@@ -181,7 +181,7 @@ def read_manifest(out: Path) -> dict | None:
     """``out/manifest.json`` if an aias-augment run wrote it (a readable mapping naming the package), else None."""
     try:
         m = json.loads((Path(out) / "manifest.json").read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # RecursionError: nested too deep (not a manifest we wrote)
         return None
     return m if isinstance(m, dict) and m.get("package") == "aias-augment" else None
 

@@ -58,8 +58,8 @@ def items_from_coco(json_path: str, images_dir: str, box_policy: str = "clip") -
     try:
         with open(json_path) as f:
             data = json.load(f)
-    except (OSError, ValueError) as e:
-        raise InputError(f"cannot read COCO json {json_path}: {e}") from None
+    except (OSError, ValueError, RecursionError) as e:  # RecursionError: nested too deep
+        raise InputError(f"cannot read COCO json {json_path}: {str(e) or type(e).__name__}") from None
     check_coco(data, json_path)
     names = {c["id"]: c["name"] for c in data.get("categories", [])}
     anns: dict[int, list] = {}

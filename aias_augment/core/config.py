@@ -40,14 +40,14 @@ def from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "") -> T:
     """Build dataclass ``cls`` from a mapping, recursing into nested dataclass fields.
 
     Raises :class:`UnknownConfigKeys` (a ``KeyError``) naming the unknown keys (with the path inside the config),
-    ``TypeError`` for non-mappings, and for a :func:`checked_config` class its construction errors (a value of the
+    :class:`ConfigTypeError` (a ``TypeError``) for non-mappings, and for a :func:`checked_config` class its construction errors (a value of the
     wrong type or out of range), prefixed with ``where`` (e.g. the YAML file).
     """
     data = {} if data is None else data
     source = where
     where = where or cls.__name__
     if not isinstance(data, dict):
-        raise TypeError(f"{where}: expected a mapping, got {type(data).__name__}")
+        raise ConfigTypeError((cls.__name__,), f"expected a mapping, got {type(data).__name__}", source or "")
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - set(fields), key=str)
     if unknown:

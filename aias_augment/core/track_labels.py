@@ -114,6 +114,8 @@ def read_coco_video(path: str | Path, flag: str = "--labels") -> list[TrackBox]:
         d = json.loads(text)
     except json.JSONDecodeError as e:
         raise InputError(f"{flag} {p}: not JSON ({e.msg}, line {e.lineno}); give a COCO-video file") from None
+    except RecursionError:
+        raise InputError(f"{flag} {p}: nested too deep for JSON labels; give a COCO-video file") from None
     if not isinstance(d, dict) or not isinstance(d.get("images"), list) or not isinstance(d.get("annotations"), list):
         raise InputError(f"{flag} {p}: no images and annotations lists; give a COCO-video file")
     names = {c.get("id"): str(c.get("name")) for c in d.get("categories", []) if isinstance(c, dict)}

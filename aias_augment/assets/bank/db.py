@@ -91,7 +91,7 @@ def read_index(folder: str | Path) -> dict:
         return {"report": {"assets": [], "rejected": {}}}
     try:
         bank = json.loads(index.read_bytes().decode("utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as e:
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as e:  # RecursionError: nested too deep
         raise BankError(f"{index}: not a readable bank index ({type(e).__name__}: {e}); move it away or restore it")
     entries = bank.get("report", {}).get("assets") if isinstance(bank, dict) else None
     if not isinstance(entries, list) or not all(
