@@ -40,8 +40,8 @@ def from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "") -> T:
     """Build dataclass ``cls`` from a mapping, recursing into nested dataclass fields.
 
     Raises :class:`UnknownConfigKeys` (a ``KeyError``) naming the unknown keys (with the path inside the config),
-    :class:`ConfigTypeError` (a ``TypeError``) for non-mappings, and for a :func:`checked_config` class its construction errors (a value of the
-    wrong type or out of range), prefixed with ``where`` (e.g. the YAML file).
+    :class:`ConfigTypeError` (a ``TypeError``) for non-mappings, and for a :func:`checked_config` class its
+    construction errors (a value of the wrong type or out of range), prefixed with ``where`` (e.g. the YAML file).
     """
     data = {} if data is None else data
     source = where
