@@ -1,4 +1,4 @@
-"""What one insertion does to the targets beside the image: instance masks, a semantic mask, keypoints, new boxes.
+"""What one insertion does to the targets beside the image: instance masks, a semantic mask, keypoints.
 
 Pure functions of the insertion's record (its :class:`~aias_augment.apply.annotate.ObjectAnnotation` list: one COCO
 RLE of the visible pixels per object that rendered) and the targets as albumentations holds them, shared by the
@@ -9,9 +9,7 @@ albumentations transform and the torchvision door:
   inserted objects' masks follow, in the order of their boxes;
 - a semantic mask (``mask``): the inserted objects' visible pixels painted with their category's value;
 - keypoints: a keypoint under an inserted object is hidden, as one outside the image is: removed when the
-  ``KeypointParams`` say ``remove_invisible`` (albumentations' default), kept otherwise;
-- new boxes: filtered with albumentations' own :func:`filter_bboxes` and the Compose's ``BboxParams`` (as its
-  ``Mosaic`` filters the boxes it adds), so that a box the Compose would drop takes its mask with it.
+  ``KeypointParams`` say ``remove_invisible`` (albumentations' default), kept otherwise.
 
 Decoys (objects inserted as negatives, without a label) hide what is behind them but get no box, mask or paint.
 """
@@ -21,7 +19,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from albumentations.core.bbox_utils import filter_bboxes
 from pycocotools import mask as mask_utils
 
 
@@ -104,25 +101,3 @@ def keypoints_after(keypoints: np.ndarray, hidden: np.ndarray, remove_invisible:
     under = np.zeros(len(kp), bool)
     under[inside] = hidden[y[inside], x[inside]]
     return kp[~under]
-
-
-def kept_new_boxes(rows: np.ndarray, hw: tuple[int, int], bbox_params) -> np.ndarray:
-    """(K,) bool: which new boxes (albumentations' normalised rows) pass :func:`filter_bboxes` with the
-    ``BboxParams``' ``min_area``, ``min_visibility``, ``min_width``, ``min_height`` and ``max_accept_ratio`` (all
-    True without params)."""
-    rows = np.asarray(rows, np.float32).reshape(-1, 4)
-    if bbox_params is None or len(rows) == 0:
-        return np.ones(len(rows), bool)
-    indexed = np.c_[rows, np.arange(len(rows), dtype=np.float32)]
-    kept = filter_bboxes(
-        indexed,
-        {"height": hw[0], "width": hw[1]},
-        min_area=bbox_params.min_area,
-        min_visibility=bbox_params.min_visibility,
-        min_width=bbox_params.min_width,
-        min_height=bbox_params.min_height,
-        max_accept_ratio=bbox_params.max_accept_ratio,
-    )
-    out = np.zeros(len(rows), bool)
-    out[kept[:, 4].astype(np.int64)] = True
-    return out

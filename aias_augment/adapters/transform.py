@@ -24,22 +24,17 @@ analysed and planned at 2 MP and rendered at full size (:mod:`aias_augment.pipel
 from __future__ import annotations
 
 import logging
+import threading
 from collections.abc import Mapping
-from dataclasses import replace
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
 import albumentations as A
 import numpy as np
-from albumentations.core.bbox_utils import (
-    convert_bboxes_to_albumentations,
-)
-from albumentations.core.type_definitions import Targets
 
+from aias_augment.adapters import albu_compat as compat
 from aias_augment.adapters import record_replay, targets
 from aias_augment.adapters.bbox_encoding import (
-    _ENCODED_FORMATS,
     _encode_boxes,
     _encoded_labels,
     _internal_from_xywh,
@@ -53,41 +48,32 @@ from aias_augment.adapters.boundary import (
     check_sample_targets,
     image_for_insertion,
 )
-from aias_augment.adapters.variants import (
-    Variant,
-    VariantCache,
-    VariantResult,
-    plain_image_key,
-    variant_key,
-    variant_key_prefix,
-    variant_rng,
-)
+from aias_augment.adapters.transform_warm import WarmVariants, _plan_labels
+from aias_augment.adapters.variants import Variant, VariantCache, VariantResult
 from aias_augment.analyse.cache import SceneCache
 from aias_augment.apply.view_cache import ViewCache
 from aias_augment.assets.asset import PathAssets
-from aias_augment.pipeline.bounded import ANALYSIS_MAX_PIXELS, insert_bounded
+from aias_augment.pipeline.bounded import insert_bounded
 from aias_augment.pipeline.image import PRESETS, InsertionConfig, load_preset
 
 log = logging.getLogger(__name__)
 
-_NO_BOXES = np.zeros((0, 4))
-_NO_BOXES.flags.writeable = False
-_NO_TARGETS = MappingProxyType({})
+#: This thread's insertions between a transform's sampling step and its apply step, by ``id(transform)``: the
+#: result (image, boxes, masks) stays out of the parameters albumentations keeps, which hold only the JSON record.
+_LIVE = threading.local()
 
 
-def _same(image: np.ndarray) -> np.ndarray:
-    """``restore`` of a uint8 RGB input (C-contiguous): the output is already in the input's form."""
-    return image
+def _hand_over(transform, live: dict) -> None:
+    if not hasattr(_LIVE, "calls"):
+        _LIVE.calls = {}
+    _LIVE.calls[id(transform)] = live
 
 
-#: Every 2D target. AlbumentationsX names instance masks apart (``Targets.MASKS``); albumentations 2.0.8's ``MASK``
-#: covers both ``mask`` and ``masks``.
-_TARGETS = tuple(
-    getattr(Targets, name) for name in ("IMAGE", "MASK", "MASKS", "BBOXES", "KEYPOINTS") if hasattr(Targets, name)
-)
+def _take(transform) -> dict | None:
+    return getattr(_LIVE, "calls", {}).pop(id(transform), None)
 
 
-class InsertObjects(A.DualTransform):
+class InsertObjects(WarmVariants, A.DualTransform):
     """Insert 3D objects photorealistically and append their COCO boxes.
 
     Args:
@@ -121,7 +107,7 @@ class InsertObjects(A.DualTransform):
         skipped: the number of images left unchanged (all reasons).
     """
 
-    _targets = _TARGETS
+    _targets = compat.TARGETS
 
     def __init__(
         self,
@@ -188,174 +174,6 @@ class InsertObjects(A.DualTransform):
         self._variant_prefix = None  # hash of config, assets and seed (made on first use; not picklable)
         self.counts = TransformCounts()  # calls, insertions, skips and empty calls by reason (this process)
         self.last_record = None  # InsertionRecord of the latest call in this process (for debugging/replay)
-        self._live = None  # this call's result and restore, between the params and the apply steps
-
-    def warm(
-        self, images, camera_ks=None, depths=None, view_plans: int = 0, variants: bool = False, bboxes=None
-    ) -> dict:
-        """Analyse ``images`` (an iterable of what the transform will be called with: arrays in any input format it
-        accepts) into the scene cache before training, so that no call pays a first analysis: with ``scene_cache``
-        (a folder) every DataLoader worker and later run reads them; without, only this process's LRU holds them.
-        ``camera_ks`` / ``depths``: per image, as the ``camera_k`` / ``depth`` targets (None: none).
-        ``view_plans``: with the fast preset, also draw that many plans per image (on generators of their own, so
-        from the planner's own distribution of assets and poses) and render the views their objects use into the
-        view cache (``scene_cache/views`` with a folder: every worker reads them; else this process's), so that
-        the calls find most views cached. Only images of at most 2 MP (larger ones are analysed, their views not).
-
-        Each image goes through the call's own path (:func:`aias_augment.pipeline.bounded.insert_bounded` with
-        the scene cache, on a generator of its own), so the cached analysis is the one the call looks up (same
-        frame, same key); the insertion it makes is discarded and the transform's generator, counts and records
-        are untouched: warming changes when the analysis (and a view) is computed, never what a call returns.
-        ``variants``: with ``variants_per_image`` K, also compute each image's K variants (into this process's
-        variant cache and, with ``scene_cache``, its folder), so that calls only paste them; ``bboxes``: per image,
-        the boxes the calls will carry, as they pass them: in the Compose's bbox format (COCO xywh for a transform
-        outside a Compose with ``bbox_params``). A variant is made for its image's boxes (None: no boxes), so they go
-        through the Compose's own conversion here as in a call (to albumentations' float32 boxes, clipped or
-        filtered as its ``BboxParams`` say, and back): warm's keys are the calls' keys bit for bit.
-        Returns ``{"images", "analysed", "already_cached", "skipped", "views_rendered", "views_cached",
-        "variants_computed", "variants_cached", "boxes_refused"}`` (boxes_refused: images whose boxes the Compose's
-        processor refuses, as it would in a call; logged, no variants made for them)."""
-        if variants and not self.variants_per_image:
-            raise ValueError("warm(variants=True) needs InsertObjects(variants_per_image=K)")
-        out = {
-            "images": 0,
-            "analysed": 0,
-            "already_cached": 0,
-            "skipped": 0,
-            "views_rendered": 0,
-            "views_cached": 0,
-            "variants_computed": 0,
-            "variants_cached": 0,
-            "boxes_refused": 0,
-        }
-        cache = self._scene_cache
-        for i, image in enumerate(images):
-            out["images"] += 1
-            k = None if camera_ks is None else camera_ks[i]
-            d = None if depths is None else depths[i]
-            try:
-                rgb, _, _ = image_for_insertion(image)
-                h, w = rgb.shape[:2]
-                check_sample_targets({"camera_k": k, "depth": d}, h, w)
-            except SampleSkip:
-                out["skipped"] += 1
-                continue
-            before = cache.misses
-            try:
-                insert_bounded(
-                    rgb,
-                    None,
-                    None,
-                    np.random.default_rng(i),
-                    replace(self.config, naive_share=0.0),  # the pipeline's analysis (a naive paste needs little)
-                    intrinsics=k,
-                    depth=d,
-                    bank=self._bank,
-                    scene_cache=cache,
-                    n_objects=0,
-                )
-            except Exception as e:  # as in a call: an odd image is skipped, not fatal
-                log.warning("warm: image %d skipped (%s)", i, e)
-                out["skipped"] += 1
-                continue
-            out["analysed" if cache.misses > before else "already_cached"] += 1
-            if view_plans and self.config.render_method == "view_cache" and h * w <= ANALYSIS_MAX_PIXELS:
-                self._warm_views(rgb, k, d, view_plans, i, out)
-            if variants:
-                try:
-                    boxes = np.zeros((0, 4)) if bboxes is None else self._boxes_as_called(bboxes[i], h, w)
-                except ValueError as e:  # boxes the Compose would refuse in a call too
-                    log.warning("warm: no variants for image %d: its boxes are refused (%s)", i, e)
-                    out["boxes_refused"] += 1
-                    continue
-                for j in range(self.variants_per_image):
-                    m0 = self._variants.misses
-                    try:
-                        self._variant(rgb, boxes, 0.0, {"camera_k": k, "depth": d}, j=j)
-                    except Exception as e:  # as in a call
-                        log.warning("warm: variant %d of image %d not made (%s)", j, i, e)
-                        continue
-                    out["variants_computed" if self._variants.misses > m0 else "variants_cached"] += 1
-        return out
-
-    def _warm_views(self, rgb, k, d, view_plans: int, i: int, out: dict) -> None:
-        from aias_augment.apply.view_cache import default_view_cache, render_from_view_cache
-        from aias_augment.core.frame import Frame
-        from aias_augment.core.geometry import Intrinsics
-        from aias_augment.plan.insertion import plan_insertion
-
-        h, w = rgb.shape[:2]
-        intr = None if k is None else Intrinsics.from_matrix(np.asarray(k, float), w, h)
-        depth = None if d is None else np.asarray(d, np.float32)
-        analysis = self._scene_cache.get(Frame(rgb, intr, depth=depth, meta={}), self.config)
-        vc = self._view_cache if self._view_cache is not None else default_view_cache()
-        for j in range(view_plans):
-            plan = plan_insertion(analysis, self.config, np.random.default_rng([i, j, 1]), depth=depth, bank=self._bank)
-            for o in plan.objects:
-                m0 = vc.misses
-                if render_from_view_cache(o.asset, o.cam_from_object, analysis.intrinsics, vc) is not None:
-                    out["views_rendered" if vc.misses > m0 else "views_cached"] += 1
-
-    def _variant(
-        self,
-        rgb: np.ndarray,
-        existing_xywh: np.ndarray,
-        min_vis: float,
-        data,
-        j: int | None = None,
-        key: str | None = None,
-        references=None,
-        rng: np.random.Generator | None = None,
-    ):
-        """Variant ``j`` (None: drawn with the call's generator) of this sample, computed on a miss. ``key``: the
-        sample's :func:`variant_key` when the caller has it (and found it missing: it is not looked up again).
-        ``references``: per existing box, the inserted category it is an object of (its label is the one the
-        inserted boxes get), else None."""
-        if j is None:
-            j = int(rng.integers(self.variants_per_image))
-        # Boxes to 1e-3 px, in the key and in the insertion alike: the Compose's normalise/denormalise round trip
-        # (or warm's raw boxes) must find the same variant, and the variant is made from exactly what its key says.
-        if len(existing_xywh):
-            existing_xywh = np.round(np.asarray(existing_xywh, np.float64).reshape(-1, 4), 3)
-        v = None
-        if key is None:
-            key = variant_key(
-                rgb,
-                camera_k=data.get("camera_k"),
-                depth=data.get("depth"),
-                scene=data.get("scene"),
-                existing_xywh=existing_xywh,
-                references=None if references is None else [r is not None for r in references],
-                prefix=self._key_prefix(),
-            )
-            v = self._variants.get(key, j)
-        labels = _plan_labels(len(existing_xywh), references)
-        if v is None:
-            full = insert_bounded(
-                rgb,
-                existing_xywh,
-                labels,
-                variant_rng(self.variants_seed, j, key),
-                self.config,
-                intrinsics=data.get("camera_k"),
-                depth=data.get("depth"),
-                bank=self._bank,
-                scene_cache=self._scene_cache,
-                view_cache=self._view_cache,
-                scene=data.get("scene"),
-            )
-            v = Variant.from_result(rgb, full)
-            h, w = rgb.shape[:2]
-            for fmt in _ENCODED_FORMATS:  # the new boxes as a Compose will encode them, made once, kept with it
-                v.encoded[(h, w, fmt)] = _encode_boxes(v.inserted_bboxes, h, w, fmt)
-            self._variants.put(key, j, v)
-        return v.result(rgb, existing_xywh, labels, min_vis)
-
-    def _key_prefix(self):
-        """The variant keys' fixed part (config, assets, seed): :func:`variant_key_prefix`, made on first use."""
-        if self._variant_prefix is None:
-            self._variant_prefix = variant_key_prefix(self.config, self.assets, self.variants_seed)
-        return self._variant_prefix
 
     @property
     def skipped(self) -> int:
@@ -384,22 +202,27 @@ class InsertObjects(A.DualTransform):
 
     # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
     def _params_for_call(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
-        """albumentations' ``get_params_dependent_on_data``. Runs the insertion (kept for this call's ``apply_*``); the parameters albumentations keeps are JSON:
-        ``{"insertion": record dict or None (image left unchanged)}`` when the Compose records parameters
-        (``ReplayCompose``, ``save_applied_params=True``), else none (a record costs a dict per call)."""
-        self._live = live = self._insert(data, self.random_generator)
+        """albumentations 2.0.8's ``get_params_dependent_on_data``: runs the insertion (handed to this call's
+        ``apply_*``). The parameters albumentations keeps are JSON: ``{"insertion": record dict or None (image left
+        unchanged)}`` when the Compose records parameters (``ReplayCompose``, ``save_applied_params=True``), else
+        none (a record costs a dict per call)."""
+        live = self._insert(data, self.random_generator)
+        _hand_over(self, live)
         if not (self.deterministic or "applied_transforms" in data):
             return {}
-        res = live["insert_result"]
-        return {"insertion": None if res is None else res.record.to_dict()}
+        return {"insertion": _record_of(live)}
 
     def sample_parameters(self, params, data, targets, sampling):
-        """AlbumentationsX's sampling hook: the insertion on the invocation's generator, its result passed to the
-        ``apply_*`` of this call (AlbumentationsX keeps no parameters between calls)."""
+        """AlbumentationsX's sampling hook: the insertion on the invocation's generator (handed to this call's
+        ``apply_*``). The parameters it returns are JSON, as on 2.0.8: the record when the call is recorded
+        (``ReplayCompose``, ``save_applied_params``, a direct call), else none."""
         from albumentations.core.transform_params import SampledParams
 
         live = self._insert(data, sampling.random_generator)
-        return SampledParams(params={**live, **self._call_extras(live["insert_result"], data)})
+        _hand_over(self, live)
+        if not (self.deterministic or isinstance(sampling.applied_overrides, dict)):
+            return SampledParams(params={})
+        return SampledParams(params={"insertion": _record_of(live)})
 
     def _insert(self, data: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
         if self.variants_per_image:
@@ -419,27 +242,6 @@ class InsertObjects(A.DualTransform):
             ):
                 return self._plain_variant(img, rng)
         return self._general_params(data, rng)
-
-    def _plain_variant(self, rgb: np.ndarray, rng: np.random.Generator) -> dict[str, Any]:
-        """A variant call on a uint8 RGB image (the training loop's usual input) without existing boxes, K, depth
-        or scene facts: what :meth:`_general_params` does for it (the image passes the boundary as it is and
-        ``restore`` is the identity), in fewer steps: a draw, the key, a lookup, a copy with the window pasted."""
-        j = int(rng.integers(self.variants_per_image))
-        try:
-            key = plain_image_key(rgb, self._key_prefix())
-            v = self._variants.get(key, j)
-            res = (
-                self._variant(rgb, _NO_BOXES, 0.0, _NO_TARGETS, j=j, key=key)
-                if v is None
-                else v.result(rgb, _NO_BOXES, ())
-            )
-        except Exception as e:  # one odd image must not stop an epoch: skip it, count it, say why
-            self.counts.skip(e, log)
-            return {"insert_result": None, "restore": _same}
-        self.last_record = res.variant if isinstance(res, VariantResult) else res.record
-        n = len(res.inserted_labels)
-        self.counts.result(n, None if n else res.record.to_dict(), log)
-        return {"insert_result": res, "restore": _same}
 
     def _general_params(self, data: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
         try:  # the sample's boundary: dtype/range/shape of the image, camera_k and depth (SampleSkip: counted)
@@ -500,23 +302,7 @@ class InsertObjects(A.DualTransform):
         state["params"] = {}
         state["_variant_prefix"] = None
         state["_last_record"] = None
-        state["_live"] = None
         return state
-
-    def _boxes_as_called(self, boxes, h: int, w: int) -> np.ndarray:
-        """COCO xywh pixels of ``boxes`` (the Compose's bbox format; COCO xywh without a bbox processor) as a call
-        reads them: through the processor's own ``check_and_convert`` (float32 albumentations boxes, clip and
-        filter as configured; the Compose's preprocess) and :func:`_xywh_from_internal`."""
-        b = np.asarray(boxes, np.float64).reshape(-1, 4)
-        if len(b) == 0:
-            return np.zeros((0, 4))
-        proc, shape = self._bbox_processor(), {"height": h, "width": w}
-        internal = (
-            proc.check_and_convert(b, shape, direction="to")
-            if proc is not None
-            else convert_bboxes_to_albumentations(b, "coco", shape)
-        )
-        return _xywh_from_internal(internal, h, w)
 
     def _bbox_processor(self):
         try:
@@ -524,19 +310,23 @@ class InsertObjects(A.DualTransform):
         except (AttributeError, KeyError):
             return None
 
-    def apply_with_params(self, params: dict[str, Any], *args: Any, **kwargs: Any) -> dict[str, Any]:
+    def apply_with_params(self, params, *args: Any, **kwargs: Any) -> dict[str, Any]:
         """Applies this call's insertion to every target; parameters without it (``ReplayCompose.replay``, or a
-        record kept from ``save_applied_params``) are replayed from their ``"insertion"`` record first."""
-        if not isinstance(params, Mapping):  # AlbumentationsX: SampledParams from sample_parameters, result inside
-            return super().apply_with_params(params, *args, **kwargs)
-        live, self._live = self._live, None
+        record kept from ``save_applied_params``) are replayed from their ``"insertion"`` record first.
+        ``params``: a mapping (2.0.8) or AlbumentationsX's ``SampledParams``."""
+        given = params if isinstance(params, Mapping) else params.params
+        live = _take(self)
         if live is None or self.replay_mode:
-            live = self._replayed(params, kwargs)
+            live = self._replayed(given, kwargs)
         res = live["insert_result"]
-        call = {**params, **live, **self._call_extras(res, kwargs)}
+        call = {**given, **live, **self._call_extras(res, kwargs)}
+        if compat.IS_X:
+            from albumentations.core.transform_params import SampledParams
+
+            return super().apply_with_params(SampledParams(params=call), *args, **kwargs)
         out = super().apply_with_params(call, *args, **kwargs)
         masks = kwargs.get("masks")
-        if res is not None and isinstance(masks, (list, tuple)) and not masks:  # albumentations skips an empty list
+        if res is not None and isinstance(masks, (list, tuple)) and not masks:  # 2.0.8 skips an empty list
             out["masks"] = list(self._new_masks(res, call["new_kept"]).astype(np.uint8))
         return out
 
@@ -546,9 +336,8 @@ class InsertObjects(A.DualTransform):
         if res is None or data.get("masks") is None:
             return {}
         h, w = res.image.shape[:2]
-        proc = self._bbox_processor()
         rows = _internal_from_xywh(res.inserted_bboxes, h, w)
-        return {"new_kept": targets.kept_new_boxes(rows, (h, w), None if proc is None else proc.params)}
+        return {"new_kept": compat.kept_rows(rows, (h, w), self._bbox_processor())}
 
     def _replayed(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
         if "insertion" not in params:
@@ -591,6 +380,9 @@ class InsertObjects(A.DualTransform):
     def apply_to_masks(self, masks: np.ndarray, insert_result=None, new_kept=None, **params: Any) -> np.ndarray:
         if insert_result is None:
             return masks
+        if len(masks) == 0:  # AlbumentationsX passes no masks on (2.0.8 skips them: see apply_with_params)
+            new = self._new_masks(insert_result, new_kept)
+            return new.astype(masks.dtype) if isinstance(masks, np.ndarray) else list(new.astype(np.uint8))
         hw = insert_result.image.shape[:2]
         hidden = targets.cover(insert_result.record.annotations, hw)
         return targets.instance_masks_after(
@@ -642,7 +434,7 @@ class InsertObjects(A.DualTransform):
         if label_fields:
             values = [self._label_for(c, proc, label_fields[0]) for c in res.inserted_labels]
             p = proc.params
-            if p.format in _ENCODED_FORMATS and not p.clip and not p.filter_invalid_bboxes:
+            if compat.encodes_like_2_0_8(p):
                 memo = getattr(getattr(res, "variant", None), "encoded", None)
                 mk = (h, w, p.format)
                 geo = None if memo is None else memo.get(mk)
@@ -664,17 +456,12 @@ class InsertObjects(A.DualTransform):
         """The new boxes through ``proc.preprocess`` (the Compose's own conversion, checks and label encoding)."""
         # to the user's format by the processor itself (any format, "albumentations" included), then back
         user_fmt = proc.check_and_convert(
-            _internal_from_xywh(res.inserted_bboxes, h, w), {"height": h, "width": w}, direction="from"
+            _internal_from_xywh(res.inserted_bboxes, h, w), compat.shape_arg((h, w)), direction="from"
         )
         temp = {"image": np.zeros((h, w, 1), np.uint8), "bboxes": user_fmt}
         for f in label_fields:
             temp[f] = list(values)
-        saved = dict(proc.is_sequence_input)
-        try:
-            proc.preprocess(temp)
-        finally:
-            proc.is_sequence_input.clear()
-            proc.is_sequence_input.update(saved)
+        compat.preprocess(proc, temp)
         return temp["bboxes"]
 
     def _references(self, boxes_internal, proc) -> list | None:
@@ -713,10 +500,10 @@ class InsertObjects(A.DualTransform):
         return category
 
 
-def _plan_labels(n: int, references: list | None) -> list:
-    """The existing boxes' labels as the pipeline reads them: an inserted category for a box of that kind, else
-    None (no kind); without references, the boxes' indices (the output's labels are not read back)."""
-    return list(range(n)) if references is None else list(references)
+def _record_of(live: dict) -> dict | None:
+    """The JSON record of a call's insertion (None: the image was left unchanged)."""
+    res = live["insert_result"]
+    return None if res is None else res.record.to_dict()
 
 
 def _checked_mask_values(values, categories: tuple[str, ...]) -> dict[str, float] | None:
@@ -739,5 +526,5 @@ def _checked_mask_values(values, categories: tuple[str, ...]) -> dict[str, float
 # The sampling hook of each line: albumentations 2.0.8 calls ``get_params_dependent_on_data``; AlbumentationsX
 # calls ``sample_parameters`` and refuses a class that defines the former in its body, so it is attached here, for
 # the 2.0.8 line only.
-if not hasattr(A.BasicTransform, "sample_parameters"):
+if not compat.IS_X:
     InsertObjects.get_params_dependent_on_data = InsertObjects._params_for_call
