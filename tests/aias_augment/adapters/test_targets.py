@@ -13,8 +13,9 @@ from tests.aias_augment.pipeline.test_image import road_frame
 K = [[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]]
 H, W = 480, 640
 CONE = 9  # the inserted objects' label
-#: Two objects of the scene: one small on the left, one large over the road where cones stand.
-BOXES = [[40.0, 250.0, 60.0, 50.0], [0.0, 300.0, 640.0, 180.0]]
+#: Two standing objects of the scene: one small on the left, and a barrier across the road whose lower part the
+#: cones standing nearer than it cover (labelled objects occlude by depth order, so the barrier must stand farther).
+BOXES = [[40.0, 250.0, 60.0, 50.0], [0.0, 280.0, 640.0, 60.0]]
 
 
 def _scene_masks() -> list[np.ndarray]:
@@ -70,7 +71,7 @@ def test_instance_masks_stay_in_step_with_the_boxes():
         after = got[i] > 0
         assert not (after & ~before).any() and not (after & union).any()
         assert np.array_equal(after | (before & union), before)
-    big = labels.index(2)  # the road object is partly hidden by the cones standing on it
+    big = labels.index(2)  # the barrier is partly hidden by the cones standing in front of it
     assert (masks[1] > 0).sum() > (got[big] > 0).sum()
 
 
