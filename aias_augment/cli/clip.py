@@ -99,6 +99,7 @@ class ClipJob:
     camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
     lookahead_frames: int | None = None  # the object stands beside where the camera is at this frame; None: the last
     lateral_offset_m: float = 2.5
+    ahead_m: float = 0.0  # ... and this far ahead of that camera (a short clip: the object and its shadow in view)
     lighting: str = "clip"  # "clip": one sun fused over the clip; "ambient": grey-world ambient only
     flow_refine: bool = False  # KLT stabilisation of the contact (for drifting poses)
     harmonize: str = "fast"  # harmonize.METHODS; "fast": one colour transform for the clip (median over frames)
@@ -137,6 +138,10 @@ class ClipJob:
 
         if self.preset not in PRESETS:
             raise ValueError(f"preset must be one of {PRESETS}, got {self.preset!r}")
+        if not (np.isfinite(self.lateral_offset_m) and np.isfinite(self.ahead_m)):
+            raise ValueError(
+                f"lateral_offset_m and ahead_m must be finite, got {self.lateral_offset_m}, {self.ahead_m}"
+            )
         if not (np.isfinite(self.fps) and self.fps > 0 and np.isfinite(self.object_speed_mps)):
             raise ValueError(f"need fps > 0 and a finite object speed, got {self.fps}, {self.object_speed_mps}")
         if self.object_speed_mps != 0 and self.flow_refine:
@@ -204,6 +209,7 @@ class RenderedClip:
     layer_params: list
     labels_visibility: list | None = None  # per frame, each labelled box's fraction left uncovered
     occluders: dict | None = None  # how the labelled objects' masks were made
+    sun: dict | None = None  # the clip's sun decision (:func:`clip_sun`); None: ambient light requested or failed
 
 
 CLIP_FILES = ("annotations.json", "mot.txt", "side_by_side.mp4", "contact_sheet.jpg", "record.json")
@@ -326,28 +332,40 @@ def render_clip(job: ClipJob, inputs: ClipInputs) -> RenderedClip:
         intr, poses = inputs.intrinsics, inputs.poses
         ground0, camera_note = prior_ground_plane(job.camera_height_m), "given camera and poses"
     rng = np.random.default_rng([job.seed, 0])
+    preset = load_preset(job.preset)
     category = job.categories[int(rng.integers(len(job.categories)))]
-    asset = choose_asset(category, rng, InsertionConfig(categories=(category,)))
+    # the preset's asset source, as the image door draws (procedural: one seeded family member per object)
+    asset = choose_asset(category, rng, InsertionConfig(categories=(category,), asset_source=preset.asset_source))
     lighting, lighting_note = None, "ambient (requested)"
     if job.lighting == "clip":
-        try:
-            lighting = estimate_lighting_clip(frames, intr, poses, rng=rng.spawn(1)[0])
-            lighting_note = f"one sun fused over {len(frames)} frames ({lighting[0].source})"
+        try:  # the image door's lighting config and sun decision, at the clip's camera height
+            height = ground0.camera_height_m
+            height = height if np.isfinite(height) and height > 0 else job.camera_height_m
+            lcfg = dataclasses.replace(preset.lighting_cfg, camera_height_m=float(height))
+            lighting = estimate_lighting_clip(frames, intr, poses, rng=rng.spawn(1)[0], config=lcfg)
+            sun = lighting[0]
+            lighting_note = f"one sun fused over {len(frames)} frames ({sun.source}): " + (
+                f"sun decided (confidence {sun.confidence:.2f}), cast shadows"
+                if sun.dominant_sun
+                else "no dominant sun, ambient light and contact shadows only"
+            )
         except (ValueError, np.linalg.LinAlgError) as e:  # a clip the estimator cannot read: ambient, said why
             log.warning("clip lighting failed (%s): ambient light only", e)
             lighting_note = skipped(str(e))
     last = len(frames) - 1
     # each object's layer stages from generators of their own: rng untouched
-    layer_params = draw_layer_params(load_preset(job.preset), job.seed, job.objects)
+    layer_params = draw_layer_params(preset, job.seed, job.objects)
     cfg = VideoInsertionConfig(
         lookahead_frames=last if job.lookahead_frames is None else min(job.lookahead_frames, last),
         lateral_offset_m=job.lateral_offset_m,
+        ahead_m=job.ahead_m,
         contact="lookahead" if moving else "sampled",  # a static camera goes nowhere: a seen ground
         flow_refine=job.flow_refine,
         speed_m_per_frame=job.object_speed_mps / job.fps,
         move_after_frames=round(job.object_start_s * job.fps),
         accelerate_frames=round(job.object_accel_s * job.fps),
         topple_frames=max(1, round(job.topple_s * job.fps)) if job.topple_s else 0,
+        stages=preset,
     )
 
     placed = plan_clip_objects(job, frames, intr, poses, rng, cfg, ground0, lighting, layer_params, (category, asset))
@@ -370,6 +388,7 @@ def render_clip(job: ClipJob, inputs: ClipInputs) -> RenderedClip:
         "colour": "grey clip: output converted to grey" if grey else "colour clip",
     }
     clip = RenderedClip(out_frames, intr, results=results, notes=notes, layer_params=layer_params, **placed)
+    clip.sun = None if lighting is None else clip_sun(lighting[0], poses[0])
     if occluders is not None:
         from aias_augment.pipeline.clip_occluders import labelled_visibility
 
@@ -383,6 +402,18 @@ def render_clip(job: ClipJob, inputs: ClipInputs) -> RenderedClip:
         ]
         clip.occluders = {"grabcut_masks": occluders.grabcut, "whole_box_masks": occluders.whole_box}
     return clip
+
+
+def clip_sun(light, cam_from_world: np.ndarray) -> dict:
+    """The clip's sun decision as the record keeps it: decided or not, its confidence and source, the direction
+    towards the sun in the world (None without a sun)."""
+    d = light.sun_direction_in_cam
+    return {
+        "dominant_sun": bool(light.dominant_sun),
+        "confidence": round(float(light.confidence), 4),
+        "source": light.source,
+        "direction_in_world": None if d is None else (np.asarray(cam_from_world)[:3, :3].T @ d).round(6).tolist(),
+    }
 
 
 def plan_clip_objects(job, frames, intr, poses, rng, cfg, ground0, lighting, layer_params, first) -> dict:
@@ -403,7 +434,8 @@ def plan_clip_objects(job, frames, intr, poses, rng, cfg, ground0, lighting, lay
     skipped_objects = []
     for k in range(1, job.objects):
         cat_k = job.categories[int(rng.integers(len(job.categories)))]
-        asset_k = choose_asset(cat_k, rng, InsertionConfig(categories=(cat_k,)))
+        source = (cfg.stages or InsertionConfig()).asset_source  # the image door's asset source
+        asset_k = choose_asset(cat_k, rng, InsertionConfig(categories=(cat_k,), asset_source=source))
         for attempt in range(COLLISION_ATTEMPTS):
             cfg_k = dataclasses.replace(
                 cfg,
@@ -482,6 +514,7 @@ def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: Rende
         "job": {k: v for k, v in _job_dict(job).items() if k != "out"},  # the folder may move: not part of it
         "category": clip.objects[0][0],
         "asset": clip.objects[0][1].name,
+        "asset_source": clip.objects[0][1].source,
         "asset_height_m": float(clip.objects[0][1].height_m),
         "frames": len(names),
         "frame_indices": idx.tolist(),
@@ -495,6 +528,8 @@ def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: Rende
                 "track_id": offset + k + 1,
                 "category": cat,
                 "asset": a.name,
+                "asset_source": a.source,  # procedural: asset_meta["seed"] rebuilds the family member
+                "asset_meta": a.meta,
                 "asset_height_m": float(a.height_m),
                 "world_from_object": r.world_from_object.tolist(),
                 "contact_in_world": r.contact_in_world.tolist(),
@@ -507,6 +542,7 @@ def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: Rende
         ],
         "skipped_objects": clip.skipped_objects,
         **({} if inputs.labels is None else {"labels": _labels_record(job, inputs, clip)}),
+        **({} if clip.sun is None else {"sun": clip.sun}),
         "modules": clip.notes,
         "skipped_stages": skipped_stages(clip.notes),
     }

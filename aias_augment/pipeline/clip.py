@@ -10,8 +10,8 @@ would jitter). The clip is planned once (:func:`plan_clip`: contact, yaw, world 
 object, ground and lighting) and every frame goes through the image door's stages (:func:`apply_clip` ->
 :func:`aias_augment.apply.stages.apply_plan`): rendered with that pose, shaded with the frame's estimate of ONE clip
 lighting (same sun in the world, e.g. ``estimate_lighting_clip``; default a uniform ambient), layer stages with the
-object's image motion, the shadow catcher's shadow (the ONE world pose and the ONE clip sun make it a fixed patch of
-the world ground), composited against the frame's depth and annotated (COCO xywh of the visible part). With ``flow_refine`` the ground patch under the contact is tracked with KLT
+object's image motion, the image door's shadow stage (the ONE world pose and the ONE clip sun make it a fixed patch
+of the world ground), composited against the frame's depth and annotated (COCO xywh of the visible part). With ``flow_refine`` the ground patch under the contact is tracked with KLT
 (:mod:`aias_augment.plan.stabilize`) and each frame's object pose slides on its ground so the contact stays on the
 tracked pixel: drifting poses (visual odometry) no longer make the object skate.
 
@@ -29,7 +29,8 @@ Poses: ``cams_from_world`` (N, 4, 4) OpenCV ``cam_from_world`` (KITTI poses inve
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -48,6 +49,9 @@ from aias_augment.plan.placement import (
     refit_local_ground,
 )
 from aias_augment.plan.stabilize import FlowRefineConfig, refined_cam_from_object, track_contact_with_flow
+
+if TYPE_CHECKING:
+    from aias_augment.pipeline.config import InsertionConfig
 
 __all__ = [
     "VideoInsertionConfig",
@@ -68,6 +72,7 @@ __all__ = [
 class VideoInsertionConfig:
     lookahead_frames: int = 10  # T: the object stands where the camera will be at frame start + T ...
     lateral_offset_m: float = 2.5  # ... shifted this far to the camera's right (negative: left)
+    ahead_m: float = 0.0  # ... and this far along that camera's forward axis (a short clip: the object in view)
     contact: str = "lookahead"  # "lookahead" | "sampled" (a ground pixel of the first frame)
     height_m: float | None = None  # object height; None: the asset's own
     local_refit: bool = True  # per-frame local ground refit (needs depths)
@@ -88,6 +93,10 @@ class VideoInsertionConfig:
     topple_start: int | None = None
     flow_cfg: FlowRefineConfig = FlowRefineConfig()
     placement_cfg: PlacementConfig = PlacementConfig()
+    # The image door's preset whose stage settings every frame goes through (coating, shadow method, contact
+    # shadow, box convention); ssaa, shadow and render method are this config's, harmonization the clip's own.
+    # None: the InsertionConfig defaults.
+    stages: InsertionConfig | None = None
 
     def __post_init__(self):
         if self.contact not in ("lookahead", "sampled"):
@@ -96,6 +105,10 @@ class VideoInsertionConfig:
             raise ValueError("lookahead_frames must be >= 0 and ssaa >= 1")
         if not np.isfinite(self.speed_m_per_frame):
             raise ValueError(f"speed_m_per_frame must be finite, got {self.speed_m_per_frame}")
+        if not (np.isfinite(self.lateral_offset_m) and np.isfinite(self.ahead_m)):
+            raise ValueError(
+                f"lateral_offset_m and ahead_m must be finite, got {self.lateral_offset_m}, {self.ahead_m}"
+            )
         if self.speed_m_per_frame != 0 and self.flow_refine:
             raise ValueError("flow_refine tracks the ground under a standing object: not with speed_m_per_frame")
         if self.move_after_frames < 0 or self.accelerate_frames < 0:
@@ -156,7 +169,8 @@ def choose_world_contact(
     """(contact point (3,), ground plane) in the world.
 
     "lookahead": the camera centre of frame j = start + T (clamped to the clip), moved lateral_offset_m along that
-    camera's x axis, dropped onto the ground as camera j sees it: ``ground_in_cam0`` taken as camera-relative (a
+    camera's x axis and ahead_m along its z axis, dropped onto the ground as camera j sees it: ``ground_in_cam0``
+    taken as camera-relative (a
     vehicle camera keeps its height and tilt over the road, while the road itself climbs and turns). "sampled": a
     random below-horizon pixel of frame ``start`` (2..40 m) lifted to its ground, then to the world.
     """
@@ -165,7 +179,7 @@ def choose_world_contact(
         j = min(start + cfg.lookahead_frames, len(poses) - 1)
         world_from_cam = invert_rigid(poses[j])
         world_ground = _world_ground(ground_in_cam0, poses[j])
-        p = world_from_cam[:3, 3] + cfg.lateral_offset_m * world_from_cam[:3, 0]
+        p = world_from_cam[:3, 3] + cfg.lateral_offset_m * world_from_cam[:3, 0] + cfg.ahead_m * world_from_cam[:3, 2]
         return world_ground.project_to_plane(p), world_ground
     world_ground = _world_ground(ground_in_cam0, poses[start])
     for _ in range(200):
@@ -326,8 +340,9 @@ def plan_clip(
         lights = list(lighting)
         mods["lighting"] = f"given per frame ({lights[start].source})"
     if cfg.shadow:
+        method = cfg.stages.shadow_method if cfg.stages else "catcher"
         mods["shadow"] = (
-            "shadow catcher per frame (one world pose, one sun)"
+            f"shadow {method} per frame (one world pose, one sun, confidence {lights[start].confidence:.2f})"
             if lights[start].dominant_sun
             else "contact occlusion only: no dominant sun"
         )
@@ -491,8 +506,12 @@ def apply_clip_objects(
     for plan in plans:
         if len(frames) != len(plan.cams_from_object):
             raise ValueError(f"{len(frames)} frames for a plan of {len(plan.cams_from_object)}")
-    stages_cfg = InsertionConfig(
-        ssaa=cfg.ssaa, shadow=cfg.shadow, shadow_method="catcher", harmonize=False, render_method="full"
+    stages_cfg = replace(
+        cfg.stages or InsertionConfig(),
+        ssaa=cfg.ssaa,
+        shadow=cfg.shadow,
+        harmonize=False,
+        render_method="full",
     )
     shape = (intrinsics.height, intrinsics.width)
     out_frames = []

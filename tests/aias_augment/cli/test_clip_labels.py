@@ -21,7 +21,7 @@ SEQ = data_root() / "kitti06_seq"
 N = 8
 # Painted objects (x0, y0, x1, y1), pixel-edge coordinates, and their labels: frame (0-based), track id.
 NEAR = {0: (760, 250, 812, 340), 1: (790, 262, 846, 360)}  # bases below the cone's (y 310, 335): nearer
-FAR = {2: (880, 200, 960, 300)}  # base above the cone's (y 370): farther, the cone stands in front of it
+FAR = {2: (870, 230, 950, 330)}  # base above the cone's (y 368): farther, the cone stands in front of it
 APART = {6: (100, 200, 160, 300)}  # meets no inserted object
 TRACKS = {"near": 7, "far": 12, "apart": 3}
 MARGIN_PX = 4  # the label box around the painted object (GrabCut needs background inside the box's context)
