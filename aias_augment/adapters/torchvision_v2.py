@@ -62,7 +62,7 @@ class InsertObjectsV2(v2.Transform):
         self.insert = InsertObjects(category_ids=dict(category_ids), **kwargs)
         self._compose = A.Compose(
             [self.insert],
-            bbox_params=A.BboxParams(format="coco", label_fields=["labels"], min_visibility=self.min_visibility),
+            bbox_params=A.BboxParams("coco", label_fields=["labels"], min_visibility=self.min_visibility),
             seed=self.seed,
         )
 
