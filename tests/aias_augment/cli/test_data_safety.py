@@ -278,7 +278,8 @@ def test_an_assets_folder_that_is_a_disk_is_named_as_itself_before_any_scan_or_w
     and the scan stops at a bounded number of entries."""
     dataset(tmp_path / "ds")
     before = snapshot(tmp_path)
-    argv = ["--images", str(tmp_path / "ds" / "images"), "--out", str(tmp_path / "out"), "--assets", "traffic_cone=/", *FAST]
+    images, out = str(tmp_path / "ds" / "images"), str(tmp_path / "out")
+    argv = ["--images", images, "--out", out, "--assets", "traffic_cone=/", *FAST]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and err.startswith("aias-augment: error: --assets traffic_cone=/:"), err
