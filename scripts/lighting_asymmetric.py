@@ -201,7 +201,8 @@ def main(argv=None) -> int:
     ap.add_argument("step", choices=("split", "analyse", "score"))
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--seed", type=int, default=53)
-    ap.add_argument("--min-precision", type=float, default=0.92)
+    ap.add_argument("--estimates", type=Path, default=OUT / "estimates.csv", help="what score reads")
+    ap.add_argument("--min-precision", type=float, default=0.90)
     ap.add_argument("--threshold", type=float, default=None, help="score this threshold instead of choosing one")
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
@@ -222,7 +223,7 @@ def main(argv=None) -> int:
             w.writerows(rows)
         print(f"{len(rows)} photos in {time.perf_counter() - t0:.0f} s")
     else:
-        report = score(read_estimates(a.out / "estimates.csv"), a.min_precision, a.threshold)
+        report = score(read_estimates(a.estimates), a.min_precision, a.threshold)
         report["command"] = "python scripts/lighting_asymmetric.py " + " ".join(argv or sys.argv[1:])
         (a.out / "report.json").write_text(json.dumps(report, indent=1))
         print(json.dumps(report, indent=1))

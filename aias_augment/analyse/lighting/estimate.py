@@ -45,7 +45,7 @@ from aias_augment.analyse.lighting.sun import (
     sun_direction_in_cam_from_metadata,
     sun_from_envmap,
 )
-from aias_augment.analyse.lighting.sun_evidence import direct_sun_probability, load_sun_evidence_model
+from aias_augment.analyse.lighting.sun_evidence import decide_direct_sun, direct_sun_probability
 from aias_augment.analyse.lighting.sun_side import sun_side_cue
 from aias_augment.core.config import checked_config
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
@@ -177,6 +177,7 @@ class LightingEstimate:
         "white_cap_linear": "(0, 1]",
         "ground_white_balance": "[0, 1]",
         "max_sun_sky_chroma": "[1, inf)",
+        "sun_threshold": "(0, 1)",
     }
 )
 @dataclass(frozen=True)
@@ -313,13 +314,17 @@ class LightingConfig:
     #: results/lighting/neutral_whites: with harmonize_colour "luminance", the deviation of inserted white bands
     #: from the same photos' real white sleeves fell by 0.043 in max |log R/G|, |log B/G| [0.007, 0.080], 27 photos).
     ambient_colour: Literal["scene", "neutral"] = "neutral"
-    #: Whether a photo without metadata has a dominant sun (hard shadows). "evidence": the calibrated probability of
+    #: Whether a photo without metadata has a dominant sun (hard shadows). "evidence": the probability of
     #: :mod:`.sun_evidence` (clear sky, sky-lit shadows bluer than lit surfaces, clipping) at or above the shipped
-    #: model's threshold; the estimate's confidence is that probability. Measured on one fixed-size copy, so every
-    #: preset decides the same (results/lighting/sun_evidence: test half precision 0.85 / recall 0.63 against
-    #: 0.57-0.60 / 0.33-0.44 for "cues"). "cues": a lit/shadow pair measured on the ground, a visible sun disc or a
-    #: confident sky cue, with the direction's confidence.
+    #: model's threshold, set for a false sun costing far more than a missed one (results/lighting/asymmetric:
+    #: held-out precision 0.75 / recall 0.075 at 0.971, 0.61 / 0.48 at the former 0.525); the estimate's confidence
+    #: is that probability. Measured on one fixed-size copy, so every preset decides alike. "cues": a lit/shadow pair
+    #: measured on the ground, a visible sun disc or a confident sky cue, with the direction's confidence.
     sun_decision: Literal["evidence", "cues"] = "evidence"
+    #: The probability at or above which "evidence" declares a sun; None: the shipped model's own threshold (chosen
+    #: for an asymmetric cost, a false sun worse than a missed one: results/lighting/asymmetric). A value in (0, 1)
+    #: overrides it (lower: more suns and more false ones).
+    sun_threshold: float | None = None
 
 
 def _downsample_map(radiance: np.ndarray, max_height: int = 128) -> np.ndarray:
@@ -743,7 +748,7 @@ def _finish(
     if ctx.indoor:
         dominant = False
     elif source in IMAGE_CUE_SOURCES and sun_probability is not None:
-        dominant = sun_probability >= load_sun_evidence_model().threshold
+        dominant = decide_direct_sun(sun_probability, config.sun_threshold)
         confidence = sun_probability
     elif source in IMAGE_CUE_SOURCES and sky_fraction < config.min_sky_fraction_for_sun:
         # Without metadata, a sun is only declared where the frame shows open sky: indoors, dark and bright materials

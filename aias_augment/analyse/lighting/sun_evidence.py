@@ -125,3 +125,42 @@ def direct_sun_probability(image_rgb_uint8: np.ndarray, model: SunEvidenceModel 
     """p(direct sunlight lights the scene) for one photo, from :func:`sun_evidence_features`."""
     model = model or load_sun_evidence_model()
     return model.probability(sun_evidence_features(image_rgb_uint8))
+
+
+def decide_direct_sun(
+    probability: float, threshold: float | None = None, model: SunEvidenceModel | None = None
+) -> bool:
+    """The sun decision: ``probability`` at or above ``threshold`` (None: the model's own threshold)."""
+    if threshold is None:
+        threshold = (model or load_sun_evidence_model()).threshold
+    return bool(probability >= threshold)
+
+
+def asymmetric_threshold(probability: np.ndarray, truth: np.ndarray, min_precision: float) -> float:
+    """The threshold t that maximises recall of ``probability >= t`` subject to precision >= ``min_precision`` on
+    labelled photos (``truth`` 1: direct sun): a false sun costs more than a missed one, so precision is the
+    constraint and recall what is left to gain. Among thresholds of equal recall the highest is taken (fewest
+    false suns). Candidates are the observed probabilities; where none reaches the precision, a threshold above every
+    probability (no sun at all) is returned. (N,) float and (N,) bool/int -> float in (0, 1]."""
+    p, y = np.asarray(probability, float), np.asarray(truth).astype(bool)
+    if p.shape != y.shape or p.ndim != 1 or not np.all(np.isfinite(p)):
+        raise ValueError(f"asymmetric_threshold: need two (N,) arrays of finite values, got {p.shape} and {y.shape}")
+    if not 0.0 < min_precision <= 1.0:
+        raise ValueError(f"asymmetric_threshold: min_precision must be in (0, 1], got {min_precision}")
+    best_recall, best_t = -1.0, float(np.nextafter(max(float(p.max(initial=0.0)), 0.0), 2.0))
+    for t in np.unique(p)[::-1]:  # descending: the first of equal recall is the highest threshold
+        pred = p >= t
+        tp = int(np.sum(pred & y))
+        if tp / int(pred.sum()) >= min_precision and tp / max(int(y.sum()), 1) > best_recall:
+            best_recall, best_t = tp / max(int(y.sum()), 1), float(t)
+    return min(best_t, 1.0)
+
+
+def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a proportion (scipy's ``binomtest``); (0, 1) without trials."""
+    if trials <= 0:
+        return 0.0, 1.0
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(successes), int(trials)).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
