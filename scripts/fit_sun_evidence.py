@@ -9,6 +9,9 @@ precision weighs double. The test half is scored once: precision, recall, ROC AU
 diagram, beside the decision the recorded image-cue estimate made on the same photos (``estimates.csv``).
 
     python scripts/fit_sun_evidence.py --model checkpoints/sun_evidence.json --out results/lighting/sun_evidence
+
+The shipped threshold is then set by ``scripts/lighting_asymmetric.py`` (an asymmetric cost, chosen on its
+development photos): rerun its ``score`` step and copy its threshold into the model after refitting.
 """
 
 import argparse
