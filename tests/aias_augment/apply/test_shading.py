@@ -101,7 +101,7 @@ def _barrel_scene(keep: float):
     sky = _uniform_sky(0.2)
     e_sun = np.full(3, 4.0 * float(sh.sh_irradiance(sky, up[None])[0, 0]) / float(sun @ up))  # sun/sky ratio 4
     sky2, e_sun2 = temper_sun(sky, e_sun, float(sun @ up), keep, sun, up)
-    light = LightingEstimate(sun, e_sun2, sky2, 4.0, True, 0.12, "test", up)
+    light = LightingEstimate(sun, e_sun2, sky2, 4.0, True, 1.0, "test", up)  # a sure sun: its shadow is not softened
     return K, asset, T, sun, up, light
 
 
