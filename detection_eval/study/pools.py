@@ -357,6 +357,40 @@ def git_head() -> str:
         return "unknown"
 
 
+def git_dirty(root: Path = REPO_ROOT) -> bool | None:
+    """Whether the checkout at ``root`` has uncommitted changes to tracked files (None when git cannot tell): a run
+    made from a dirty tree is not the commit it names."""
+    import subprocess
+
+    try:
+        res = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return None if res.returncode != 0 else bool(res.stdout.strip())
+
+
+def run_environment() -> dict:
+    """What besides the code decides a training's numbers to the last digit: torch's version, its thread count and
+    the CPU kernels it dispatches to, and whether the tree matched its commit."""
+    import platform
+
+    import torch
+
+    return {
+        "torch": torch.__version__,
+        "torch_threads": torch.get_num_threads(),
+        "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "machine": platform.machine(),
+        "tree_dirty": git_dirty(),
+    }
+
+
 def pool_maker(cfg: StudyConfig, arm: str, train: DetectionSet, base: DetectionSet | None, out: Path):
     """``make(background, rng) -> (image, boxes_xyxy, modules)`` of the arm: the pipeline (with the lifted instances
     of the seed's subset as its assets for ``lifted``), or copy-paste of the subset's real instances."""

@@ -22,7 +22,7 @@ from detection_eval.study.arms import (
     uses_pool,
 )
 from detection_eval.study.config import StudyConfig, repo_path
-from detection_eval.study.pools import generate_arm_set, git_head
+from detection_eval.study.pools import generate_arm_set, git_head, run_environment
 from detection_eval.study.splits import pool_share, thin_cone_images
 
 log = logging.getLogger("detection_eval.study")
@@ -212,6 +212,7 @@ def train_and_score(cfg, arm, seed, amount, name, result_path, train, val, val_c
         "dev_metrics": nan_to_none(dev_metrics),
         "weights": str(weights),
         "code_commit": git_head(),
+        "environment": run_environment(),  # threads and CPU kernels change the last digits of a run
         "detector": dataclasses.asdict(det_cfg),
     }
     save_checkpoint(weights, res.model, train_set.category_names, {k: v for k, v in row.items() if k != "detector"})
