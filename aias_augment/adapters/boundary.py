@@ -242,13 +242,9 @@ def check_output_record(rec: dict, out_dir: Path) -> list[str]:
 
 def check_coco_file(path: Path, images_dir: Path) -> None:
     """The written COCO file, re-read by pycocotools: unique ids, every referenced file exists, boxes inside."""
-    import contextlib
-    import io
+    from aias_augment.core.coco_io import load_coco
 
-    from pycocotools.coco import COCO
-
-    with contextlib.redirect_stdout(io.StringIO()):
-        coco = COCO(str(path))
+    coco = load_coco(path)
     ds = coco.dataset
     for key in ("images", "annotations", "categories"):
         ids = [x["id"] for x in ds[key]]

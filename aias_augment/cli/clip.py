@@ -488,9 +488,8 @@ def _harmonize(job: ClipJob, frames: list[np.ndarray], results, n: int, rng) -> 
 def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: RenderedClip) -> dict:
     """Write the frames, the COCO-video and MOT annotations, the side-by-side video, the contact sheet and the
     record through ``output`` (each file atomically); returns the record."""
-    from pycocotools.coco import COCO
-
     from aias_augment.cli.clip_annotations import clip_annotations, inserted_track_offset
+    from aias_augment.core.coco_io import load_coco
 
     names, idx, intr = inputs.names, inputs.idx, clip.intrinsics
     h, w = inputs.frames[0].shape[:2]
@@ -501,7 +500,7 @@ def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: Rende
     for i, (name, img) in enumerate(zip(names, clip.frames)):
         output.write_image(f"frames/{name}.jpg", img)
         drawn.append(draw_boxes(img, ann.boxes[i], ann.labels[i], inserted=ann.inserted[i]))
-    output.write_json("annotations.json", ann.coco, check=lambda p: COCO(str(p)))  # pycocotools validates
+    output.write_json("annotations.json", ann.coco, check=load_coco)  # pycocotools validates
     output.write_bytes("mot.txt", "".join(line + "\n" for line in ann.mot_lines).encode())
     output.write_with("side_by_side.mp4", lambda p: _write_side_by_side(p, inputs.frames, drawn, job.fps))
     picks = np.unique(np.linspace(0, len(drawn) - 1, min(6, len(drawn))).astype(int))

@@ -84,6 +84,10 @@ class CocoBuilder:
     def write(self, path: str | Path) -> COCO:
         """Write and re-load with pycocotools (raises if the file is not a valid COCO dataset)."""
         atomic_write_json(path, self.to_dict())
-        with contextlib.redirect_stdout(io.StringIO()):  # pycocotools prints its progress
-            coco = COCO(str(path))
-        return coco
+        return load_coco(path)
+
+
+def load_coco(path: str | Path) -> COCO:
+    """pycocotools' ``COCO`` of a file (raises if it is not a valid COCO dataset), without its progress prints."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        return COCO(str(path))
