@@ -1,11 +1,21 @@
 """aias-augment: photorealistic 3D object insertion for detector training data.
 
-The top-level names are imported lazily: ``import aias_augment.assets.bank`` must not pay for albumentations and torch.
+The top-level names other than ``AiasError`` (whose module imports nothing) are imported lazily:
+``import aias_augment.assets.bank`` must not pay for albumentations and torch.
 """
 
+from aias_augment.core.errors import AiasError as AiasError
 from aias_augment.version import __version__ as __version__
 
-__all__ = ["InsertObjects", "InsertObjectsV2", "InsertionConfig", "SceneInputs", "insert_into_image", "load_preset"]
+__all__ = [
+    "AiasError",
+    "InsertObjects",
+    "InsertObjectsV2",
+    "InsertionConfig",
+    "SceneInputs",
+    "insert_into_image",
+    "load_preset",
+]
 
 
 def __getattr__(name):

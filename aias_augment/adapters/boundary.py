@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aias_augment.core.errors import InputError
+from aias_augment.core.errors import AiasError, InputError
 from aias_augment.core.image_io import DEFAULT_MAX_PIXELS, ImageReadError, read_image_with_notes
 
 IMAGE_SKIP_KINDS = (
@@ -35,7 +35,7 @@ IMAGE_SKIP_KINDS = (
 BOX_POLICIES = ("clip", "drop")
 
 
-class ImageSkip(ValueError):
+class ImageSkip(AiasError, ValueError):
     """Bad input that skips one image: ``kind`` (one of :data:`IMAGE_SKIP_KINDS`: what reports count), ``reason``,
     and where it was found (``file``, ``line``) when known. The message reads ``"<kind>: [<file>[:<line>]: ]<reason>"``;
     code reads the fields."""
@@ -271,7 +271,7 @@ def check_coco_file(path: Path, images_dir: Path) -> None:
 
 
 # ------------------------------------------------------------------------------- per-sample inputs of the transform
-class SampleSkip(ValueError):
+class SampleSkip(AiasError, ValueError):
     """A sample :class:`~aias_augment.adapters.transform.InsertObjects` leaves unchanged. ``kind``: a stable reason (the key
     under ``counts["skipped"]``); the message adds what was found."""
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from aias_augment.core.errors import AiasError
 from aias_augment.core.geometry import (
     CAMERA_HEIGHT_PRIOR_M,
     MIN_DEPTH,
@@ -45,7 +46,7 @@ DEGENERATE_AREA_EPS = 1e-9
 COLLINEAR_RATIO = 1e-6
 
 
-class GroundFitError(ValueError):
+class GroundFitError(AiasError, ValueError):
     """No trustworthy ground plane: too few points, collinear points, or no plane near the up direction."""
 
 

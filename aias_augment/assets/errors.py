@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from aias_augment.core.errors import AiasError
 
-class AssetError(ValueError):
+
+class AssetError(AiasError, ValueError):
     """A mesh could not be loaded or is unusable (reason in the message)."""

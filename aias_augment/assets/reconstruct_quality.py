@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from aias_augment.core.errors import AiasError
+
 __all__ = [
     "ReconstructionRefused",
     "check_height",
@@ -33,7 +35,7 @@ __all__ = [
 ]
 
 
-class ReconstructionRefused(ValueError):
+class ReconstructionRefused(AiasError, ValueError):
     """A reconstruction that fails its own quality check: ``reason``, ``bad_views`` (indices into the views given)
     and ``measures`` (what was measured)."""
 

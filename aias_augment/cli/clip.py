@@ -56,6 +56,7 @@ from aias_augment.cli.clip_inputs import (
 )
 from aias_augment.cli.clip_output import ClipInput, ClipOutput, clip_manifest, files_hash
 from aias_augment.cli.manifest import ManifestMismatch, check_out_apart, file_hash, output_lock
+from aias_augment.core.errors import AiasError
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from aias_augment.core.report import skipped, skipped_stages
 from aias_augment.core.viz import contact_sheet, draw_boxes
@@ -178,7 +179,7 @@ class ClipJob:
 
 
 # ------------------------------------------------------------------------------------------------------------- run
-class ClipNotVisible(RuntimeError):
+class ClipNotVisible(AiasError, RuntimeError):
     """No inserted object is visible in any frame of the clip: nothing was written."""
 
 

@@ -27,7 +27,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from aias_augment import __version__
-from aias_augment.core.errors import InputError
+from aias_augment.core.errors import AiasError, InputError
 
 FINAL_OUTPUTS = ("annotations.json", "report.json", "summary.json", "contact_sheet.png")
 """Written at the end of a run, from the records; removed when a run (re)starts, so a folder never holds stale ones."""
@@ -37,7 +37,7 @@ KILL_HOOK = "AIAS_TEST_KILL_AFTER_WRITES"
 """Test hook: ``k`` kills this process (SIGKILL) at the k-th write step (a temporary file written, a rename done)."""
 
 
-class ManifestMismatch(RuntimeError):
+class ManifestMismatch(AiasError, RuntimeError):
     """The output folder holds another run."""
 
 

@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from aias_augment.core.config_files import load_yaml_file
+from aias_augment.core.errors import AiasError
 
 T = TypeVar("T")
 
@@ -100,7 +101,7 @@ def _hints(cls: type) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------- typed configs checked at construction
-class ConfigError(Exception):
+class ConfigError(AiasError):
     """A config value of the wrong type, out of its range, or an unknown key; ``path`` names the field from the class
     down (``("InsertionConfig", "placement_cfg", "max_tries")``), ``source`` the file it came from, if any."""
 

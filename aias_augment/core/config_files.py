@@ -21,7 +21,7 @@ from typing import Any
 
 import yaml
 
-from aias_augment.core.errors import InputError
+from aias_augment.core.errors import AiasError, InputError
 
 MAX_CONFIG_BYTES = 1 << 20
 # The largest shipped config (configs/taxonomy.yaml) has ~1500 nodes: 100k leaves room for any hand-written file and
@@ -61,7 +61,7 @@ def read_config_text(path: str | Path, source: str | None = None, *, max_bytes: 
         ) from None
 
 
-class _Refused(Exception):
+class _Refused(AiasError):
     """Raised inside the loader; :func:`parse_yaml` adds the source."""
 
 

@@ -31,6 +31,7 @@ import signal
 from pathlib import Path
 
 from aias_augment.assets.references import inside
+from aias_augment.core.errors import AiasError
 
 INDEX_NAME = "bank.json"
 LOCK_NAME = ".bank.lock"
@@ -39,7 +40,7 @@ KILL_ENV = "AIAS_TEST_KILL_AFTER_WRITES"
 _writes_done = 0
 
 
-class BankError(ValueError):
+class BankError(AiasError, ValueError):
     """A bank folder that cannot be used as one: an unreadable or malformed ``bank.json``, a path that is not a
     folder."""
 

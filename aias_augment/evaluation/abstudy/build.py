@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from aias_augment.core.coco_io import atomic_write_json
+from aias_augment.core.errors import AiasError
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +47,7 @@ PAIR_ID_RE = re.compile(r"^[0-9a-f]{12}$")
 DESIGNS = ("baseline", "all-pairs")
 
 
-class StudyError(ValueError):
+class StudyError(AiasError, ValueError):
     """A study that cannot be built or loaded, with the reason."""
 
 

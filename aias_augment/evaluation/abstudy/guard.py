@@ -17,11 +17,13 @@ import math
 
 from starlette.responses import JSONResponse
 
+from aias_augment.core.errors import AiasError
+
 MAX_BODY_BYTES = 64 * 1024
 _BODY_METHODS = frozenset({"POST", "PUT", "PATCH"})
 
 
-class _TooLarge(Exception):
+class _TooLarge(AiasError):
     pass
 
 

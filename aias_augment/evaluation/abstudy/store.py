@@ -12,6 +12,8 @@ import time
 from contextlib import closing
 from pathlib import Path
 
+from aias_augment.core.errors import AiasError
+
 CHOICES = ("left", "right", "tie")
 
 SCHEMA = """
@@ -32,7 +34,7 @@ CREATE TABLE IF NOT EXISTS raters (
 """
 
 
-class DuplicateVote(Exception):
+class DuplicateVote(AiasError):
     def __init__(self, stored_choice: str):
         super().__init__(f"already voted: {stored_choice}")
         self.stored_choice = stored_choice
