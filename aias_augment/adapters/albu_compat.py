@@ -17,8 +17,8 @@ The differences the transform meets:
 - targets: X names instance masks apart (``Targets.MASKS``); 2.0.8's ``MASK`` covers ``mask`` and ``masks``;
 - replay: 2.0.8's ``ReplayCompose`` and ``save_applied_params`` keep the transform's ``params``; X's ``ReplayCompose``
   keeps ``SampledParams.to_dict()`` and its ``save_applied_params`` keeps constructor arguments (the values a
-  ``sample_parameters`` writes to ``sampling.applied_overrides`` over the constructor's), replayed with
-  ``Compose.from_applied_transforms``.
+  ``sample_parameters`` writes to ``sampling.applied_overrides`` over the constructor's: here the record, as the
+  ``insertion`` argument), replayed with ``Compose.from_applied_transforms``.
 """
 
 from __future__ import annotations

@@ -1,13 +1,19 @@
 """An insertion of the training-loop doors made again from its JSON record (``InsertionRecord.to_dict()``).
 
 ``ReplayCompose`` and ``Compose(save_applied_params=True)`` keep, as the transform's parameters, the record of the
-insertion (placements, harmonizer seed, annotations, working resolution, mode): plain JSON, no image. Replaying it
+insertion (placements, harmonizer seed, annotations, working resolution, mode): plain JSON, no image.
+``InsertObjects(insertion=record)`` replays it on every call instead of drawing; AlbumentationsX's
+``save_applied_params`` log (constructor arguments) holds the record under that name, so
+``Compose.from_applied_transforms`` builds the transform that replays it. Replaying it
 on the sample it was made from (same image, ``camera_k``, ``depth`` and ``scene``) renders the recorded plan again
 (:func:`aias_augment.pipeline.replay.replay`: nothing is drawn) and gives the same bytes; the boxes and masks are the
 record's own.
 """
 
 from __future__ import annotations
+
+import json
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -17,6 +23,26 @@ from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.scene_inputs import scene_meta
 from aias_augment.pipeline.image import InsertionRecord
 from aias_augment.pipeline.replay import default_asset_for, replay
+
+
+def checked_record(record) -> dict | None:
+    """``InsertObjects(insertion=...)`` checked at construction: None, ``{}`` (a call that left the image
+    unchanged) or an ``InsertionRecord.to_dict()``, returned as its JSON form (tuples as lists), so that ``to_dict``
+    / ``from_dict`` / ``save`` / ``load`` give it back equal."""
+    if record is None:
+        return None
+    if not isinstance(record, Mapping):
+        raise ValueError(f"insertion must be None or an InsertionRecord.to_dict() mapping, got {type(record).__name__}")
+    try:
+        as_json = json.loads(json.dumps(dict(record)))
+        if as_json:
+            InsertionRecord.from_dict(as_json)
+    except (TypeError, ValueError, KeyError, AttributeError) as e:
+        raise ValueError(
+            f"insertion is not an insertion record (InsertionRecord.to_dict(), as ReplayCompose or "
+            f"save_applied_params log it): {type(e).__name__}: {e}"
+        ) from None
+    return as_json
 
 
 class ReplayedResult:

@@ -11,7 +11,7 @@ Every target of a Compose (:mod:`aias_augment.adapters.targets`): instance ``mas
 ``KeypointParams(remove_invisible=True)``, the default); boxes in any ``BboxParams`` format. ``ReplayCompose`` and
 ``Compose(save_applied_params=True)`` keep the insertion's JSON record as its parameters
 (:mod:`aias_augment.adapters.record_replay`): ``ReplayCompose.replay`` of it, JSON round trip or not, gives the same
-bytes. Put it first in the pipeline: later geometric transforms do not update ``camera_k``/``depth``.
+bytes, as does ``InsertObjects(insertion=record)`` (AlbumentationsX's ``Compose.from_applied_transforms``). Put it first in the pipeline: later geometric transforms do not update ``camera_k``/``depth``.
 
 Inputs (:func:`aias_augment.adapters.boundary.image_for_insertion`): grey, RGB or RGBA; uint8; uint16 (converted to 8 bit by
 ``round(v / 257)`` for the insertion, inserted pixels written back as ``v * 257``); float in [0, 1] (``round(v * 255)``,
@@ -99,6 +99,11 @@ class InsertObjects(WarmVariants, A.DualTransform):
             index; the Compose seed picks which variant a call gets).
         mask_values: the value of each category's pixels in a semantic ``mask`` target (e.g. {"traffic_cone": 3});
             needed when the Compose is called with a ``mask``.
+        insertion: None (default): each call draws a new insertion. An insertion record
+            (``InsertionRecord.to_dict()``, as ``ReplayCompose``, ``save_applied_params`` and ``last_record`` give
+            it): each call replays it on the sample instead of drawing (the sample it was made from gives the same
+            bytes); ``{}``: the record of a call that left the image unchanged. AlbumentationsX's
+            ``save_applied_params`` log holds it under this name, so ``Compose.from_applied_transforms`` replays it.
         p: probability of applying.
 
     Attributes:
@@ -123,6 +128,7 @@ class InsertObjects(WarmVariants, A.DualTransform):
         variants_per_image: int | None = None,
         variants_seed: int = 0,
         mask_values: dict[str, float] | None = None,
+        insertion: dict[str, Any] | None = None,
         p: float = 0.5,
     ):
         super().__init__(p=p)
@@ -163,6 +169,7 @@ class InsertObjects(WarmVariants, A.DualTransform):
             if missing:
                 raise ValueError(f"category_ids lacks {sorted(missing)}")
         self.mask_values = _checked_mask_values(mask_values, self.categories)
+        self.insertion = record_replay.checked_record(insertion)
         self._bank = PathAssets(assets) if assets else None
         self.scene_cache = None if scene_cache is None else str(scene_cache)
         self.scene_cache_items = int(scene_cache_items)
@@ -198,12 +205,13 @@ class InsertObjects(WarmVariants, A.DualTransform):
             "variants_per_image",
             "variants_seed",
             "mask_values",
+            "insertion",
         )
 
     # -- choosing and doing: the pipeline renders here because boxes, masks and image all depend on it ----------
     def _params_for_call(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
         """albumentations 2.0.8's ``get_params_dependent_on_data``: runs the insertion (handed to this call's
-        ``apply_*``). The parameters albumentations keeps are JSON: ``{"insertion": record dict or None (image left
+        ``apply_*``). The parameters albumentations keeps are JSON: ``{"insertion": record dict or {} (image left
         unchanged)}`` when the Compose records parameters (``ReplayCompose``, ``save_applied_params=True``), else
         none (a record costs a dict per call)."""
         live = self._insert(data, self.random_generator)
@@ -222,9 +230,13 @@ class InsertObjects(WarmVariants, A.DualTransform):
         _hand_over(self, live)
         if not (self.deterministic or isinstance(sampling.applied_overrides, dict)):
             return SampledParams(params={})
-        return SampledParams(params={"insertion": _record_of(live)})
+        record = _record_of(live)
+        sampling.applied_overrides["insertion"] = record  # the save_applied_params log: constructor arguments
+        return SampledParams(params={"insertion": record})
 
     def _insert(self, data: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
+        if self.insertion is not None:  # replay the constructor's record: nothing is drawn
+            return self._replayed({"insertion": self.insertion}, data)
         if self.variants_per_image:
             img = data["image"]
             boxes = data.get("bboxes")
@@ -347,7 +359,7 @@ class InsertObjects(WarmVariants, A.DualTransform):
             )
         rgb, restore, _ = image_for_insertion(data["image"])
         record = params["insertion"]
-        if record is None:
+        if not record:  # None or {}: the recorded call left the image unchanged
             return {"insert_result": None, "restore": restore}
         boxes = data.get("bboxes")
         proc = self._bbox_processor()
@@ -500,10 +512,10 @@ class InsertObjects(WarmVariants, A.DualTransform):
         return category
 
 
-def _record_of(live: dict) -> dict | None:
-    """The JSON record of a call's insertion (None: the image was left unchanged)."""
+def _record_of(live: dict) -> dict:
+    """The JSON record of a call's insertion (``{}``: the image was left unchanged)."""
     res = live["insert_result"]
-    return None if res is None else res.record.to_dict()
+    return {} if res is None else res.record.to_dict()
 
 
 def _checked_mask_values(values, categories: tuple[str, ...]) -> dict[str, float] | None:

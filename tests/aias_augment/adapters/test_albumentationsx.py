@@ -204,3 +204,23 @@ def test_replay_compose_record_is_json_and_replays_to_the_same_bytes(variants):
     assert again["image"].tobytes() == out["image"].tobytes()
     assert np.array_equal(np.asarray(again["bboxes"]), np.asarray(out["bboxes"]))
     assert list(again["labels"]) == list(out["labels"])
+
+
+def test_save_applied_params_log_holds_the_record_and_from_applied_transforms_replays_it():
+    """The log of ``save_applied_params`` (constructor arguments under AlbumentationsX), through JSON, builds with
+    ``Compose.from_applied_transforms`` a pipeline that, under another seed, gives the logged call's bytes, boxes
+    and labels: it replays the logged insertion instead of drawing one."""
+    sample = {"image": road_frame(), "bboxes": BOXES, "labels": [1, 2], "camera_k": K}
+    bbox = {"coord_format": "coco", "label_fields": ["labels"], "min_visibility": 0.2}
+    c = A.Compose([_insert()], bbox_params=A.BboxParams(**bbox), save_applied_params=True, seed=4)
+    out = c(**sample)
+    assert len(out["bboxes"]) >= len(BOXES) + 2
+    log = json.loads(json.dumps(out["applied_transforms"]))
+    ((name, config),) = log
+    assert name.endswith("InsertObjects") and config["insertion"]["placements"]
+    other = _compose(seed=5)(**sample)
+    assert other["image"].tobytes() != out["image"].tobytes()  # seed 5 draws another insertion
+    again = A.Compose.from_applied_transforms(log, bbox_params=A.BboxParams(**bbox), seed=5)(**sample)
+    assert again["image"].tobytes() == out["image"].tobytes()
+    assert np.array_equal(np.asarray(again["bboxes"]), np.asarray(out["bboxes"]))
+    assert list(again["labels"]) == list(out["labels"])

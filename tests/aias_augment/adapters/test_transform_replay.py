@@ -59,6 +59,31 @@ def test_save_applied_params_holds_the_record_and_it_replays():
         fresh.apply_with_params({"shape": [480, 640, 3]}, image=road_frame())
 
 
+def test_the_insertion_argument_replays_the_logged_record_instead_of_drawing():
+    """``InsertObjects(insertion=record)`` from a ``save_applied_params`` log (through JSON), in a Compose of another
+    seed, gives the logged call's bytes, boxes and labels; the same Compose without it draws another insertion."""
+    sample = {"image": road_frame(), "bboxes": BOXES, "labels": [1, 2], "camera_k": K}
+    bbox = {"format": "coco", "label_fields": ["labels"], "min_visibility": 0.2}
+    ids = {"category_ids": {"traffic_cone": 3}}
+    out = A.Compose([_insert(**ids)], A.BboxParams(**bbox), save_applied_params=True, seed=2)(**sample)
+    ((_, params),) = json.loads(json.dumps(out["applied_transforms"]))
+    assert len(out["bboxes"]) > len(BOXES)
+    drawn = A.Compose([_insert(**ids)], A.BboxParams(**bbox), seed=9)(**sample)
+    assert drawn["image"].tobytes() != out["image"].tobytes()
+    again = A.Compose([_insert(insertion=params["insertion"], **ids)], A.BboxParams(**bbox), seed=9)(**sample)
+    assert again["image"].tobytes() == out["image"].tobytes()
+    assert np.array_equal(np.asarray(again["bboxes"]), np.asarray(out["bboxes"]))
+    assert list(again["labels"]) == list(out["labels"])
+    unchanged = A.Compose([_insert(insertion={}, **ids)], A.BboxParams(**bbox), seed=9)(**sample)
+    assert unchanged["image"].tobytes() == sample["image"].tobytes() and len(unchanged["bboxes"]) == len(BOXES)
+
+
+@pytest.mark.parametrize("bad", [[1, 2], {"placements": []}, {"x": object()}])
+def test_an_insertion_that_is_not_a_record_is_refused_at_construction(bad):
+    with pytest.raises(ValueError, match="insertion"):
+        _insert(insertion=bad)
+
+
 def test_a_plain_compose_keeps_no_record_in_its_params():
     tf = A.Compose([_insert()], seed=2)
     tf(image=road_frame(), camera_k=K)
@@ -66,8 +91,12 @@ def test_a_plain_compose_keeps_no_record_in_its_params():
 
 
 def _args(tmp_path) -> dict:
-    """A value other than the default for every argument; a pedestrian-sized box of the user's own."""
+    """A value other than the default for every argument; a pedestrian-sized box of the user's own; the record of
+    an insertion."""
     import trimesh
+
+    tf = A.Compose([_insert()], save_applied_params=True, seed=2)
+    ((_, params),) = tf(image=road_frame(), camera_k=K)["applied_transforms"]
 
     mesh = tmp_path / "pedestrian.obj"
     trimesh.creation.box(extents=(0.45, 1.8, 0.3)).export(mesh)
@@ -84,6 +113,7 @@ def _args(tmp_path) -> dict:
         "variants_per_image": 3,
         "variants_seed": 11,
         "mask_values": {"traffic_cone": 2, "person": 1},
+        "insertion": json.loads(json.dumps(params["insertion"])),  # as read from a log
         "p": 0.25,
     }
 
