@@ -51,12 +51,12 @@ def arm_overrides(sizes: list[int]) -> dict[str, dict]:
 
 def draw_params(seed: int) -> dict:
     """The parameters the procedural cone of ``seed`` is made with (``generate``'s draws, without the mesh)."""
-    from aias_augment.assets.bank.procedural import CATEGORY_SPECS, _cone_params
+    from aias_augment.assets.bank.procedural import CATEGORY_SPECS, cone_params
 
     rng = np.random.default_rng(int(seed))
     lo, hi = CATEGORY_SPECS["traffic_cone"].height_range_m
     h = float(rng.uniform(lo, hi))
-    p = _cone_params(rng, h)
+    p = cone_params(rng, h)
     r, g, b = (np.asarray(p["colour_rgb"]) / 255.0).tolist()
     return {"body_hue_deg": 360.0 * colorsys.rgb_to_hsv(r, g, b)[0], "sleeves": len(p["bands_z_m"]), "height_m": h}
 

@@ -224,7 +224,7 @@ def _loft(
     return np.concatenate(verts), np.concatenate(faces), np.concatenate(normals), np.concatenate(uvs)
 
 
-def _cone_params(rng: np.random.Generator, h: float) -> dict:
+def cone_params(rng: np.random.Generator, h: float) -> dict:
     """Every shape/colour/wear parameter of one cone, drawn from ``rng`` (lengths in metres, z from the ground)."""
     shape = "delineator" if h >= 0.7 and rng.random() < 0.15 else "cone"
     colour_name = _choice(rng, CONE_COLOURS)
@@ -339,7 +339,7 @@ def make_traffic_cone(
     come from ``rng`` and are stored in ``mesh.metadata['procedural_params']`` (band heights in metres above the
     ground contact). ``texture``: an optional photo that modulates the dirt."""
     h = float(height_m)
-    p = _cone_params(rng, h)
+    p = cone_params(rng, h)
     zb, a, r0, rt = p["base_height_m"], p["base_half_width_m"], p["body_bottom_radius_m"], p["top_radius_m"]
     n_base = 8.0 if p["base_shape"] == "square" else 2.0
     vb = _V_BASE[1] * 0.5  # base rows of the texture
