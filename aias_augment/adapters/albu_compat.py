@@ -12,7 +12,7 @@ The differences the transform meets:
 - the bbox filter: 2.0.8's ``filter_bboxes`` returns the kept rows; X's processor says which rows it keeps
   (``filter_with_keep_mask``), with its own clipping (``clip_after_transform``);
 - the bbox conversion arithmetic differs between the lines, so the bit-exact shortcut of
-  :func:`aias_augment.adapters.bbox_encoding._encode_boxes` (2.0.8's arithmetic) is taken on 2.0.8 only;
+  :func:`aias_augment.adapters.bbox_encoding.encode_boxes` (2.0.8's arithmetic) is taken on 2.0.8 only;
 - the processor's ``preprocess`` remembers (2.0.8, ``is_sequence_input``) or not (X) whether a target came as a list;
 - targets: X names instance masks apart (``Targets.MASKS``); 2.0.8's ``MASK`` covers ``mask`` and ``masks``;
 - replay: 2.0.8's ``ReplayCompose`` and ``save_applied_params`` keep the transform's ``params``; X's ``ReplayCompose``
@@ -62,11 +62,11 @@ def clips_on_input(params) -> bool:
 
 def encodes_like_2_0_8(params) -> bool:
     """Whether the processor of these ``BboxParams`` turns a box into the bits
-    :func:`aias_augment.adapters.bbox_encoding._encode_boxes` computes: 2.0.8, COCO / Pascal VOC / YOLO, no clipping
+    :func:`aias_augment.adapters.bbox_encoding.encode_boxes` computes: 2.0.8, COCO / Pascal VOC / YOLO, no clipping
     or filtering on input."""
-    from aias_augment.adapters.bbox_encoding import _ENCODED_FORMATS
+    from aias_augment.adapters.bbox_encoding import ENCODED_FORMATS
 
-    return not IS_X and params.format in _ENCODED_FORMATS and not params.clip and not params.filter_invalid_bboxes
+    return not IS_X and params.format in ENCODED_FORMATS and not params.clip and not params.filter_invalid_bboxes
 
 
 def to_albumentations(boxes: np.ndarray, fmt: str, hw: tuple[int, int]) -> np.ndarray:

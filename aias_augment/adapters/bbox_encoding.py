@@ -7,32 +7,32 @@ from __future__ import annotations
 import numpy as np
 from albumentations.core.bbox_utils import denormalize_bboxes
 
-#: Bbox formats whose round trip through the Compose's processor :func:`_encode_boxes` reproduces.
-_ENCODED_FORMATS = ("coco", "pascal_voc", "yolo")
+#: Bbox formats whose round trip through the Compose's processor :func:`encode_boxes` reproduces.
+ENCODED_FORMATS = ("coco", "pascal_voc", "yolo")
 
 
-def _xywh_from_internal(boxes_internal, h: int, w: int) -> np.ndarray:
+def xywh_from_internal(boxes_internal, h: int, w: int) -> np.ndarray:
     """COCO xywh pixels (float64) of albumentations' normalised x_min, y_min, x_max, y_max boxes (extra columns
     ignored): what a call reads from the Compose, and what warm() makes of its boxes."""
     xyxy = denormalize_bboxes(np.asarray(boxes_internal)[:, :4], (h, w))
     return np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]]
 
 
-def _internal_from_xywh(xywh, h: int, w: int) -> np.ndarray:
+def internal_from_xywh(xywh, h: int, w: int) -> np.ndarray:
     """(K, 4) float32 albumentations boxes (normalised x_min, y_min, x_max, y_max) of COCO xywh pixel boxes."""
     xywh = np.asarray(xywh, np.float64).reshape(-1, 4)
     xyxy = np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
     return (xyxy / np.array([w, h, w, h], np.float64)).astype(np.float32)
 
 
-def _pad_columns(rows: np.ndarray, bboxes: np.ndarray) -> np.ndarray:
+def pad_columns(rows: np.ndarray, bboxes: np.ndarray) -> np.ndarray:
     """``rows`` with zero columns added up to ``bboxes``' (extra columns, e.g. bbox ids)."""
     if len(bboxes) and rows.shape[1] < bboxes.shape[1]:
         rows = np.c_[rows, np.zeros((len(rows), bboxes.shape[1] - rows.shape[1]), rows.dtype)]
     return rows
 
 
-def _encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
+def encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
     """(K, 4) float32: COCO xywh pixel boxes as albumentations' processor (``clip`` and ``filter_invalid_bboxes``
     off) encodes them when they arrive in ``fmt`` ("coco", "pascal_voc" or "yolo") from our normalised float32
     boxes: ``convert_bboxes_from_albumentations`` then ``convert_bboxes_to_albumentations``, the same operations
@@ -40,7 +40,7 @@ def _encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
     is not strictly inside [0, 1] with x_max > x_min and y_max > y_min: the processor's ``check_bboxes`` must
     then decide (its tolerance, its error)."""
     scale = np.array([w, h, w, h], np.float64)
-    norm = _internal_from_xywh(xywh, h, w)  # what the boxes are in albumentations' format
+    norm = internal_from_xywh(xywh, h, w)  # what the boxes are in albumentations' format
     user = np.empty_like(norm)  # convert_bboxes_from_albumentations(norm, fmt)
     if fmt == "yolo":
         user[:, :2] = (norm[:, :2] + norm[:, 2:]) / 2
@@ -70,7 +70,7 @@ def _encode_boxes(xywh: np.ndarray, h: int, w: int, fmt: str):
     return geo
 
 
-def _encoded_labels(manager, label_fields, values: list) -> list[np.ndarray]:
+def encoded_labels(manager, label_fields, values: list) -> list[np.ndarray]:
     """``manager.process_field("bboxes", field, values)`` for each label field, as the processor's ``preprocess``
     calls it: (K, 1) arrays. Where that call would change nothing in the manager (a field it has seen, holding
     numbers; or strings its encoder knows all of) the same array is made here without it; else it is called."""

@@ -35,11 +35,11 @@ import numpy as np
 from aias_augment.adapters import albu_compat as compat
 from aias_augment.adapters import record_replay, targets
 from aias_augment.adapters.bbox_encoding import (
-    _encode_boxes,
-    _encoded_labels,
-    _internal_from_xywh,
-    _pad_columns,
-    _xywh_from_internal,
+    encode_boxes,
+    encoded_labels,
+    internal_from_xywh,
+    pad_columns,
+    xywh_from_internal,
 )
 from aias_augment.adapters.boundary import (
     SampleSkip,
@@ -48,7 +48,7 @@ from aias_augment.adapters.boundary import (
     check_sample_targets,
     image_for_insertion,
 )
-from aias_augment.adapters.transform_warm import WarmVariants, _plan_labels
+from aias_augment.adapters.transform_warm import WarmVariants, plan_labels
 from aias_augment.adapters.variants import Variant, VariantCache, VariantResult
 from aias_augment.analyse.cache import SceneCache
 from aias_augment.apply.view_cache import ViewCache
@@ -267,7 +267,7 @@ class InsertObjects(WarmVariants, A.DualTransform):
             self.counts.convert(conversion)
         boxes_internal = data.get("bboxes")
         n_existing = 0 if boxes_internal is None else len(boxes_internal)
-        existing_xywh = np.zeros((0, 4)) if not n_existing else _xywh_from_internal(boxes_internal, h, w)
+        existing_xywh = np.zeros((0, 4)) if not n_existing else xywh_from_internal(boxes_internal, h, w)
         min_vis = 0.0
         proc = self._bbox_processor()
         if proc is not None:
@@ -280,7 +280,7 @@ class InsertObjects(WarmVariants, A.DualTransform):
                 res = insert_bounded(
                     rgb,
                     existing_xywh,
-                    _plan_labels(n_existing, references),
+                    plan_labels(n_existing, references),
                     rng,
                     self.config,
                     intrinsics=data.get("camera_k"),
@@ -348,7 +348,7 @@ class InsertObjects(WarmVariants, A.DualTransform):
         if res is None or data.get("masks") is None:
             return {}
         h, w = res.image.shape[:2]
-        rows = _internal_from_xywh(res.inserted_bboxes, h, w)
+        rows = internal_from_xywh(res.inserted_bboxes, h, w)
         return {"new_kept": compat.kept_rows(rows, (h, w), self._bbox_processor())}
 
     def _replayed(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
@@ -435,7 +435,7 @@ class InsertObjects(WarmVariants, A.DualTransform):
         are encoded by the same label manager the Compose will use to decode them, even when the image had no box.
 
         With the processor's defaults (``clip`` and ``filter_invalid_bboxes`` off) and a COCO / Pascal VOC / YOLO
-        format, the boxes' round trip (to the user's format and back, in float32) is :func:`_encode_boxes`, kept
+        format, the boxes' round trip (to the user's format and back, in float32) is :func:`encode_boxes`, kept
         per variant, image size and format (a variant's boxes come again and again), and only the labels go
         through the processor's label manager (``process_field``, as its ``preprocess`` calls it): the same rows,
         byte for byte (tested against ``preprocess``). Anything else, or a box the processor's check would look
@@ -451,24 +451,24 @@ class InsertObjects(WarmVariants, A.DualTransform):
                 mk = (h, w, p.format)
                 geo = None if memo is None else memo.get(mk)
                 if geo is None:
-                    geo = _encode_boxes(res.inserted_bboxes, h, w, p.format)
+                    geo = encode_boxes(res.inserted_bboxes, h, w, p.format)
                     if memo is not None:
                         memo[mk] = geo
                 elif type(geo) is bytes:  # as stored
                     geo = memo[mk] = np.frombuffer(geo, np.float32).reshape(-1, 4)
                 if geo is not False:  # False: a box the processor's check must see (it may raise)
                     # the labels' columns promoted as preprocess's hstack promotes them, then float32
-                    rows = np.hstack((geo, *_encoded_labels(proc.label_manager, label_fields, values)))
-                    return _pad_columns(rows.astype(np.float32, copy=False), bboxes)
-            return _pad_columns(self._preprocess_new_boxes(res, proc, values, label_fields, h, w), bboxes)
-        return _internal_from_xywh(res.inserted_bboxes, h, w)
+                    rows = np.hstack((geo, *encoded_labels(proc.label_manager, label_fields, values)))
+                    return pad_columns(rows.astype(np.float32, copy=False), bboxes)
+            return pad_columns(self._preprocess_new_boxes(res, proc, values, label_fields, h, w), bboxes)
+        return internal_from_xywh(res.inserted_bboxes, h, w)
 
     @staticmethod
     def _preprocess_new_boxes(res, proc, values: list, label_fields, h: int, w: int) -> np.ndarray:
         """The new boxes through ``proc.preprocess`` (the Compose's own conversion, checks and label encoding)."""
         # to the user's format by the processor itself (any format, "albumentations" included), then back
         user_fmt = proc.check_and_convert(
-            _internal_from_xywh(res.inserted_bboxes, h, w), compat.shape_arg((h, w)), direction="from"
+            internal_from_xywh(res.inserted_bboxes, h, w), compat.shape_arg((h, w)), direction="from"
         )
         temp = {"image": np.zeros((h, w, 1), np.uint8), "bboxes": user_fmt}
         for f in label_fields:

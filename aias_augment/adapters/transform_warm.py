@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from aias_augment.adapters import albu_compat as compat
-from aias_augment.adapters.bbox_encoding import _ENCODED_FORMATS, _encode_boxes, _xywh_from_internal
+from aias_augment.adapters.bbox_encoding import ENCODED_FORMATS, encode_boxes, xywh_from_internal
 from aias_augment.adapters.boundary import SampleSkip, check_sample_targets, image_for_insertion
 from aias_augment.adapters.variants import (
     Variant,
@@ -37,7 +37,7 @@ def _same(image: np.ndarray) -> np.ndarray:
     return image
 
 
-def _plan_labels(n: int, references: list | None) -> list:
+def plan_labels(n: int, references: list | None) -> list:
     """The existing boxes' labels as the pipeline reads them: an inserted category for a box of that kind, else
     None (no kind); without references, the boxes' indices (the output's labels are not read back)."""
     return list(range(n)) if references is None else list(references)
@@ -185,7 +185,7 @@ class WarmVariants:
                 prefix=self._key_prefix(),
             )
             v = self._variants.get(key, j)
-        labels = _plan_labels(len(existing_xywh), references)
+        labels = plan_labels(len(existing_xywh), references)
         if v is None:
             full = insert_bounded(
                 rgb,
@@ -202,8 +202,8 @@ class WarmVariants:
             )
             v = Variant.from_result(rgb, full)
             h, w = rgb.shape[:2]
-            for fmt in () if compat.IS_X else _ENCODED_FORMATS:  # the new boxes as a 2.0.8 Compose encodes them
-                v.encoded[(h, w, fmt)] = _encode_boxes(v.inserted_bboxes, h, w, fmt)
+            for fmt in () if compat.IS_X else ENCODED_FORMATS:  # the new boxes as a 2.0.8 Compose encodes them
+                v.encoded[(h, w, fmt)] = encode_boxes(v.inserted_bboxes, h, w, fmt)
             self._variants.put(key, j, v)
         return v.result(rgb, existing_xywh, labels, min_vis)
 
@@ -237,7 +237,7 @@ class WarmVariants:
     def _boxes_as_called(self, boxes, h: int, w: int) -> np.ndarray:
         """COCO xywh pixels of ``boxes`` (the Compose's bbox format; COCO xywh without a bbox processor) as a call
         reads them: through the processor's own ``check_and_convert`` (float32 albumentations boxes, clip and
-        filter as configured; the Compose's preprocess) and :func:`_xywh_from_internal`."""
+        filter as configured; the Compose's preprocess) and :func:`xywh_from_internal`."""
         b = np.asarray(boxes, np.float64).reshape(-1, 4)
         if len(b) == 0:
             return np.zeros((0, 4))
@@ -247,4 +247,4 @@ class WarmVariants:
             if proc is not None
             else compat.to_albumentations(b, "coco", (h, w))
         )
-        return _xywh_from_internal(internal, h, w)
+        return xywh_from_internal(internal, h, w)

@@ -211,7 +211,7 @@ def test_new_boxes_encoded_as_the_compose_processor_encodes_them(fmt, ids, field
     what the Compose's processor makes of them with ``preprocess`` (run on a twin transform), call after call, and
     both leave their label managers in the same state. Boxes of random sizes and places, on edges and corners, in
     images of random sizes."""
-    from aias_augment.adapters.transform import _encode_boxes
+    from aias_augment.adapters.transform import encode_boxes
 
     rng = np.random.default_rng(0)
     ours, proc = _attached(fmt, fields, ids)
@@ -226,7 +226,7 @@ def test_new_boxes_encoded_as_the_compose_processor_encodes_them(fmt, ids, field
             xywh = np.array([[0, 0, w, h], [w - 3, h - 5, 3, 5]], np.float64)[:n]
         res = _Boxes(xywh, ["traffic_cone"] * len(xywh))
         got = ours._encode_new_boxes(res, np.zeros((0, 4 + len(fields))), (h, w, 3))
-        assert _encode_boxes(res.inserted_bboxes, h, w, fmt) is not False  # the fast path was taken
+        assert encode_boxes(res.inserted_bboxes, h, w, fmt) is not False  # the fast path was taken
         values = [ref._label_for(c, ref_proc, fields[0]) for c in res.inserted_labels]
         want = ref._preprocess_new_boxes(res, ref_proc, values, fields, h, w)
         assert got.dtype == want.dtype and got.shape == want.shape and got.tobytes() == want.tobytes()
@@ -258,11 +258,11 @@ def test_new_box_labels_known_or_not_to_the_manager_get_its_codes():
 def test_a_box_the_processor_must_check_goes_through_preprocess():
     """A box outside [0, 1] once normalised is not encoded by the fast path: the processor's own check decides
     (here: its error), as before."""
-    from aias_augment.adapters.transform import _encode_boxes
+    from aias_augment.adapters.transform import encode_boxes
 
     t, _ = _attached("coco", ["labels"])
     res = _Boxes([[300.0, 10.0, 30.0, 20.0]], ["traffic_cone"])  # x_max 330 > width 320
-    assert _encode_boxes(res.inserted_bboxes, 240, 320, "coco") is False
+    assert encode_boxes(res.inserted_bboxes, 240, 320, "coco") is False
     with pytest.raises(ValueError, match="x_max"):
         t._encode_new_boxes(res, np.zeros((0, 5)), (240, 320, 3))
 
