@@ -62,6 +62,9 @@ def configure_logging(args: argparse.Namespace, fmt: str = DEFAULT_FORMAT) -> in
     logging.basicConfig(level=library_level, format=fmt, force=True)
     for name in PROJECT_LOGGERS:
         logging.getLogger(name).setLevel(level)
+    # Off, then on: logging installs its hook only when it believes none is installed, and a caller that restored
+    # warnings.showwarning since an earlier call (a test harness, a catch_warnings block) would leave it out.
+    logging.captureWarnings(False)
     logging.captureWarnings(True)
     return level
 

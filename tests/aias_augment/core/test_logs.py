@@ -103,3 +103,15 @@ def test_progress_bars_only_off_when_quiet():
 def test_unknown_default_is_refused():
     with pytest.raises(ValueError, match="VERBOSE"):
         add_logging_args(argparse.ArgumentParser(), default="VERBOSE")
+
+
+def test_warnings_reach_the_log_after_a_hook_left_on_and_showwarning_restored(capsys):
+    """An earlier in-process CLI call leaves logging's warnings hook on; a harness then restores
+    ``warnings.showwarning``. The next ``configure_logging`` must still route warnings to the log."""
+    logging.captureWarnings(True)
+    warnings.showwarning = warnings._showwarning_orig  # what catch_warnings / pytest restore between calls
+    configure_logging(_parser().parse_args(["run"]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.warn("w", UserWarning)
+    assert "py.warnings" in capsys.readouterr().err
