@@ -221,7 +221,9 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
     given_K = frame.intrinsics
     if given_K is not None and not isinstance(given_K, Intrinsics):
         given_K = Intrinsics.from_matrix(np.asarray(given_K), w, h)
-    small = _analysis_copy(img, cfg.analysis_max_width)
+    # The camera's copy is at least camera_analysis_width wide: on a 160 px copy the roll can be off by 20 deg.
+    cheap = 0 < cfg.analysis_max_width < w
+    small = _analysis_copy(img, max(cfg.analysis_max_width, cfg.camera_analysis_width)) if cheap else None
     if small is None or frame.depth is not None:  # depth: the ground comes from it, at its own resolution
         intr, ground = scene_geometry(img, given_K, frame.depth, rng, cfg, mods, need_ground=cfg.placement)
     else:
@@ -256,9 +258,7 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
     up_ground = ground or prior_ground_plane(cfg.camera_height_m)
     # The lighting's copy is at least lighting_cfg.min_input_width wide (the camera's may be narrower): on a 160 px
     # copy the sun's side and the cast-shadow contrast are lost (results/lighting/kitti_cast_shadow.md).
-    lsmall = (
-        small if small is None else _analysis_copy(img, max(cfg.analysis_max_width, cfg.lighting_cfg.min_input_width))
-    )
+    lsmall = _analysis_copy(img, max(cfg.analysis_max_width, cfg.lighting_cfg.min_input_width)) if cheap else None
     if lsmall is None:
         lighting = scene_lighting(img, intr, up_ground, rng, cfg, meta, mods)
     else:
@@ -276,12 +276,14 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
             "monochrome camera (R = G = B in the image): inserted objects are written as luminance, "
             "as this camera sees them"
         )
-    if small is not None:
+    if cheap:
         lw = f"{lsmall.shape[1]}x{lsmall.shape[0]} copy" if lsmall is not None else "the full image"
+        cw = f"a {small.shape[1]}x{small.shape[0]} copy" if small is not None else "the full image"
         mods["analysis"] = (
-            f"cheap: camera{'' if frame.depth is None else ' (not: depth given)'} estimated on a "
-            f"{small.shape[1]}x{small.shape[0]} copy of the {w}x{h} image (analysis_max_width "
-            f"{cfg.analysis_max_width}), lighting on {lw} (lighting_cfg.min_input_width "
+            f"cheap: camera{'' if frame.depth is None else ' (not: depth given)'} estimated on "
+            f"{cw} of the {w}x{h} image (analysis_max_width "
+            f"{cfg.analysis_max_width}, camera_analysis_width {cfg.camera_analysis_width}), lighting on {lw} "
+            f"(lighting_cfg.min_input_width "
             f"{cfg.lighting_cfg.min_input_width}); region at full resolution"
         )
     return SceneAnalysis(key or scene_key(frame, cfg), (h, w), intr, ground, region, lighting, mods, monochrome)

@@ -35,6 +35,7 @@ EdgeBlendMode = Literal["rendered", "hard", "feather"]
         # the common 16384 GL limit) and costs ~ssaa^2.
         "ssaa": "[1, 4]",
         "analysis_max_width": "[0, inf)",  # and 0 or >= 64 (__post_init__)
+        "camera_analysis_width": "[0, inf)",  # and 0 or >= 64 (__post_init__)
         "camera_height_m": "(0, inf)",
         "max_camera_pitch_deg": "[0, 90]",
         "max_camera_roll_deg": "[0, 180]",
@@ -156,6 +157,10 @@ class InsertionConfig:
     # Cheap analysis (the fast preset's lighting estimate for a new image): the camera (vanishing lines) and the
     # lighting are estimated on a copy at most this many pixels wide (0: the image as given); the record says so.
     analysis_max_width: int = 0
+    # With ``analysis_max_width`` set: the camera (horizon, pitch, roll, focal from vanishing lines) is estimated on a
+    # copy at least this wide (0: the analysis_max_width copy). Short segments vanish on a 160 px copy and the roll
+    # goes with them (results/lighting/fast_camera).
+    camera_analysis_width: int = 0
     # Priors when the scene does not say.
     camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
     estimate_camera: bool = True  # horizon/pitch/roll (and focal when unknown) from vanishing lines
@@ -170,10 +175,11 @@ class InsertionConfig:
     def __post_init__(self):  # after the checks of every field's type and bounds (checked_config)
         if not self.categories:
             raise ConfigValueError(("InsertionConfig", "categories"), "must not be empty")
-        if 0 < self.analysis_max_width < 64:
-            raise ConfigValueError(
-                ("InsertionConfig", "analysis_max_width"), f"must be 0 (off) or >= 64, got {self.analysis_max_width}"
-            )
+        for name in ("analysis_max_width", "camera_analysis_width"):
+            if 0 < getattr(self, name) < 64:
+                raise ConfigValueError(
+                    ("InsertionConfig", name), f"must be 0 (off) or >= 64, got {getattr(self, name)}"
+                )
         if self.naive_paste and self.naive_share > 0:
             raise ConfigValueError(
                 ("InsertionConfig", "naive_share"), "must be 0 when naive_paste is on (every image is a naive paste)"
@@ -235,6 +241,8 @@ class InsertionConfig:
         }
         if c.analysis_max_width:  # only when set: the keys of full-resolution analyses stay what they were
             out["analysis_max_width"] = c.analysis_max_width
+            if c.camera_analysis_width:
+                out["camera_analysis_width"] = c.camera_analysis_width
         return out
 
 

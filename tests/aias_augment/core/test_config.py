@@ -274,7 +274,14 @@ def test_valid_values_construct(cls, spec, data):
         hi for c in CLASSES for _, hi, _ in c.__config_orders__
     }:
         return  # bounded against another field: tested below
-    cross = {"analysis_max_width", "categories", "decoys", "decoy_categories", "family_members"}
+    cross = {
+        "analysis_max_width",
+        "camera_analysis_width",
+        "categories",
+        "decoys",
+        "decoy_categories",
+        "family_members",
+    }
     if cls is InsertionConfig and spec.name in cross:
         return  # cross-value rules of its own __post_init__ (test_insertion config tests, test_decoys, test_family_cache)
     cfg = cls(**{spec.name: value})
