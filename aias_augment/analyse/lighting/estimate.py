@@ -233,7 +233,7 @@ class LightingConfig:
     shadow_axis_kappa: float = 20.0
     #: Sun cues and the ambient map are computed on a copy at most this wide (pixels).
     analysis_width: int = 400
-    #: Callers that analyse a cheap copy of the image (the fast preset's ``analysis_max_width`` 160) give the
+    #: Callers that analyse a cheap copy of the image (``analysis_max_width``, e.g. 160) give the
     #: estimator a copy at least this wide (``insertion.analyse``). At 160 px the side cues (walls, shadow ends) and the
     #: thin cast shadows are lost: on KITTI 06 the sun came out on the wrong side in 7 of 9 frames checked (320 px: 2
     #: of 9, like the full frame) and the lit/shadow contrast at a third of the full frame's.
