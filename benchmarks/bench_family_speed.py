@@ -2,7 +2,7 @@
 continuous family (a new cone per object), the shared mesh (``asset_source: default``) and albumentations'
 ``OverlayElements``.
 
-    taskset -c 0 nice python benchmarks/bench_family_speed.py --out results/bench/family_speed
+    taskset -c 0 nice python -m benchmarks.bench_family_speed --out results/bench/family_speed
 
 Speed (issue 56's protocol): every arm is an ``InsertObjects(preset="fast", p=1)`` in a ``Compose`` (one object per
 image: ``min_objects = max_objects = 1``) on six 640x480 TraCon training roads in rotation; each arm has its own
@@ -34,8 +34,7 @@ os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_regression_guard import ROTATION, tracon_files  # noqa: E402
+from benchmarks.bench_regression_guard import ROTATION, tracon_files  # noqa: E402
 
 #: The family's seed in every arm (a config value, recorded here and in every record the arm makes).
 FAMILY_SEED = 56
@@ -95,9 +94,7 @@ def speed(sizes: list[int], warmup: int, rounds: int) -> dict:
 
     from aias_augment import InsertObjects
     from aias_augment.apply.view_cache import ViewCache
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_transform import cone_sprite
+    from benchmarks.bench_transform import cone_sprite
 
     images = [
         cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), (640, 480), interpolation=cv2.INTER_AREA)
@@ -219,7 +216,7 @@ def main(argv=None) -> int:
         "load_before": load_before,
         "load_after": round(os.getloadavg()[0], 1),
     }
-    command = "taskset -c 0 nice python benchmarks/bench_family_speed.py " + shlex.join(sys.argv[1:] or [])
+    command = "taskset -c 0 nice python -m benchmarks.bench_family_speed " + shlex.join(sys.argv[1:] or [])
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.with_suffix(".json").write_text(json.dumps(res, indent=1))
     a.out.with_suffix(".md").write_text(markdown(res, command))

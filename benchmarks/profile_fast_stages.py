@@ -1,6 +1,6 @@
 """Where the fast preset's time goes, by stage: a fresh call on a seen image, and the first sight of an image.
 
-    taskset -c 0 nice python benchmarks/profile_fast_stages.py --out results/bench/profile_fast.md
+    taskset -c 0 nice python -m benchmarks.profile_fast_stages --out results/bench/profile_fast.md
 
 ``InsertObjects(preset="fast", p=1)`` in a ``Compose`` on 640x480 TraCon training roads (the regression guard's
 transform, ``benchmarks/bench_regression_guard.py``): ``--warmup`` calls over six roads in rotation, then ``--calls``
@@ -29,8 +29,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_regression_guard import ROTATION, SINGLE_THREAD, tracon_files  # noqa: E402
+from benchmarks.bench_regression_guard import REPO, ROTATION, SINGLE_THREAD, tracon_files  # noqa: E402
 
 PHASES = {"_phase_fresh": "fresh call (seen image)", "_phase_first_sight": "first sight of an image"}
 FRAME = re.compile(r"^(?P<func>.*) \((?P<file>.*):(?P<line>\d+)\)$")
@@ -191,16 +190,16 @@ def main(argv: list[str] | None = None) -> int:
         raw, res = Path(tmp) / "stacks.txt", Path(tmp) / "timings.json"
         # --idle: a frame waiting on the GL rasteriser's threads is sampled too (the wait is the render's cost).
         cmd = [py_spy, "record", "--idle", "--format", "raw", "-r", str(a.rate), "-o", str(raw), "--"]
-        cmd += [sys.executable, str(Path(__file__).resolve()), *argv, "--worker", str(res)]
+        cmd += [sys.executable, "-m", "benchmarks.profile_fast_stages", *argv, "--worker", str(res)]
         load_before = os.getloadavg()
-        r = subprocess.run(cmd, env={**os.environ, **SINGLE_THREAD}, capture_output=True, text=True)
+        r = subprocess.run(cmd, env={**os.environ, **SINGLE_THREAD}, capture_output=True, text=True, cwd=REPO)
         if r.returncode or not res.exists():
             tail = (r.stderr.strip().splitlines() or ["(no stderr)"])[-1]
             print(f"profile_fast_stages: error: the profiled run failed: {tail}", file=sys.stderr)
             return 2
         counts = attribute(parse_raw(raw.read_text()))
         timings = json.loads(res.read_text())
-    command = "taskset -c 0 nice python benchmarks/profile_fast_stages.py " + " ".join(shlex.quote(x) for x in argv)
+    command = "taskset -c 0 nice python -m benchmarks.profile_fast_stages " + " ".join(shlex.quote(x) for x in argv)
     text = markdown(command, a, counts, timings, (load_before[0], os.getloadavg()[0]), _code_version())
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(text)

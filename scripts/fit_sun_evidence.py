@@ -10,7 +10,7 @@ diagram, beside the decision the recorded image-cue estimate made on the same ph
 
     python scripts/fit_sun_evidence.py --model checkpoints/sun_evidence.json --out results/lighting/sun_evidence
 
-The shipped threshold is then set by ``scripts/lighting_asymmetric.py`` (an asymmetric cost, chosen on its
+The shipped threshold is then set by ``python -m scripts.lighting_asymmetric`` (an asymmetric cost, chosen on its
 development photos): rerun its ``score`` step and copy its threshold into the model after refitting.
 """
 

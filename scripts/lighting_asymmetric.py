@@ -6,9 +6,9 @@ The labelled photos (by eye, from the numbered sheets of ``lighting_label_sheets
 (``labels.csv``), its 64 extra TraCon photos (``labels_extra.csv``) and 64 more (``labels_more.csv``, with an
 ``uncertain`` column: photos whose label could not be told are kept in the files and left out of every score).
 
-    python scripts/lighting_asymmetric.py split      # results/lighting/asymmetric/split.csv (seeded, before analysis)
-    python scripts/lighting_asymmetric.py analyse    # estimates.csv: every photo through analyse_scene, both presets
-    python scripts/lighting_asymmetric.py score      # report.json: threshold on dev, held-out scored once
+    python -m scripts.lighting_asymmetric split      # results/lighting/asymmetric/split.csv (seeded, before analysis)
+    python -m scripts.lighting_asymmetric analyse    # estimates.csv: every photo through analyse_scene, both presets
+    python -m scripts.lighting_asymmetric score      # report.json: threshold on dev, held-out scored once
 
 Split: the photos the evidence model was fitted on (the benchmark's train half) are development photos; the others
 are split in two by a seeded permutation (``--seed``). Analysis: each photo as the pipeline sees it (TraCon photos
@@ -28,17 +28,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from lighting_benchmark import split_halves  # noqa: E402  (this folder: the benchmark's split)
-
 from aias_augment.analyse.lighting.sun_evidence import (  # noqa: E402
     asymmetric_threshold,
     sun_evidence_features,
     wilson_interval,
 )
 from aias_augment.core.config import data_root  # noqa: E402
+from scripts.lighting_benchmark import split_halves  # the benchmark's split
 
 BENCH = Path("results/lighting/benchmark")
 OUT = Path("results/lighting/asymmetric")
@@ -224,7 +220,7 @@ def main(argv=None) -> int:
         print(f"{len(rows)} photos in {time.perf_counter() - t0:.0f} s")
     else:
         report = score(read_estimates(a.estimates), a.min_precision, a.threshold)
-        report["command"] = "python scripts/lighting_asymmetric.py " + " ".join(argv or sys.argv[1:])
+        report["command"] = "python -m scripts.lighting_asymmetric " + " ".join(argv or sys.argv[1:])
         (a.out / "report.json").write_text(json.dumps(report, indent=1))
         print(json.dumps(report, indent=1))
     return 0

@@ -6,7 +6,7 @@ with the sun threshold near 0 (every possible sun gives its direction); its sun 
 balanced direction recorded there, its roll with balanced's roll (the camera estimate on the whole photo, as balanced
 runs it). Then the time of ``analyse_scene`` on a 640x480 photo, the variants interleaved in one process.
 
-    taskset -c 1 nice .venv/bin/python scripts/lighting_fast_camera.py --widths 160,0,320 160,640,320 640,0,320
+    taskset -c 1 nice .venv/bin/python -m scripts.lighting_fast_camera --widths 160,0,320 160,640,320 640,0,320
 """
 
 import argparse
@@ -18,14 +18,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from lighting_asymmetric import FORCED_THRESHOLD, OUT, load_photo, read_estimates  # noqa: E402
-
 from aias_augment.analyse.analysis import ANALYSIS_SEED, analyse_scene, scene_geometry  # noqa: E402
 from aias_augment.core.frame import Frame  # noqa: E402
 from aias_augment.pipeline.config import load_preset  # noqa: E402
+from scripts.lighting_asymmetric import FORCED_THRESHOLD, OUT, load_photo, read_estimates
 
 
 def roll_deg(ground) -> float:
