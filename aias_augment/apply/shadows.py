@@ -29,8 +29,8 @@ __all__ = [
 SUN_ANGULAR_RADIUS_RAD = float(np.deg2rad(0.265))
 
 #: Below this sun confidence no sun shadow is darker than :data:`UNCERTAIN_SUN_DARKEST` of the lit ground: a false
-#: sun's black hard shadow costs far more than a missed sun's faint one (issue 53: never under 0.5 below 0.8; 0.55
-#: leaves room for the output's 8-bit rounding).
+#: sun's black hard shadow costs far more than a missed sun's faint one (the bound is 0.5 below 0.8; 0.55 leaves
+#: room for the output's 8-bit rounding).
 UNCERTAIN_SUN_CONFIDENCE = 0.8
 UNCERTAIN_SUN_DARKEST = 0.55
 #: At confidence c the sun is drawn as a disc widened by (1 - c) x this (rad) and the penumbra is at least
