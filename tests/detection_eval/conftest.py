@@ -44,3 +44,22 @@ def tiny_yolo_dir(tmp_path_factory):
         write_yolo_sample(root, f"img_{i}", image, boxes, np.zeros(len(boxes), np.int64), jpeg_quality=98)
     write_classes(root, ("cone",))
     return root
+
+
+@pytest.fixture()
+def weights(tmp_path):
+    """A tiny untrained detector's checkpoint (one class, ``cone``), seeded."""
+    import torch
+
+    from detection_eval.config import DetectorConfig, ModelConfig, TrainConfig
+    from detection_eval.model import Detector
+    from detection_eval.train import save_checkpoint
+
+    torch.manual_seed(0)
+    cfg = DetectorConfig(
+        model=ModelConfig(backbone="cspdarknet", pretrained=False, width=0.125, depth=0.33),
+        train=TrainConfig(img_size=64),
+    )
+    path = tmp_path / "w.pt"
+    save_checkpoint(path, Detector(cfg).eval(), ["cone"])
+    return path

@@ -6,26 +6,10 @@ from __future__ import annotations
 import json
 
 import pytest
-import torch
 
 from detection_eval.cli import align_categories, main
-from detection_eval.config import DetectorConfig, ModelConfig, TrainConfig
 from detection_eval.data import DetectionSet, coco_gt_dict, load_yolo_dir
-from detection_eval.model import Detector
 from detection_eval.predict import predict_folder
-from detection_eval.train import save_checkpoint
-
-
-@pytest.fixture()
-def weights(tmp_path):
-    torch.manual_seed(0)
-    cfg = DetectorConfig(
-        model=ModelConfig(backbone="cspdarknet", pretrained=False, width=0.125, depth=0.33),
-        train=TrainConfig(img_size=64),
-    )
-    path = tmp_path / "w.pt"
-    save_checkpoint(path, Detector(cfg).eval(), ["cone"])
-    return path
 
 
 def test_eval_on_yolo_dir_and_coco_json(weights, tiny_yolo_dir, tmp_path):

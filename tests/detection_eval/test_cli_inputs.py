@@ -10,10 +10,7 @@ import pytest
 import torch
 
 from detection_eval.cli import main
-from detection_eval.config import DetectorConfig, ModelConfig, TrainConfig
-from detection_eval.model import Detector
 from detection_eval.study.cli import main as study_main
-from detection_eval.train import save_checkpoint
 
 LAUGHS = (
     "model: ["
@@ -23,18 +20,6 @@ LAUGHS = (
     )
     + "]\n"
 )
-
-
-@pytest.fixture()
-def weights(tmp_path):
-    torch.manual_seed(0)
-    cfg = DetectorConfig(
-        model=ModelConfig(backbone="cspdarknet", pretrained=False, width=0.125, depth=0.33),
-        train=TrainConfig(img_size=64),
-    )
-    path = tmp_path / "w.pt"
-    save_checkpoint(path, Detector(cfg).eval(), ["cone"])
-    return path
 
 
 def _exit_2_one_line(capsys, run, *texts):
