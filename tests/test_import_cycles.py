@@ -1,49 +1,132 @@
-"""No import cycle inside the package: the module import graph (module- and function-level imports) of
-``aias_augment`` has no strongly connected component of more than one module (scripts/import_cycles.py)."""
+"""The package's import graph: the import-linter contracts of pyproject.toml (the step folders import only downwards,
+in the pipeline's order; the package never imports the research detector) hold, and no module import cycle runs
+(grimp's graph: module-level, function-level and TYPE_CHECKING imports). Another module's private names are never
+imported (tools/import_cycles.py)."""
 
 import importlib.util
+import sys
 from pathlib import Path
+
+import grimp
+import networkx as nx
+from importlinter import configuration
+from importlinter.application.use_cases import create_report, read_user_options
+
+configuration.configure()  # importlinter's readers and graph builder (what its CLI and importlinter.api set up)
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _imports_named(metadata) -> list[str]:
+    """Every 'importer -> imported' pair a broken contract's report names (its nested dicts and lists)."""
+    if isinstance(metadata, dict):
+        own = [f"{metadata['importer']} -> {metadata['imported']}"] if {"importer", "imported"} <= set(metadata) else []
+        return own + [s for v in metadata.values() for s in _imports_named(v)]
+    if isinstance(metadata, (list, tuple)):
+        return [s for v in metadata for s in _imports_named(v)]
+    return []
+
+
+def _broken_contracts(user_options) -> dict[str, list[str]]:
+    """{contract name: the imports that break it} of the contracts that do not hold."""
+    # The contract types as importlinter's CLI registers them (a report made through the API registers only these).
+    user_options.session_options["contract_types"] = [
+        "layers: importlinter.contracts.layers.LayersContract",
+        "forbidden: importlinter.contracts.forbidden.ForbiddenContract",
+    ]
+    report = create_report(user_options, cache_dir=None)
+    return {c.name: _imports_named(check.metadata) for c, check in report.get_contracts_and_checks() if not check.kept}
+
+
+def test_the_import_contracts_hold():
+    options = read_user_options(str(ROOT / "pyproject.toml"))
+    assert {c["id"] for c in options.contracts_options} == {"layers", "no-detector"}
+    assert _broken_contracts(options) == {}
+
+
+def test_every_folder_of_the_package_is_in_a_layer():
+    """A new step folder cannot escape the contract: every subpackage and module directly under aias_augment is named
+    in one layer (``_data`` holds no Python)."""
+    options = read_user_options(str(ROOT / "pyproject.toml"))
+    (layers,) = [c for c in options.contracts_options if c["id"] == "layers"]
+    named = {n.strip(" ()") for layer in layers["layers"] for part in layer.split("|") for n in part.split(":")}
+    package = ROOT / "aias_augment"
+    children = {p.stem for p in package.glob("*.py") if p.stem != "__init__"}
+    children |= {p.name for p in package.iterdir() if (p / "__init__.py").exists()}
+    assert children == named
+
+
+def _package(tmp_path: Path, files: dict[str, str]) -> None:
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+
+
+def test_the_layers_contract_breaks_on_an_upward_import(tmp_path, monkeypatch):
+    """The contract as pyproject.toml writes it, on a package with the same folders: a function-level import of a
+    higher layer (core -> pipeline) and a TYPE_CHECKING one (analyse -> apply) are each reported; without them it holds."""
+    folders = ("cli", "adapters", "evaluation", "pipeline", "apply", "plan", "analyse", "scenes", "assets", "core")
+    files = {"pkg/__init__.py": "", "pkg/version.py": "V = 1\n"}
+    files |= {f"pkg/{f}/__init__.py": "" for f in folders}
+    files["pkg/core/a.py"] = "import pkg.version\n"
+    files["pkg/apply/b.py"] = "from pkg.core import a\n"
+    _package(tmp_path, files)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    options = read_user_options(str(ROOT / "pyproject.toml"))
+    (layers,) = [c for c in options.contracts_options if c["id"] == "layers"]
+    contract = {**layers, "containers": ["pkg"], "ignore_imports": []}
+    options.session_options = {"root_packages": ["pkg"]}
+    options.contracts_options = [contract]
+    assert _broken_contracts(options) == {}
+    _package(
+        tmp_path,
+        {
+            "pkg/core/a.py": "import pkg.version\n\n\ndef f():\n    from pkg.pipeline import c\n",
+            "pkg/pipeline/c.py": "",
+            "pkg/analyse/d.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from pkg.apply import b\n",
+        },
+    )
+    for name in [m for m in sys.modules if m == "pkg" or m.startswith("pkg.")]:
+        del sys.modules[name]
+    (broken,) = _broken_contracts(options).values()
+    assert "pkg.core.a -> pkg.pipeline.c" in broken and "pkg.analyse.d -> pkg.apply.b" in broken
+
+
+def import_cycles(package: str) -> list[list[str]]:
+    """The module import cycles of ``package`` (strongly connected components of more than one module), each
+    sorted, with every import grimp finds (module-level, function-level, TYPE_CHECKING)."""
+    graph = grimp.build_graph(package, cache_dir=None)
+    g = nx.DiGraph()
+    for m in graph.modules:
+        g.add_node(m)
+        g.add_edges_from((m, t) for t in graph.find_modules_directly_imported_by(m))
+    return sorted(sorted(c) for c in nx.strongly_connected_components(g) if len(c) > 1)
+
+
+def test_a_cycle_through_function_level_relative_and_type_checking_imports_is_found(tmp_path, monkeypatch):
+    """The check is not vacuous: modules that import each other (one inside a function, one relative, one through
+    ``from pkg import submodule``) are one cycle, and two joined by a TYPE_CHECKING import another."""
+    _package(
+        tmp_path,
+        {
+            "cyc/__init__.py": "",
+            "cyc/a.py": "from .sub import b\n",
+            "cyc/sub/__init__.py": "",
+            "cyc/sub/b.py": "def f():\n    from ..c import x\n",
+            "cyc/c.py": "import cyc.a\nx = 1\n",
+            "cyc/d.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .e import y\n",
+            "cyc/e.py": "from . import d\ny = 1\n",
+        },
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert import_cycles("cyc") == [["cyc.a", "cyc.c", "cyc.sub.b"], ["cyc.d", "cyc.e"]]
+
+
 def _tool():
-    spec = importlib.util.spec_from_file_location("import_cycles", ROOT / "scripts" / "import_cycles.py")
+    spec = importlib.util.spec_from_file_location("import_cycles", ROOT / "tools" / "import_cycles.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
-
-
-def test_no_import_cycle_in_aias_augment():
-    tool = _tool()
-    graph = tool.import_graph("aias_augment")
-    found = tool.cycles(graph)
-    assert not found, "import cycles:\n" + "\n".join(
-        f"{', '.join(c)}:\n  " + "\n  ".join(tool.describe(c, graph)) for c in found
-    )
-
-
-def test_no_import_cycle_in_detection_eval():
-    tool = _tool()
-    assert tool.cycles(tool.import_graph("detection_eval")) == []
-
-
-def test_the_tool_finds_cycles_through_function_level_and_relative_imports(tmp_path):
-    """The graph is not vacuous: a package whose modules import each other (one inside a function, one relative,
-    one through ``from pkg import submodule``) is one cycle; a TYPE_CHECKING import is not an edge."""
-    pkg = tmp_path / "pkg"
-    (pkg / "sub").mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
-    (pkg / "a.py").write_text("from .sub import b\n")
-    (pkg / "sub" / "__init__.py").write_text("")
-    (pkg / "sub" / "b.py").write_text("def f():\n    from ..c import x\n")
-    (pkg / "c.py").write_text("import pkg.a\nx = 1\n")
-    (pkg / "d.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .e import y\n")
-    (pkg / "e.py").write_text("from .d import TYPE_CHECKING\ny = 1\n")
-    tool = _tool()
-    graph = tool.import_graph("pkg", tmp_path)
-    assert graph["pkg.sub.b"] == {"pkg.c": 2}
-    assert tool.cycles(graph) == [["pkg.a", "pkg.c", "pkg.sub.b"]]
 
 
 def test_no_module_imports_another_modules_private_name():
