@@ -9,7 +9,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from aias_augment.core.config import CONFIG_DIR, from_dict, load_config
+from aias_augment.core.config import CONFIG_DIR, from_dict
+from detection_eval.inherit import load_inherited
 
 BACKBONES = ("cspdarknet", "efficientnet_lite0")
 OPTIMIZERS = ("sgd", "adamw")
@@ -159,11 +160,14 @@ class DetectorConfig:
 
 
 def load_detector_config(path: str | Path) -> DetectorConfig:
-    """Load a detector config; a bare name (``lite0_320``) is looked up in ``configs/detector/``."""
+    """Load a detector config (its ``_base_`` files merged under it: :mod:`detection_eval.inherit`); a bare name
+    (``lite0_320``) is looked up in ``configs/detector/``."""
     p = Path(path)
     if not p.exists() and not p.suffix:
         p = CONFIG_DIR / "detector" / f"{path}.yaml"
-    return load_config(DetectorConfig, p)
+    if not p.exists():
+        raise FileNotFoundError(f"detector config not found: {path}")
+    return from_dict(DetectorConfig, load_inherited(p), where=str(p))
 
 
 def detector_config_from_dict(data: dict) -> DetectorConfig:

@@ -6,7 +6,8 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from aias_augment.core.config import CONFIG_DIR, REPO_ROOT, data_root, load_config
+from aias_augment.core.config import CONFIG_DIR, REPO_ROOT, data_root, from_dict
+from detection_eval.inherit import load_inherited
 from detection_eval.study.arms import ARM_FLAGS
 
 log = logging.getLogger("detection_eval.study")
@@ -79,7 +80,11 @@ def dataset_root(cfg: StudyConfig) -> Path:
 
 
 def load_study_config(path: str | Path) -> StudyConfig:
+    """Load a study config (its ``_base_`` files merged under it: :mod:`detection_eval.inherit`); a bare name is
+    looked up in ``configs/study/``."""
     p = Path(path)
     if not p.exists() and not p.suffix:
         p = CONFIG_DIR / "study" / f"{path}.yaml"
-    return load_config(StudyConfig, p)
+    if not p.exists():
+        raise FileNotFoundError(f"study config not found: {path}")
+    return from_dict(StudyConfig, load_inherited(p), where=str(p))
