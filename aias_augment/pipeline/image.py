@@ -1,7 +1,8 @@
 """The insertion pipeline for one image: scene -> placement -> lighting -> render -> composite -> harmonize -> annotate.
 
-``insert_into_image`` is the one-call form used by the albumentations transform, the offline CLI, the demo and the
-detection study: a thin wrapper over the three steps of :mod:`aias_augment.analyse`, :mod:`aias_augment.plan` and :mod:`aias_augment.apply` (``analyse_scene`` ->
+``insert_into_image`` is the image door, used by the albumentations transform, the offline CLI, the demo and the
+detection study (with ``max_pixels``, a huge image is analysed and planned on a smaller copy:
+:mod:`aias_augment.pipeline.bounded`): a thin wrapper over the three steps of :mod:`aias_augment.analyse`, :mod:`aias_augment.plan` and :mod:`aias_augment.apply` (``analyse_scene`` ->
 ``plan_insertion`` -> ``apply_plan``). Every stage records what it used and which modules it skipped and why, so any
 insertion can be replayed from its :class:`InsertionRecord`.
 """
@@ -9,7 +10,7 @@ insertion can be replayed from its :class:`InsertionRecord`.
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from aias_augment.core.scene_inputs import SceneInputs, scene_meta
 from aias_augment.pipeline.config import PRESETS, InsertionConfig, load_preset  # noqa: F401
 from aias_augment.pipeline.replay import placement_from_dict
 from aias_augment.pipeline.working import WorkingResolution
-from aias_augment.plan.insertion import plan_insertion
+from aias_augment.plan.insertion import PlannedObject, plan_insertion
 from aias_augment.plan.placement import Placement
 
 log = logging.getLogger(__name__)
@@ -119,6 +120,7 @@ def insert_into_image(
     scene_cache: SceneCache | None = None,
     view_cache=None,
     scene: SceneInputs | None = None,
+    max_pixels: int | None = None,
 ) -> InsertionResult:
     """Insert 1..k objects into ``image`` and return the new image, boxes and a replayable record.
 
@@ -134,42 +136,116 @@ def insert_into_image(
         draws from its own fixed-seed generator, so ``rng`` only drives the plan (objects, placements, harmonizer).
     view_cache: the :class:`~aias_augment.apply.view_cache.ViewCache` of ``render_method="view_cache"`` (None:
         the process-wide one); like the scene cache it changes when views are rendered, never the pixels.
+    max_pixels: an image above this many pixels is analysed and planned on a copy of at most ``max_pixels`` and
+        rendered at full size (:func:`_insert_at_working_resolution`, recorded as ``working_resolution``); None:
+        the whole analysis at the image's size. :func:`aias_augment.pipeline.bounded.insert_bounded` is this door
+        with the default bound.
     """
-    if rng is None:
-        raise ValueError("insert_into_image needs an explicit numpy Generator (rng) for reproducibility")
+    require_rng(rng, "insert_into_image")
+    inputs = DoorInputs.checked(image, bboxes_xywh, labels, depth, intrinsics, meta, scene)
     cfg = cfg.for_image(rng)  # naive_share: this image a naive paste or a pipeline insertion
-    img = np.asarray(image)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise ValueError(f"image must be (H, W, 3) uint8 RGB, got {img.shape} {img.dtype}")
-    h, w = img.shape[:2]
-    boxes = np.zeros((0, 4)) if bboxes_xywh is None else np.asarray(bboxes_xywh, float).reshape(-1, 4)
-    labels = [] if labels is None else list(labels)
-    if len(labels) != len(boxes):
-        raise ValueError(f"{len(boxes)} boxes but {len(labels)} labels")
-    if depth is not None:
-        depth = np.asarray(depth, np.float32)
-        if depth.shape != (h, w):
-            raise ValueError(f"depth must be {(h, w)}, got {depth.shape}")
-    if intrinsics is not None and not isinstance(intrinsics, Intrinsics):
-        intrinsics = Intrinsics.from_matrix(np.asarray(intrinsics), w, h)
-    meta = scene_meta(meta, scene, (h, w))
-    frame = Frame(img, intrinsics, depth=depth, meta=meta)
+    h, w = inputs.image.shape[:2]
+    plan_kw = dict(bank=bank, n_objects=n_objects)
+    if max_pixels and h * w > max_pixels:
+        working = WorkingResolution.bound(w, h, max_pixels)
+        return _insert_at_working_resolution(
+            inputs, working, rng, cfg, scene_cache, view_cache, min_visibility, plan_kw
+        )
+    frame = Frame(inputs.image, inputs.intrinsics, depth=inputs.depth, meta=inputs.meta)
     cache = scene_cache if scene_cache is not None else SceneCache(max_items=0)
     analysis = cache.get(frame, cfg)
-    existing_xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
     plan = plan_insertion(
         analysis,
         cfg,
         rng,
-        existing_boxes_xyxy=existing_xyxy,
-        existing_labels=labels,
-        depth=depth,
-        meta=meta,
-        bank=bank,
-        n_objects=n_objects,
+        existing_boxes_xyxy=inputs.boxes_xyxy,
+        existing_labels=inputs.labels,
+        depth=inputs.depth,
+        meta=inputs.meta,
+        **plan_kw,
     )
-    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache, labelled_xywh=boxes)
-    return assemble_result(analysis, plan, applied, boxes, labels, min_visibility, mode=cfg.mode)
+    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache, labelled_xywh=inputs.boxes)
+    return assemble_result(analysis, plan, applied, inputs.boxes, inputs.labels, min_visibility, mode=cfg.mode)
+
+
+def require_rng(rng, door: str) -> None:
+    """The doors draw only from a Generator passed in: a missing one is refused, naming the door."""
+    if rng is None:
+        raise ValueError(f"{door} needs an explicit numpy Generator (rng) for reproducibility")
+
+
+@dataclass(frozen=True)
+class DoorInputs:
+    """One image's inputs as the door checked them (:meth:`checked`): the image (H, W, 3) uint8, its labelled
+    boxes (N, 4) COCO xywh and their labels, depth (H, W) float32 or None, intrinsics for (W, H) or None, and the
+    scene facts checked against the image (:func:`~aias_augment.core.scene_inputs.scene_meta`)."""
+
+    image: np.ndarray
+    boxes: np.ndarray
+    labels: list
+    depth: np.ndarray | None
+    intrinsics: Intrinsics | None
+    meta: dict
+
+    @classmethod
+    def checked(cls, image, bboxes_xywh, labels, depth, intrinsics, meta, scene) -> "DoorInputs":
+        """Every input checked against the image (``ValueError`` naming the first problem) before anything runs."""
+        img = np.asarray(image)
+        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+            raise ValueError(f"image must be (H, W, 3) uint8 RGB, got {img.shape} {img.dtype}")
+        h, w = img.shape[:2]
+        boxes = np.zeros((0, 4)) if bboxes_xywh is None else np.asarray(bboxes_xywh, float).reshape(-1, 4)
+        labels = [] if labels is None else list(labels)
+        if len(labels) != len(boxes):
+            raise ValueError(f"{len(boxes)} boxes but {len(labels)} labels")
+        if depth is not None:
+            depth = np.asarray(depth, np.float32)
+            if depth.shape != (h, w):
+                raise ValueError(f"depth must be {(h, w)}, got {depth.shape}")
+        if intrinsics is not None and not isinstance(intrinsics, Intrinsics):
+            intrinsics = Intrinsics.from_matrix(np.asarray(intrinsics), w, h)
+        return cls(img, boxes, labels, depth, intrinsics, scene_meta(meta, scene, (h, w)))
+
+    @property
+    def boxes_xyxy(self) -> np.ndarray:
+        return np.c_[self.boxes[:, :2], self.boxes[:, :2] + self.boxes[:, 2:]]
+
+
+def _insert_at_working_resolution(
+    inputs: DoorInputs, working: WorkingResolution, rng, cfg, scene_cache, view_cache, min_visibility, plan_kw
+) -> InsertionResult:
+    """The door's route for an image above its ``max_pixels``: the analysis and the plan on the working copy
+    (:meth:`WorkingResolution.analyse`), the plan's pixel fields scaled back to full size (its metric ones do not
+    depend on the pixel grid), and :func:`apply_plan` rendering it into the full-size frame."""
+    frame = Frame(inputs.image, inputs.intrinsics, depth=inputs.depth, meta=inputs.meta)
+    small, analysis_small, analysis = working.analyse(frame, cfg, scene_cache)
+    sx, sy = working.scale
+    plan = plan_insertion(
+        analysis_small,
+        cfg,
+        rng,
+        existing_boxes_xyxy=inputs.boxes_xyxy * np.array([sx, sy, sx, sy]),
+        existing_labels=inputs.labels,
+        depth=small.depth,
+        meta=small.meta,
+        **plan_kw,
+    )
+
+    def full_px(p):
+        cu, cv = p.contact_pixel
+        x0, y0, x1, y1 = p.amodal_box_xyxy
+        return replace(
+            p,
+            contact_pixel=((cu + 0.5) / sx - 0.5, (cv + 0.5) / sy - 0.5),
+            amodal_box_xyxy=(x0 / sx, y0 / sy, x1 / sx, y1 / sy),
+        )
+
+    plan = replace(plan, objects=tuple(PlannedObject(full_px(o.placement), o.asset) for o in plan.objects))
+    frame = Frame(inputs.image, analysis.intrinsics, depth=inputs.depth, meta=inputs.meta)
+    applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache, labelled_xywh=inputs.boxes)
+    return assemble_result(
+        analysis, plan, applied, inputs.boxes, inputs.labels, min_visibility, working_resolution=working, mode=cfg.mode
+    )
 
 
 def assemble_result(

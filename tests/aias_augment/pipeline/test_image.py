@@ -183,6 +183,46 @@ def test_bad_inputs_raise_clearly():
         load_preset("ultra")
 
 
+def test_one_door_with_max_pixels_is_the_bounded_door_and_records_the_working_copy():
+    """``insert_into_image(max_pixels=m)`` is the bounded route: above ``m`` pixels it analyses a working copy
+    (recorded), the same bytes, boxes and record as ``insert_bounded(max_pixels=m)``, and a different image from the
+    unbounded door (so the route really changed); at or below ``m`` it is the plain door byte for byte."""
+    from aias_augment.pipeline.bounded import insert_bounded
+
+    img, bank = road_frame(), OneAsset(box_asset(category="box"))
+    kw = dict(cfg=CFG, bank=bank, n_objects=1)
+    bound = K.width * K.height // 4
+    door = insert_into_image(img, rng=np.random.default_rng(5), max_pixels=bound, **kw)
+    wrapper = insert_bounded(img, rng=np.random.default_rng(5), max_pixels=bound, **kw)
+    plain = insert_into_image(img, rng=np.random.default_rng(5), **kw)
+    wr = door.record.working_resolution
+    assert wr.image_size == (K.width, K.height) and wr.analysis_size[0] * wr.analysis_size[1] <= bound
+    assert door.image.shape == img.shape and np.array_equal(door.image, wrapper.image)
+    assert np.array_equal(door.bboxes, wrapper.bboxes)
+    assert json.dumps(door.record.to_dict()) == json.dumps(wrapper.record.to_dict())
+    assert plain.record.working_resolution is None and not np.array_equal(door.image, plain.image)
+    at_bound = insert_into_image(img, rng=np.random.default_rng(5), max_pixels=K.width * K.height, **kw)
+    assert np.array_equal(at_bound.image, plain.image) and at_bound.record.working_resolution is None
+
+
+@pytest.mark.parametrize("max_pixels", [None, 10_000])
+def test_both_routes_refuse_the_same_bad_inputs(max_pixels):
+    """The door checks its inputs once, before either route: a wrong depth, box count or scene fact is refused
+    the same way on the plain and the working-resolution route, and by the bounded wrapper."""
+    from aias_augment.pipeline.bounded import insert_bounded
+
+    rng = np.random.default_rng(0)
+    for door in (insert_into_image, insert_bounded):
+        with pytest.raises(ValueError, match=r"depth must be \(480, 640\)"):
+            door(road_frame(), rng=rng, depth=np.zeros((10, 10)), max_pixels=max_pixels)
+        with pytest.raises(ValueError, match="1 boxes but 0 labels"):
+            door(road_frame(), [[0, 0, 1, 1]], [], rng=rng, max_pixels=max_pixels)
+        with pytest.raises(ValueError, match="uint8"):
+            door(road_frame().astype(np.float32), rng=rng, max_pixels=max_pixels)
+        with pytest.raises(ValueError, match=f"{door.__name__} needs an explicit numpy Generator"):
+            door(road_frame(), max_pixels=max_pixels)
+
+
 def test_placeable_mask_restricts_contact_points():
     mask = np.zeros((K.height, K.width), bool)
     mask[:, 400:] = True
