@@ -8,7 +8,7 @@ export AIAS_DATA ?= $(abspath ../shared/data)
 .PHONY: setup demo test bench clean-out
 
 setup:
-	@bash scripts/setup.sh
+	@bash tools/setup.sh
 
 demo: setup
 	$(PY) -m aias_augment.cli.demo --out out/demo

@@ -140,7 +140,7 @@ def test_the_study_scripts_and_benchmarks_use_only_public_names():
     import ast
 
     found = []
-    for folder in ("detection_eval", "scripts", "benchmarks"):
+    for folder in ("detection_eval", "studies", "benchmarks", "tools"):
         for path in sorted((ROOT / folder).rglob("*.py")):
             for node in ast.walk(ast.parse(path.read_text())):
                 if isinstance(node, ast.ImportFrom) and not (node.module or "").startswith("__"):

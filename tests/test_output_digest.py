@@ -1,4 +1,4 @@
-"""scripts/output_digest.py's digests and comparison (the pipeline runs themselves are the script's job: too slow
+"""tools/output_digest.py's digests and comparison (the pipeline runs themselves are the script's job: too slow
 for the unit tests)."""
 
 import importlib.util
@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("output_digest", ROOT / "scripts" / "output_digest.py")
+    spec = importlib.util.spec_from_file_location("output_digest", ROOT / "tools" / "output_digest.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

@@ -42,7 +42,7 @@ def blender_world():
     def get(name: str) -> Path:
         p = BLENDER_WORLDS / f"{name}.exr"
         if not p.is_file():
-            pytest.skip(f"blender-data not installed ({p} missing); run scripts/setup.sh")
+            pytest.skip(f"blender-data not installed ({p} missing); run tools/setup.sh")
         return p
 
     return get

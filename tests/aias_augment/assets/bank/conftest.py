@@ -12,7 +12,7 @@ BLENDSWAP0 = DEFAULT_SH3F_DIR / "BlendSwap-CC-0.sh3f"
 def sh3f_records():
     """Catalog records of two installed catalogs, by id (skips when sweethome3d-furniture is not installed)."""
     if not (SCOPIA.is_file() and BLENDSWAP0.is_file()):
-        pytest.skip("sweethome3d-furniture not installed (scripts/setup.sh installs it)")
+        pytest.skip("sweethome3d-furniture not installed (tools/setup.sh installs it)")
     from aias_augment.assets.bank.sh3f import read_sh3f_catalog
     from aias_augment.assets.bank.taxonomy import load_taxonomy
 

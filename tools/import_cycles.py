@@ -2,8 +2,8 @@
 relative) built with ``ast``, and its strongly connected components of more than one module (or a module importing
 itself).
 
-    python scripts/import_cycles.py                 # aias_augment; exit 1 if there is a cycle or a private reach
-    python scripts/import_cycles.py detection_eval
+    python -m tools.import_cycles                 # aias_augment; exit 1 if there is a cycle or a private reach
+    python -m tools.import_cycles detection_eval
 
 An edge ``a -> b`` means a module ``a`` imports ``b`` (``from b import x`` where ``b.x`` is a submodule: to
 ``b.x``; a package's ``__init__`` is the module ``pkg``). Imports under ``if TYPE_CHECKING:`` are not edges.

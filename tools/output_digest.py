@@ -16,8 +16,8 @@ Per case it records the sha256 of the output image bytes (uint8, C order, with t
 ``results/architecture/README.md``; ``--check`` recomputes and compares with the committed json, exiting 1 and listing
 the cases that differ.
 
-    PYOPENGL_PLATFORM=egl python scripts/output_digest.py --write
-    PYOPENGL_PLATFORM=egl python scripts/output_digest.py --check
+    PYOPENGL_PLATFORM=egl python -m tools.output_digest --write
+    PYOPENGL_PLATFORM=egl python -m tools.output_digest --check
 """
 
 from __future__ import annotations
@@ -233,11 +233,11 @@ def write_table(digests: dict) -> None:
         "through a public door (`insert_into_image`, `working_resolution.insert_bounded`, the `InsertObjects`",
         "transform) with a preset and a seed; the digests are sha256 of the output image bytes and of the output boxes",
         "(formatted to 1e-6) with their labels. `digests.json` holds them; the script and its inputs are described in",
-        "its docstring (`scripts/output_digest.py`).",
+        "its docstring (`tools/output_digest.py`).",
         "",
         "```",
-        "PYOPENGL_PLATFORM=egl AIAS_DATA=../shared/data python scripts/output_digest.py --write   # regenerate",
-        "PYOPENGL_PLATFORM=egl AIAS_DATA=../shared/data python scripts/output_digest.py --check   # exit 1 if any differs",
+        "PYOPENGL_PLATFORM=egl AIAS_DATA=../shared/data python -m tools.output_digest --write   # regenerate",
+        "PYOPENGL_PLATFORM=egl AIAS_DATA=../shared/data python -m tools.output_digest --check   # exit 1 if any differs",
         "```",
         "",
         "Digests depend on the library versions (OpenCV, numpy, torch, the GL renderer): compare on one machine.",
