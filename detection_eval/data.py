@@ -14,7 +14,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from PIL import Image
+
+from aias_augment.core.image_io import image_size, read_image
 
 from .boxes import xywh_to_xyxy, xyxy_to_xywh
 
@@ -65,30 +66,10 @@ class DetectionSet:
         return DetectionSet(self.records + other.records, self.category_names, self.category_ids)
 
 
-def image_size(path: str | Path) -> tuple[int, int]:
-    """(width, height) from the file header, without decoding."""
-    with Image.open(path) as im:
-        return im.size
-
-
 def read_image_rgb(path: str | Path, min_long_side: int | None = None) -> np.ndarray:
-    """Decode an image as RGB uint8 (H, W, 3). With ``min_long_side`` a JPEG may be decoded at 1/2, 1/4 or 1/8
-    scale (much faster) as long as its longer side stays >= ``min_long_side``."""
-    flag = cv2.IMREAD_COLOR | cv2.IMREAD_IGNORE_ORIENTATION
-    if min_long_side:
-        long_side = max(image_size(path))
-        for factor, reduced in (
-            (8, cv2.IMREAD_REDUCED_COLOR_8),
-            (4, cv2.IMREAD_REDUCED_COLOR_4),
-            (2, cv2.IMREAD_REDUCED_COLOR_2),
-        ):
-            if long_side / factor >= min_long_side:
-                flag = reduced | cv2.IMREAD_IGNORE_ORIENTATION
-                break
-    bgr = cv2.imread(str(path), flag)
-    if bgr is None:
-        raise ValueError(f"cannot read image {path}")
-    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    """Decode an image as upright RGB uint8 (H, W, 3) by the package's reader. With ``min_long_side`` a JPEG may be
+    decoded at 1/2, 1/4 or 1/8 scale (much faster) as long as its longer side stays >= ``min_long_side``."""
+    return read_image(path, min_long_side=min_long_side)
 
 
 # ---------------------------------------------------------------- YOLO txt

@@ -20,6 +20,7 @@ from aias_augment.adapters.boundary import ImageSkip, nothing_inserted_reason, p
 from aias_augment.cli.dataset_out import ImageOut
 from aias_augment.cli.manifest import TEMP_TAG, item_hash, write_file, write_json
 from aias_augment.core.geometry import Intrinsics
+from aias_augment.core.image_io import read_image
 from aias_augment.pipeline.bounded import insert_bounded
 from aias_augment.pipeline.image import InsertionConfig
 from aias_augment.pipeline.working import rescale_intrinsics
@@ -43,10 +44,8 @@ class Item:
 
 
 def read_rgb(path: str) -> np.ndarray:
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise ValueError(f"cannot read image {path}")
-    return np.ascontiguousarray(img[..., ::-1])
+    """(H, W, 3) uint8 RGB, upright, by the package's reader."""
+    return read_image(path)
 
 
 def write_rgb(path: Path, image: np.ndarray, temp_prefix: str = TEMP_TAG) -> None:

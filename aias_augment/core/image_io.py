@@ -5,7 +5,11 @@
 - Truncated or corrupt files raise :class:`CorruptImage`: a full PIL decode with truncation errors on (libjpeg's
   warnings are not enough: OpenCV decodes a third of a JPEG and fills the rest with grey), and a JPEG must end with
   its end-of-image marker.
-- The pixels are OpenCV's (EXIF orientation applied, as ``cv2.imread``).
+- The pixels are OpenCV's, turned upright by the file's EXIF orientation as PIL reads it (the tag
+  ``ImageOps.exif_transpose`` uses), for every format: :func:`image_size` reports the same upright size.
+- ``min_long_side`` decodes a JPEG at 1/2, 1/4 or 1/8 scale (libjpeg's DCT scaling, much faster) while its longer
+  side stays >= ``min_long_side``; ``grey`` decodes one channel with OpenCV's grey decode (libpng's and libjpeg's own
+  conversion); ``allow_16bit=False`` refuses 16-bit files (where a 16-bit file is a depth map, not a picture).
 - 16-bit PNG/TIFF: ``round(v / 257)`` to 8 bit (the full 16-bit range maps onto 0..255); grey / palette / RGBA:
   OpenCV's colour conversion (alpha dropped); float or 32-bit integer pixels: :class:`UnsupportedImage`. Each
   conversion is returned as a note by :func:`read_image_with_notes`.
@@ -30,6 +34,7 @@ from aias_augment.core.errors import InputError
 # 120 MP holds a 100-MP medium-format frame (11648x8736); decoding one costs about 10 bytes per pixel at the peak
 # (the file, PIL's copy, OpenCV's copy, the RGB view): ~1.2 GB for 8-bit, ~2.5 GB for 16-bit.
 DEFAULT_MAX_PIXELS = 120_000_000
+EXIF_ORIENTATION = 0x0112
 
 
 class ImageReadError(InputError):
@@ -112,15 +117,69 @@ def _header(data: bytes, path: Path, max_pixels: int) -> tuple[int, int]:
     return width, height
 
 
+def _orientation(im) -> int:
+    """EXIF orientation (1..8; 1 for none or an invalid value) of an open PIL image, as ``ImageOps.exif_transpose``
+    reads it. A PNG's eXIf chunk is in ``im.info`` once read: PIL's ``getexif`` would decode the whole PNG to look
+    past the pixel data, so a PNG is looked up in what has been read."""
+    if im.format == "PNG":
+        raw = im.info.get("exif")
+        if not raw:
+            return 1
+        from PIL import Image
+
+        exif = Image.Exif()
+        exif.load(raw)
+    else:
+        exif = im.getexif()
+    value = exif.get(EXIF_ORIENTATION, 1)
+    return value if value in range(1, 9) else 1
+
+
+def upright(img: np.ndarray, orientation: int) -> np.ndarray:
+    """``img`` (H, W[, C]) as displayed for EXIF ``orientation`` 1..8 (PIL's ``exif_transpose`` transforms)."""
+    if orientation in (5, 6, 7, 8):
+        img = np.swapaxes(img, 0, 1)  # transpose; then a flip makes each rotation
+    flip_rows, flip_cols = {
+        1: (False, False),
+        2: (False, True),
+        3: (True, True),
+        4: (True, False),
+        5: (False, False),
+        6: (False, True),
+        7: (True, True),
+        8: (True, False),
+    }[orientation]
+    if flip_rows:
+        img = img[::-1]
+    if flip_cols:
+        img = img[:, ::-1]
+    return np.ascontiguousarray(img)
+
+
 def image_size(path, *, max_pixels: int = DEFAULT_MAX_PIXELS) -> tuple[int, int]:
-    """(width, height) of the image at ``path`` from its header, without decoding a pixel (EXIF orientation not
-    applied); :class:`ImageReadError` as :func:`read_image`."""
+    """(width, height) of the image :func:`read_image` returns for ``path`` (EXIF orientation applied), from its
+    header without decoding a pixel; :class:`ImageReadError` as :func:`read_image`."""
     path = Path(path)
-    return _header(_read_bytes(path), path, max_pixels)
+    data = _read_bytes(path)
+    width, height = _header(data, path, max_pixels)
+    return (height, width) if _header_orientation(data) in (5, 6, 7, 8) else (width, height)
 
 
-def _full_decode_mode(data: bytes, path: Path) -> str:
-    """Decode every pixel with PIL, truncation and decoder warnings as errors; returns the PIL mode."""
+def _header_orientation(data: bytes) -> int:
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the header was read once already; its warnings are read_image's
+            with Image.open(io.BytesIO(data)) as im:
+                return _orientation(im)
+    except Exception:  # a broken EXIF block: read_image refuses the file as corrupt
+        return 1
+
+
+def _full_decode_mode(data: bytes, path: Path) -> tuple[str, int]:
+    """Decode every pixel with PIL, truncation and decoder warnings as errors; returns the PIL mode and the EXIF
+    orientation."""
     from PIL import Image, ImageFile
 
     ImageFile.LOAD_TRUNCATED_IMAGES = False
@@ -132,41 +191,80 @@ def _full_decode_mode(data: bytes, path: Path) -> str:
                 im.verify()
             with Image.open(io.BytesIO(data)) as im:
                 im.load()
-                return im.mode
+                return im.mode, _orientation(im)
     except Exception as e:
         raise CorruptImage(_pil_detail(e), path) from None
 
 
-def read_image_with_notes(path, *, max_pixels: int) -> tuple[np.ndarray, list[str]]:
-    """:func:`read_image` and the conversions made to reach RGB uint8, as sentences (empty for an 8-bit RGB file)."""
+_REDUCED = ((8, cv2.IMREAD_REDUCED_COLOR_8), (4, cv2.IMREAD_REDUCED_COLOR_4), (2, cv2.IMREAD_REDUCED_COLOR_2))
+_EIGHT_BIT_MODES = ("RGB", "I;16", "I;16B", "I;16L")
+_GREY_MODES = ("L", "I;16", "I;16B", "I;16L")
+
+
+def _decode_flags(width: int, height: int, min_long_side: int | None, grey: bool) -> int:
+    """OpenCV flags: any depth, orientation left to :func:`upright`, the smallest JPEG scale keeping the longer side
+    >= ``min_long_side`` (the grey variant of each reduced flag is the colour one less 1)."""
+    flags = cv2.IMREAD_GRAYSCALE if grey else cv2.IMREAD_COLOR
+    if min_long_side:
+        for factor, reduced in _REDUCED:
+            if max(width, height) / factor >= min_long_side:
+                flags = reduced - 1 if grey else reduced
+                break
+    return flags | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_IGNORE_ORIENTATION
+
+
+def read_image_with_notes(
+    path,
+    *,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+    min_long_side: int | None = None,
+    grey: bool = False,
+    allow_16bit: bool = True,
+) -> tuple[np.ndarray, list[str]]:
+    """:func:`read_image` and the conversions made to reach RGB uint8, as sentences (empty for an 8-bit RGB file,
+    or an 8-bit grey one with ``grey``)."""
     path = Path(path)
     data = _read_bytes(path)
-    _header(data, path, max_pixels)
-    mode = _full_decode_mode(data, path)
+    width, height = _header(data, path, max_pixels)
+    mode, orientation = _full_decode_mode(data, path)
     if data[:2] == b"\xff\xd8" and b"\xff\xd9" not in data[-4096:]:
         raise CorruptImage("JPEG without end-of-image marker (truncated)", path)
     if mode in ("F", "I") or mode.startswith("BGR"):
         raise UnsupportedImage(
             f"PIL mode {mode!r} (float or 32-bit integer pixels are refused; convert to 8- or 16-bit first)", path
         )
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+    flags = _decode_flags(width, height, min_long_side, grey)
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     if img is None or img.size == 0:
         raise UnreadableImage("OpenCV cannot decode it", path)
     notes = []
     if img.dtype == np.uint16:
+        if not allow_16bit:
+            raise UnsupportedImage("16-bit pixels where an 8-bit picture is expected (a depth map?)", path)
         img = np.round(img.astype(np.float32) / 257.0).astype(np.uint8)
         notes.append("16-bit image converted to 8-bit (round(v / 257))")
     elif img.dtype != np.uint8:
         raise UnsupportedImage(f"{img.dtype} pixels (only 8- and 16-bit integer images)", path)
-    if mode not in ("RGB", "I;16", "I;16B", "I;16L"):
-        notes.append(f"PIL mode {mode} converted to RGB")
+    if mode not in (_GREY_MODES if grey else _EIGHT_BIT_MODES):
+        notes.append(f"PIL mode {mode} converted to {'grey' if grey else 'RGB'}")
     if min(img.shape[:2]) < 1:
         raise UnreadableImage(f"size {img.shape[1]}x{img.shape[0]}", path)
-    return np.ascontiguousarray(img[..., ::-1]), notes
+    return upright(img if grey else img[..., ::-1], orientation), notes
 
 
-def read_image(path, *, max_pixels: int) -> np.ndarray:
-    """The image at ``path`` as (H, W, 3) RGB uint8 (EXIF orientation applied); the pixel count is checked from the
-    header before decoding (:class:`ImageTooLarge` above ``max_pixels``); truncated or corrupt data raises
-    :class:`CorruptImage`, a missing or empty file :class:`UnreadableImage`, float pixels :class:`UnsupportedImage`."""
-    return read_image_with_notes(path, max_pixels=max_pixels)[0]
+def read_image(
+    path,
+    *,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+    min_long_side: int | None = None,
+    grey: bool = False,
+    allow_16bit: bool = True,
+) -> np.ndarray:
+    """The image at ``path`` as (H, W, 3) RGB uint8, or (H, W) uint8 with ``grey``, turned upright by its EXIF
+    orientation; the pixel count is checked from the header before decoding (:class:`ImageTooLarge` above
+    ``max_pixels``); truncated or corrupt data raises :class:`CorruptImage`, a missing or empty file
+    :class:`UnreadableImage`, float pixels (or 16-bit ones without ``allow_16bit``) :class:`UnsupportedImage`.
+    ``min_long_side`` lets a JPEG decode at 1/2, 1/4 or 1/8 scale while its longer side stays >= that."""
+    return read_image_with_notes(
+        path, max_pixels=max_pixels, min_long_side=min_long_side, grey=grey, allow_16bit=allow_16bit
+    )[0]

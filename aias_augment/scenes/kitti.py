@@ -18,28 +18,19 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from aias_augment.analyse.stereo import stereo_depth
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid
+from aias_augment.core.image_io import image_size, read_image
 
 __all__ = ["KittiSequence", "open_kitti_sequence", "read_kitti_calib", "read_kitti_poses", "read_image_rgb"]
 
 
 def read_image_rgb(path: Path) -> np.ndarray:
-    """Any 8-bit grey/colour image file -> (H, W, 3) uint8 RGB."""
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise FileNotFoundError(f"cannot read image {path}")
-    if img.dtype != np.uint8:
-        raise ValueError(f"{path}: expected an 8-bit image, got {img.dtype}")
-    if img.ndim == 2:
-        return cv2.cvtColor(img, cv2.COLOR_GRAY2RGB)
-    if img.shape[2] == 4:
-        return cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
-    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    """Any 8-bit grey/colour image file -> (H, W, 3) uint8 RGB, upright (the package's reader, 16-bit refused)."""
+    return read_image(path, allow_16bit=False)
 
 
 def read_projection_matrices(path: Path) -> dict[str, np.ndarray]:
@@ -124,8 +115,8 @@ class KittiSequence:
     def stereo_depth(self, i: int, **stereo_kw) -> np.ndarray:
         if self.right_paths[i] is None:
             raise ValueError(f"frame {self.frame_ids[i]} of {self.root} has no right image")
-        left = cv2.imread(str(self.left_paths[i]), cv2.IMREAD_GRAYSCALE)
-        right = cv2.imread(str(self.right_paths[i]), cv2.IMREAD_GRAYSCALE)
+        left = read_image(self.left_paths[i], grey=True)
+        right = read_image(self.right_paths[i], grey=True)
         return stereo_depth(left, right, self.intrinsics, self.baseline_m, **stereo_kw)
 
     def frame(self, i: int, *, with_depth: bool = False, **stereo_kw) -> Frame:
@@ -152,13 +143,6 @@ class KittiSequence:
         return [self.frame(i, with_depth=with_depth, **stereo_kw) for i in range(len(self))]
 
 
-def _image_size(path: Path) -> tuple[int, int]:
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise FileNotFoundError(f"cannot read image {path}")
-    return img.shape[1], img.shape[0]
-
-
 def _open_snippet(root: Path) -> KittiSequence:
     yaml_path = next(iter(sorted(root.glob("KITTI*.yaml"))))
     lefts = {}
@@ -178,7 +162,7 @@ def _open_snippet(root: Path) -> KittiSequence:
         )
         for i in ids
     )
-    w, h = _image_size(lefts[ids[0]])
+    w, h = image_size(lefts[ids[0]])
     intr, baseline = read_kitti_calib(yaml_path, w, h)
     poses_path = root / f"{seq}.txt"
     poses = None
@@ -216,7 +200,7 @@ def open_kitti_sequence(
     right_paths = tuple(
         (root / right_dir / p.name) if (root / right_dir / p.name).exists() else None for p in left_paths
     )
-    w, h = _image_size(left_paths[0])
+    w, h = image_size(left_paths[0])
     intr, baseline = read_kitti_calib(calib, w, h, colour=colour)
     if poses_path is None:
         for cand in (root / "poses.txt", root.parent.parent / "poses" / f"{root.name}.txt"):

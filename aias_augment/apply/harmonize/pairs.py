@@ -20,6 +20,7 @@ import numpy as np
 
 from aias_augment.apply.harmonize.color import linear_to_srgb, luminance, srgb_to_linear, to_float, to_uint8
 from aias_augment.apply.harmonize.regions import Box, context_box, resize
+from aias_augment.core.image_io import read_image
 
 log = logging.getLogger(__name__)
 
@@ -90,10 +91,8 @@ def apply_perturbation(
 
 # ---------------------------------------------------------------------------------------------------- labelled images
 def read_image_rgb(path: str | Path) -> np.ndarray:
-    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if bgr is None:
-        raise ValueError(f"cannot read image {path}")
-    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    """(H, W, 3) uint8 RGB, upright, by the package's reader."""
+    return read_image(path)
 
 
 def read_yolo_boxes(label_path: str | Path, width: int, height: int) -> list[Box]:

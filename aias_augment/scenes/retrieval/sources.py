@@ -9,6 +9,7 @@ from typing import Iterator
 import cv2
 import numpy as np
 
+from aias_augment.core import image_io
 from aias_augment.scenes.retrieval.index import FrameRef
 
 log = logging.getLogger(__name__)
@@ -20,13 +21,9 @@ VIDEO_SUFFIXES = {".avi", ".mp4", ".mov", ".mkv", ".webm", ".m4v"}
 
 
 def read_image(path: str | Path) -> np.ndarray:
-    """uint8 BGR (or grey) image; 16-bit images are refused (they are depth maps, not frames)."""
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise ValueError(f"cannot read image {path}")
-    if img.dtype != np.uint8:
-        raise ValueError(f"{path}: expected an 8-bit frame, got {img.dtype} (a depth map?)")
-    return img
+    """(H, W, 3) uint8 BGR (as the video frames), upright, by the package's reader; 16-bit images are refused
+    (they are depth maps, not frames)."""
+    return np.ascontiguousarray(image_io.read_image(path, allow_16bit=False)[..., ::-1])
 
 
 def iter_frames(
