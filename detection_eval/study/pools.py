@@ -13,9 +13,17 @@ import cv2
 import numpy as np
 
 from aias_augment.core.config import REPO_ROOT
-from detection_eval.data import DetectionSet, load_yolo_dir, read_image_rgb, write_classes, write_yolo_sample
+from detection_eval.data import (
+    DetectionSet,
+    format_yolo_labels,
+    load_yolo_dir,
+    read_image_rgb,
+    write_classes,
+    write_yolo_sample,
+)
 from detection_eval.study.arms import ARM_FLAGS, PER_SEED_ARMS, insertion_config_for_arm
 from detection_eval.study.config import StudyConfig, repo_path
+from detection_eval.study.pool_runner import PoolCopy, RunnerCopyFailed, RunnerMaker, take_jpeg
 from detection_eval.study.splits import pool_backgrounds, real_box_height_fractions
 
 log = logging.getLogger("detection_eval.study")
@@ -76,7 +84,8 @@ def generate_arm_set(
 ) -> Path:
     """Render the arm's pool of ``insertion.pool_size`` inserted copies into a YOLO folder, once for all seeds.
     Resumable: finished copies are listed in ``progress.jsonl`` and kept when a run with the same parameters is
-    restarted; ``done.json`` marks a complete pool and is reused while its parameters match."""
+    restarted; ``done.json`` marks a complete pool and is reused while its parameters match. Pipeline copies are
+    made by the CLI's offline runner (:mod:`detection_eval.study.pool_runner`)."""
     if ARM_FLAGS[arm].get("closeup_crop"):
         return derive_closeup_pool(cfg, arm, train, empty)
     if ARM_FLAGS[arm].get("mix_pools"):
@@ -86,7 +95,6 @@ def generate_arm_set(
     if per_seed and (seed is None or base is None):
         raise ValueError(f"{arm}: its pool is made from the seed's own real instances: pass seed and base")
     out = repo_path(cfg.cache_dir) / arm / (f"seed{seed}/pool" if per_seed else "pool")
-    done, progress = out / "done.json", out / "progress.jsonl"
     backgrounds = pool_backgrounds(empty, ic.pool_seed, ic.pool_size)
     wanted = {
         "arm": arm,
@@ -98,11 +106,44 @@ def generate_arm_set(
         wanted["seed"] = seed
         wanted["sources"] = [Path(r.image_path).name for r in base.records if len(r.labels)]
     wanted = json.loads(json.dumps(wanted))  # as it reads back from json (tuples become lists)
+    finished = _resume(out, arm, wanted)
+    if finished is None:
+        return out
+    try:
+        make = pool_maker(cfg, arm, train, base, out)
+    except RuntimeError as exc:  # no usable instance in the subset: every copy fails with that reason (counted)
+        log.warning("%s: %s", arm, exc)
+
+        def make(image, j, stem, _exc=exc):
+            raise _exc
+
+    t0, n_new = time.perf_counter(), 0
+    with (out / "progress.jsonl").open("a") as plog:
+        for j, i in enumerate(backgrounds):
+            if j in finished:
+                continue
+            entry = _make_copy(cfg, arm, train.records[i].image_path, j, make, out)
+            plog.write(json.dumps(entry) + "\n")
+            plog.flush()
+            finished[j] = entry
+            n_new += 1
+            if n_new % 10 == 0:
+                per_image = (time.perf_counter() - t0) / n_new
+                log.info("%s: %d/%d pool images, %.1f s/image", arm, len(finished), len(backgrounds), per_image)
+    shutil.rmtree(out / "runner", ignore_errors=True)
+    _finish_pool(cfg, arm, out, wanted, [finished[j] for j in sorted(finished)])
+    return out
+
+
+def _resume(out: Path, arm: str, wanted: dict) -> dict[int, dict] | None:
+    """The copies already made of the pool at ``out`` with parameters ``wanted`` (copy index -> progress entry);
+    None when the pool is complete. Copies made with other parameters are dropped."""
+    done, progress = out / "done.json", out / "progress.jsonl"
     if done.exists():
         prev = json.loads(done.read_text())
         if all(prev.get(k) == v for k, v in wanted.items()):
             log.info("%s: using cached pool %s (%d images)", arm, out, prev["num_images"])
-            return out
+            return None
         log.info("%s: pool parameters changed, regenerating", arm)
         done.unlink()
         progress.unlink(missing_ok=True)
@@ -120,81 +161,69 @@ def generate_arm_set(
                 continue
             if (out / "images" / e["image"]).exists() or e.get("failed"):
                 finished[e["copy"]] = e
+    return finished
+
+
+def pool_background(path: str, max_side_px: int) -> np.ndarray:
+    """The background as the pool inserts into it: decoded (orientation as stored) and downscaled (INTER_AREA) so
+    that its longer side is at most ``max_side_px``."""
+    image = read_image_rgb(path)
+    scale = min(1.0, max_side_px / max(image.shape[:2]))
+    if scale < 1:
+        size = (round(image.shape[1] * scale), round(image.shape[0] * scale))
+        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    return image
+
+
+def _make_copy(cfg: StudyConfig, arm: str, background: str, j: int, make, out: Path) -> dict:
+    """Copy ``j`` of the pool on ``background``, written to ``out`` with its labels; returns its progress entry (a
+    failure is logged and counted, and nothing is written without its boxes)."""
+    image = pool_background(background, cfg.insertion.max_side_px)
+    stem = f"{j:04d}_{Path(background).stem}__{arm}"
+    t_img = time.perf_counter()
     try:
-        make = pool_maker(cfg, arm, train, base, out)
-    except RuntimeError as exc:  # no usable instance in the subset: every copy fails with that reason (counted)
-        log.warning("%s: %s", arm, exc)
+        copy = make(image, j, stem)
+    except Exception as exc:  # logged and counted; the copy is left out, never written without its boxes
+        reason = (str(exc) if isinstance(exc, RunnerCopyFailed) else f"{type(exc).__name__}: {exc}")[:200]
+        log.warning("%s: insertion failed on %s: %s", arm, background, reason)
+        return {"copy": j, "background": Path(background).name, "failed": reason}
+    boxes_xyxy = copy.boxes_xyxy
+    keep = (boxes_xyxy[:, 2] - boxes_xyxy[:, 0] >= 1) & (boxes_xyxy[:, 3] - boxes_xyxy[:, 1] >= 1)
+    boxes_xyxy = boxes_xyxy[keep]
+    labels = np.zeros(len(boxes_xyxy), np.int64)
+    if copy.jpeg is None:
+        write_yolo_sample(out, stem, copy.image, boxes_xyxy, labels)
+    else:
+        take_jpeg(copy, out / "images" / f"{stem}.jpg")
+        (out / "labels").mkdir(parents=True, exist_ok=True)
+        (out / "labels" / f"{stem}.txt").write_text(format_yolo_labels(boxes_xyxy, labels, copy.width, copy.height))
+    return {
+        "copy": j,
+        "background": Path(background).name,
+        "image": f"{stem}.jpg",
+        "boxes": int(keep.sum()),
+        "box_heights_frac": [float(x) for x in (boxes_xyxy[:, 3] - boxes_xyxy[:, 1]) / image.shape[0]],
+        "seconds": time.perf_counter() - t_img,
+        "modules": copy.modules,
+    }
 
-        def make(image, rng, _exc=exc):
-            raise _exc
 
-    t0, n_new = time.perf_counter(), 0
-    with progress.open("a") as plog:
-        for j, i in enumerate(backgrounds):
-            if j in finished:
-                continue
-            rec = train.records[i]
-            image = read_image_rgb(rec.image_path)
-            scale = min(1.0, ic.max_side_px / max(image.shape[:2]))
-            if scale < 1:
-                image = cv2.resize(
-                    image, (round(image.shape[1] * scale), round(image.shape[0] * scale)), interpolation=cv2.INTER_AREA
-                )
-            rng = np.random.default_rng([ic.pool_seed, j])  # same draw stream for every arm: paired copies
-            t_img = time.perf_counter()
-            try:
-                new_image, boxes_xyxy, modules = make(image, rng)
-            except Exception as exc:  # logged and counted; the copy is left out, never written without its boxes
-                reason = f"{type(exc).__name__}: {exc}"[:200]
-                log.warning("%s: insertion failed on %s: %s", arm, rec.image_path, reason)
-                entry = {"copy": j, "background": Path(rec.image_path).name, "failed": reason}
-            else:
-                keep = (boxes_xyxy[:, 2] - boxes_xyxy[:, 0] >= 1) & (boxes_xyxy[:, 3] - boxes_xyxy[:, 1] >= 1)
-                boxes_xyxy = boxes_xyxy[keep]
-                stem = f"{j:04d}_{Path(rec.image_path).stem}__{arm}"
-                write_yolo_sample(out, stem, new_image, boxes_xyxy, np.zeros(len(boxes_xyxy), np.int64))
-                entry = {
-                    "copy": j,
-                    "background": Path(rec.image_path).name,
-                    "image": f"{stem}.jpg",
-                    "boxes": int(keep.sum()),
-                    "box_heights_frac": [float(x) for x in (boxes_xyxy[:, 3] - boxes_xyxy[:, 1]) / image.shape[0]],
-                    "seconds": time.perf_counter() - t_img,
-                    "modules": modules,
-                }
-            plog.write(json.dumps(entry) + "\n")
-            plog.flush()
-            finished[j] = entry
-            n_new += 1
-            if n_new % 10 == 0:
-                log.info(
-                    "%s: %d/%d pool images, %.1f s/image",
-                    arm,
-                    len(finished),
-                    len(backgrounds),
-                    (time.perf_counter() - t0) / n_new,
-                )
-    entries = [finished[j] for j in sorted(finished)]
+def _finish_pool(cfg: StudyConfig, arm: str, out: Path, wanted: dict, entries: list[dict]) -> None:
+    """``classes.txt``, ``manifest.json`` (every copy's entry) and ``done.json`` (the parameters, counts, failures)."""
     ok = [e for e in entries if not e.get("failed")]
-    failures = _failure_counts(entries)
     write_classes(out, cfg.class_names)
     (out / "manifest.json").write_text(json.dumps(entries, indent=1))
     seconds = [e["seconds"] for e in ok]
-    done.write_text(
-        json.dumps(
-            {
-                **wanted,
-                "code_commit": git_head(),
-                "num_images": len(ok),
-                "num_boxes": sum(e["boxes"] for e in ok),
-                "failures": failures,
-                "seconds_per_image": float(np.median(seconds)) if seconds else None,
-            },
-            indent=1,
-        )
-    )
-    log.info("%s: pool of %d images, %d inserted boxes", arm, len(ok), sum(e["boxes"] for e in ok))
-    return out
+    summary = {
+        **wanted,
+        "code_commit": git_head(),
+        "num_images": len(ok),
+        "num_boxes": sum(e["boxes"] for e in ok),
+        "failures": _failure_counts(entries),
+        "seconds_per_image": float(np.median(seconds)) if seconds else None,
+    }
+    (out / "done.json").write_text(json.dumps(summary, indent=1))
+    log.info("%s: pool of %d images, %d inserted boxes", arm, len(ok), summary["num_boxes"])
 
 
 def _pool_summary(done: dict) -> dict:
@@ -392,76 +421,91 @@ def run_environment() -> dict:
 
 
 def pool_maker(cfg: StudyConfig, arm: str, train: DetectionSet, base: DetectionSet | None, out: Path):
-    """``make(background, rng) -> (image, boxes_xyxy, modules)`` of the arm: the pipeline (with the lifted instances
-    of the seed's subset as its assets for ``lifted``), or copy-paste of the subset's real instances."""
+    """``make(background, j, stem) -> PoolCopy`` of the arm: the pipeline through the CLI's offline runner (with the
+    lifted instances of the seed's subset as its assets for ``lifted``), copy-paste of the subset's real instances,
+    or the best of k pipeline insertions under the seed's realism filter. Copy ``j`` draws from
+    ``default_rng([pool_seed, j])`` in every arm: paired copies."""
     from aias_augment.pipeline.image import insert_into_image
 
     flags = ARM_FLAGS[arm]
+    ic = cfg.insertion
+    bank = None
     if flags.get("copy_paste") or flags.get("lifted"):
-        from aias_augment.assets.bank.lift import LiftedAssets, cut_out, lift_instances
-
         items = [(r.image_path, read_image_rgb(r.image_path), r.boxes_xyxy) for r in base.records if len(r.labels)]
-        category = cfg.insertion.categories[0]
-        if flags.get("lifted"):
-            assets, report = lift_instances(items, category, out / "assets")
-            log.info(
-                "%s: lifted %d instances of %d images (rejected: %s)",
-                arm,
-                report.lifted,
-                len(items),
-                dict(report.rejected),
-            )
-            if not assets:
-                raise RuntimeError(f"no instance of the subset could be lifted: {dict(report.rejected)}")
-            bank = LiftedAssets({category: assets})
-        else:
-            from detection_eval.copy_paste import paste_instances
-
-            cutouts, rejected = [], {}
-            for path, image, boxes in items:
-                for k, box in enumerate(boxes):
-                    cut, reason = cut_out(image, box, [b for i, b in enumerate(boxes) if i != k], source=path)
-                    if cut is None:
-                        rejected[reason] = rejected.get(reason, 0) + 1
-                    else:
-                        cutouts.append(cut)
-            (out / "cutouts.json").write_text(json.dumps({"cut": len(cutouts), "rejected": rejected}))
-            log.info("%s: %d instances cut out of %d images (rejected: %s)", arm, len(cutouts), len(items), rejected)
-            if not cutouts:
-                raise RuntimeError(f"no instance of the subset could be cut out: {rejected}")
-            fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
-            ic = cfg.insertion
-
-            def make_paste(image, rng):
-                n = int(rng.integers(ic.min_objects, ic.max_objects + 1))
-                new, boxes = paste_instances(image, cutouts, rng, fracs, n)
-                return new, boxes, {"mode": f"copy-paste of {len(cutouts)} real instances"}
-
-            return make_paste
-    else:
-        bank = None
+        if flags.get("copy_paste"):
+            return _copy_paste_maker(cfg, arm, train, items, out)
+        bank = _lifted_bank(arm, ic.categories[0], items, out)
     ins_cfg = insertion_config_for_arm(
         cfg, "inserted" if flags.get("lifted") or flags.get("realism_filter") else arm, train
     )
+    if not flags.get("realism_filter"):
+        return RunnerMaker(ins_cfg, bank, ic.pool_seed, out)
 
     def make_insert(image, rng):
         res = insert_into_image(image, np.zeros((0, 4)), [], rng, ins_cfg, bank=bank)
         b = np.asarray(res.bboxes, np.float64).reshape(-1, 4)
         return res.image, np.c_[b[:, :2], b[:, :2] + b[:, 2:]], dict(res.record.modules)
 
-    if not flags.get("realism_filter"):
-        return make_insert
     from aias_augment.evaluation.realism.filter import best_of
 
     judge = fit_realism_filter(cfg, base, make_insert, out)
 
-    def make_filtered(image, rng):
+    def make_filtered(image, j, stem):
         (new, boxes, modules), info = best_of(
-            lambda g: make_insert(image, g), lambda r: (r[0], r[1]), judge, rng, int(flags["realism_filter"])
+            lambda g: make_insert(image, g),
+            lambda r: (r[0], r[1]),
+            judge,
+            np.random.default_rng([ic.pool_seed, j]),
+            int(flags["realism_filter"]),
         )
-        return new, boxes, {**modules, "realism_filter": info}
+        return PoolCopy(boxes, {**modules, "realism_filter": info}, new.shape[0], new.shape[1], image=new)
 
     return make_filtered
+
+
+def _lifted_bank(arm: str, category: str, items: list, out: Path):
+    """The seed's subset's real instances lifted to meshes (:mod:`aias_augment.assets.bank.lift`): the ``lifted``
+    arm's assets."""
+    from aias_augment.assets.bank.lift import LiftedAssets, lift_instances
+
+    assets, report = lift_instances(items, category, out / "assets")
+    log.info(
+        "%s: lifted %d instances of %d images (rejected: %s)", arm, report.lifted, len(items), dict(report.rejected)
+    )
+    if not assets:
+        raise RuntimeError(f"no instance of the subset could be lifted: {dict(report.rejected)}")
+    return LiftedAssets({category: assets})
+
+
+def _copy_paste_maker(cfg: StudyConfig, arm: str, train: DetectionSet, items: list, out: Path):
+    """``make`` of copy-paste: the subset's real instances cut out (GrabCut from their boxes) and pasted at random
+    positions with heights drawn from the real train boxes."""
+    from aias_augment.assets.bank.lift import cut_out
+    from detection_eval.copy_paste import paste_instances
+
+    cutouts, rejected = [], {}
+    for path, image, boxes in items:
+        for k, box in enumerate(boxes):
+            cut, reason = cut_out(image, box, [b for i, b in enumerate(boxes) if i != k], source=path)
+            if cut is None:
+                rejected[reason] = rejected.get(reason, 0) + 1
+            else:
+                cutouts.append(cut)
+    (out / "cutouts.json").write_text(json.dumps({"cut": len(cutouts), "rejected": rejected}))
+    log.info("%s: %d instances cut out of %d images (rejected: %s)", arm, len(cutouts), len(items), rejected)
+    if not cutouts:
+        raise RuntimeError(f"no instance of the subset could be cut out: {rejected}")
+    fracs = tuple(f for f in real_box_height_fractions(train) if 0 < f <= 1)
+    ic = cfg.insertion
+
+    def make_paste(image, j, stem):
+        rng = np.random.default_rng([ic.pool_seed, j])
+        n = int(rng.integers(ic.min_objects, ic.max_objects + 1))
+        new, boxes = paste_instances(image, cutouts, rng, fracs, n)
+        modes = {"mode": f"copy-paste of {len(cutouts)} real instances"}
+        return PoolCopy(boxes, modes, new.shape[0], new.shape[1], image=new)
+
+    return make_paste
 
 
 def fit_realism_filter(cfg: StudyConfig, base: DetectionSet, make_insert, out: Path):

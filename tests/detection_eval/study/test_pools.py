@@ -140,3 +140,54 @@ def test_mixed_pool_is_its_sources_copies_byte_for_byte(tmp_path):
     stamp = (out / "done.json").stat().st_mtime_ns
     generate_arm_set(cfg, "inserted_mixed_naive", train, empty)
     assert (out / "done.json").stat().st_mtime_ns == stamp
+
+
+def test_pipeline_pool_is_what_the_cli_runner_writes(tmp_path):
+    """A pipeline arm's copy j is the CLI's offline run (``aias_augment.cli.offline.run``, JPEG 95) of the pool's
+    background j with ``seed = pool_seed``: the same bytes, the same boxes; nothing of the runner's work is left."""
+    import json
+
+    import cv2
+
+    from aias_augment.cli.dataset_out import DatasetOutput, ImageOut
+    from aias_augment.cli.offline import run
+    from aias_augment.cli.offline_job import Item
+    from detection_eval.data import load_yolo_dir
+    from detection_eval.study.arms import insertion_config_for_arm
+    from detection_eval.study.pools import generate_arm_set, pool_background
+    from detection_eval.study.splits import pool_backgrounds
+
+    _yolo_cones(tmp_path / "data", 2, 3)
+    train = load_yolo_dir(tmp_path / "data", "train", ("cone",))
+    cfg = StudyConfig(
+        dataset=str(tmp_path / "data"),
+        keep_fraction=0.5,
+        arms=("original", "naive_paste"),
+        amounts=(2,),
+        insertion=InsertionStudyConfig(pool_size=2, max_objects=2, max_side_px=200, pool_seed=3),
+        cache_dir=str(tmp_path / "cache"),
+    )
+    _, empty = thin_cone_images(train, cfg.keep_fraction, 0)
+    out = generate_arm_set(cfg, "naive_paste", train, empty)
+    assert not (out / "runner").exists()
+    entries = json.loads((out / "manifest.json").read_text())
+    assert [e.get("failed") for e in entries] == [None, None]
+    # The CLI's run of the same downscaled backgrounds, written losslessly as its inputs.
+    (tmp_path / "bg").mkdir()
+    items = []
+    for j, i in enumerate(pool_backgrounds(empty, 3, 2)):
+        image = pool_background(train.records[i].image_path, 200)
+        assert max(image.shape[:2]) == 200
+        path = tmp_path / "bg" / f"{j}.png"
+        cv2.imwrite(str(path), image[..., ::-1])
+        items.append(Item(path=str(path)))
+    ins_cfg = insertion_config_for_arm(cfg, "naive_paste", train)
+    run(items, ins_cfg, 3, str(tmp_path / "cli"), output=DatasetOutput(image=ImageOut("jpg", 95)))
+    pool = {r.image_path.rsplit("/", 1)[1]: r for r in load_yolo_dir(out, names=("cone",)).records}
+    for j, e in enumerate(entries):
+        rec = json.loads((tmp_path / "cli" / "records" / f"{j:06d}.json").read_text())
+        cli_bytes = (tmp_path / "cli" / "images" / rec["file_name"]).read_bytes()
+        assert (out / "images" / e["image"]).read_bytes() == cli_bytes
+        b = np.asarray(rec["boxes"], float).reshape(-1, 4)
+        np.testing.assert_allclose(pool[e["image"]].boxes_xyxy, np.c_[b[:, :2], b[:, :2] + b[:, 2:]], atol=1e-3)
+        assert e["boxes"] == len(b) >= 1
