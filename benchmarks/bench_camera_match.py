@@ -15,7 +15,7 @@ from aias_augment.core.config import data_root
 from aias_augment.pipeline.config import load_preset
 from aias_augment.pipeline.image import insert_into_image
 
-# usage: python benchmarks/bench_camera_match.py N [preset ...]   (N calls per arm and round; default balanced)
+# usage: python -m benchmarks.bench_camera_match N [preset ...]   (N calls per arm and round; default balanced)
 N = int(sys.argv[1])
 presets = sys.argv[2:] or ["balanced"]
 img = cv2.cvtColor(cv2.imread(str(data_root() / "tracon/images/train/imh_237_00000000.jpg")), cv2.COLOR_BGR2RGB)

@@ -3,7 +3,7 @@
 For 16 TraCon images at 640x480: CPU ms of analyse_scene and how far its estimates move from the full-resolution
 ones (ground normal, sun direction, dominant-sun decision, SH ambient DC, sun/sky ratio).
 
-    python benchmarks/bench_cheap_analysis.py > results/bench/cheap_analysis.md
+    python -m benchmarks.bench_cheap_analysis > results/bench/cheap_analysis.md
 """
 
 import os
@@ -36,7 +36,7 @@ def ang(a, b):
 
 
 print(
-    "# Cheap scene analysis vs the full-resolution analysis\n\nCommand: `python benchmarks/bench_cheap_analysis.py`"
+    "# Cheap scene analysis vs the full-resolution analysis\n\nCommand: `python -m benchmarks.bench_cheap_analysis`"
     f" (load average {os.getloadavg()[0]:.1f})\n\n16 TraCon images at 640x480, fast preset; differences from the same "
     "image analysed at full resolution (analysis_max_width 0; CPU ms median "
     f"{1000 * np.median(ref_ts):.0f}).\n\n| analysis_max_width | CPU ms median | ground normal deg median / max | "

@@ -4,7 +4,7 @@
 bounded loader), each in a fresh child process (peak RSS from ``os.wait4``), beside a valid config as the baseline.
 The plain path runs under an address-space cap (``--cap-gib``) so that it cannot take the machine down.
 
-usage: python benchmarks/bench_config_bomb.py [--cap-gib 3] [--timeout 120] [--out results/reliability/config_bomb.json]
+usage: python -m benchmarks.bench_config_bomb [--cap-gib 3] [--timeout 120] [--out results/reliability/config_bomb.json]
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 at the HDR size bound (a real 8192x4096 EXR, the largest decoded) and above it (an EXR whose header says
 16384x8192, refused from the header), each in a fresh child process (peak RSS from ``os.wait4``).
 
-usage: python benchmarks/bench_envmap_bound.py [--out results/reliability/envmap_bound.json]
+usage: python -m benchmarks.bench_envmap_bound [--out results/reliability/envmap_bound.json]
 """
 
 from __future__ import annotations

@@ -32,9 +32,9 @@ from pathlib import Path
 
 os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from benchmarks.bench_regression_guard import ROTATION, tracon_files  # noqa: E402
+from benchmarks.bench_regression_guard import ROTATION, tracon_files
 
 #: The family's seed in every arm (a config value, recorded here and in every record the arm makes).
 FAMILY_SEED = 56
@@ -94,7 +94,7 @@ def speed(sizes: list[int], warmup: int, rounds: int) -> dict:
 
     from aias_augment import InsertObjects
     from aias_augment.apply.view_cache import ViewCache
-    from benchmarks.bench_transform import cone_sprite
+    from benchmarks.transform_fixtures import cone_sprite
 
     images = [
         cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), (640, 480), interpolation=cv2.INTER_AREA)

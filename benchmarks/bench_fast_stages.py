@@ -1,7 +1,7 @@
 """Where a fresh fast insertion's time goes (issue 14): each stage of ``InsertObjects(preset="fast")`` timed by a
 wrapper, on one 640x480 TraCon image seen before (scene-cache and view-cache hits: a training loop's steady state).
 
-    python benchmarks/bench_fast_stages.py --calls 300 --warmup 1500 --out results/bench/fast_stages.json
+    python -m benchmarks.bench_fast_stages --calls 300 --warmup 1500 --out results/bench/fast_stages.json
 
 Medians per call in ms, with the command and the machine's load. Wrapping costs ~1 us per wrapped call; the total is
 timed around the whole Compose call. Run it on an idle core (``taskset -c 1``): the stages are ~0.1-1 ms each.
@@ -21,10 +21,9 @@ from pathlib import Path
 
 os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_transform import compose_for, tracon_images  # noqa: E402
+from benchmarks.transform_fixtures import compose_for, tracon_images
 
 #: (module, attribute, stage name, modules that imported the attribute by name and call it from there)
 STAGES = (
@@ -81,7 +80,7 @@ def main(argv=None) -> int:
         tf(image=img, bboxes=np.zeros((0, 4)), labels=[])
         total.append(time.perf_counter() - t0)
     out = {
-        "command": "python benchmarks/bench_fast_stages.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": "python -m benchmarks.bench_fast_stages " + " ".join(argv if argv is not None else sys.argv[1:]),
         "loadavg_before": load_before,
         "loadavg_after": os.getloadavg(),
         "calls": a.calls,

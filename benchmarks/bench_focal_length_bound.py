@@ -3,7 +3,7 @@
 environment-map pre-blur). Each fx runs in a fresh process (peak RSS of that process, ru_maxrss) on one 640x480
 TraCon road with the fast preset; the wall time is the insertion call alone, after a warm-up call at fx 500.
 
-    python benchmarks/bench_focal_length_bound.py [--out results/bench/focal_length_bound.json]
+    python -m benchmarks.bench_focal_length_bound [--out results/bench/focal_length_bound.json]
 """
 
 import argparse

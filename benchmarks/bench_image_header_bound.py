@@ -4,7 +4,7 @@ that decodes first) against ``aias_augment.core.image_io.read_image`` (the pixel
 refused above its bound before decoding), each in a fresh child process (peak RSS from ``os.wait4``), beside a
 640x480 PNG as the baseline.
 
-usage: python benchmarks/bench_image_header_bound.py [--out results/reliability/image_header_bound.json]
+usage: python -m benchmarks.bench_image_header_bound [--out results/reliability/image_header_bound.json]
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Speed: median seconds per image (several repeats) of ``insert_into_image`` on re
 Accuracy of the render: mean absolute error of the object coverage (alpha) against a 4x-supersampled reference of the
 same placement (edge quality), and the harmonizer used.
 
-    python benchmarks/bench_insertion.py --repeats 3 --out results/bench
+    python -m benchmarks.bench_insertion --repeats 3 --out results/bench
 """
 
 from __future__ import annotations
@@ -89,7 +89,7 @@ def main(argv=None) -> int:
         print(rows[-1])
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    cmd = "python benchmarks/bench_insertion.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    cmd = "python -m benchmarks.bench_insertion " + " ".join(argv if argv is not None else sys.argv[1:])
     (out / "insertion.json").write_text(json.dumps({"command": cmd, "rows": rows}, indent=2))
     lines = [
         "# Insertion presets: speed vs accuracy",

@@ -20,7 +20,7 @@ Arms (the dataset: TraCon JPEGs decoded and resized to 320x320 per item, batch 8
 - ``compose_labels`` / ``variants_labels``: as ``compose_only`` / ``variants_warmed``, each item carrying its
   TraCon cone boxes (YOLO labels at 320x320, COCO xywh; the variants warmed with them), as a detection loader does.
 
-    python benchmarks/bench_loader.py --images 192 --rounds 40 --out results/bench/loader
+    python -m benchmarks.bench_loader --images 192 --rounds 40 --out results/bench/loader
 
 Writes ``<out>/loader.json``, ``<out>/loader.md`` (with the command) and ``<out>/loader_ratios.png`` (per-round
 ratios). Run it with nothing else on the machine, pinned to one core (``taskset -c 0``): the parent and all
@@ -39,14 +39,12 @@ from pathlib import Path
 
 os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 
-import albumentations as A  # noqa: E402
-import numpy as np  # noqa: E402
+import albumentations as A
+import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_transform import AppendBoxes, Images, compose_for, decoded, set_cv2_threads  # noqa: E402
-
-from aias_augment import InsertObjects  # noqa: E402
-from aias_augment.core.config import data_root  # noqa: E402
+from aias_augment import InsertObjects
+from aias_augment.core.config import data_root
+from benchmarks.transform_fixtures import AppendBoxes, Images, compose_for, decoded, set_cv2_threads
 
 ARMS = ("without", "compose_only", "boxes_only", "variants_warmed", "fresh_warmed", "compose_labels", "variants_labels")
 BOUND = 0.9
@@ -306,12 +304,12 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.from_json:
         res = json.loads(Path(a.from_json).read_text())
-        res["resummarised"] = "python benchmarks/bench_loader.py --from-json " + a.from_json
+        res["resummarised"] = "python -m benchmarks.bench_loader --from-json " + a.from_json
         report(res, Path(a.from_json).parent)
         return 0
     if "without" not in a.arms:
         raise SystemExit("the arms must include 'without'")
-    cmd = "python benchmarks/bench_loader.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    cmd = "python -m benchmarks.bench_loader " + " ".join(argv if argv is not None else sys.argv[1:])
     import torch
 
     torch.set_num_threads(1)

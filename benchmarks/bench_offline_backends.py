@@ -2,7 +2,7 @@
 outputs compared byte for byte; and the cost of the manifest and the checks (a resumed run, where every record is
 reused, costs exactly the manifest hashes, the output checks and the COCO assembly).
 
-  python benchmarks/bench_offline_backends.py --n 12 --out results/bench/offline_backends.json
+  python -m benchmarks.bench_offline_backends --n 12 --out results/bench/offline_backends.json
 
 Wall time per configuration (a fresh output folder each; the pool's includes starting its spawn workers) and the CPU
 time of this process and its pool children (Ray's workers are not children: not counted). Ray: the local instance
@@ -121,7 +121,7 @@ def main(argv=None) -> int:
     ref = next(iter(trees.values()), None)
     identical = {spec: t == ref for spec, t in trees.items()}
     res = {
-        "command": "python benchmarks/bench_offline_backends.py " + " ".join(sys.argv[1:] if argv is None else argv),
+        "command": "python -m benchmarks.bench_offline_backends " + " ".join(sys.argv[1:] if argv is None else argv),
         "input": f"{a.images} (first {len(items)} images), preset {a.preset}, 1 object per image, seed 0",
         "rows": rows,
         "outputs_byte_identical_to_first": identical,

@@ -2,7 +2,7 @@
 the labels, the manifest's content hashes, and the checked image decode (full PIL decode + OpenCV) against a plain
 ``cv2.imread``. No rendering. Also lists what the validation finds in the real labels.
 
-  python benchmarks/bench_offline_checks.py --out results/bench/offline_checks.json
+  python -m benchmarks.bench_offline_checks --out results/bench/offline_checks.json
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 seconds and peak RSS of a fresh process per run, with the working resolution bounded (analysis and plan at 2 MP,
 render at full size) and, with ``--unbounded``, without the bound (the issue-16 baseline: 204 s and 5.7 GB).
 
-  python benchmarks/bench_offline_transform_huge.py --out results/bench/offline_huge.json [--unbounded]
-  python benchmarks/bench_offline_transform_huge.py --width 1920 --height 1216 --presets fast balanced accurate \
+  python -m benchmarks.bench_offline_transform_huge --out results/bench/offline_huge.json [--unbounded]
+  python -m benchmarks.bench_offline_transform_huge --width 1920 --height 1216 --presets fast balanced accurate \
       --out results/bench/worker_rss_1920.json     # the worker bound (<= 1 GiB on a 1920x1216 frame)
 
 Also reported, after the calls: the process's private memory (its own heap and arrays) and its shared library pages
@@ -86,7 +86,7 @@ def main(argv=None) -> int:
             rows.append(row)
             print(json.dumps(row), flush=True)
     res = {
-        "command": "python benchmarks/bench_offline_transform_huge.py "
+        "command": "python -m benchmarks.bench_offline_transform_huge "
         + " ".join(sys.argv[1:] if argv is None else argv),
         "rows": rows,
         "note": a.note,

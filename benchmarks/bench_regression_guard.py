@@ -1,7 +1,7 @@
 """Performance regression guard: a reference commit against the working tree, run alternately in one sitting.
 
-    taskset -c 0 nice python benchmarks/bench_regression_guard.py --ref <commit>           # 3 rounds, ~8 min
-    taskset -c 0 nice python benchmarks/bench_regression_guard.py --ref <commit> --quick   # 2 rounds, ~3 min
+    taskset -c 0 nice python -m benchmarks.bench_regression_guard --ref <commit>           # 3 rounds, ~8 min
+    taskset -c 0 nice python -m benchmarks.bench_regression_guard --ref <commit> --quick   # 2 rounds, ~3 min
 
 (Minutes on the project's 2-core machine shared with other jobs, load average 7-10: 4 rounds took 704 s.)
 
@@ -39,7 +39,7 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[3]
 TRACON_TRAIN = ("tracon", "images", "train")
 SINGLE_THREAD = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")}
 #: Rotating roads of the transform's steady state (the issue's benchmark: six different TraCon roads).
@@ -270,7 +270,7 @@ def run_guard(a) -> dict:
                     samples[s][kind].append(res)
             print(f"round {r + 1}/{a.rounds} done ({time.perf_counter() - t_start:.0f} s)", flush=True)
         return {
-            "command": "taskset -c 0 nice python benchmarks/bench_regression_guard.py "
+            "command": "taskset -c 0 nice python -m benchmarks.bench_regression_guard "
             + " ".join(shlex.quote(x) for x in a.argv),
             "ref": sides["ref"].label,
             "tree": sides["tree"].label,

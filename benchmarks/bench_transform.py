@@ -8,7 +8,7 @@
    without ``InsertObjects(p=0.5, preset="fast")``: images/s per epoch (workers persist across epochs and share an
    on-disk scene cache).
 
-    python benchmarks/bench_transform.py --rounds 8 --loader-images 32 --epochs 3 --view-warmup 200 --out results/bench
+    python -m benchmarks.bench_transform --rounds 8 --loader-images 32 --epochs 3 --view-warmup 200 --out results/bench
 
    A third arm runs ``InsertObjects.warm(images, view_plans=8)`` first (analyses and views on disk, read by the
    workers): the cost paid once before training, reported with its seconds.
@@ -35,12 +35,20 @@ from pathlib import Path
 
 os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 
-import albumentations as A  # noqa: E402
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
+import albumentations as A
+import numpy as np
 
-from aias_augment import InsertObjects  # noqa: E402
-from aias_augment.core.config import data_root  # noqa: E402
+from aias_augment import InsertObjects
+from aias_augment.core.config import data_root
+from benchmarks.transform_fixtures import (
+    AppendBoxes,
+    Images,
+    compose_for,
+    cone_sprite,
+    decoded,
+    set_cv2_threads,
+    tracon_images,
+)
 
 TARGETS = {
     "fast_warm_vs_overlay": 15.0,
@@ -49,38 +57,6 @@ TARGETS = {
     "accurate_ms": 3000.0,
     "loader_ratio_from_epoch_2": 0.9,
 }
-
-
-def tracon_images(n: int, size: tuple[int, int]) -> list[np.ndarray]:
-    files = sorted((data_root() / "tracon" / "images" / "train").glob("*.jpg"))
-    if len(files) < n:
-        raise SystemExit(f"need {n} TraCon images under {data_root()}/tracon/images/train, found {len(files)}")
-    return [
-        cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), size, interpolation=cv2.INTER_AREA)
-        for f in files[:n]
-    ]
-
-
-def cone_sprite() -> tuple[np.ndarray, np.ndarray]:
-    """A cone crop and its mask for OverlayElements: the cone rendered flat (albedo) at 120 px."""
-    from aias_augment.apply.render import linear_to_srgb, render_object
-    from aias_augment.assets.asset import default_asset
-    from aias_augment.core.geometry import Intrinsics
-
-    K = Intrinsics(300.0, 300.0, 63.5, 63.5, 128, 128)
-    T = np.eye(4)
-    T[:3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]
-    cone = default_asset("traffic_cone")
-    T[:3, 3] = [0.0, cone.height_m / 2, 300.0 * cone.height_m / 110.0]
-    rl = render_object(cone, T, K, ssaa=1, with_normals=False)
-    ys, xs = np.nonzero(rl.alpha > 0.5)
-    crop = (slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1))
-    rgb = (linear_to_srgb(rl.albedo_linear[crop]) * 255).round().astype(np.uint8)
-    return rgb, (rl.alpha[crop] > 0.5).astype(np.uint8)
-
-
-def compose_for(t) -> A.Compose:
-    return A.Compose([t], bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=7)
 
 
 def per_call(rounds: int, images: list[np.ndarray], view_warmup: int = 0, variants: int = 0) -> dict:
@@ -165,71 +141,10 @@ def per_call(rounds: int, images: list[np.ndarray], view_warmup: int = 0, varian
     return stats
 
 
-class Images:
-    """Map-style dataset as a training set reads it: each item decoded from its JPEG and resized to 320x320 (no
-    boxes), then ``transform`` (or none)."""
-
-    def __init__(self, paths, transform):
-        self.paths, self.transform = [str(p) for p in paths], transform
-
-    def __len__(self):
-        return len(self.paths)
-
-    def __getitem__(self, i):
-        import torch
-
-        img = cv2.resize(
-            cv2.cvtColor(cv2.imread(self.paths[i]), cv2.COLOR_BGR2RGB), (320, 320), interpolation=cv2.INTER_AREA
-        )
-        if self.transform is not None:
-            img = self.transform(image=img, bboxes=np.zeros((0, 4)), labels=[])["image"]
-        return torch.from_numpy(np.ascontiguousarray(img)).permute(2, 0, 1)
-
-
-class AppendBoxes(A.DualTransform):
-    """The Compose's own cost of a transform that adds boxes, and nothing else: at ``p``, two fixed new boxes
-    (labelled "traffic_cone" through the Compose's label manager, as InsertObjects labels its boxes) appended, no
-    pixel changed. The ``boxes_only`` loader arm: the most any insertion transform inside an albumentations
-    Compose can reach (the Compose then filters, checks, converts and decodes the new boxes, as it does for any
-    transform's boxes)."""
-
-    _targets = (
-        A.core.type_definitions.Targets.IMAGE,
-        A.core.type_definitions.Targets.MASK,
-        A.core.type_definitions.Targets.BBOXES,
-    )
-    _ROWS = np.array([[0.1, 0.5, 0.2, 0.7], [0.4, 0.6, 0.45, 0.8]], np.float32)
-
-    def apply(self, img, **params):
-        return img
-
-    def apply_to_mask(self, mask, **params):
-        return mask
-
-    def apply_to_bboxes(self, bboxes, **params):
-        codes = self.get_processor("bboxes").label_manager.process_field("bboxes", "labels", ["traffic_cone"] * 2)
-        return np.hstack((self._ROWS, codes)).astype(np.float32)
-
-    def get_transform_init_args_names(self):
-        return ()
-
-
-def decoded(paths) -> list[np.ndarray]:
-    """The items' images as the dataset decodes them (what ``InsertObjects.warm`` must see to hit the same keys)."""
-    return [
-        cv2.resize(cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB), (320, 320), interpolation=cv2.INTER_AREA)
-        for p in paths
-    ]
-
-
 #: OpenCV threads in each loader worker (None: OpenCV's default). albumentations' advice for DataLoader workers is
 #: ``cv2.setNumThreads(0)``: with its default pool on a pinned core, the pool's threads spin after each decode/resize
 #: and take CPU from whatever Python runs next in the worker (the transform), in every arm alike.
 CV2_THREADS: int | None = None
-
-
-def set_cv2_threads(n: int, worker_id: int) -> None:
-    cv2.setNumThreads(n)
 
 
 def loader_rates(
@@ -334,7 +249,7 @@ WORKER_STAGES = {
     "shading": ("shading.py", "shade_object"),
     "harmonize (fast)": ("apply.py", "_harmonize"),
     "restore to the input dtype (validate)": ("validate.py", "restore"),
-    "whole item": ("bench_transform.py", "__getitem__"),
+    "whole item": ("transform_fixtures.py", "__getitem__"),
 }
 
 
@@ -434,7 +349,7 @@ def main(argv=None) -> int:
     ap.add_argument("--worker-profile", action="store_true", help="also profile a worker's stages (fresh arm)")
     ap.add_argument("--out", default="results/bench")
     a = ap.parse_args(argv)
-    cmd = "python benchmarks/bench_transform.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    cmd = "python -m benchmarks.bench_transform " + " ".join(argv if argv is not None else sys.argv[1:])
     import torch
 
     torch.set_num_threads(a.torch_threads)

@@ -5,7 +5,7 @@ the view-cache layers against a full 4x-supersampled render of the same asset an
 ``shade_object`` under one sun + SH light: box IoU, mask IoU, mean absolute difference over the pixels both call the
 object (sRGB levels); and the hit rate of a cache that has seen the previous poses (after n objects).
 
-    python benchmarks/bench_view_cache.py --objects 200 --size 640x480 --out results/bench
+    python -m benchmarks.bench_view_cache --objects 200 --size 640x480 --out results/bench
 
 Writes ``<out>/view_cache.md`` and ``.json`` with the command.
 """
@@ -21,18 +21,18 @@ from pathlib import Path
 
 os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
+import cv2
+import numpy as np
 
-from aias_augment.analyse.cache import SceneCache  # noqa: E402
-from aias_augment.analyse.lighting.estimate import LightingEstimate  # noqa: E402
-from aias_augment.apply.render import linear_to_srgb, render_object_window  # noqa: E402
-from aias_augment.apply.shading import shade_object  # noqa: E402
-from aias_augment.apply.view_cache import ViewBinning, ViewCache, render_from_view_cache  # noqa: E402
-from aias_augment.core.config import data_root  # noqa: E402
-from aias_augment.core.frame import Frame  # noqa: E402
-from aias_augment.pipeline.config import load_preset  # noqa: E402
-from aias_augment.plan.insertion import plan_insertion  # noqa: E402
+from aias_augment.analyse.cache import SceneCache
+from aias_augment.analyse.lighting.estimate import LightingEstimate
+from aias_augment.apply.render import linear_to_srgb, render_object_window
+from aias_augment.apply.shading import shade_object
+from aias_augment.apply.view_cache import ViewBinning, ViewCache, render_from_view_cache
+from aias_augment.core.config import data_root
+from aias_augment.core.frame import Frame
+from aias_augment.pipeline.config import load_preset
+from aias_augment.plan.insertion import plan_insertion
 
 BINNINGS = {
     "7.5 deg, 4 deg, 0.04 (default)": ViewBinning(7.5, 4.0, 0.04),
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
     ap.add_argument("--compare-every", type=int, default=4, help="compare against the full render every k-th pose")
     ap.add_argument("--out", default="results/bench")
     a = ap.parse_args(argv)
-    cmd = "python benchmarks/bench_view_cache.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    cmd = "python -m benchmarks.bench_view_cache " + " ".join(argv if argv is not None else sys.argv[1:])
     size = tuple(int(x) for x in a.size.split("x"))
     ps = poses(a.objects, size)
     light = _light()

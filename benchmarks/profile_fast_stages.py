@@ -29,7 +29,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from benchmarks.bench_regression_guard import REPO, ROTATION, SINGLE_THREAD, tracon_files  # noqa: E402
+from benchmarks.bench_regression_guard import REPO, ROTATION, SINGLE_THREAD, tracon_files
 
 PHASES = {"_phase_fresh": "fresh call (seen image)", "_phase_first_sight": "first sight of an image"}
 FRAME = re.compile(r"^(?P<func>.*) \((?P<file>.*):(?P<line>\d+)\)$")

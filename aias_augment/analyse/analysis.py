@@ -257,7 +257,7 @@ def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key
             meta["ground_mask"] = region.mask  # lit/shadowed ground for the sun/sky ratio
     up_ground = ground or prior_ground_plane(cfg.camera_height_m)
     # The lighting's copy is at least lighting_cfg.min_input_width wide (the camera's may be narrower): on a 160 px
-    # copy the sun's side and the cast-shadow contrast are lost (results/lighting/kitti_cast_shadow.md).
+    # copy the sun's side and the cast-shadow contrast are lost (studies/lighting/kitti_cast_shadow/result/kitti_cast_shadow.md).
     lsmall = _analysis_copy(img, max(cfg.analysis_max_width, cfg.lighting_cfg.min_input_width)) if cheap else None
     if lsmall is None:
         lighting = scene_lighting(img, intr, up_ground, rng, cfg, meta, mods)

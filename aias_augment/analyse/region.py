@@ -18,7 +18,7 @@ Evidence, strongest first:
    smaller than ``image_min_fraction`` of the image (a texture-only or synthetic image: the record says so).
 All are intersected with "below the horizon by ``horizon_margin_px``".
 
-Measured on KITTI 06 (stereo) and DGP (LiDAR) frames: ``results/placement/image_only.md``.
+Measured on KITTI 06 (stereo) and DGP (LiDAR) frames: ``studies/placement/image_only/result/image_only.md``.
 """
 
 from __future__ import annotations

@@ -85,7 +85,7 @@ class InsertionConfig:
     # What the harmonizer may change on the objects: "full" (its output as is) or "luminance" (its brightness and
     # contrast, per pixel, with the chromaticity the lighting gave the object kept): a learnt harmonizer pulls an
     # object toward its context's colour, and among orange cones or beside a red truck that turns white bands pink
-    # (scripts/eval_neutral_whites.py, results/lighting/neutral_whites: white bands against the same photos' real
+    # (studies/lighting/neutral_whites/run.py, studies/lighting/neutral_whites/result: white bands against the same photos' real
     # white sleeves, R/G 1.30 with "full", 1.03 with "luminance"; with the neutral ambient the paired deviation fell
     # by 0.10 in max |log R/G|, |log B/G| [0.04, 0.17], 24 TraCon train photos).
     harmonize_colour: Literal["full", "luminance"] = "luminance"
@@ -132,7 +132,7 @@ class InsertionConfig:
     # the object's mask as a fraction of the label's width or height, as the user's own labellers draw them
     # (``aias-assets box-convention`` measures it from their labels: apply/annotate.follow_convention). A detector
     # trained on boxes of another convention than its test labels loses AP at the high IoU thresholds. Zero:
-    # mask-tight (TraCon's labels are: median margins 0-0.6 %, results/study_probe/box_convention.json).
+    # mask-tight (TraCon's labels are: median margins 0-0.6 %, studies/assets/box_convention/result/box_convention.json).
     box_convention: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     # A glossy dielectric coating on every object (apply/shading.Coating): reflectance at normal incidence (0: matte
     # Lambertian; 0.04: plastics and paint) and GGX roughness; it reflects the estimated sky and sun, so it is off
@@ -147,7 +147,7 @@ class InsertionConfig:
     # The contact shadow (ambient occlusion of the ground next to the object's footprint): the ground there is
     # darkened by up to ``contact_shadow_strength``, falling off as exp(-distance / (radius x object height)).
     # 0.15: the band just below real cones' bases is 0.4-1.5 % darker than farther down in TraCon photos, and this
-    # strength comes nearest on a train half (results/lighting/contact_shadows; 0.6 made it 12-13 % darker).
+    # strength comes nearest on a train half (studies/lighting/contact_shadows/result; 0.6 made it 12-13 % darker).
     contact_shadow_strength: float = 0.15
     contact_shadow_radius: float = 0.25
     # Object layers: "full" (a GL render of the asset at the sample's pose) or "view_cache" (the asset's view for the
@@ -159,7 +159,7 @@ class InsertionConfig:
     analysis_max_width: int = 0
     # With ``analysis_max_width`` set: the camera (horizon, pitch, roll, focal from vanishing lines) is estimated on a
     # copy at least this wide (0: the analysis_max_width copy). Short segments vanish on a 160 px copy and the roll
-    # goes with them (results/lighting/fast_camera).
+    # goes with them (studies/lighting/fast_camera/result).
     camera_analysis_width: int = 0
     # Priors when the scene does not say.
     camera_height_m: float = CAMERA_HEIGHT_PRIOR_M

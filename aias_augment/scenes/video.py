@@ -356,7 +356,7 @@ class StereoOdometryConfig:
     ransac_iterations: int = 500
     min_inliers: int = 30
     bundle_adjust: bool = (
-        False  # the two-frame stereo bundle adjustment after PnP (7x slower, see results/video/unposed)
+        False  # the two-frame stereo bundle adjustment after PnP (7x slower, see studies/video/unposed/result)
     )
     # frames measured from one keyframe's points (tracked on) before its successor: fewer steps chained, less drift
     keyframe_every: int = 1

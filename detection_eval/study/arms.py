@@ -49,7 +49,7 @@ ARM_FLAGS: dict[str, dict | None] = {
     # sun reflected at its surface, as real cones' PVC shows them; the defaults are matte Lambertian.
     "inserted_glossy": {"coating_f0": 0.04},
     # The defaults with the contact shadow at 0.6 instead of 0.15 (InsertionConfig.contact_shadow_strength): 0.15 is
-    # nearest the real cones' base darkening (results/lighting/contact_shadows); this arm asks what a detector takes
+    # nearest the real cones' base darkening (studies/lighting/contact_shadows/result); this arm asks what a detector takes
     # from a darker footprint.
     "inserted_strong_contact": {"contact_shadow_strength": 0.6},
     # The inserted image cropped, without resampling, around its largest object so that object's box height matches

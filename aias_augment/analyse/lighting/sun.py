@@ -366,7 +366,7 @@ def sun_cue_from_image(
     (3) circumsolar colour (:func:`sun_whiteness_loglik`): the sky is less blue (whiter, or warmer at sunset) toward
     the sun, independently of its brightness; weighted by ``whiteness_weight`` (off by default: on the Blender HDR
     crops weight 3 lowers the single-crop median azimuth error 86 -> 66 deg, but it flips KITTI frame 17 to the wrong
-    side and worsens clip fusion on forest; see results/lighting/README.md). When the luminance fit and the colour
+    side and worsens clip fusion on forest; see studies/lighting/README.md). When the luminance fit and the colour
     cue favour azimuths dphi apart, the confidence is scaled by max(0.2, (1 + cos dphi) / 2).
     (4) exclusion by visible sky (:func:`sun_exclusion_by_visible_sky`): when no sun disc is found, a candidate that
     lies on (or within a few degrees of) unclipped open sky cannot be the sun, since the sun and its aureole would clip

@@ -13,9 +13,9 @@ A dominant sun leaves three traces a single photo keeps whatever its framing:
 Measured on one fixed-size copy (longest side :data:`FEATURE_SIDE` px, area-averaged), so every preset and every
 working resolution measures the same evidence and decides the same. The probability is a logistic model of the
 standardised features; its coefficients, the decision threshold and their provenance are data
-(``checkpoints/sun_evidence.json``), fitted by ``scripts/fit_sun_evidence.py`` on the train half of the labelled
-lighting benchmark (``results/lighting/benchmark/labels.csv``) and scored on its test half
-(``results/lighting/sun_evidence``).
+(``checkpoints/sun_evidence.json``), fitted by ``studies/lighting/sun_evidence/run.py`` on the train half of the labelled
+lighting benchmark (``studies/lighting/sun_benchmark/labels/labels.csv``) and scored on its test half
+(``studies/lighting/sun_evidence/result``).
 """
 
 from __future__ import annotations

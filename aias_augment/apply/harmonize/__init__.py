@@ -9,7 +9,7 @@ Public API::
 - ``composite_rgb_uint8``: (H, W, 3) uint8 RGB; ``fg_mask``: (H, W) float in [0, 1] (bool accepted), 1 = object.
 - Only pixels under the mask change (soft mask edges blended); a new array is returned, inputs are never mutated.
 - ``"network"`` / ``"fast"`` need a checkpoint (default ``checkpoints/harmonizer_small.pt`` / ``harmonizer_fast.pt``,
-  trained here by ``scripts/train_harmonizer.py``); a missing one raises FileNotFoundError with the training command.
+  trained here by ``studies/harmonization/harmonizer/train.py``); a missing one raises FileNotFoundError with the training command.
   Loaded models are cached per process.
 - Bad input (shape mismatch, non-uint8 image, NaN / out-of-range mask, unknown method) raises ValueError.
 

@@ -48,7 +48,7 @@ DEFAULT_CHECKPOINTS = {
     "fast": CHECKPOINT_DIR / "harmonizer_fast.pt",
 }
 TRAIN_COMMAND = (
-    "nice -n 10 .venv/bin/python scripts/train_harmonizer.py --config configs/harmonize_small.yaml "
+    "nice -n 10 .venv/bin/python -m studies.harmonization.harmonizer.train --config configs/harmonize_small.yaml "
     "--which {which} --out-{which} {path}"
 )
 
@@ -104,7 +104,7 @@ def harmonize(
     """Harmonize the masked foreground of a composite; see the module docstring. Returns a new (H, W, 3) uint8.
 
     ``test_time_views``: the learnt methods average their prediction over 6 views (3 context sizes x flip); False
-    uses one view, about 2x (fast) to 6x (network) quicker for under 1 point of fMSE (``results/harmonization``)."""
+    uses one view, about 2x (fast) to 6x (network) quicker for under 1 point of fMSE (``studies/harmonization/harmonizer/result``)."""
     rng = require_rng(rng, "harmonize")
     soft = _validate(composite_rgb_uint8, fg_mask, method)
     hard = soft > 0.0

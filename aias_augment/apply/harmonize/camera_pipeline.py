@@ -44,7 +44,7 @@ class CameraMatchParams:
     ring_width_frac: float = 0.5  # ring width = this x sqrt(object area in px), at least 3 px
     illuminant_norm_p: float = 6.0  # shades-of-grey Minkowski norm (1 = grey world, large = max-RGB)
     # Strengths fitted on training pairs (TraCon train + KITTI/NYU regions, never the eval images):
-    # `scripts/train_harmonizer.py --config configs/harmonize_small.yaml --which camera` -> fMSE 961 -> 755 (60 pairs).
+    # `studies/harmonization/harmonizer/train.py --config configs/harmonize_small.yaml --which camera` -> fMSE 961 -> 755 (60 pairs).
     exposure_strength: float = 0.5
     wb_strength: float = 0.25
     max_gain_stops: float = 2.0

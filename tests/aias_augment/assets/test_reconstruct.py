@@ -9,14 +9,11 @@ at 24 views: sphere 0.67 %, box 0.82 %; the bounds below leave room for neither 
 """
 
 import json
-import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import trimesh
-
 from aias_augment.assets.asset import Asset, normalise_meshes
 from aias_augment.assets.reconstruct import (
     ReconstructConfig,
@@ -29,10 +26,8 @@ from aias_augment.assets.reconstruct import (
     visual_hull,
 )
 from aias_augment.assets.view_masks import grabcut_mask
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
-from eval_reconstruction import align_yaw, cameras, compare, floor_texture, on_floor, shoot, write_views  # noqa: E402
-from eval_reconstruction import psnr as eval_psnr  # noqa: E402
+from studies.assets.reconstruction.run import align_yaw, cameras, compare, floor_texture, on_floor, shoot, write_views
+from studies.assets.reconstruction.run import psnr as eval_psnr
 
 
 def coloured(mesh: trimesh.Trimesh, name: str) -> Asset:

@@ -5,19 +5,14 @@ broken inputs are made from the same views, so each refusal is caused by the one
 """
 
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
-
 from aias_augment.assets.asset import Asset, normalise_meshes
 from aias_augment.assets.reconstruct import ReconstructConfig, View, reconstruct, search_box
 from aias_augment.assets.reconstruct_quality import ReconstructionRefused, check_reprojection
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
-from eval_reconstruction import cameras, shoot, write_views  # noqa: E402
+from studies.assets.reconstruction.run import cameras, shoot, write_views
 
 CFG = ReconstructConfig(resolution=48)
 HEIGHT = 0.7

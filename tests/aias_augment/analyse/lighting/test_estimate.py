@@ -210,7 +210,7 @@ def test_side_agreement_lowers_confidence_when_cues_do_not_pick_the_shadow_end()
 @pytest.mark.skipif(not (KITTI / "kitti06-12-color.png").is_file(), reason="shared KITTI data not present")
 @pytest.mark.parametrize("idx", [12, 14])
 def test_kitti_sun_is_on_the_left(idx):
-    """Reference read off the frames by eye (results/lighting/README.md): the facades facing the road from the right are
+    """Reference read off the frames by eye (studies/lighting/README.md): the facades facing the road from the right are
     sunlit, the left ones shaded, and the poles' shadows run across the road to the right: the sun is LEFT (x < 0)."""
     from PIL import Image
 

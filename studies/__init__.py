@@ -1,0 +1,1 @@
+"""Research studies: one folder per question (README.md, run.py, result/)."""
