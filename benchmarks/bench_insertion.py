@@ -18,13 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from aias_augment.analyse.stereo import stereo_depth
 from aias_augment.apply.render import render_object
 from aias_augment.assets.asset import default_asset
 from aias_augment.cli.demo import demo_items
 from aias_augment.cli.offline import read_rgb
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.pipeline.image import PRESETS, insert_into_image, load_preset
+from aias_augment.scenes.stereo import stereo_depth
 
 
 def load_inputs(n_tracon: int):

@@ -1,5 +1,5 @@
-"""Step 1, once per frame: what the scene offers (camera and horizon, ground plane, placeable region, depth from
-stereo, lighting), cached by content. :func:`.analysis.analyse_scene` is the step's entry."""
+"""Step 1, once per frame: what the scene offers (camera and horizon from vanishing lines, ground plane,
+placeable region, lighting), cached by content. :func:`.analysis.analyse_scene` is the step's entry."""
 
 from aias_augment.core.lazy import lazy_exports
 

@@ -17,16 +17,16 @@ import cv2
 import numpy as np
 import xxhash
 
+from aias_augment.analyse.exposure import ExposureMatch
 from aias_augment.analyse.ground import GroundFitError, GroundPlane, ground_plane_from_depth, prior_ground_plane
 from aias_augment.analyse.lighting.envmap import EnvironmentMap
 from aias_augment.analyse.lighting.estimate import LightingEstimate, estimate_lighting
 from aias_augment.analyse.region import PlaceableRegion, below_horizon_mask, placeable_region
-from aias_augment.apply import composite as comp
+from aias_augment.analyse.single_image import SingleImageConfig, estimate_camera_from_image
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.report import skipped
 from aias_augment.pipeline.config import InsertionConfig
-from aias_augment.scenes.single_image import SingleImageConfig, estimate_camera_from_image
 
 #: Bumped whenever what analyse_scene computes changes: on-disk cache entries of another version are not read.
 ANALYSIS_VERSION = "4"  # the record's format: a cached analysis of another version is computed again
@@ -375,7 +375,7 @@ def scene_lighting(
     if not cfg.lighting:
         # Ablation: no estimated lighting. The object is lit by a uniform ambient equal to the image's gray-world
         # irradiance (so it is neither black nor blown out), no sun.
-        E = np.asarray(comp.ExposureMatch.from_image(image).irradiance_rgb)
+        E = np.asarray(ExposureMatch.from_image(image).irradiance_rgb)
         sh = np.zeros((9, 3))
         sh[0] = E / (np.pi * 0.886227)  # irradiance of a constant SH radiance L00*Y00 is pi * 0.886227 * L00
         modules["lighting"] = skipped("disabled (ablation); uniform gray-world ambient, no sun")

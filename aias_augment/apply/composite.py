@@ -5,32 +5,13 @@ All functions are pure: inputs are never modified.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from aias_augment.apply.render import srgb_to_linear
+from aias_augment.core.srgb import linear_to_srgb_uint8, srgb_to_linear
 
 #: Relative depth margin (fraction of the object depth) inside which the scene is *not* considered in front of an
 #: inserted surface: stereo/LiDAR depth is noisy and the object stands on the very surface it is compared with.
 OCCLUSION_MARGIN_REL = 0.03
-
-
-@dataclass(frozen=True)
-class ExposureMatch:
-    """Scene irradiance estimate used to light the object so that it matches the photo's exposure and white
-    balance: gray-world assumption, the average scene reflectance is 18% grey."""
-
-    irradiance_rgb: tuple[float, float, float]  # total linear irradiance on a horizontal surface, per channel
-
-    @classmethod
-    def from_image(
-        cls, image_rgb: np.ndarray, region: np.ndarray | None = None, reference_albedo: float = 0.18
-    ) -> "ExposureMatch":
-        lin = srgb_to_linear(image_rgb.astype(np.float32) / 255.0)
-        pix = lin[region] if region is not None and region.any() else lin.reshape(-1, 3)
-        mean = np.clip(pix.mean(axis=0), 1e-4, None)  # eps: an all-black image still gives a finite irradiance
-        return cls(tuple(float(x) for x in mean / reference_albedo))
 
 
 def visible_fraction_against_depth(
@@ -71,15 +52,5 @@ def to_linear(image_rgb_uint8: np.ndarray) -> np.ndarray:
 
 
 def to_uint8(image_linear: np.ndarray) -> np.ndarray:
-    """float linear -> uint8 sRGB: ``round(linear_to_srgb(x) * 255)`` (the same float32 arithmetic, in place on one
-    array instead of a new array per step)."""
-    x = np.clip(np.asarray(image_linear, dtype=np.float32), 0.0, 1.0)
-    y = np.power(x, 1 / 2.4)
-    y *= 1.055
-    y -= 0.055
-    low = x <= 0.0031308
-    y[low] = 12.92 * x[low]
-    y *= 255.0
-    np.round(y, out=y)
-    np.clip(y, 0, 255, out=y)
-    return y.astype(np.uint8)
+    """float linear -> uint8 sRGB: ``round(linear_to_srgb(x) * 255)``."""
+    return linear_to_srgb_uint8(image_linear)

@@ -80,7 +80,7 @@ def static_camera_clip(frames: list[np.ndarray], job: ClipJob):
     K is ``job.camera``'s or estimated from the first frame, the ground from its horizon at ``job.camera_height_m``.
     Its own generator: the insertion's draws are those of a posed clip with the same seed."""
     from aias_augment.analyse.ground import GroundPlane
-    from aias_augment.scenes.single_image import estimate_camera_from_image
+    from aias_augment.analyse.single_image import estimate_camera_from_image
     from aias_augment.scenes.video import static_camera_check
 
     check = static_camera_check(frames)

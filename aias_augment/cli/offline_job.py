@@ -180,7 +180,7 @@ def process_item(
             intr = Intrinsics.from_matrix(np.asarray(item.K), image.shape[1], image.shape[0])
         depth = None
         if item.stereo_right is not None:
-            from aias_augment.analyse.stereo import stereo_depth
+            from aias_augment.scenes.stereo import stereo_depth
 
             depth = stereo_depth(image, read_rgb(item.stereo_right), intr, item.baseline_m)
         # above 2 MP: analysed and planned at 2 MP, rendered at the (bounded) output size

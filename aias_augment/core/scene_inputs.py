@@ -18,6 +18,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from aias_augment.core.envmap import EnvironmentMap
+from aias_augment.core.oriented_box import OrientedBox
+
 
 @dataclass(frozen=True, eq=False)
 class SceneInputs:
@@ -125,8 +128,6 @@ class SceneInputs:
                 )
             new["lidar_points_in_cam"] = p
         if self.boxes_in_cam:
-            from aias_augment.plan.collision import OrientedBox
-
             bad = [type(b).__name__ for b in self.boxes_in_cam if not isinstance(b, OrientedBox)]
             if bad:
                 raise ValueError(f"scene input 'boxes_in_cam' must hold OrientedBox objects, got {bad[:3]}")
@@ -203,8 +204,6 @@ def _utc(name: str, s: str) -> None:
 
 def _envmap(v, world_from_env):
     """An EnvironmentMap as it is, or one made of an (H, 2H, 3) radiance array and ``world_from_env``."""
-    from aias_augment.analyse.lighting.envmap import EnvironmentMap
-
     if isinstance(v, EnvironmentMap):
         return v
     if not isinstance(v, np.ndarray):

@@ -34,9 +34,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from aias_augment.analyse.exposure import ExposureMatch
 from aias_augment.analyse.ground import GroundFitError, GroundPlane, project_world_point_track
 from aias_augment.analyse.lighting.estimate import LightingEstimate
-from aias_augment.apply import composite as comp
 from aias_augment.assets.asset import Asset
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, project_points, transform_points
 from aias_augment.core.report import skipped
@@ -328,7 +328,7 @@ def plan_clip(
         )
 
     if lighting is None:
-        E = np.asarray(comp.ExposureMatch.from_image(frames[start]).irradiance_rgb)
+        E = np.asarray(ExposureMatch.from_image(frames[start]).irradiance_rgb)
         sh = np.zeros((9, 3))
         sh[0] = E / (np.pi * 0.886227)  # constant SH radiance L00 Y00 has irradiance pi * 0.886227 * L00
         light0 = LightingEstimate(

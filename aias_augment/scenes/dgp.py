@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics, invert_rigid, make_rigid, project_points, transform_points
-from aias_augment.plan.collision import OrientedBox
+from aias_augment.core.oriented_box import OrientedBox
 from aias_augment.scenes.kitti import read_image_rgb
 
 __all__ = ["DgpScene", "open_dgp_scene", "pose_from_json", "lidar_depth_image"]

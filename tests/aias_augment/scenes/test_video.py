@@ -1,7 +1,9 @@
 import numpy as np
 import pytest
 
+from aias_augment.analyse.single_image import estimate_camera_from_image
 from aias_augment.core.config import data_root
+from aias_augment.core.geometry import Intrinsics
 from aias_augment.scenes.video import estimate_video_motion, read_video, trajectory_errors
 
 KITTI = data_root() / "kitti06_seq"
@@ -24,14 +26,17 @@ def test_kitti_motion_matches_ground_truth():
 @pytest.mark.skipif(not (data_root() / "video/vtest.avi").exists(), reason="video not available")
 def test_static_camera_video():
     frames = read_video(str(data_root() / "video/vtest.avi"), max_frames=3, stride=10)
-    m = estimate_video_motion(frames, np.random.default_rng(0))
+    rng = np.random.default_rng(0)
+    m = estimate_video_motion(frames, rng, intrinsics=estimate_camera_from_image(frames[0], rng).intrinsics)
     assert m.status == ("static", "static")
     np.testing.assert_array_equal(m.cams_from_world, np.tile(np.eye(4), (3, 1, 1)))
 
 
 def test_too_few_frames():
     with pytest.raises(ValueError):
-        estimate_video_motion([np.zeros((10, 10, 3), np.uint8)], np.random.default_rng(0))
+        estimate_video_motion(
+            [np.zeros((10, 10, 3), np.uint8)], np.random.default_rng(0), intrinsics=Intrinsics.from_fov(10, 10, 60.0)
+        )
 
 
 def test_stereo_odometry_recovers_a_synthetic_drive_metrically():

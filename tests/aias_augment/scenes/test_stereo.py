@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from aias_augment.analyse.ground import ground_plane_from_depth
-from aias_augment.analyse.stereo import disparity_to_depth, stereo_depth, stereo_disparity
 from aias_augment.core.config import data_root
 from aias_augment.core.geometry import Intrinsics
+from aias_augment.scenes.stereo import disparity_to_depth, stereo_depth, stereo_disparity
 
 KITTI_SEQ = data_root() / "kitti06_seq"
 

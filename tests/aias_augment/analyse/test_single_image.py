@@ -3,14 +3,14 @@ import numpy as np
 import pytest
 
 from aias_augment.analyse.ground import prior_ground_plane
-from aias_augment.core.config import data_root
-from aias_augment.core.geometry import Intrinsics, project_points
-from aias_augment.scenes.single_image import (
+from aias_augment.analyse.single_image import (
     estimate_camera_from_image,
     fit_vanishing_point,
     horizon_row_error_px,
     weighted_pairs,
 )
+from aias_augment.core.config import data_root
+from aias_augment.core.geometry import Intrinsics, project_points
 
 INTR = Intrinsics(500, 500, 399.5, 299.5, 800, 600)
 
