@@ -107,7 +107,7 @@ def main(argv=None) -> int:
         g["n"] += 1
         g["correct"] += int(r["dominant_sun"] == r["expected_sun"])
     report = {
-        "command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
+        "command": "python -m studies.lighting.dominance " + " ".join(argv if argv is not None else sys.argv[1:]),
         "groups": groups,
         "rows": rows,
         "median_seconds": float(np.median([r["seconds"] for r in rows])),

@@ -332,7 +332,7 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     report = {
-        "command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
+        "command": "python -m studies.lighting.hdri " + " ".join(argv if argv is not None else sys.argv[1:]),
         "maps": {},
     }
     headline_single, headline_fused, headline_fused_side = [], [], []

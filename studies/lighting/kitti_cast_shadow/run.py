@@ -229,7 +229,8 @@ def main(argv=None) -> int:
         f"world {sun_world:.1f} deg",
     )
     report = {
-        "command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
+        "command": "python -m studies.lighting.kitti_cast_shadow "
+        + " ".join(argv if argv is not None else sys.argv[1:]),
         "truth": {"per_colour_frame": truth, "sun_world_azimuth_deg": sun_world},
         "insertions": [],
     }

@@ -190,7 +190,8 @@ def main(argv=None) -> int:
     folder = Path(args.data)
     fx, fy, cx, cy = KITTI_K
     report = {
-        "command": "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:])),
+        "command": "python -m studies.lighting.kitti_shadow_depth "
+        + " ".join(argv if argv is not None else sys.argv[1:]),
         "frames": {},
         "insertions": [],
     }

@@ -54,7 +54,7 @@ def main(argv=None) -> int:
         )
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    cmd = "python " + " ".join([Path(sys.argv[0]).as_posix()] + (argv if argv is not None else sys.argv[1:]))
+    cmd = "python -m studies.lighting.kitti_sun " + " ".join(argv if argv is not None else sys.argv[1:])
     (out / "kitti_sun.json").write_text(json.dumps({"command": cmd, "frames": rows}, indent=1))
     return 0
 

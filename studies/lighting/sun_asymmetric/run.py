@@ -36,7 +36,7 @@ from aias_augment.analyse.lighting.sun_evidence import (
 from aias_augment.core.config import data_root
 from studies.lighting.sun_benchmark.run import split_halves
 
-BENCH = Path("studies/lighting/sun_benchmark/result")
+BENCH = Path("studies/lighting/sun_benchmark/labels")  # the labels made by eye
 OUT = Path("studies/lighting/sun_asymmetric/result")
 PRESETS = ("fast", "balanced")
 LABEL_FILES = (("benchmark", "labels.csv"), ("extra", "labels_extra.csv"), ("more", "labels_more.csv"))

@@ -124,7 +124,7 @@ def main(argv=None) -> int:
             "focal_rel_err_all": stats("unknown_K_focal_rel_err"),
         },
         "seconds_per_frame": elapsed / len(rows),
-        "command": "python " + " ".join([sys.argv[0], *(argv if argv is not None else sys.argv[1:])]),
+        "command": "python -m studies.placement.horizon " + " ".join(argv if argv is not None else sys.argv[1:]),
     }
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
