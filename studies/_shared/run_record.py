@@ -23,15 +23,19 @@ def _arg(argv: list[str], name: str) -> str | None:
     return None
 
 
-def _commit() -> str | None:
+def _commit(folder: Path) -> str | None:
+    """HEAD's hash, with ``-dirty`` when a tracked file outside ``folder`` (the run's own output) differs from it."""
     try:
         head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True)
-        dirty = subprocess.run(
+        status = subprocess.run(
             ["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO, capture_output=True, text=True
         )
     except (OSError, subprocess.CalledProcessError):
         return None
-    return head.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+    own = folder.resolve()
+    changed = [REPO / line[3:].split(" -> ")[-1] for line in status.stdout.splitlines() if line.strip()]
+    dirty = any(not p.resolve().is_relative_to(own) for p in changed)
+    return head.stdout.strip() + ("-dirty" if dirty else "")
 
 
 def record_folder(package: str, argv: list[str]) -> Path:
@@ -44,12 +48,12 @@ def record_folder(package: str, argv: list[str]) -> Path:
     return p.parent if p.suffix else p
 
 
-def run_record(package: str, argv: list[str], seconds: float) -> dict:
+def run_record(package: str, argv: list[str], seconds: float, folder: Path) -> dict:
     config = _arg(argv, "--config")
     digest = hashlib.sha256(Path(config).read_bytes()).hexdigest()[:16] if config and Path(config).is_file() else None
     return {
         "command": " ".join(["python", "-m", package, *argv]),
-        "commit": _commit(),
+        "commit": _commit(folder),
         "config": config,
         "config_sha256": digest,
         "seconds": round(seconds, 1),
@@ -64,6 +68,6 @@ def run_recorded(main: Callable[[], int | None], package: str) -> int:
     folder = record_folder(package, argv)
     if rc == 0 and folder.is_dir() and not {"-h", "--help"} & set(argv):
         (folder / "run.json").write_text(
-            json.dumps(run_record(package, argv, time.perf_counter() - t0), indent=1) + "\n"
+            json.dumps(run_record(package, argv, time.perf_counter() - t0, folder), indent=1) + "\n"
         )
     return rc
