@@ -81,7 +81,7 @@ class RegionConfig:
     photometric_tolerance: float = 12.0  # grey levels, for multi-frame consistency
     max_depth_m: float = 60.0
     # Single image (``image_ground_region``). Tolerances are in 8-bit CIELAB units (OpenCV), at the analysis width.
-    # Chosen on KITTI 06 (grey) and checked on DGP (colour): results/placement/image_only.md.
+    # Chosen on KITTI 06 (grey) and checked on DGP (colour): studies/placement/image_only/result/image_only.md.
     image_region: bool = True  # False: a single image gets the below-horizon prior only
     image_width_px: int = 640  # the image is analysed at most this wide
     image_seed_rows: tuple[float, float] = (0.35, 0.9)  # seed zone: fraction of the rows horizon -> bottom ...

@@ -493,7 +493,7 @@ def main(argv: list[str] | None = None) -> int:
         "--refine",
         action="store_true",
         help="move the hull inward where the views agree on the texture (photo-consistency; slower, helps "
-        "textured concave objects: results/assets/reconstruct/refinement.md)",
+        "textured concave objects: studies/assets/refinement/result/refinement.md)",
     )
     add_logging_args(p, default="ERROR", subcommands=sub.choices.values())
     a = p.parse_args(argv)
