@@ -33,6 +33,7 @@ if TYPE_CHECKING:  # imported by the functions that render (see above)
 
 from aias_augment.assets.asset import Asset  # noqa: E402
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, opengl_from_opencv  # noqa: E402
+from aias_augment.core.srgb import linear_to_srgb, srgb_to_linear  # noqa: E402
 
 __all__ = [
     "RenderLayers",
@@ -104,17 +105,6 @@ def _renderer(width: int, height: int) -> "pyrender.OffscreenRenderer":
     if (r.viewport_width, r.viewport_height) != (width, height):
         r.viewport_width, r.viewport_height = width, height
     return r
-
-
-def srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 sRGB decoding, values in [0, 1]."""
-    x = np.clip(np.asarray(x, dtype=np.float32), 0.0, 1.0)
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
-
-
-def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    x = np.clip(np.asarray(x, dtype=np.float32), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055).astype(np.float32)
 
 
 def _pyrender_camera(intr: Intrinsics, ssaa: int, znear: float, zfar: float) -> "pyrender.IntrinsicsCamera":

@@ -37,6 +37,7 @@ import numpy as np
 
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.analyse.lighting.sh import sh_irradiance
+from aias_augment.core.srgb import linear_to_srgb
 
 __all__ = [
     "Coating",
@@ -229,7 +230,7 @@ def fluorescent_gain(albedo_linear: np.ndarray, gain: float = FLUORESCENT_GAIN) 
     daylight-fluorescent orange: full for sRGB hue 0-30 deg, saturation >= 0.9 and value >= 0.6, fading linearly to 0 at
     hue 35 deg, saturation 0.8 and value 0.5. Every other colour (whites, greys, blues, dark or pale oranges): 1."""
     a = np.clip(np.asarray(albedo_linear, dtype=np.float64), 0.0, 1.0)
-    c = np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1 / 2.4) - 0.055)  # sRGB encoding
+    c = linear_to_srgb(a, dtype=np.float64)
     r, g, b = c[..., 0], c[..., 1], c[..., 2]
     mx, mn = c.max(-1), c.min(-1)
     sat = np.where(mx > 1e-6, (mx - mn) / np.maximum(mx, 1e-6), 0.0)  # eps: black albedo

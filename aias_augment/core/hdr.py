@@ -17,6 +17,7 @@ import numpy as np
 from scipy import ndimage
 
 from aias_augment.core.image_io import ImageTooLarge
+from aias_augment.core.srgb import linear_to_srgb, linear_to_srgb_uint8, srgb_to_linear
 
 __all__ = [
     "srgb_to_linear",
@@ -68,18 +69,6 @@ def _as_unit_float(image: np.ndarray) -> np.ndarray:
     return np.clip(np.nan_to_num(img.astype(np.float32), nan=0.0), 0.0, 1.0)
 
 
-def srgb_to_linear(image: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values (uint8, or float in [0, 1]) -> linear float32 in [0, 1] (IEC 61966-2-1 curve)."""
-    c = _as_unit_float(image)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
-
-
-def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
-    """Linear float -> sRGB-encoded float in [0, 1] (values are clipped to [0, 1] first; NaN -> 0)."""
-    c = np.clip(np.nan_to_num(np.asarray(linear, dtype=np.float32), nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
-    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055).astype(np.float32)
-
-
 def luminance(rgb_linear: np.ndarray) -> np.ndarray:
     """Rec.709 luminance of linear RGB, (*, 3) -> (*,)."""
     return np.asarray(rgb_linear, dtype=np.float32) @ LUMINANCE_WEIGHTS
@@ -91,7 +80,7 @@ def tone_map_to_uint8(linear: np.ndarray, exposure: float | None = None, percent
     if exposure is None:
         ref = float(np.percentile(luminance(lin), percentile))
         exposure = 1.0 / max(ref, 1e-8)
-    return np.round(linear_to_srgb(lin * exposure) * 255.0).astype(np.uint8)
+    return linear_to_srgb_uint8(lin * exposure)
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from aias_augment.core.config import CHECKPOINT_DIR
+from aias_augment.core.srgb import srgb_to_linear
 
 FEATURE_SIDE = 320
 FEATURES = ("sky_blue", "shadow_blue", "clipped")
@@ -48,7 +49,7 @@ def sun_evidence_features(image_rgb_uint8: np.ndarray) -> dict[str, float]:
     if s < 1:
         img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
     x = img.astype(np.float32) / 255.0
-    lin = np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+    lin = srgb_to_linear(img)
     lum = lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     log_br = np.log((lin[..., 2] + _EPS) / (lin[..., 0] + _EPS))
     h = img.shape[0]
