@@ -241,7 +241,7 @@ def report(res: dict, out: Path) -> None:
     baselines = [b for b in ("without", "compose_only", "compose_labels") if b in arms]
     res["summary"] = summarise(rounds, arms, baselines)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "loader.json").write_text(json.dumps(res, indent=2))
+    (out / "loader.json").write_text(json.dumps(res, separators=(",", ":")) + "\n")  # per-round samples: compact
     plot(res["summary"], out / "loader_ratios.png")
     med = {arm: float(np.median([x[arm]["img_s"] for x in rounds])) for arm in arms}
     cpu = {arm: 1000 * float(np.median([x[arm]["cpu_per_img"] for x in rounds])) for arm in arms}

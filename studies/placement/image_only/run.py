@@ -353,7 +353,8 @@ def main(argv=None) -> int:
                 indent=1,
             )
         )
-    (args.out / f"{args.name}.json").write_text(json.dumps(results, indent=1))
+    # per-frame records: compact JSON (the table is image_only.md)
+    (args.out / f"{args.name}.json").write_text(json.dumps(results, separators=(",", ":")) + "\n")
     return 0
 
 
