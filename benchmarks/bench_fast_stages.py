@@ -33,7 +33,7 @@ STAGES = (
     ("aias_augment.apply.shading", "shade_pixels", "shading", ("aias_augment.apply.stages",)),
     ("aias_augment.apply.stages", "_object_shadow_window", "projected shadow", ()),
     ("aias_augment.apply.composite", "to_uint8", "to_uint8", ()),
-    ("aias_augment.apply.stages", "_harmonize", "harmonizer", ()),
+    ("aias_augment.apply.frame_steps", "_harmonize", "harmonizer", ()),
     ("aias_augment.apply.harmonize.fast_infer", "predict_affine", "harmonizer: model prediction", ()),
     ("aias_augment.apply.stages", "annotate_in_window", "annotation", ()),
     ("aias_augment.pipeline.image", "assemble_result", "result assembly", ()),

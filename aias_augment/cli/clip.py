@@ -308,7 +308,7 @@ def _never_visible(job: ClipJob, inputs: ClipInputs, clip: RenderedClip) -> str:
 def render_clip(job: ClipJob, inputs: ClipInputs) -> RenderedClip:
     """Camera and poses, lighting, plans and the augmented frames of ``job`` (nothing written)."""
     from aias_augment.analyse.lighting.estimate import estimate_lighting_clip
-    from aias_augment.apply.layers import draw_layer_params
+    from aias_augment.core.stages import draw_layer_params
     from aias_augment.cli.clip_cameras import monocular_odometry_clip, static_camera_clip, stereo_odometry_clip
     from aias_augment.pipeline.clip import VideoInsertionConfig, apply_clip_objects
     from aias_augment.pipeline.config import InsertionConfig, load_preset

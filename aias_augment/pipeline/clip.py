@@ -600,7 +600,7 @@ def insert_into_clip(
     camera. depths: None or N (H, W) z-depth maps (0 = unknown): per-frame refit and occlusion. lighting: None
     (uniform grey-world ambient of frame ``start``, no sun) or N per-frame estimates of ONE clip lighting, e.g.
     :func:`aias_augment.analyse.lighting.estimate.estimate_lighting_clip`. layer_params: the object's layer stages
-    and their parameters (:func:`aias_augment.apply.layers.draw_layer_params`), applied in every frame with the
+    and their parameters (:func:`aias_augment.core.stages.draw_layer_params`), applied in every frame with the
     object's image motion there (the contact track's central difference, px per frame).
     """
     plan = plan_clip(

@@ -18,7 +18,7 @@ PRESETS = ("fast", "balanced", "accurate")
 
 #: ``harmonize.api.METHODS`` (tests/aias_augment/pipeline/test_config.py checks they agree).
 HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
-#: The edge-blend modes of ``apply/layer_stages/edge_blend.MODES`` (tests/aias_augment/pipeline/test_config.py).
+#: The edge-blend modes of ``core/stages/edge_blend.MODES`` (tests/aias_augment/pipeline/test_config.py).
 EdgeBlendMode = Literal["rendered", "hard", "feather"]
 
 
@@ -94,10 +94,10 @@ class InsertionConfig:
     # from a generator seeded by the plan's harmonize_seed, so a replay gives the same bytes). Part of the
     # harmonization stage: off with it. Redundant (skipped) when harmonize_method is "camera".
     camera_match: bool = False
-    # Motion blur of each object (apply/layer_stages/motion_blur.py): streak length range in output pixels, drawn
+    # Motion blur of each object (core/stages/motion_blur.py): streak length range in output pixels, drawn
     # per object in the plan; (0, 0): off.
     motion_blur_px: tuple[float, float] = (0.0, 0.0)
-    # Edge blending (apply/layer_stages/edge_blend.py): each object's boundary drawn uniformly from these modes
+    # Edge blending (core/stages/edge_blend.py): each object's boundary drawn uniformly from these modes
     # ("rendered", "hard", "feather", the last with a Gaussian sigma uniform in ``edge_feather_px``), so no one
     # boundary predicts the label; (): off (the rendered coverage).
     edge_blend: tuple[EdgeBlendMode, ...] = ()

@@ -45,7 +45,7 @@ class InsertionRecord:
     harmonize_seed: int | None = None  # the plan's harmonizer seed (with the placements: enough to replay)
     # the analysis and plan ran on a smaller copy of the image (the bounded door); None: on the image itself
     working_resolution: WorkingResolution | None = None
-    # per placement, the layer stages' parameters drawn in the plan (aias_augment.apply.layers)
+    # per placement, the layer stages' parameters drawn in the plan (aias_augment.core.stages)
     layer_params: list[dict] = field(default_factory=list)
     # how the image was made: "pipeline" or "naive_paste" (InsertionConfig.naive_share draws it per image)
     mode: str = "pipeline"
@@ -53,9 +53,11 @@ class InsertionRecord:
     camera_K: tuple | None = None
     # the input's labelled boxes (COCO xywh, output pixels) that occluded by depth order (replay passes them again)
     labelled_boxes_xywh: list = field(default_factory=list)
+    # the frame stages' parameters drawn in the plan (aias_augment.core.stages); written only when a frame stage ran
+    frame_params: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {
+        out = {
             "mode": self.mode,
             "harmonize_seed": self.harmonize_seed,
             "working_resolution": None if self.working_resolution is None else self.working_resolution.to_dict(),
@@ -70,6 +72,9 @@ class InsertionRecord:
             "camera_K": None if self.camera_K is None else [list(r) for r in self.camera_K],
             "labelled_boxes_xywh": [list(map(float, b)) for b in self.labelled_boxes_xywh],
         }
+        if self.frame_params:
+            out["frame_params"] = dict(self.frame_params)
+        return out
 
     @classmethod
     def from_dict(cls, d: dict) -> "InsertionRecord":
@@ -90,6 +95,7 @@ class InsertionRecord:
             d.get("mode", "pipeline"),
             None if d.get("camera_K") is None else tuple(tuple(map(float, r)) for r in d["camera_K"]),
             [list(map(float, b)) for b in d.get("labelled_boxes_xywh", ())],
+            dict(d.get("frame_params", {})),
         )
 
 
@@ -273,6 +279,7 @@ def assemble_result(
         harmonize_seed=plan.harmonize_seed,
         working_resolution=working_resolution,
         layer_params=list(applied.layer_params),
+        frame_params=dict(applied.frame_params),
         mode=mode,
         camera_K=tuple(tuple(map(float, r)) for r in analysis.intrinsics.K),
     )

@@ -73,7 +73,12 @@ def replay(
         if "deformation" in p.asset_meta and "deformation" not in base.meta:  # rebuilt from its record
             base = apply_deformation(base, DeformParams.from_dict(p.asset_meta["deformation"]))
         objects.append(PlannedObject(p, base.scaled(p.scale)))
-    layer_params = tuple(dict(x) for x in record.get("layer_params", ()))
-    plan = InsertionPlan(tuple(objects), int(record["harmonize_seed"]), len(objects), layer_params=layer_params)
+    plan = InsertionPlan(
+        tuple(objects),
+        int(record["harmonize_seed"]),
+        len(objects),
+        layer_params=tuple(dict(x) for x in record.get("layer_params", ())),
+        frame_params=dict(record.get("frame_params", {})),  # the stage list's recorded draws, applied as they were
+    )
     labelled = record.get("labelled_boxes_xywh") or None  # the input's boxes that occluded by depth order
     return apply_plan(frame, analysis, plan, cfg, labelled_xywh=None if labelled is None else np.array(labelled))

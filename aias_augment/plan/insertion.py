@@ -12,10 +12,10 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from aias_augment.analyse.analysis import SceneAnalysis
-from aias_augment.apply.layers import draw_layer_params
 from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
 from aias_augment.assets.deform import apply_deformation, sample_deformation
 from aias_augment.core.geometry import Intrinsics, make_rigid, project_points
+from aias_augment.core.stages import draw_frame_params, draw_layer_params
 from aias_augment.pipeline.config import InsertionConfig
 from aias_augment.plan.collision import OrientedBox
 from aias_augment.plan.placement import (
@@ -46,7 +46,8 @@ class PlannedObject:
 class InsertionPlan:
     """What :func:`apply_plan` does, drawn once. ``placement_reports``: per requested object, the placement
     search's report (rejections by reason). ``harmonize_seed``: seeds the harmonizer's own generator and the layer
-    stages' draws. ``layer_params``: per object, ``{layer stage: its parameters}`` (:mod:`aias_augment.apply.layers`)."""
+    stages' draws. ``layer_params``: per object, ``{layer stage: its parameters}``; ``frame_params``: ``{frame stage:
+    its parameters}`` (the stage list, :mod:`aias_augment.core.stages`)."""
 
     objects: tuple[PlannedObject, ...]
     harmonize_seed: int
@@ -54,9 +55,12 @@ class InsertionPlan:
     placement_reports: tuple[dict, ...] = ()
     modules: dict = field(default_factory=dict)  # e.g. 'collision': which 3D checks ran
     layer_params: tuple[dict, ...] = ()
+    frame_params: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {
+        """The plan as plain JSON values; ``frame_params`` only when a frame stage ran (the record of a run without
+        one keeps its bytes)."""
+        out = {
             "n_requested": self.n_requested,
             "harmonize_seed": self.harmonize_seed,
             "placements": [asdict(o.placement) for o in self.objects],
@@ -64,6 +68,9 @@ class InsertionPlan:
             "modules": dict(self.modules),
             "layer_params": list(self.layer_params),
         }
+        if self.frame_params:
+            out["frame_params"] = dict(self.frame_params)
+        return out
 
 
 def plan_insertion(
@@ -82,85 +89,19 @@ def plan_insertion(
     an asset and a placement that avoids ``existing_boxes_xyxy`` (N, 4), earlier objects and, with ``meta``
     'lidar_points_in_cam' / 'boxes_in_cam', the scene's 3D points and boxes. ``depth`` (H, W) metres or None.
     ``existing_labels`` (N,): the boxes' labels; those naming an inserted category are the scene's own objects of
-    that kind, which set the sizes with ``placement_cfg.sizes_from_existing`` (without labels, none does)."""
+    that kind, which set the sizes with ``placement_cfg.sizes_from_existing`` (without labels, none does). Last, the
+    plan's seed and the stage list's parameters (:mod:`aias_augment.core.stages`) from generators of their own."""
     if rng is None:
         raise ValueError("plan_insertion needs an explicit numpy Generator (rng) for reproducibility")
     cfg = cfg.effective()
-    meta = meta or {}
-    intr, ground, region = analysis.intrinsics, analysis.ground, analysis.region
     k = int(n_objects if n_objects is not None else rng.integers(cfg.min_objects, cfg.max_objects + 1))
-    taken = [] if existing_boxes_xyxy is None else [np.asarray(b, float) for b in existing_boxes_xyxy]
-    # DGP-style 3D scene info (meta "lidar_points_in_cam" (N, 3), "boxes_in_cam" [OrientedBox]): candidates must not
-    # intersect LiDAR clusters, existing 3D boxes, or the objects inserted before them.
-    scene_points = meta.get("lidar_points_in_cam")
-    boxes_3d = list(meta.get("boxes_in_cam") or [])
-    mods = {}
-    if cfg.placement and (scene_points is not None or boxes_3d):
-        mods["collision"] = (
-            f"3D checks: {0 if scene_points is None else len(scene_points)} scene points, "
-            f"{len(boxes_3d)} existing 3D boxes, earlier insertions"
-        )
-    ref_kinds = size_reference_kinds(taken, existing_labels, cfg.categories, cfg.placement_cfg)
-    references = [b for b, _ in ref_kinds]
-    pcfg = scene_sized_placement(cfg.placement_cfg, references, analysis.image_shape[0])
-    if pcfg is not cfg.placement_cfg:
-        mods["sizes"] = (
-            f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes of the inserted kind"
-            "; an object of a labelled kind as tall as one of them on the ground"
-        )
-    object_cfgs = [pcfg] * k
+    draft = _Draft.start(analysis, cfg, rng, existing_boxes_xyxy, existing_labels, depth, meta or {})
+    object_cfgs = [draft.pcfg] * k
     targets = None
-    if cfg.placement and pcfg.scene_scale_from_sizes and k:
+    if cfg.placement and draft.pcfg.scene_scale_from_sizes and k:
         # The image's targets drawn first; its scale is set by the largest (the smaller ones fit farther away).
-        targets = [draw_box_height_target(pcfg, rng) for _ in range(k)]
+        targets = [draw_box_height_target(draft.pcfg, rng) for _ in range(k)]
         targets = None if targets[0] is None else targets
-    objects, reports = [], []
-
-    ref_heights: dict = {}  # per labelled kind: its objects' heights on the (scaled) ground, measured once
-
-    def place(category: str, base: Asset, object_cfg, decoy: bool, near=None) -> None:
-        """Place ``base`` (or paste it, without placement) and append it to the plan; a failed search is reported.
-        ``near``: (H, W) bool, the ground pixels an arranged object may stand on (with the scene's region)."""
-        if cfg.placement:
-            if ref_kinds and not ref_heights:
-                ref_heights.update(_heights_by_kind(ref_kinds, ground, intr))
-            height = _height_like_references(ref_heights.get(category), rng, pcfg.reference_height_jitter)
-            placement, report = sample_placement(
-                base,
-                ground,
-                intr,
-                rng,
-                existing_boxes_xyxy=np.array(taken),
-                depth=depth,
-                cfg=object_cfg,
-                region_mask=region.mask if near is None else near & region.mask,
-                height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
-                points_in_cam=scene_points,
-                existing_objects=boxes_3d if "collision" in mods else None,
-                object_height_m=height,
-            )
-            reports.append(report.to_dict())
-            if placement is None:
-                return
-            asset = base.scaled(placement.scale)
-        else:
-            hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
-            asset = base.scaled(rng.uniform(*hr) / base.reference_height_m)
-            cam_from_object, yaw = naive_pose(asset, intr, rng, cfg)
-            placement = replace(placement_at(asset, cam_from_object, intr, yaw), category=category)
-        if asset.procedural:
-            placement = replace(placement, asset_meta=_json_safe(asset.meta))
-        elif "deformation" in asset.meta:  # the variant's record: a replay deforms the same source again
-            placement = replace(placement, asset_meta=_json_safe({"deformation": asset.meta["deformation"]}))
-        if decoy:
-            placement = replace(placement, decoy=True)
-        objects.append(PlannedObject(placement, asset))
-        taken.append(np.array(placement.amodal_box_xyxy))
-        if "collision" in mods:
-            boxes_3d.append(
-                OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m), category)
-            )
-
     arrangement, line = "independent", None
     if cfg.arrangement != "independent" and cfg.placement and k > 1:
         arrangement = cfg.arrangement
@@ -173,47 +114,156 @@ def plan_insertion(
         if cfg.deform_probability > 0 and rng.uniform() < cfg.deform_probability:
             base = apply_deformation(base, sample_deformation(base, rng, cfg.deform_cfg))
         if cfg.placement and targets is not None and i == 0:
-            hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
-            scale = None
-            if references:  # the scene's own objects on their ground rows fix its scale, each at its kind's height
-                heights = [_kind_height(kind, base) for _, kind in ref_kinds]
-                scale, mods["scene_scale"] = scene_scale_from_boxes(ground, intr, references, np.array(heights), pcfg)
-            if scale is None:
-                scale, mods["scene_scale"] = scene_scale_for_sizes(
-                    ground, intr, rng, pcfg, float(np.mean(hr)), max(targets), region.mask
-                )
-            if scale != 1.0:  # the scene scaled about the camera: its distance limits with it
-                ground = scaled_ground(ground, scale)
-                pcfg = replace(
-                    pcfg, min_distance_m=pcfg.min_distance_m * scale, max_distance_m=pcfg.max_distance_m * scale
-                )
-            object_cfgs = [replace(pcfg, box_height_frac_samples=(t,), box_height_jitter=0.0) for t in targets]
+            object_cfgs = draft.scale_scene(category, base, targets)
         near = None
-        if arrangement != "independent" and i > 0 and objects and cfg.placement:
+        if arrangement != "independent" and i > 0 and draft.objects and cfg.placement:
             # the leader's ground (its local refit when there was one): the arrangement lies on it
-            near = arrangement_pixels(objects[0].placement, i, arrangement, line, intr, cfg, analysis.image_shape)
+            near = arrangement_pixels(
+                draft.objects[0].placement, i, arrangement, line, analysis.intrinsics, cfg, analysis.image_shape
+            )
             # size from perspective; a row seen along its length hides part of its members behind each other
             object_cfg = replace(
-                pcfg,
+                draft.pcfg,
                 box_height_frac_samples=(),
                 box_height_frac_range=None,
-                max_overlap_existing=max(pcfg.max_overlap_existing, 0.6),
+                max_overlap_existing=max(draft.pcfg.max_overlap_existing, 0.6),
             )
         else:
             object_cfg = object_cfgs[i]
-        place(category, base, object_cfg, decoy=False, near=near)
+        draft.place(category, base, object_cfg, decoy=False, near=near)
     # Decoys: other categories through the same stages, never annotated. Drawn after the labelled objects, so these
     # draw as they would without decoys; their box heights come from the same targets as the labelled objects'.
     n_decoys = int(rng.integers(cfg.decoys[0], cfg.decoys[1] + 1)) if cfg.decoys[1] > 0 else 0
     for _ in range(n_decoys):
         category = cfg.decoy_categories[int(rng.integers(len(cfg.decoy_categories)))]
         base = choose_asset(category, rng, cfg, bank)
+        pcfg = draft.pcfg
         target = draw_box_height_target(pcfg, rng) if cfg.placement else None
         object_cfg = pcfg if target is None else replace(pcfg, box_height_frac_samples=(target,), box_height_jitter=0.0)
-        place(category, base, object_cfg, decoy=True)
+        draft.place(category, base, object_cfg, decoy=True)
     harmonize_seed = int(rng.integers(0, 2**63 - 1))
-    layer_params = draw_layer_params(cfg, harmonize_seed, len(objects))
-    return InsertionPlan(tuple(objects), harmonize_seed, k, tuple(reports), mods, layer_params)
+    n = len(draft.objects)
+    layer_params = draw_layer_params(cfg, harmonize_seed, n)
+    frame_params = draw_frame_params(cfg, harmonize_seed)
+    return InsertionPlan(
+        tuple(draft.objects), harmonize_seed, k, tuple(draft.reports), draft.mods, layer_params, frame_params
+    )
+
+
+@dataclass(eq=False)
+class _Draft:
+    """A plan being drawn: the scene's ground and placement settings (the scene's scale may change them once, for
+    the first object), what a new object must avoid, and the objects placed so far with the searches' reports."""
+
+    analysis: SceneAnalysis
+    cfg: InsertionConfig
+    rng: np.random.Generator
+    depth: np.ndarray | None
+    ground: object
+    pcfg: object
+    ref_kinds: list
+    taken: list
+    scene_points: np.ndarray | None
+    boxes_3d: list
+    mods: dict
+    objects: list = field(default_factory=list)
+    reports: list = field(default_factory=list)
+    ref_heights: dict = field(default_factory=dict)  # per labelled kind: its objects' heights, measured once
+
+    @classmethod
+    def start(cls, analysis, cfg, rng, existing_boxes_xyxy, existing_labels, depth, meta: dict) -> "_Draft":
+        taken = [] if existing_boxes_xyxy is None else [np.asarray(b, float) for b in existing_boxes_xyxy]
+        # DGP-style 3D scene info (meta "lidar_points_in_cam" (N, 3), "boxes_in_cam" [OrientedBox]): candidates must
+        # not intersect LiDAR clusters, existing 3D boxes, or the objects inserted before them.
+        scene_points = meta.get("lidar_points_in_cam")
+        boxes_3d = list(meta.get("boxes_in_cam") or [])
+        mods = {}
+        if cfg.placement and (scene_points is not None or boxes_3d):
+            mods["collision"] = (
+                f"3D checks: {0 if scene_points is None else len(scene_points)} scene points, "
+                f"{len(boxes_3d)} existing 3D boxes, earlier insertions"
+            )
+        ref_kinds = size_reference_kinds(taken, existing_labels, cfg.categories, cfg.placement_cfg)
+        pcfg = scene_sized_placement(cfg.placement_cfg, [b for b, _ in ref_kinds], analysis.image_shape[0])
+        if pcfg is not cfg.placement_cfg:
+            mods["sizes"] = (
+                f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes of the "
+                "inserted kind; an object of a labelled kind as tall as one of them on the ground"
+            )
+        return cls(analysis, cfg, rng, depth, analysis.ground, pcfg, ref_kinds, taken, scene_points, boxes_3d, mods)
+
+    def scale_scene(self, category: str, base: Asset, targets: list) -> list:
+        """The scene's scale from the first object's size targets (or the scene's own objects on their ground rows,
+        each at its kind's height): the ground and distance limits scaled with it; per object, its placement
+        settings with its target."""
+        ground, intr, pcfg = self.ground, self.analysis.intrinsics, self.pcfg
+        hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
+        scale = None
+        if self.ref_kinds:
+            references = [b for b, _ in self.ref_kinds]
+            heights = [_kind_height(kind, base) for _, kind in self.ref_kinds]
+            scale, self.mods["scene_scale"] = scene_scale_from_boxes(ground, intr, references, np.array(heights), pcfg)
+        if scale is None:
+            scale, self.mods["scene_scale"] = scene_scale_for_sizes(
+                ground, intr, self.rng, pcfg, float(np.mean(hr)), max(targets), self.analysis.region.mask
+            )
+        if scale != 1.0:  # the scene scaled about the camera: its distance limits with it
+            self.ground = scaled_ground(ground, scale)
+            self.pcfg = replace(
+                pcfg, min_distance_m=pcfg.min_distance_m * scale, max_distance_m=pcfg.max_distance_m * scale
+            )
+        return [replace(self.pcfg, box_height_frac_samples=(t,), box_height_jitter=0.0) for t in targets]
+
+    def place(self, category: str, base: Asset, object_cfg, decoy: bool, near=None) -> None:
+        """Place ``base`` (or paste it, without placement) and append it to the plan; a failed search is reported.
+        ``near``: (H, W) bool, the ground pixels an arranged object may stand on (with the scene's region)."""
+        cfg, intr = self.cfg, self.analysis.intrinsics
+        if cfg.placement:
+            placement = self._search(category, base, object_cfg, near)
+            if placement is None:
+                return
+            asset = base.scaled(placement.scale)
+        else:
+            hr = CATEGORY_HEIGHT_RANGE_M.get(category, (base.reference_height_m, base.reference_height_m))
+            asset = base.scaled(self.rng.uniform(*hr) / base.reference_height_m)
+            cam_from_object, yaw = naive_pose(asset, intr, self.rng, cfg)
+            placement = replace(placement_at(asset, cam_from_object, intr, yaw), category=category)
+        if asset.procedural:
+            placement = replace(placement, asset_meta=_json_safe(asset.meta))
+        elif "deformation" in asset.meta:  # the variant's record: a replay deforms the same source again
+            placement = replace(placement, asset_meta=_json_safe({"deformation": asset.meta["deformation"]}))
+        if decoy:
+            placement = replace(placement, decoy=True)
+        self.objects.append(PlannedObject(placement, asset))
+        self.taken.append(np.array(placement.amodal_box_xyxy))
+        if "collision" in self.mods:
+            self.boxes_3d.append(
+                OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m), category)
+            )
+
+    def _search(self, category: str, base: Asset, object_cfg, near) -> Placement | None:
+        """The placement search for one object (its report kept), at the height of the image's labelled objects of
+        its kind when there are some."""
+        intr, region = self.analysis.intrinsics, self.analysis.region
+        if self.ref_kinds and not self.ref_heights:
+            self.ref_heights.update(_heights_by_kind(self.ref_kinds, self.ground, intr))
+        height = _height_like_references(self.ref_heights.get(category), self.rng, self.pcfg.reference_height_jitter)
+        placement, report = sample_placement(
+            base,
+            self.ground,
+            intr,
+            self.rng,
+            existing_boxes_xyxy=np.array(self.taken),
+            depth=self.depth,
+            cfg=object_cfg,
+            region_mask=region.mask if near is None else near & region.mask,
+            height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
+            points_in_cam=self.scene_points,
+            existing_objects=self.boxes_3d if "collision" in self.mods else None,
+            object_height_m=height,
+        )
+        self.reports.append(report.to_dict())
+        return placement
 
 
 def draw_arrangement(kind: str, rng: np.random.Generator, cfg: InsertionConfig) -> dict | None:

@@ -83,9 +83,9 @@ def test_fast_harmonizer_in_the_context_window_gives_the_whole_image_bytes():
     in the middle, at a border and two apart, so components and clipped context crops are exercised)."""
     import pytest
 
+    from aias_augment.apply.frame_steps import _harmonize, _harmonize_window
     from aias_augment.apply.harmonize import harmonize
     from aias_augment.apply.harmonize.api import DEFAULT_CHECKPOINTS
-    from aias_augment.apply.stages import _harmonize, _harmonize_window
 
     if not DEFAULT_CHECKPOINTS["fast"].is_file():
         pytest.skip("fast harmonizer checkpoint not present")
@@ -179,7 +179,7 @@ def test_keep_chromaticity_takes_the_brightness_and_keeps_the_colour():
     """Per pixel, in linear light: the result's chromaticity is ``before``'s and its luminance ``after``'s (to the
     8-bit rounding); pixels ``after`` left as they were stay byte-identical."""
     from aias_augment.apply.composite import to_linear
-    from aias_augment.apply.stages import keep_chromaticity
+    from aias_augment.apply.frame_steps import keep_chromaticity
 
     rng = np.random.default_rng(0)
     before = rng.integers(40, 200, (30, 40, 3)).astype(np.uint8)

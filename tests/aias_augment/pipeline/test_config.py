@@ -206,7 +206,7 @@ def test_harmonize_methods_agree_with_the_harmonizer():
     from aias_augment.apply.harmonize.api import METHODS
 
     assert set(get_args(HarmonizeMethod)) == set(METHODS)
-    from aias_augment.apply.layer_stages.edge_blend import MODES
+    from aias_augment.core.stages.edge_blend import MODES
     from aias_augment.pipeline.config import EdgeBlendMode
 
     assert set(get_args(EdgeBlendMode)) == set(MODES)

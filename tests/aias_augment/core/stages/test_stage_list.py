@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from aias_augment.apply.layers import ObjectLayer, apply_layer_stages, draw_layer_params, layer_stages_in_order
 from aias_augment.core.frame import Frame
+from aias_augment.core.stages import ObjectLayer, apply_layer_stages, draw_layer_params, stages_in_order
 from aias_augment.pipeline.config import load_preset
 from aias_augment.pipeline.image import insert_into_image
 from aias_augment.pipeline.replay import replay
@@ -15,12 +15,12 @@ from tests.aias_augment.fixtures import tracon_train_photo
 
 
 def test_the_motion_blur_module_is_found_as_a_stage():
-    assert "motion_blur_px" in [s.name for s in layer_stages_in_order()]
+    assert "motion_blur_px" in [s.name for s in stages_in_order("layer")]
 
 
 def test_an_unknown_stage_in_a_record_is_refused():
     layer = ObjectLayer((0, 0, 2, 2), np.ones((2, 2), np.float32), np.ones((2, 2), np.float32), np.ones((2, 2, 3)))
-    with pytest.raises(ValueError, match="not in aias_augment.apply.layer_stages"):
+    with pytest.raises(ValueError, match="not in the stage list"):
         apply_layer_stages(layer, {"lens_flare": {}}, (2, 2))
 
 

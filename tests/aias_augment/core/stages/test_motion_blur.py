@@ -5,8 +5,8 @@ layer's coverage mass; an object of one colour and one depth keeps them on its s
 import numpy as np
 import pytest
 
-from aias_augment.apply.layer_stages.motion_blur import STAGE, line_kernel
-from aias_augment.apply.layers import ObjectLayer
+from aias_augment.core.stages import ObjectLayer
+from aias_augment.core.stages.motion_blur import STAGE, line_kernel
 from aias_augment.pipeline.config import InsertionConfig
 
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
-from aias_augment.apply.layer_stages.edge_blend import STAGE
-from aias_augment.apply.layers import ObjectLayer
+from aias_augment.core.stages import ObjectLayer
+from aias_augment.core.stages.edge_blend import STAGE
 from aias_augment.pipeline.config import InsertionConfig
 
 COLOUR, DEPTH = np.array([0.6, 0.3, 0.1], np.float32), 7.0

@@ -16,13 +16,14 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from aias_augment.apply.layers import ObjectLayer, grown
+from aias_augment.core.stages import ObjectLayer, grown
 
 MODES = ("rendered", "hard", "feather")
 
 
 class EdgeBlend:
     name = "edge_blend"
+    kind = "layer"
     order = 20  # after motion blur: the boundary of what the camera recorded
 
     def enabled(self, cfg) -> bool:

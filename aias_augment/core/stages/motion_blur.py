@@ -17,7 +17,7 @@ import math
 import cv2
 import numpy as np
 
-from aias_augment.apply.layers import ObjectLayer, grown
+from aias_augment.core.stages import ObjectLayer, grown
 
 
 def line_kernel(length_px: float, angle_deg: float) -> np.ndarray:
@@ -40,6 +40,7 @@ def line_kernel(length_px: float, angle_deg: float) -> np.ndarray:
 
 class MotionBlur:
     name = "motion_blur_px"
+    kind = "layer"
     order = 10
 
     def enabled(self, cfg) -> bool:
