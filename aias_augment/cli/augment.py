@@ -8,12 +8,11 @@ aias-augment --input tripod.avi --camera-height 4 --out clip_aug/     # a static
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
 
-from aias_augment.cli.dataset_out import add_output_arguments
+from aias_augment.cli.augment_args import build_parser
 from aias_augment.cli.offline import (
     IMAGE_SUFFIXES,
     coco_categories,
@@ -22,205 +21,12 @@ from aias_augment.cli.offline import (
     items_from_yolo,
     run,
 )
-from aias_augment.core.arg_parser import OneLineArgumentParser
-from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M
-from aias_augment.core.logs import add_logging_args, configure_logging
-from aias_augment.pipeline.image import PRESETS, load_preset
+from aias_augment.core.logs import configure_logging
+from aias_augment.pipeline.image import load_preset
 
 
 def main(argv=None) -> int:
-    ap = OneLineArgumentParser(
-        prog="aias-augment", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    src = ap.add_mutually_exclusive_group()
-    src.add_argument(
-        "--input",
-        help="COCO json of the dataset (with --images), or a clip: a video file or a folder "
-        "of frames (with --camera and --poses; a static camera's clip needs neither)",
-    )
-    src.add_argument(
-        "--yolo",
-        help="a YOLO dataset: its data.yaml, a folder with images/<split>/ and labels/<split>/, or a folder of "
-        "images with YOLO txt labels (labels/ beside images/)",
-    )
-    ap.add_argument(
-        "--images",
-        metavar="DIR",
-        help="image folder for --input; alone: a folder of unlabelled background images "
-        "(the output holds only the inserted objects)",
-    )
-    ap.add_argument(
-        "--class-names", nargs="*", default=None, help="YOLO class names by index (default: the data.yaml's names)"
-    )
-    ap.add_argument(
-        "--categories",
-        nargs="+",
-        default=None,
-        help="categories to insert (default: those of --config, else of --assets/--assets-bank, else traffic_cone)",
-    )
-    ap.add_argument(
-        "--per-image",
-        type=int,
-        default=None,
-        help="maximum objects inserted per image (default: --config's max_objects, else 2)",
-    )
-    ap.add_argument("--preset", choices=PRESETS, default="balanced")
-    ap.add_argument(
-        "--config",
-        metavar="FILE",
-        default=None,
-        help="YAML of InsertionConfig fields (nested placement_cfg etc.) applied over --preset; "
-        "--categories and --per-image apply over it",
-    )
-    ap.add_argument(
-        "--box-convention",
-        metavar="FILE",
-        default=None,
-        help="the JSON `aias-assets box-convention` wrote: inserted boxes sit around their objects as your labels "
-        "do (margins per side; applied over --config)",
-    )
-    ap.add_argument(
-        "--assets",
-        nargs="+",
-        metavar="CATEGORY=PATH",
-        default=None,
-        help="your own meshes: PATH a mesh file (.glb .gltf .obj .dae .ply .stl .off), a folder of them "
-        "or a gazebo model folder; a category may repeat; it need not be a built-in one",
-    )
-    ap.add_argument(
-        "--assets-bank",
-        metavar="DIR",
-        default=None,
-        help="a folder written by `aias-assets from-labels` (its bank.json): its assets per category",
-    )
-    ap.add_argument(
-        "--sun-from",
-        metavar="LAT,LON,UTC,HEADING",
-        default=None,
-        help="the sun from position and time for every image: degrees, ISO UTC time, camera heading "
-        "in degrees clockwise from north (e.g. 48.1,11.6,2024-06-01T12:00:00Z,90)",
-    )
-    ap.add_argument(
-        "--envmap",
-        metavar="FILE",
-        default=None,
-        help="an equirectangular HDR/EXR of the scene's light for every image (the camera looks level at "
-        "its centre column): its brightest compact light is the sun, the rest the ambient",
-    )
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--limit", type=int, default=None, help="process only the first N images")
-    ap.add_argument(
-        "--backend",
-        choices=("local", "ray"),
-        default="local",
-        help="local: this process or a pool of --workers; ray: Ray tasks (pip install 'aias-augment[ray]')"
-        ", same outputs",
-    )
-    ap.add_argument("--address", default=None, help="--backend ray: an existing cluster (default: a local instance)")
-    ap.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace the run in --out when its manifest differs (default: refuse; the same run resumes)",
-    )
-    ap.add_argument(
-        "--boxes",
-        choices=("clip", "drop"),
-        default="clip",
-        help="input boxes crossing the image border: clipped to it or dropped (counted in report.json)",
-    )
-    ap.add_argument(
-        "--max-megapixels",
-        type=float,
-        default=4.0,
-        help="larger images are augmented at this size (INTER_AREA; recorded per image); 0: no bound",
-    )
-    ap.add_argument(
-        "--scene-cache",
-        default=None,
-        help="folder of scene analyses (camera, ground, region, lighting) reused across runs and workers",
-    )
-    clip = ap.add_argument_group("clip (--input is a video file or a frame folder)")
-    clip.add_argument(
-        "--camera",
-        help="KITTI calib.txt, pyslam KITTI*.yaml, or a yaml with fx, fy, cx, cy (default for a static camera: "
-        "estimated from the first frame)",
-    )
-    clip.add_argument("--poses", help="one pose per frame: KITTI (12 numbers) or TUM (tx ty tz qx qy qz qw) lines")
-    clip.add_argument(
-        "--stereo-right",
-        metavar="FRAMES",
-        help="the rectified right camera's frames (a folder or video, frame for frame): poses by stereo odometry "
-        "instead of --poses; --camera must give both cameras (KITTI calib.txt P0/P1, or a yaml with Camera.bf)",
-    )
-    clip.add_argument("--colour", action="store_true", help="KITTI calib.txt: the colour camera (P2)")
-    clip.add_argument("--start", type=int, default=0, help="first frame")
-    clip.add_argument("--stride", type=int, default=1)
-    clip.add_argument("--max-frames", type=int, default=None)
-    clip.add_argument("--camera-height", type=float, default=CAMERA_HEIGHT_PRIOR_M, help="metres above the ground")
-    clip.add_argument("--fps", type=float, default=10.0, help="frame rate of the clip as read (after --stride)")
-    clip.add_argument(
-        "--object-speed",
-        type=float,
-        default=0.0,
-        metavar="M_PER_S",
-        help="the object moves along its heading at this speed (a car driving, a cart crossing); 0: it stands",
-    )
-    clip.add_argument(
-        "--object-start",
-        type=float,
-        default=0.0,
-        metavar="SECONDS",
-        help="with --object-speed: the object stands this long first (a parked car pulling out)",
-    )
-    clip.add_argument(
-        "--object-accel",
-        type=float,
-        default=0.0,
-        metavar="SECONDS",
-        help="with --object-speed: it reaches its speed from rest over this long (0: at once)",
-    )
-    clip.add_argument(
-        "--topple",
-        type=float,
-        default=0.0,
-        metavar="SECONDS",
-        help="the object is knocked over during the clip, falling onto its side over this long; 0: it stays upright",
-    )
-    clip.add_argument(
-        "--objects",
-        type=int,
-        default=1,
-        metavar="N",
-        help="objects inserted into the clip, each with its own track (alternating sides of the path, nearer each)",
-    )
-    clip.add_argument(
-        "--labels",
-        metavar="FILE",
-        help="the clip's own track labels (MOTChallenge gt.txt or COCO-video json): carried into the output with "
-        "their track ids, occluding inserted objects behind them",
-    )
-    clip.add_argument(
-        "--labels-format", choices=("coco-video", "mot"), default=None, help="of --labels (default: detected)"
-    )
-    clip.add_argument(
-        "--labels-category", default="object", metavar="NAME", help="the class of --labels' MOT rows (MOT names none)"
-    )
-    clip.add_argument("--lighting", choices=("clip", "ambient"), default="clip")
-    clip.add_argument(
-        "--harmonize",
-        default="fast",
-        choices=("none", "reinhard", "camera", "fast", "network"),
-        help="clip harmonization ('fast': one colour transform for the whole clip)",
-    )
-    clip.add_argument(
-        "--flow-refine",
-        action="store_true",
-        help="track the ground under the object (KLT) and correct drifting poses per frame",
-    )
-    add_logging_args(ap)
-    add_output_arguments(ap)
+    ap = build_parser(__doc__)
     a = ap.parse_args(argv)
     configure_logging(a)
     if not (a.input or a.yolo or a.images):
@@ -230,33 +36,42 @@ def main(argv=None) -> int:
     from aias_augment.cli.clip import is_video_input
 
     if a.input and (a.camera or a.poses or is_video_input(a.input) or Path(a.input).is_dir()):  # a COCO json or a clip
-        if (a.poses or a.stereo_right) and not a.camera:
-            ap.error("--poses and --stereo-right need --camera (a static camera's clip needs neither)")
-        if a.poses and a.stereo_right:
-            ap.error("--poses or --stereo-right: poses given, or estimated from the stereo pair, not both")
-        given = [
-            f
-            for f, v in (
-                ("--config", a.config),
-                ("--assets", a.assets),
-                ("--assets-bank", a.assets_bank),
-                ("--sun-from", a.sun_from),
-                ("--envmap", a.envmap),
-            )
-            if v
-        ]
-        if given:
-            ap.error(f"{', '.join(given)}: for image datasets, not clips")
-        from aias_augment.cli.clip import clip_command
-
-        return clip_command(a)
+        return _clip_main(ap, a)
     if a.input and not a.images:
         ap.error("--input needs --images")
-    from aias_augment.adapters.boundary import InputError, check_categories, known_categories
-    from aias_augment.cli.dataset_out import canonical_categories, output_from_args, yolo_names_from_rows
-    from aias_augment.cli.manifest import ManifestMismatch, check_out_apart, recorded_sun_now
-    from aias_augment.cli.offline import named_inputs
-    from aias_augment.cli.yolo_io import read_yolo_dataset
+    return _dataset_main(ap, a)
+
+
+def _clip_main(ap, a) -> int:
+    """A clip's options checked against each other (``ap.error``: exit 2), then :func:`~aias_augment.cli.clip.
+    clip_command`."""
+    if (a.poses or a.stereo_right) and not a.camera:
+        ap.error("--poses and --stereo-right need --camera (a static camera's clip needs neither)")
+    if a.poses and a.stereo_right:
+        ap.error("--poses or --stereo-right: poses given, or estimated from the stereo pair, not both")
+    given = [
+        f
+        for f, v in (
+            ("--config", a.config),
+            ("--assets", a.assets),
+            ("--assets-bank", a.assets_bank),
+            ("--sun-from", a.sun_from),
+            ("--envmap", a.envmap),
+        )
+        if v
+    ]
+    if given:
+        ap.error(f"{', '.join(given)}: for image datasets, not clips")
+    from aias_augment.cli.clip import clip_command
+
+    return clip_command(a)
+
+
+def _dataset_main(ap, a) -> int:
+    """An image dataset's run: every option checked before any image is read or any record written (exit 2), the
+    run, and its exit code from the summary (:func:`_report`)."""
+    from aias_augment.adapters.boundary import InputError
+    from aias_augment.cli.manifest import ManifestMismatch
 
     clip_only = [
         f
@@ -282,73 +97,8 @@ def main(argv=None) -> int:
     ):
         ap.error("--per-image >= 0, --workers >= 1, --limit >= 1 and --max-megapixels >= 0 please")
     try:
-        # Every option is checked here, before any image is read or any record written.
-        paths = asset_paths(a.assets, a.assets_bank)  # reads only: a bad spec is named as itself
-        check_out_apart(a.out, named_inputs(a))  # before any write: nothing of the user's may be written over
-        options = {"boxes": a.boxes}
-        bank = None
-        if paths:
-            from aias_augment.assets.asset import AssetError, PathAssets
-
-            try:
-                bank = PathAssets(paths)
-            except (AssetError, ValueError) as e:
-                raise InputError(f"--assets: {e}") from None
-            options["assets"] = asset_fingerprint(paths)  # a rerun with other meshes never reuses records
-        facts = sun_facts(a.sun_from, None if a.overwrite else recorded_sun_now(a.out)) if a.sun_from else {}
-        if facts:
-            options["sun_from"] = {k: str(v) for k, v in facts.items()}
-            if sun_is_now(a.sun_from):  # resolved once, recorded: a resume reuses that time
-                options["sun_from"]["utc_given"] = "now"
-        if a.envmap:
-            from aias_augment.cli.manifest import file_hash
-
-            facts["envmap"] = envmap_fact(a.envmap)
-            options["envmap"] = [a.envmap, file_hash(a.envmap)]
-        known = known_categories() | set(paths or {})
-        requested, given_labels = canonical_categories(a.categories or (), known)  # cone -> traffic_cone
-        cfg = insertion_config(a.preset, a.config, requested or None, a.per_image, paths, a.box_convention)
-        # Categories your --assets give need not be built-in ones (as InsertObjects(assets=...)).
-        unknown = [c for c in cfg.categories if c not in (paths or {})]
-        if unknown:
-            check_categories(unknown)
-        yolo_in, class_names, input_categories = None, a.class_names, None
-        if a.input:
-            items = items_from_coco(a.input, a.images, box_policy=a.boxes)
-            input_categories = coco_categories(a.input)
-        elif a.yolo:
-            yolo_in = read_yolo_dataset(a.yolo)
-            split = yolo_in.split(a.split)
-            class_names = a.class_names or (list(yolo_in.names) if yolo_in.names else None)
-            items = items_from_yolo(str(split.images), str(split.labels), class_names, box_policy=a.boxes)
-            class_names = class_names or yolo_names_from_rows(items)
-        else:  # unlabelled background images: no boxes, the output holds only the inserted objects
-            items = items_from_images(a.images)
-        items = items[: a.limit] if a.limit else items
-        if not items:
-            raise InputError(f"no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in {a.yolo or a.images}")
-        for it in items:
-            it.meta.update(facts)
-        user_names = list(input_categories or class_names or ())
-        output = output_from_args(a, cfg.categories, user_names, known, given_labels, yolo_in)
-        summary = run(
-            items,
-            cfg,
-            a.seed,
-            a.out,
-            workers=a.workers,
-            class_names=class_names,
-            scene_cache=a.scene_cache,
-            preset=a.preset,
-            overwrite=a.overwrite,
-            max_pixels=int(a.max_megapixels * 1e6) or None,
-            options=options,
-            backend=a.backend,
-            ray_address=a.address,
-            categories=input_categories,
-            bank=bank,
-            output=output,
-        )
+        cfg, items, run_kw = _dataset_job(a)
+        summary = run(items, cfg, a.seed, a.out, **run_kw)
     except (InputError, ManifestMismatch) as e:
         print(f"aias-augment: error: {e}", file=sys.stderr)
         return 2
@@ -360,6 +110,86 @@ def main(argv=None) -> int:
             file=sys.stderr,
         )
         return 2
+    return _report(a, summary, cfg)
+
+
+def _dataset_job(a):
+    """(config, items, run keywords) of an image dataset's run: every option checked here, before any image is read
+    or any record written (``InputError``)."""
+    from aias_augment.adapters.boundary import InputError, check_categories, known_categories
+    from aias_augment.cli.dataset_out import canonical_categories, output_from_args, yolo_names_from_rows
+    from aias_augment.cli.manifest import check_out_apart, recorded_sun_now
+    from aias_augment.cli.offline import named_inputs
+    from aias_augment.cli.yolo_io import read_yolo_dataset
+
+    paths = asset_paths(a.assets, a.assets_bank)  # reads only: a bad spec is named as itself
+    check_out_apart(a.out, named_inputs(a))  # before any write: nothing of the user's may be written over
+    options = {"boxes": a.boxes}
+    bank = None
+    if paths:
+        from aias_augment.assets.asset import AssetError, PathAssets
+
+        try:
+            bank = PathAssets(paths)
+        except (AssetError, ValueError) as e:
+            raise InputError(f"--assets: {e}") from None
+        options["assets"] = asset_fingerprint(paths)  # a rerun with other meshes never reuses records
+    facts = sun_facts(a.sun_from, None if a.overwrite else recorded_sun_now(a.out)) if a.sun_from else {}
+    if facts:
+        options["sun_from"] = {k: str(v) for k, v in facts.items()}
+        if sun_is_now(a.sun_from):  # resolved once, recorded: a resume reuses that time
+            options["sun_from"]["utc_given"] = "now"
+    if a.envmap:
+        from aias_augment.cli.manifest import file_hash
+
+        facts["envmap"] = envmap_fact(a.envmap)
+        options["envmap"] = [a.envmap, file_hash(a.envmap)]
+    known = known_categories() | set(paths or {})
+    requested, given_labels = canonical_categories(a.categories or (), known)  # cone -> traffic_cone
+    cfg = insertion_config(a.preset, a.config, requested or None, a.per_image, paths, a.box_convention)
+    # Categories your --assets give need not be built-in ones (as InsertObjects(assets=...)).
+    unknown = [c for c in cfg.categories if c not in (paths or {})]
+    if unknown:
+        check_categories(unknown)
+    yolo_in, class_names, input_categories = None, a.class_names, None
+    if a.input:
+        items = items_from_coco(a.input, a.images, box_policy=a.boxes)
+        input_categories = coco_categories(a.input)
+    elif a.yolo:
+        yolo_in = read_yolo_dataset(a.yolo)
+        split = yolo_in.split(a.split)
+        class_names = a.class_names or (list(yolo_in.names) if yolo_in.names else None)
+        items = items_from_yolo(str(split.images), str(split.labels), class_names, box_policy=a.boxes)
+        class_names = class_names or yolo_names_from_rows(items)
+    else:  # unlabelled background images: no boxes, the output holds only the inserted objects
+        items = items_from_images(a.images)
+    items = items[: a.limit] if a.limit else items
+    if not items:
+        raise InputError(f"no images ({', '.join(sorted(IMAGE_SUFFIXES))}) in {a.yolo or a.images}")
+    for it in items:
+        it.meta.update(facts)
+    user_names = list(input_categories or class_names or ())
+    output = output_from_args(a, cfg.categories, user_names, known, given_labels, yolo_in)
+    run_kw = dict(
+        workers=a.workers,
+        class_names=class_names,
+        scene_cache=a.scene_cache,
+        preset=a.preset,
+        overwrite=a.overwrite,
+        max_pixels=int(a.max_megapixels * 1e6) or None,
+        options=options,
+        backend=a.backend,
+        ray_address=a.address,
+        categories=input_categories,
+        bank=bank,
+        output=output,
+    )
+    return cfg, items, run_kw
+
+
+def _report(a, summary: dict, cfg) -> int:
+    """The run's summary on stdout and its exit code: 1 when no image was written or no object inserted anywhere
+    (a warning when some images got none), else 0."""
     print(summary)
     if not summary["written"]:  # an empty dataset is a failure, whatever the reasons
         print(

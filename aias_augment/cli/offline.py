@@ -319,6 +319,34 @@ def _run(
         )
         for i, (it, h) in enumerate(zip(items, hashes))
     ]
+    records = _run_jobs(jobs, workers, backend, ray_address)
+    coco, sheet = _coco_and_sheet(records, out, output, out_categories, sheet_size)
+    report = build_report(records)
+    report["output"] = write_outputs(out, records, output, coco.categories, temp_prefix)
+    write_json(out / "report.json", report, temp_prefix)
+    if sheet:
+        write_rgb(out / "contact_sheet.png", contact_sheet(sheet), temp_prefix)
+    summary = _summary(records, coco, report)
+    write_json(out / "summary.json", summary, temp_prefix)
+
+    def put_coco(tmp: Path) -> None:  # re-read by pycocotools and checked before it takes its name
+        coco.write(tmp)
+        check_coco_file(tmp, out / "images")
+
+    write_file(out / "annotations.json", temp_prefix, put_coco)  # the dataset appears last, whole
+    mark_complete(out, manifest)
+    log.info(
+        "%s: %d of %d images written, %d objects inserted (skips and notes in report.json)",
+        out,
+        summary["written"],
+        summary["images"],
+        summary["inserted"],
+    )
+    return summary
+
+
+def _run_jobs(jobs: list, workers: int, backend: str, ray_address: str | None) -> list[dict]:
+    """Each job's record, in the jobs' order: here (``workers`` <= 1), in a spawned pool, or as Ray tasks."""
     records = []
     quiet = progress_disabled(log)
     if backend == "ray":  # Ray tasks (aias_augment.cli.offline_ray): the same process_item, the same bytes
@@ -333,6 +361,13 @@ def _run(
         with mp.get_context("spawn").Pool(workers) as pool:
             for r in tqdm(pool.imap(_worker, jobs), total=len(jobs), desc="aias-augment", unit="img", disable=quiet):
                 records.append(r)
+    return records
+
+
+def _coco_and_sheet(records: list[dict], out: Path, output: DatasetOutput, out_categories, sheet_size: int):
+    """(the COCO builder of the written images, the first ``sheet_size`` images with their boxes drawn): a record
+    whose files fail the output check is left out and named (``output_errors``), never written as a wrong
+    annotation."""
     coco = CocoBuilder(out_categories)
     sheet = []
     for rec in records:
@@ -364,11 +399,12 @@ def _run(
                     read_rgb(str(out / "images" / rec["file_name"])), rec["boxes"], rec["labels"], rec["inserted"]
                 )
             )
-    report = build_report(records)
-    report["output"] = write_outputs(out, records, output, coco.categories, temp_prefix)
-    write_json(out / "report.json", report, temp_prefix)
-    if sheet:
-        write_rgb(out / "contact_sheet.png", contact_sheet(sheet), temp_prefix)
+    return coco, sheet
+
+
+def _summary(records: list[dict], coco, report: dict) -> dict:
+    """``summary.json``: images seen, written, skipped, objects inserted, images without one, box notes, and the
+    median seconds per image."""
     times = [r["seconds"] for r in records if "seconds" in r]
     summary = {
         "images": len(records),
@@ -379,21 +415,6 @@ def _run(
         "box_notes": sum(v for k, v in report["notes"].items() if k.startswith("box")),
         "median_seconds_per_image": float(np.median(times)) if times else None,
     }
-    write_json(out / "summary.json", summary, temp_prefix)
-
-    def put_coco(tmp: Path) -> None:  # re-read by pycocotools and checked before it takes its name
-        coco.write(tmp)
-        check_coco_file(tmp, out / "images")
-
-    write_file(out / "annotations.json", temp_prefix, put_coco)  # the dataset appears last, whole
-    mark_complete(out, manifest)
-    log.info(
-        "%s: %d of %d images written, %d objects inserted (skips and notes in report.json)",
-        out,
-        summary["written"],
-        summary["images"],
-        summary["inserted"],
-    )
     return summary
 
 

@@ -113,6 +113,59 @@ def _load_record(rec_path: Path, item: Item, input_hash: str | None) -> dict | N
     return rec
 
 
+def _prepared_image(item: Item, class_names, max_pixels: int | None, notes: list):
+    """(image, scale, source size (w, h), intrinsics or None, depth or None) of ``item``: the image read and checked
+    against its json size, its YOLO boxes resolved, bounded to ``max_pixels`` (noted), its K and stereo depth at
+    that size. A problem raises (:class:`ImageSkip` or another error: the caller's counted skip)."""
+    image, conv = read_image_checked(item.path)
+    notes += conv
+    size = item.meta.pop("coco_size", None)
+    if size and size[0] and size[1] and tuple(size) != (image.shape[1], image.shape[0]):
+        raise ImageSkip(
+            "image size mismatch",
+            f"the json says {size[0]}x{size[1]}, the file is {image.shape[1]}x{image.shape[0]}",
+        )
+    item.meta.pop("label_file", None)
+    resolve_yolo_boxes(item, image, class_names)
+    source_size = [int(image.shape[1]), int(image.shape[0])]
+    image, scale = _bound_size(image, item, max_pixels)
+    if scale != 1.0:
+        notes.append(
+            problem(
+                "downscaled",
+                item.path,
+                f"{source_size[0]}x{source_size[1]} augmented at {image.shape[1]}x{image.shape[0]} (--max-megapixels)",
+            )
+        )
+    intr = None
+    if item.K is not None:
+        intr = Intrinsics.from_matrix(np.asarray(item.K), image.shape[1], image.shape[0])
+    depth = None
+    if item.stereo_right is not None:
+        from aias_augment.scenes.stereo import stereo_depth
+
+        depth = stereo_depth(image, read_rgb(item.stereo_right), intr, item.baseline_m)
+    return image, scale, source_size, intr, depth
+
+
+def _skip_record(e: Exception, index: int, item: Item, input_hash: str, notes: list) -> dict:
+    """The record of an image skipped for ``e`` (its kind and line when it is an :class:`ImageSkip`), logged."""
+    if isinstance(e, ImageSkip):
+        kind, line, msg = e.kind, e.line, str(e)
+    else:
+        kind, line, msg = "failed", None, f"{type(e).__name__}: {e}"
+    log.warning("skipping %s: %s", item.path, msg)
+    return {
+        "index": index,
+        "source": item.path,
+        "input_hash": input_hash,
+        "skipped": msg,
+        "skip_kind": kind,
+        "skip_line": line,
+        "input_notes": notes,
+    }
+
+
 def process_item(
     index: int,
     item: Item,
@@ -154,35 +207,7 @@ def process_item(
     try:
         if item.invalid:
             raise item.invalid
-        image, conv = read_image_checked(item.path)
-        notes += conv
-        size = item.meta.pop("coco_size", None)
-        if size and size[0] and size[1] and tuple(size) != (image.shape[1], image.shape[0]):
-            raise ImageSkip(
-                "image size mismatch",
-                f"the json says {size[0]}x{size[1]}, the file is {image.shape[1]}x{image.shape[0]}",
-            )
-        item.meta.pop("label_file", None)
-        resolve_yolo_boxes(item, image, class_names)
-        source_size = [int(image.shape[1]), int(image.shape[0])]
-        image, scale = _bound_size(image, item, max_pixels)
-        if scale != 1.0:
-            notes.append(
-                problem(
-                    "downscaled",
-                    item.path,
-                    f"{source_size[0]}x{source_size[1]} augmented at "
-                    f"{image.shape[1]}x{image.shape[0]} (--max-megapixels)",
-                )
-            )
-        intr = None
-        if item.K is not None:
-            intr = Intrinsics.from_matrix(np.asarray(item.K), image.shape[1], image.shape[0])
-        depth = None
-        if item.stereo_right is not None:
-            from aias_augment.scenes.stereo import stereo_depth
-
-            depth = stereo_depth(image, read_rgb(item.stereo_right), intr, item.baseline_m)
+        image, scale, source_size, intr, depth = _prepared_image(item, class_names, max_pixels, notes)
         # above 2 MP: analysed and planned at 2 MP, rendered at the (bounded) output size
         res = insert_bounded(
             image,
@@ -197,20 +222,7 @@ def process_item(
             bank=bank,
         )
     except Exception as e:  # counted, logged skip: one bad image never stops the run
-        if isinstance(e, ImageSkip):
-            kind, line, msg = e.kind, e.line, str(e)
-        else:
-            kind, line, msg = "failed", None, f"{type(e).__name__}: {e}"
-        log.warning("skipping %s: %s", item.path, msg)
-        rec = {
-            "index": index,
-            "source": item.path,
-            "input_hash": input_hash,
-            "skipped": msg,
-            "skip_kind": kind,
-            "skip_line": line,
-            "input_notes": notes,
-        }
+        rec = _skip_record(e, index, item, input_hash, notes)
         write_json(rec_path, rec, temp_prefix)
         return rec
     image_out.write(out / "images" / name, res.image, temp_prefix)

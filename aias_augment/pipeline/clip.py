@@ -23,6 +23,10 @@ A moving object (``speed_m_per_frame``) goes along its heading on the world grou
 contact track and shadow move with it; the local refit is measured under each frame's contact, and flow refinement
 (which tracks the ground under a standing object) is refused.
 
+Several objects in one clip, kept apart, with the clip's lighting and harmonization: the clip door
+:func:`aias_augment.pipeline.clip_objects.insert_objects_into_clip` (what ``aias-augment`` on a clip calls), built
+on :func:`plan_clip` and :func:`apply_clip_objects`.
+
 Poses: ``cams_from_world`` (N, 4, 4) OpenCV ``cam_from_world`` (KITTI poses inverted, DGP world poses, or
 :func:`aias_augment.scenes.video.estimate_video_motion`).
 """
@@ -40,7 +44,8 @@ from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.assets.asset import Asset
 from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, project_points, transform_points
 from aias_augment.core.report import skipped
-from aias_augment.plan.collision import OrientedBox, boxes_intersect
+from aias_augment.pipeline.clip_motion import first_collision, object_boxes_in_world, travel_m
+from aias_augment.pipeline.clip_motion import topple as fall
 from aias_augment.plan.placement import (
     PlacementConfig,
     box_of_points,
@@ -236,25 +241,12 @@ def plan_clip(
     layer_params: dict | None = None,
 ) -> ClipPlan:
     """Plan one object for the whole clip (see the module docstring and :func:`insert_into_clip`): every draw from
-    ``rng`` happens here."""
+    ``rng`` happens here (in this order: contact, yaw, local refit, fall, flow tracking)."""
     poses = np.asarray(cams_from_world, dtype=np.float64)
     n = len(frames)
-    if poses.shape != (n, 4, 4):
-        raise ValueError(f"need one 4x4 cam_from_world per frame: {n} frames, poses {poses.shape}")
-    for T in poses:
-        check_rigid(T, "cam_from_world")
-    if depths is not None and len(depths) != n:
-        raise ValueError(f"{len(depths)} depth maps for {n} frames")
-    if lighting is not None and len(lighting) != n:
-        raise ValueError(f"{len(lighting)} lighting estimates for {n} frames")
-    if not 0 <= start < n:
-        raise ValueError(f"start {start} outside the clip of {n} frames")
-    for f in frames:
-        if np.asarray(f).shape != (intrinsics.height, intrinsics.width, 3) or np.asarray(f).dtype != np.uint8:
-            raise ValueError("frames must be (H, W, 3) uint8 matching the intrinsics")
+    _check_clip(frames, intrinsics, poses, depths, lighting, start)
     mods: dict[str, str] = {}
     contact_w, world_ground = choose_world_contact(poses, ground_in_cam0, intrinsics, rng, cfg, start)
-    up_w = world_ground.normal
     yaw = float(rng.uniform(-np.pi, np.pi)) if yaw_rad is None else float(yaw_rad)
     scale = 1.0 if cfg.height_m is None else cfg.height_m / max(asset.height_m, 1e-9)  # eps: degenerate asset
     obj = asset.scaled(scale) if scale != 1.0 else asset
@@ -266,35 +258,9 @@ def plan_clip(
         ]
     )
     steps = travel_m(n, start, cfg)
-
-    # Per-frame local ground refit around the projected contact: signed offset of the local ground along up.
-    offsets: list[float | None] = [None] * n
-    if depths is not None and cfg.local_refit:
-        refit_rng = rng.spawn(1)[0]
-        for i in range(n):
-            if depths[i] is None:
-                continue
-            g_i = world_ground.transformed(poses[i])
-            c_i = transform_points(poses[i], contact_w + steps[i] * heading_w)
-            if c_i[2] <= 0.5:
-                continue
-            band = ground_band_points(
-                g_i, intrinsics, refit_rng, depth=np.asarray(depths[i], np.float32), cfg=cfg.placement_cfg
-            )
-            try:
-                local, _ = refit_local_ground(band, g_i, c_i, refit_rng, cfg.placement_cfg)
-            except GroundFitError:
-                continue
-            offsets[i] = -float(local.signed_distance(c_i))  # > 0: the measured ground is above the contact
-        measured = [o for o in offsets if o is not None]
-        if measured:
-            shift = float(np.median(measured))
-            contact_w = contact_w + shift * up_w
-            mods["refit"] = f"local ground in {len(measured)}/{n} frames, median offset {shift * 100:.1f} cm applied"
-        else:
-            mods["refit"] = "no frame had a local ground around the contact: plane of the first frame kept"
-    else:
-        mods["refit"] = skipped("no depth (or disabled); plane of the first frame")
+    contact_w, offsets, mods["refit"] = _refit_contact(
+        contact_w, world_ground, heading_w * steps[:, None], poses, intrinsics, depths, rng, cfg
+    )
 
     # One world pose: object z = world up, yaw about it (reference axis: first camera's x on the ground).
     cam0_from_obj = object_pose_on_ground(
@@ -306,14 +272,9 @@ def plan_clip(
     object_from_frame = [np.eye(4)] * n
     topple = None
     if cfg.topple_frames:
-        frame_assets, object_from_frame, topple = _topple(obj, n, cfg, rng)
-        note = (
-            f"knocked over towards {np.degrees(topple['azimuth']):.0f} deg of its x axis: falls from frame "
-            f"{topple['start']}, lies on its side ({np.degrees(topple['rest_angle']):.0f} deg) from frame "
-            f"{topple['start'] + topple['frames']}"
-        )
+        frame_assets, object_from_frame, topple = fall(obj, n, cfg, rng)
         contacts_w = np.array([contact_w + world_from_object[:3, :3] @ T[:3, 3] for T in object_from_frame])
-        mods["motion"] = note
+        mods["motion"] = _motion_note(cfg, topple)
     if cfg.speed_m_per_frame == 0 and not cfg.topple_frames:
         track_uv, visible = project_world_point_track(contact_w, intrinsics, poses)
     else:
@@ -321,33 +282,8 @@ def plan_clip(
         track_uv = np.concatenate([uv for uv, _ in tracks])
         visible = np.concatenate([v for _, v in tracks])
     if cfg.speed_m_per_frame:
-        mods["motion"] = f"moving {cfg.speed_m_per_frame:.3f} m per frame along its heading" + (
-            f", standing {cfg.move_after_frames} frames, then reaching that speed over {cfg.accelerate_frames}"
-            if cfg.move_after_frames or cfg.accelerate_frames
-            else ""
-        )
-
-    if lighting is None:
-        E = np.asarray(ExposureMatch.from_image(frames[start]).irradiance_rgb)
-        sh = np.zeros((9, 3))
-        sh[0] = E / (np.pi * 0.886227)  # constant SH radiance L00 Y00 has irradiance pi * 0.886227 * L00
-        light0 = LightingEstimate(
-            None, np.zeros(3), sh, 0.0, False, 0.0, "none", world_ground.transformed(poses[start]).normal
-        )
-        lights = [light0] * n
-        mods["lighting"] = "uniform grey-world ambient of the first frame (no sun)"
-    else:
-        lights = list(lighting)
-        mods["lighting"] = f"given per frame ({lights[start].source})"
-    if cfg.shadow:
-        method = cfg.stages.shadow_method if cfg.stages else "catcher"
-        mods["shadow"] = (
-            f"shadow {method} per frame (one world pose, one sun, confidence {lights[start].confidence:.2f})"
-            if lights[start].dominant_sun
-            else "contact occlusion only: no dominant sun"
-        )
-    else:
-        mods["shadow"] = skipped("disabled")
+        mods["motion"] = _motion_note(cfg, None)
+    lights, mods["lighting"], mods["shadow"] = _clip_lights(frames, lighting, world_ground, poses, start, cfg)
     grounds = [world_ground.transformed(T) for T in poses]
     flow = None
     if cfg.flow_refine:
@@ -358,21 +294,13 @@ def plan_clip(
         mods["stabilize"] = f"KLT ground tracking: contact corrected in {used}/{n - 1} frames"
     else:
         mods["stabilize"] = skipped("poses trusted (flow_refine off)")
-    cams_from_object, worlds_from_object = [], []
-    for i in range(n):
-        world_from_object_i = world_from_object @ object_from_frame[i]
+    # the object's pose in each frame: turned as it falls, moved along its heading
+    worlds_from_object = [world_from_object @ object_from_frame[i] for i in range(n)]
+    for i, world_from_object_i in enumerate(worlds_from_object):
         world_from_object_i[:3, 3] += steps[i] * heading_w
-        worlds_from_object.append(world_from_object_i)
-        cam_from_object = poses[i] @ world_from_object_i
-        if flow is not None and flow.status[i] == "flow":
-            cam_from_object = refined_cam_from_object(
-                cam_from_object, transform_points(poses[i], contact_w), flow.uv[i], grounds[i], intrinsics
-            )
-        uvc, z = project_points(transform_points(cam_from_object, (frame_assets[i] or obj).corners_m()), intrinsics.K)
-        in_front = not np.any(z <= 0.05) and np.all(np.isfinite(uvc))
-        b = box_of_points(uvc) if in_front else None
-        on_frame = b is not None and b[2] >= 0 and b[3] >= 0 and b[0] <= intrinsics.width and b[1] <= intrinsics.height
-        cams_from_object.append(cam_from_object if on_frame else None)
+    cams_from_object = _cams_from_object(
+        worlds_from_object, poses, [a or obj for a in frame_assets], intrinsics, flow, contact_w, grounds
+    )
     if layer_params:
         mods["layers"] = ", ".join(f"{k} {v}" for k, v in layer_params.items())
     if flow is not None:  # the contact track the frames are rendered with
@@ -397,80 +325,115 @@ def plan_clip(
     )
 
 
-def travel_m(n: int, start: int, cfg: VideoInsertionConfig) -> np.ndarray:
-    """(n,) metres the object has gone along its heading in each frame, from where it is at frame ``start``: at its
-    speed throughout, or standing for ``move_after_frames`` and then speeding up from rest over
-    ``accelerate_frames`` (distance a k^2 / 2 with a = speed / frames, then speed per frame)."""
-    v, wait, ramp = cfg.speed_m_per_frame, cfg.move_after_frames, cfg.accelerate_frames
-    k = np.arange(n, dtype=np.float64) - start
-    if not wait and not ramp:
-        return k * v
-    k = np.clip(k - wait, 0.0, None)
-    if not ramp:
-        return k * v
-    return np.where(k <= ramp, 0.5 * v / ramp * k**2, 0.5 * v * ramp + v * (k - ramp))
+def _motion_note(cfg: VideoInsertionConfig, topple: dict | None) -> str:
+    """What the plan's ``motion`` note says: how the object falls (``topple``), or how it moves."""
+    if topple is not None:
+        return (
+            f"knocked over towards {np.degrees(topple['azimuth']):.0f} deg of its x axis: falls from frame "
+            f"{topple['start']}, lies on its side ({np.degrees(topple['rest_angle']):.0f} deg) from frame "
+            f"{topple['start'] + topple['frames']}"
+        )
+    return f"moving {cfg.speed_m_per_frame:.3f} m per frame along its heading" + (
+        f", standing {cfg.move_after_frames} frames, then reaching that speed over {cfg.accelerate_frames}"
+        if cfg.move_after_frames or cfg.accelerate_frames
+        else ""
+    )
 
 
-def _topple(obj: Asset, n: int, cfg: VideoInsertionConfig, rng: np.random.Generator):
-    """Per frame the toppling object's asset (None before the fall) and ``object_from_frame`` (where that asset's
-    origin lies in the upright object's frame), and the fall's record. The angle grows as t^2 (a constant angular
-    acceleration from rest) over ``cfg.topple_frames`` frames up to the rest angle, and stays there."""
-    from aias_augment.assets.deform import fall_segments, tipped
+def _check_clip(frames, intrinsics: Intrinsics, poses: np.ndarray, depths, lighting, start: int) -> None:
+    """One rigid 4x4 pose, depth map and lighting estimate per frame, frames (H, W, 3) uint8 of the intrinsics' size,
+    ``start`` inside the clip: ``ValueError`` naming the first problem."""
+    n = len(frames)
+    if poses.shape != (n, 4, 4):
+        raise ValueError(f"need one 4x4 cam_from_world per frame: {n} frames, poses {poses.shape}")
+    for T in poses:
+        check_rigid(T, "cam_from_world")
+    if depths is not None and len(depths) != n:
+        raise ValueError(f"{len(depths)} depth maps for {n} frames")
+    if lighting is not None and len(lighting) != n:
+        raise ValueError(f"{len(lighting)} lighting estimates for {n} frames")
+    if not 0 <= start < n:
+        raise ValueError(f"start {start} outside the clip of {n} frames")
+    for f in frames:
+        if np.asarray(f).shape != (intrinsics.height, intrinsics.width, 3) or np.asarray(f).dtype != np.uint8:
+            raise ValueError("frames must be (H, W, 3) uint8 matching the intrinsics")
 
-    frames = cfg.topple_frames
-    if frames >= n:
-        raise ValueError(f"topple_frames {frames} must be shorter than the clip ({n} frames)")
-    start = int(rng.integers(0, n - frames)) if cfg.topple_start is None else cfg.topple_start
-    if start + frames >= n:
-        raise ValueError(f"the fall from frame {start} over {frames} frames does not end in the clip of {n}")
-    azimuth = float(rng.uniform(-np.pi, np.pi))
-    fall = fall_segments(obj, azimuth)
-    rest = float(sum(t for _, t in fall[2]))
-    assets: list[Asset | None] = [None] * n
-    poses = [np.eye(4)] * n
-    landed = None
-    for i in range(start + 1, n):
-        t = min((i - start) / frames, 1.0)
-        if t == 1.0 and landed is not None:
-            assets[i], poses[i] = landed
+
+def _refit_contact(contact_w, world_ground, travel_w, poses, intrinsics, depths, rng, cfg: VideoInsertionConfig):
+    """(contact, per-frame offsets, note): per frame with a depth map, the ground re-fitted locally around the
+    projected contact (``travel_w``: (N, 3) how far the object has gone in each frame) and its signed offset along
+    the world up; the median of those offsets moves the ONE world contact (per-frame poses would jitter)."""
+    n = len(poses)
+    offsets: list[float | None] = [None] * n
+    if depths is None or not cfg.local_refit:
+        return contact_w, offsets, skipped("no depth (or disabled); plane of the first frame")
+    refit_rng = rng.spawn(1)[0]
+    for i in range(n):
+        if depths[i] is None:
             continue
-        tipped_obj, origin = tipped(obj, azimuth, rest * t * t, fall)
-        T = np.eye(4)
-        T[:3, 3] = origin
-        assets[i], poses[i] = tipped_obj, T
-        if t == 1.0:
-            landed = (tipped_obj, T)
-    fall = {
-        "start": start,
-        "frames": frames,
-        "azimuth": assets[-1].meta["tipped"]["azimuth"],  # the base edge it tips over
-        "rest_angle": rest,
-    }
-    return assets, poses, fall
+        g_i = world_ground.transformed(poses[i])
+        c_i = transform_points(poses[i], contact_w + travel_w[i])
+        if c_i[2] <= 0.5:
+            continue
+        band = ground_band_points(
+            g_i, intrinsics, refit_rng, depth=np.asarray(depths[i], np.float32), cfg=cfg.placement_cfg
+        )
+        try:
+            local, _ = refit_local_ground(band, g_i, c_i, refit_rng, cfg.placement_cfg)
+        except GroundFitError:
+            continue
+        offsets[i] = -float(local.signed_distance(c_i))  # > 0: the measured ground is above the contact
+    measured = [o for o in offsets if o is not None]
+    if not measured:
+        return contact_w, offsets, "no frame had a local ground around the contact: plane of the first frame kept"
+    shift = float(np.median(measured))
+    note = f"local ground in {len(measured)}/{n} frames, median offset {shift * 100:.1f} cm applied"
+    return contact_w + shift * world_ground.normal, offsets, note
 
 
-def object_boxes_in_world(plan: ClipPlan) -> list[OrientedBox]:
-    """The object's bounding box in the world in every frame of the clip (as it moves or falls), whether or not a
-    camera sees it there: objects share the world, not the frame."""
-    boxes = []
-    for i, world_from_object in enumerate(plan.worlds_from_object):
-        lo, hi = plan.asset_at(i).bounds_m
-        T = world_from_object.copy()
-        T[:3, 3] += T[:3, :3] @ ((lo + hi) / 2)
-        boxes.append(OrientedBox(T, tuple(hi - lo)))
-    return boxes
+def _clip_lights(frames, lighting, world_ground, poses, start: int, cfg: VideoInsertionConfig):
+    """(per-frame lighting, lighting note, shadow note): the estimates given, or a uniform grey-world ambient of
+    frame ``start`` in every frame."""
+    n = len(frames)
+    if lighting is None:
+        E = np.asarray(ExposureMatch.from_image(frames[start]).irradiance_rgb)
+        sh = np.zeros((9, 3))
+        sh[0] = E / (np.pi * 0.886227)  # constant SH radiance L00 Y00 has irradiance pi * 0.886227 * L00
+        light0 = LightingEstimate(
+            None, np.zeros(3), sh, 0.0, False, 0.0, "none", world_ground.transformed(poses[start]).normal
+        )
+        lights = [light0] * n
+        light_note = "uniform grey-world ambient of the first frame (no sun)"
+    else:
+        lights = list(lighting)
+        light_note = f"given per frame ({lights[start].source})"
+    if not cfg.shadow:
+        return lights, light_note, skipped("disabled")
+    method = cfg.stages.shadow_method if cfg.stages else "catcher"
+    shadow_note = (
+        f"shadow {method} per frame (one world pose, one sun, confidence {lights[start].confidence:.2f})"
+        if lights[start].dominant_sun
+        else "contact occlusion only: no dominant sun"
+    )
+    return lights, light_note, shadow_note
 
 
-def first_collision(a: ClipPlan, b: ClipPlan, margin_m: float = 0.1) -> int | None:
-    """The first frame in which the two planned objects' boxes, each inflated by ``margin_m``, intersect (exact
-    separating-axis test), or None when they stay apart through the whole clip."""
-    boxes_a, boxes_b = object_boxes_in_world(a), object_boxes_in_world(b)
-    if len(boxes_a) != len(boxes_b):
-        raise ValueError(f"plans of clips of {len(boxes_a)} and {len(boxes_b)} frames")
-    for i, (ba, bb) in enumerate(zip(boxes_a, boxes_b)):
-        if boxes_intersect(ba, bb, margin_m):
-            return i
-    return None
+def _cams_from_object(worlds_from_object, poses, assets, intrinsics: Intrinsics, flow, contact_w, grounds) -> list:
+    """Per frame the object's camera pose (slid on its ground to the tracked contact where flow tracking held), or
+    None where it is behind the camera or off the frame."""
+    cams = []
+    for i, world_from_object_i in enumerate(worlds_from_object):
+        cam_from_object = poses[i] @ world_from_object_i
+        if flow is not None and flow.status[i] == "flow":
+            cam_from_object = refined_cam_from_object(
+                cam_from_object, transform_points(poses[i], contact_w), flow.uv[i], grounds[i], intrinsics
+            )
+        uvc, z = project_points(transform_points(cam_from_object, assets[i].corners_m()), intrinsics.K)
+        in_front = not np.any(z <= 0.05) and np.all(np.isfinite(uvc))
+        b = box_of_points(uvc) if in_front else None
+        on_frame = b is not None and b[2] >= 0 and b[3] >= 0 and b[0] <= intrinsics.width and b[1] <= intrinsics.height
+        cams.append(cam_from_object if on_frame else None)
+    return cams
 
 
 def apply_clip(

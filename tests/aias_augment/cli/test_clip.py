@@ -223,7 +223,8 @@ def test_objects_that_would_stand_in_one_spot_are_drawn_apart(tmp_path):
     second is redrawn further from the path until the two footprints are apart, and the record says how many draws
     it took. Truth by hand: the contacts' distance on the ground exceeds the two bases' half-widths. (Under the camera
     neither is in view: the plans are read before the command refuses to write such a clip.)"""
-    from aias_augment.cli.clip import COLLISION_STEP_M, read_clip_inputs, render_clip
+    from aias_augment.cli.clip import read_clip_inputs, render_clip
+    from aias_augment.pipeline.clip_objects import COLLISION_STEP_M
 
     if not SEQ.exists():
         pytest.skip("shared KITTI data not available")
