@@ -395,11 +395,21 @@ def _cmd_reconstruct(a) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """``aias-assets`` and its commands: the catalog's (import, list, show, thumbnails), your labels'
+    (from-labels, box-convention) and new meshes' (deform, reconstruct)."""
     p = _Parser(prog="aias-assets", description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--cache-dir", type=Path, default=None, help=f"default $AIAS_CACHE or {default_cache_dir()}")
     p.add_argument("-v", "--verbose", action="store_true", help="the same as --log-level INFO")
     sub = p.add_subparsers(dest="cmd", required=True)
+    _add_catalog_commands(sub)
+    _add_label_commands(sub)
+    _add_mesh_commands(sub)
+    add_logging_args(p, default="ERROR", subcommands=sub.choices.values())
+    return p
+
+
+def _add_catalog_commands(sub) -> None:
     s = sub.add_parser("import", help="import, validate and cache every source; writes the catalog")
     s.add_argument("--sh3f-dir", type=Path, default=DEFAULT_SH3F_DIR)
     s.add_argument("--gazebo-dir", type=Path, default=None, help="default $AIAS_DATA/meshes/gazebo_models")
@@ -420,6 +430,9 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--limit", type=_int_in(1, 2000), default=120)
     s.add_argument("--size", type=_int_in(16, 512), default=160)
     s.add_argument("--columns", type=_int_in(1, 64), default=10)
+
+
+def _add_label_commands(sub) -> None:
     s = sub.add_parser("from-labels", help="lift your own labelled instances of one class into insertable assets")
     src = s.add_mutually_exclusive_group(required=True)
     src.add_argument("--yolo", help="folder of images with YOLO txt labels (labels/ beside images/)")
@@ -448,6 +461,9 @@ def main(argv: list[str] | None = None) -> int:
     s.add_argument("--label", required=True, help="the label whose boxes are measured (e.g. cone)")
     s.add_argument("--out", type=Path, required=True, help="JSON: box_convention [left, top, right, bottom]")
     s.add_argument("--min-box-px", type=_int_in(4, 100_000), default=24, help="smaller boxes are not measured")
+
+
+def _add_mesh_commands(sub) -> None:
     s = sub.add_parser("deform", help="seeded dented, crushed, bent or knocked-over variants of a mesh into a bank")
     s.add_argument("--category", required=True, help="the category (its default mesh unless --asset)")
     s.add_argument("--asset", default=None, help="a mesh file or gazebo model folder to deform")
@@ -495,7 +511,10 @@ def main(argv: list[str] | None = None) -> int:
         help="move the hull inward where the views agree on the texture (photo-consistency; slower, helps "
         "textured concave objects: studies/assets/refinement/result/refinement.md)",
     )
-    add_logging_args(p, default="ERROR", subcommands=sub.choices.values())
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = build_parser()
     a = p.parse_args(argv)
     if a.cmd in ("from-labels", "box-convention") and a.input and not a.images:
         p.error("--input needs --images")
