@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from aias_augment.core.errors import AiasError, InputError
-from aias_augment.core.image_io import DEFAULT_MAX_PIXELS, ImageReadError, read_image_with_notes
+from aias_augment.core.image_io import DEFAULT_MAX_PIXELS, ImageReadError, image_size, read_image_with_notes
 
 IMAGE_SKIP_KINDS = (
     "unreadable image",
@@ -201,11 +201,12 @@ def check_output_record(rec: dict, out_dir: Path) -> list[str]:
     p = out_dir / "images" / rec["file_name"]
     if not p.is_file():
         return [f"image file {p.name} missing"]
-    from PIL import Image
-
-    with Image.open(p) as im:
-        if im.size != (rec["width"], rec["height"]):
-            errs.append(f"image is {im.size[0]}x{im.size[1]}, record says {rec['width']}x{rec['height']}")
+    try:
+        size = image_size(p)
+    except ImageReadError as e:
+        return [f"image file {p.name}: {e.kind}: {e.reason}"]
+    if size != (rec["width"], rec["height"]):
+        errs.append(f"image is {size[0]}x{size[1]}, record says {rec['width']}x{rec['height']}")
     W, H = rec["width"], rec["height"]
     eps = 1e-6
     for b in rec["boxes"]:

@@ -106,3 +106,15 @@ def test_a_truncated_jpeg_is_the_readers_error_everywhere(tmp_path):
         with pytest.raises(CorruptImage) as e:
             read(p)
         assert isinstance(e.value, AiasError) and "cut.jpg" in str(e.value) and "\n" not in str(e.value), name
+
+
+def test_output_check_reads_sizes_with_the_reader(tmp_path):
+    from aias_augment.adapters.boundary import check_output_record
+
+    (tmp_path / "images").mkdir()
+    rec = {"file_name": "a.jpg", "width": 48, "height": 80, "boxes": [], "labels": [], "inserted": []}
+    _save(tmp_path / "images" / "a.jpg", _picture(), 6, quality=95)  # displayed 48 x 80
+    assert check_output_record(rec, tmp_path) == []
+    (tmp_path / "images" / "a.jpg").write_bytes(b"not an image")
+    (err,) = check_output_record(rec, tmp_path)  # one line, no traceback
+    assert err.startswith("image file a.jpg: corrupt image: ") and "\n" not in err
