@@ -9,14 +9,17 @@ Arms (all share the seeded thinning of the real cones, so seed k of every arm st
 
 Augmented sets are generated offline once per arm and seed (rendering is slow on CPU) and cached as YOLO-txt folders
 under ``cache_dir``; the copy of image i under seed k uses ``default_rng([seed, i])`` in every arm, so arms differ
-only in the stage switches. Every run writes its metrics JSON; the summary is a markdown table with mean and 95%
+only in the stage switches. The summary is a markdown table with mean and 95%
 t-interval per arm, paired differences to ``original``, and a plot.
 
-    aias-study --config configs/study/tracon_cones.yaml                       # core: original, inserted, naive paste
-    aias-study --config configs/study/tracon_cones_ablations.yaml             # ablation arms
+    aias-study --config studies/detection/core/config.yaml                    # the core table
     aias-study --config ... --stage generate | train | summarize              # one stage only
+    python -m studies.detection.core --stage summarize                        # the same through the study's folder
+
+Every run writes its metrics JSON under ``runs_dir/metrics`` while it trains; the summarize stage folds them into the
+table's ``results_dir/runs.jsonl`` (one line per run) and writes the table, plots and ``run.json`` beside it.
 
 Modules: :mod:`.config` (what a study runs), :mod:`.arms` (the arms, one table), :mod:`.splits` (dev split,
 thinned subset), :mod:`.pools` (inserted images per arm), :mod:`.runs` (train and score one run), :mod:`.report`
-(tables, plots), :mod:`.cli` (``aias-study``, ``python -m detection_eval.study``).
+(tables, plots), :mod:`.run_table` (the runs.jsonl of a table), :mod:`.cli` (``aias-study``, ``python -m detection_eval.study``).
 """

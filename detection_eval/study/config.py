@@ -47,7 +47,7 @@ class StudyConfig:
     insertion: InsertionStudyConfig = field(default_factory=InsertionStudyConfig)
     cache_dir: str = "out/study/cache"
     runs_dir: str = "runs/study"  # weights (not committed)
-    results_dir: str = "results/study"  # metrics, table, plot (committed)
+    results_dir: str = "out/study/result"  # runs.jsonl, table, plots, run.json (a study commits its own result/)
     reference_arm: str = "original"
     # A development split carved out of train before anything else (fixed draw, seed ``dev_seed``): no arm trains on
     # it, every run is scored on it beside val, and settings are chosen on it, never on val.
@@ -80,9 +80,12 @@ def dataset_root(cfg: StudyConfig) -> Path:
 
 
 def load_study_config(path: str | Path) -> StudyConfig:
-    """Load a study config (its ``_base_`` files merged under it: :mod:`detection_eval.inherit`); a bare name is
-    looked up in ``configs/study/``."""
+    """Load a study config (its ``_base_`` files merged under it: :mod:`detection_eval.inherit`); a relative path
+    not found from the working folder is taken from the repository root (``studies/detection/core/config.yaml``);
+    a bare name is looked up in ``configs/study/``."""
     p = Path(path)
+    if not p.exists() and not p.is_absolute() and (REPO_ROOT / p).exists():
+        p = REPO_ROOT / p
     if not p.exists() and not p.suffix:
         p = CONFIG_DIR / "study" / f"{path}.yaml"
     if not p.exists():

@@ -12,10 +12,20 @@ import numpy as np
 from detection_eval.data import DetectionSet
 from detection_eval.study.arms import ARM_FLAGS, PER_SEED_ARMS, uses_pool
 from detection_eval.study.config import StudyConfig, repo_path
+from detection_eval.study.run_table import RUNS_FILE, collect_runs, metrics_dir, write_run_record
 from detection_eval.study.runs import nan_to_none
 from detection_eval.study.splits import real_box_height_fractions
 
 log = logging.getLogger("detection_eval.study")
+
+
+MAX_PICTURE_SIDE = 1600
+
+
+def save_figure(fig, path: Path, dpi: int = 120) -> None:
+    """The figure as a JPEG (quality 90) of at most :data:`MAX_PICTURE_SIDE` pixels on its longer side."""
+    dpi = min(dpi, MAX_PICTURE_SIDE / max(fig.get_size_inches()))
+    fig.savefig(path, dpi=dpi, pil_kwargs={"quality": 90})
 
 
 def mean_ci95(values) -> tuple[float, float]:
@@ -130,7 +140,7 @@ def plot_summary(rows: list[dict], path: Path, reference: str = "original") -> N
         ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
 
 
@@ -181,7 +191,7 @@ def plot_amounts(rows: list[dict], path: Path, reference: str = "original") -> b
     ax.legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
     return True
 
@@ -225,7 +235,7 @@ def plot_size_histograms(cfg: StudyConfig, train: DetectionSet, val: DetectionSe
     ax.legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
     return {k: float(np.median(v)) for k, v in series.items() if len(v)}
 
@@ -234,14 +244,14 @@ def write_summary(
     cfg: StudyConfig, config_path: str, command: str, train: DetectionSet | None = None, val: DetectionSet | None = None
 ) -> str:
     results = repo_path(cfg.results_dir)
-    rows = [json.loads(p.read_text()) for p in sorted((results / "run_metrics").glob("*.json"))]
-    rows = [r for r in rows if r["arm"] in ARM_FLAGS]
+    all_rows = collect_runs(cfg)
+    rows = [r for r in all_rows if r["arm"] in ARM_FLAGS]
     if not rows:
-        raise FileNotFoundError(f"no run results under {results / 'run_metrics'}")
+        raise FileNotFoundError(f"no run results in {results / RUNS_FILE} or {metrics_dir(cfg)}")
     order = {a: i for i, a in enumerate(ARM_FLAGS)}
     rows.sort(key=lambda r: (order[r["arm"]], r.get("amount") or 0, r["seed"]))
     table, summary = summarize(rows, cfg.reference_arm)
-    plot_summary(rows, results / "ap_by_arm.png", cfg.reference_arm)
+    plot_summary(rows, results / "ap_by_arm.jpg", cfg.reference_arm)
     r0 = rows[0]
     gen = {}
     for a in dict.fromkeys(r["arm"] for r in rows):
@@ -274,18 +284,19 @@ def write_summary(
     md = (
         f"# Detection study: TraCon cones\n\nReproduce: `aias-study --config {config_path}` (generate, train, "
         f"summarize); this table was written by `{command}`.\n\n{note}\n{table}\n"
-        f"![AP by arm](ap_by_arm.png)\n"
+        f"![AP by arm](ap_by_arm.jpg)\n"
     )
-    if plot_amounts(rows, results / "ap_by_amount.png", cfg.reference_arm):
-        md += "\n![gain by amount of inserted data](ap_by_amount.png)\n"
+    if plot_amounts(rows, results / "ap_by_amount.jpg", cfg.reference_arm):
+        md += "\n![gain by amount of inserted data](ap_by_amount.jpg)\n"
     if train is not None and val is not None:
-        medians = plot_size_histograms(cfg, train, val, results / "size_histograms.png")
+        medians = plot_size_histograms(cfg, train, val, results / "size_histograms.jpg")
         md += (
             "\nObject sizes (median box height / image height): "
             + ", ".join(f"{k} {v:.3f}" for k, v in medians.items())
-            + "\n\n![sizes](size_histograms.png)\n"
+            + "\n\n![sizes](size_histograms.jpg)\n"
         )
     (results / "table.md").write_text(md)
+    write_run_record(cfg, config_path, command, all_rows)
     (results / "summary.json").write_text(
         json.dumps(
             nan_to_none(

@@ -23,6 +23,7 @@ from detection_eval.study.arms import (
 )
 from detection_eval.study.config import StudyConfig, repo_path
 from detection_eval.study.pools import generate_arm_set, git_head, run_environment
+from detection_eval.study.run_table import RUNS_FILE, finished_run, metrics_dir
 from detection_eval.study.splits import pool_share, thin_cone_images
 
 log = logging.getLogger("detection_eval.study")
@@ -117,10 +118,11 @@ def run_one(
 ):
     amount = None if not uses_pool(arm) else (cfg.amounts[0] if amount is None else amount)
     name = run_name(arm, seed, amount)
-    result_path = repo_path(cfg.results_dir) / "run_metrics" / f"{name}.json"
-    if result_path.exists() and not force:
-        log.info("%s: result exists (%s), skipping", name, result_path)
-        return json.loads(result_path.read_text())
+    result_path = metrics_dir(cfg) / f"{name}.json"
+    done = None if force else finished_run(cfg, name)
+    if done is not None:
+        log.info("%s: result exists (%s or %s), skipping", name, result_path, repo_path(cfg.results_dir) / RUNS_FILE)
+        return done
     claim = claim_run(result_path)
     if claim is None:
         log.info("%s: being trained by another process, skipping", name)

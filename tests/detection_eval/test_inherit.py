@@ -71,18 +71,20 @@ def _effective(cfg) -> dict:
 
 
 STUDY_CONFIGS = {
-    "tracon_cones": "configs/study/tracon_cones.yaml",
-    "tracon_cones_ablations": "configs/study/tracon_cones_ablations.yaml",
-    "tracon_cones_amounts": "configs/study/tracon_cones_amounts.yaml",
-    "tracon_cones_closeup": "configs/study/tracon_cones_closeup.yaml",
-    "tracon_cones_online": "configs/study/tracon_cones_online.yaml",
-    "tracon_cones_procedural": "configs/study/tracon_cones_procedural.yaml",
-    "tracon_cones_core": "configs/study/tracon_cones_core.yaml",
-    "tracon_cones_probe": "configs/study/tracon_cones_probe.yaml",
-    "tracon_cones_probe_n200": "configs/study/tracon_cones_probe_n200.yaml",
+    "tracon_cones": "studies/detection/lite0_320/config.yaml",
+    "tracon_cones_ablations": "studies/detection/lite0_320/ablations.yaml",
+    "tracon_cones_amounts": "studies/detection/lite0_320/amounts.yaml",
+    "tracon_cones_closeup": "studies/detection/lite0_320/closeup.yaml",
+    "tracon_cones_online": "studies/detection/lite0_320/online.yaml",
+    "tracon_cones_procedural": "studies/detection/lite0_320/procedural.yaml",
+    "tracon_cones_core": "studies/detection/core/config.yaml",
+    "tracon_cones_probe": "studies/detection/probe/config.yaml",
+    "tracon_cones_probe_n200": "studies/detection/probe_n200/config.yaml",
 }
-# Where each table's results are read and written now (the fixture holds the flat configs' values).
-RESULTS_DIRS: dict[str, str] = {}
+
+
+def _study_folder(path: str) -> str:
+    return path.rsplit("/", 1)[0] + "/result"
 
 
 def test_shipped_configs_inherit_and_keep_their_effective_values():
@@ -94,7 +96,7 @@ def test_shipped_configs_inherit_and_keep_their_effective_values():
         text = (REPO / path).read_text()
         assert "_base_" in text, path
         now = _effective(load_study_config(REPO / path))
-        want = dict(before["study"][name], results_dir=RESULTS_DIRS.get(name, before["study"][name]["results_dir"]))
+        want = dict(before["study"][name], results_dir=_study_folder(path))
         assert now == want, path
     for name, want in before["detector"].items():
         assert _effective(load_detector_config(REPO / "configs" / "detector" / f"{name}.yaml")) == want, name

@@ -35,7 +35,7 @@ REALISM = {
     "accurate": None,
 }
 STUDY = {
-    "fast": ("results/study/summary.json", ("inserted n=60", "inserted_online")),
+    "fast": ("studies/detection/lite0_320/result/summary.json", ("inserted n=60", "inserted_online")),
     "balanced": None,
     "accurate": None,
 }

@@ -6,7 +6,7 @@
     # 2. the report: studies/realism/arms/result/report.md, report.json, contact_sheet.jpg
     taskset -c 0 python -m studies.realism.arms report
 
-Pools are the study's generation (``detection_eval.study.pools.generate_arm_set``: configs/study/tracon_cones_ablations.yaml
+Pools are the study's generation (``detection_eval.study.pools.generate_arm_set``: studies/detection/lite0_320/ablations.yaml
 with its cache moved to ``--cache-dir`` and ``pool_size`` = N), so copy j of every arm has the same background and
 random stream. Every box of a pool image is inserted (the backgrounds are TraCon's empty road images).
 
@@ -41,7 +41,7 @@ from studies._shared.pictures import write_jpeg
 
 REPO = Path(__file__).resolve().parents[3]
 log = logging.getLogger("eval_realism")
-ABLATION_CONFIG = "configs/study/tracon_cones_ablations.yaml"
+ABLATION_CONFIG = "studies/detection/lite0_320/ablations.yaml"
 CONTROL = "control: same windows, backgrounds before insertion (no cone)"
 DEFAULT = "inserted, current default (A without anchor, F, W)"
 SHEET_ORDER = (

@@ -16,7 +16,7 @@ Photos: TraCon train + val images with cones that are road scenes (not stock sho
 ``eval_realism.is_stock_photo``), downscaled to the study's ``max_side_px`` (640), split by a seeded permutation
 into two disjoint halves. Half A gives the real reference (crops of its real cones); half B gives the backgrounds:
 each arm inserts 1-3 cones into each B photo with the study's ablation insertion config
-(``detection_eval.study.arms.insertion_config_for_arm``, configs/study/tracon_cones_ablations.yaml), the photo's real
+(``detection_eval.study.arms.insertion_config_for_arm``, studies/detection/lite0_320/ablations.yaml), the photo's real
 cone boxes passed as existing boxes; copy j uses ``default_rng([pool_seed, 7, j])`` in every arm (paired). Only the
 inserted boxes are cropped. No photo contributes to both classes of a test, so nothing leaks across folds.
 Floor: the real cones of the B photos against A (what a perfect inserter would score). Control: the full arm's crop
