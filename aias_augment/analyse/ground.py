@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aias_augment.core.errors import AiasError
 from aias_augment.core.geometry import (
     CAMERA_HEIGHT_PRIOR_M,
     MIN_DEPTH,
@@ -27,6 +26,7 @@ from aias_augment.core.geometry import (
     transform_points,
     unproject_points,
 )
+from aias_augment.core.plane_fit import GroundFitError, fit_plane
 
 __all__ = [
     "GroundFitError",
@@ -40,14 +40,6 @@ __all__ = [
 
 #: |n . r| below this (rays parallel to the plane, i.e. at the horizon) never hit the ground.
 RAY_PARALLEL_EPS = 1e-9
-#: A 3-point sample whose cross product is shorter than this (m^2) is degenerate (collinear) and skipped.
-DEGENERATE_AREA_EPS = 1e-9
-#: Points whose second singular value is below this fraction of the first are collinear (no unique plane).
-COLLINEAR_RATIO = 1e-6
-
-
-class GroundFitError(AiasError, ValueError):
-    """No trustworthy ground plane: too few points, collinear points, or no plane near the up direction."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,24 +190,6 @@ def prior_ground_plane(
     return GroundPlane(up, float(camera_height_m), "prior", assumed_scale=True)
 
 
-def _plane_from_svd(points: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-    """Least-squares plane through points (normal = smallest singular vector), oriented toward ``up``."""
-    centroid = points.mean(axis=0)
-    _, s, vt = np.linalg.svd(points - centroid, full_matrices=False)
-    n = vt[-1]
-    if n @ up < 0:
-        n = -n
-    return n, float(-n @ centroid), s
-
-
-def _check_not_collinear(points: np.ndarray) -> None:
-    if len(points) < 3:
-        raise GroundFitError(f"need at least 3 points to fit a plane, got {len(points)}")
-    _, s, _ = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
-    if s[0] < 1e-12 or s[1] < COLLINEAR_RATIO * s[0]:
-        raise GroundFitError(f"points are collinear or coincident (singular values {s.tolist()}): no unique plane")
-
-
 def fit_ground_plane(
     points_in_cam: np.ndarray,
     rng: np.random.Generator,
@@ -242,67 +216,21 @@ def fit_ground_plane(
 
     Raises GroundFitError on too few points, collinear points, or no plane near ``up_hint`` with ``min_inliers``.
     """
-    p = check_shape(np.asarray(points_in_cam, dtype=np.float64), (None, 3), "points_in_cam")
-    p = p[np.all(np.isfinite(p), axis=1)]
-    up = np.asarray(up_hint, dtype=np.float64).reshape(3)
-    up_len = np.linalg.norm(up)
-    if up_len < 1e-12:
-        raise ValueError("up_hint has zero length")
-    up = up / up_len
-    if not (0 < max_tilt_deg <= 90):
-        raise ValueError(f"max_tilt_deg must be in (0, 90], got {max_tilt_deg}")
-    if threshold_m <= 0 or iterations < 1:
-        raise ValueError(f"threshold_m must be > 0 and iterations >= 1, got {threshold_m}, {iterations}")
-    if local_center is not None:
-        if local_radius_m is None or local_radius_m <= 0:
-            raise ValueError("local_center needs a positive local_radius_m")
-        offset = p - np.asarray(local_center, dtype=np.float64).reshape(3)
-        horizontal = offset - (offset @ up)[:, None] * up
-        p = p[np.linalg.norm(horizontal, axis=1) < local_radius_m]
-    _check_not_collinear(p)
-    min_inliers = max(3, int(min_inliers))
-    cos_max_tilt = np.cos(np.deg2rad(max_tilt_deg))
-
-    score_pts = p if len(p) <= max_score_points else p[rng.choice(len(p), max_score_points, replace=False)]
-    # Vectorised RANSAC: all 3-point samples at once.
-    idx = np.stack([rng.choice(len(p), 3, replace=False) for _ in range(iterations)])
-    a, b, c = p[idx[:, 0]], p[idx[:, 1]], p[idx[:, 2]]
-    normals = np.cross(b - a, c - a)
-    area = np.linalg.norm(normals, axis=1)
-    ok = area > DEGENERATE_AREA_EPS
-    normals = normals / np.where(ok, area, 1.0)[:, None]
-    normals *= np.where(normals @ up < 0, -1.0, 1.0)[:, None]
-    ds = -np.einsum("ij,ij->i", normals, a)
-    ok &= (normals @ up >= cos_max_tilt) & (ds > 0)
-    if not np.any(ok):
-        raise GroundFitError(
-            f"no plane within {max_tilt_deg} deg of up {up.tolist()} below the origin among {iterations} samples "
-            f"of {len(p)} points"
-        )
-    normals, ds = normals[ok], ds[ok]
-    dist = np.abs(score_pts @ normals.T + ds)  # (M, K)
-    inl = dist < threshold_m
-    counts = inl.sum(axis=0)
-    # Tie-break equal counts by the smaller truncated residual (MSAC-like).
-    cost = np.where(inl, dist, threshold_m).sum(axis=0)
-    best = int(np.lexsort((cost, -counts))[0])
-    n, d = normals[best], ds[best]
-
-    for _ in range(3):  # refit on inliers, re-select inliers with the refined plane
-        inliers = np.abs(p @ n + d) < threshold_m
-        if inliers.sum() < min_inliers:
-            break
-        n_new, d_new, _ = _plane_from_svd(p[inliers], up)
-        if n_new @ up < cos_max_tilt or d_new <= 0:
-            break
-        n, d = n_new, d_new
-    residual = p @ n + d
-    inliers = np.abs(residual) < threshold_m
-    num_inliers = int(inliers.sum())
-    if num_inliers < min_inliers:
-        raise GroundFitError(f"best plane has {num_inliers} inliers < min_inliers={min_inliers}")
-    rms = float(np.sqrt(np.mean(residual[inliers] ** 2)))
-    return GroundPlane(n, d, source, inlier_ratio=num_inliers / len(p), rms_m=rms, num_inliers=num_inliers)
+    fit = fit_plane(
+        points_in_cam,
+        rng,
+        up_hint=up_hint,
+        max_tilt_deg=max_tilt_deg,
+        threshold_m=threshold_m,
+        iterations=iterations,
+        local_center=local_center,
+        local_radius_m=local_radius_m,
+        min_inliers=min_inliers,
+        max_score_points=max_score_points,
+    )
+    return GroundPlane(
+        fit.normal, fit.d, source, inlier_ratio=fit.inlier_ratio, rms_m=fit.rms_m, num_inliers=fit.num_inliers
+    )
 
 
 def depth_to_points(

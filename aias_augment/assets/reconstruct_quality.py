@@ -1,6 +1,6 @@
 """A reconstruction measures its own quality before it is filed; below the bounds it is refused, naming the views.
 
-- Silhouette agreement: the hull re-projected into every view (drawn by :mod:`aias_augment.apply.render`) against
+- Silhouette agreement: the hull re-projected into every view (drawn by the ``render`` callable passed in) against
   that view's mask, as an IoU over the pixels farther than one voxel from the mask's boundary (the hull's surface is
   within a voxel of the silhouettes' cones, so a band of that width is discretisation, not disagreement). Views that
   agree give 1.0: measured 0.999-1.0 on a cone and a box rendered into 12 posed views at 16, 32 and 128 voxels. One
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from aias_augment.assets.rendering import RenderObject
 from aias_augment.core.errors import AiasError
 
 __all__ = [
@@ -44,13 +45,12 @@ class ReconstructionRefused(AiasError, ValueError):
         self.reason, self.bad_views, self.measures = reason, tuple(bad_views), dict(measures or {})
 
 
-def silhouette_iou(hull, views, voxel_m: float) -> np.ndarray:
-    """(V,) IoU of ``hull`` (a trimesh in the views' object frame) drawn into each view against its mask, over the
+def silhouette_iou(hull, views, voxel_m: float, *, render: RenderObject) -> np.ndarray:
+    """(V,) IoU of ``hull`` (a trimesh in the views' object frame) drawn into each view by ``render`` against its mask, over the
     pixels farther than one voxel (``voxel_m`` projected at the hull's centre, at least a pixel) from the mask's
     boundary."""
     import trimesh
 
-    from aias_augment.apply.render import render_object
     from aias_augment.assets.asset import Asset
     from aias_augment.assets.view_masks import signed_distance_px as _signed_distance_px
 
@@ -59,7 +59,7 @@ def silhouette_iou(hull, views, voxel_m: float) -> np.ndarray:
     out = []
     for v in views:
         T = np.asarray(v.cam_from_object, float)
-        drawn = render_object(plain, T, v.intrinsics, ssaa=1, znear=0.01, zfar=1000.0, with_normals=False).alpha > 0.5
+        drawn = render(plain, T, v.intrinsics, ssaa=1, znear=0.01, zfar=1000.0, with_normals=False).alpha > 0.5
         mask = np.asarray(v.mask, bool)
         z = max(float((T[:3, :3] @ centre + T[:3, 3])[2]), 1e-6)
         band_px = max(1.0, voxel_m * v.intrinsics.fx / z)
@@ -87,7 +87,7 @@ def _worst(values: np.ndarray, idx, k: int = 6) -> str:
     return ", ".join(f"view {i} {values[i]:.2f}" for i in order) + more
 
 
-def check_hull(hull, views, voxel_m: float, cfg, agreement=None) -> dict:
+def check_hull(hull, views, voxel_m: float, cfg, *, render: RenderObject, agreement=None) -> dict:
     """The hull's quality measures (``min_view_iou``, ``view_spread_deg``); :class:`ReconstructionRefused` naming
     the views when the views do not surround the object (``cfg.min_view_spread_deg``) or a view's silhouette IoU is
     below ``cfg.min_view_iou``. ``agreement``: a callable giving each view's leave-one-out agreement
@@ -103,7 +103,7 @@ def check_hull(hull, views, voxel_m: float, cfg, agreement=None) -> dict:
             tuple(range(len(views))),
             {"view_spread_deg": spread},
         )
-    iou = silhouette_iou(hull, views, voxel_m)
+    iou = silhouette_iou(hull, views, voxel_m, render=render)
     bad = [i for i in range(len(views)) if iou[i] < cfg.min_view_iou]
     measures = {"min_view_iou": round(float(iou.min()), 4), "view_spread_deg": round(spread, 1)}
     if bad:

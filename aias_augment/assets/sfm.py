@@ -17,8 +17,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from aias_augment.analyse.ground import GroundFitError, fit_ground_plane
 from aias_augment.core.geometry import Intrinsics, invert_rigid
+from aias_augment.core.plane_fit import GroundFitError, fit_plane
 
 __all__ = ["SfmPoses", "estimate_poses", "ground_gauge"]
 
@@ -124,12 +124,14 @@ def ground_gauge(sfm: SfmPoses, look_at: np.ndarray, rng: np.random.Generator, o
     # them: the floor is the plane within 90 deg of it that holds the most points.
     eye = centres.mean(0)
     try:
-        plane = fit_ground_plane(
+        plane = fit_plane(
             around - eye, rng, up_hint=eye - look_at, max_tilt_deg=90.0, threshold_m=0.01 * spread, iterations=1000
         )
     except GroundFitError as e:
         raise ValueError(f"the floor around the object cannot be found: {e}") from e
-    n, d = plane.normal, plane.d - float(plane.normal @ eye)
+    length = np.linalg.norm(plane.normal)  # the fit's normal is unit up to rounding: made exactly so, as d with it
+    n = plane.normal / length
+    d = float(plane.d / length) - float(n @ eye)
     origin = look_at - (look_at @ n + d) * n
     x = centres[0] - origin
     x = x - (x @ n) * n

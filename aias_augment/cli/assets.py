@@ -151,6 +151,7 @@ def _cmd_show(a) -> int:
 
 
 def _cmd_thumbnails(a) -> int:
+    from aias_augment.apply.render import render_object
     from aias_augment.assets.bank.thumbnails import contact_sheet
 
     bank = _bank(a)
@@ -160,7 +161,7 @@ def _cmd_thumbnails(a) -> int:
         ids += [r.id for r in sorted(bank.records(c), key=lambda r: r.id)][: a.per_category]
     ids = ids[: a.limit]
     t0 = time.perf_counter()
-    sheet, n_ok = contact_sheet(bank, ids, tile_px=a.size, columns=a.columns)
+    sheet, n_ok = contact_sheet(bank, ids, tile_px=a.size, columns=a.columns, render=render_object)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     import cv2
 
@@ -293,12 +294,15 @@ def _cmd_deform(a) -> int:
     except (BankError, OSError) as e:
         return _fail(str(e))
     if a.sheet:
+        from aias_augment.apply.render import render_object
         from aias_augment.assets.bank.thumbnails import render_thumbnail
 
-        tiles = [(render_thumbnail(source, a.size), f"source {source.height_m:.2f} m")]
+        tiles = [(render_thumbnail(source, a.size, render=render_object), f"source {source.height_m:.2f} m")]
         for p, e in zip(params, entries):
             v = apply_deformation(source, p)
-            tiles.append((render_thumbnail(v, a.size), f"{e['file'][:4]} {p.kind} {v.height_m:.2f} m"))
+            tiles.append(
+                (render_thumbnail(v, a.size, render=render_object), f"{e['file'][:4]} {p.kind} {v.height_m:.2f} m")
+            )
         cols = min(len(tiles), 9)
         rows = -(-len(tiles) // cols)
         sheet = np.full((rows * (a.size + 16), cols * a.size, 3), 255, np.uint8)
@@ -327,6 +331,7 @@ def _cmd_deform(a) -> int:
 
 
 def _cmd_reconstruct(a) -> int:
+    from aias_augment.apply.render import render_object
     from aias_augment.assets.bank.db import BankError
     from aias_augment.assets.bank.folder import add_to_bank
     from aias_augment.assets.reconstruct import (
@@ -359,6 +364,7 @@ def _cmd_reconstruct(a) -> int:
                 seed=a.seed,
                 name=a.views.parent.name,
                 cfg=cfg,
+                render=render_object,
             )
         else:
             views = [View(*p) for p in photos]
@@ -372,6 +378,7 @@ def _cmd_reconstruct(a) -> int:
                 height_m=a.height_m,
                 ground_z=ground_z,
                 cfg=cfg,
+                render=render_object,
             )
     except (ValueError, OSError, ImportError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -30,6 +30,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M
+from aias_augment.core.hdr import linear_to_srgb, srgb_to_linear
+
 log = logging.getLogger(__name__)
 
 #: Classes whose instances are surfaces of revolution about a vertical axis.
@@ -295,8 +298,6 @@ def normalise_albedo(tex: np.ndarray, object_pixels: np.ndarray, cfg: LiftConfig
     ``cfg.albedo_p95`` (within ``cfg.max_albedo_gain``); unchanged when that is None."""
     if cfg.albedo_p95 is None or not len(object_pixels):
         return tex
-    from aias_augment.apply.render import linear_to_srgb, srgb_to_linear
-
     lum = srgb_to_linear(object_pixels.astype(np.float32) / 255.0) @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     p95 = float(np.percentile(lum, 95))
     gain = float(np.clip(cfg.albedo_p95 / max(p95, 1e-6), 1.0 / cfg.max_albedo_gain, cfg.max_albedo_gain))
@@ -335,8 +336,6 @@ def lift_card(cut: Cutout, height_m: float):
 
 def class_height_m(category: str) -> float:
     """The middle of the category's real height range (the placement rescales to the size it draws)."""
-    from aias_augment.plan.placement import CATEGORY_HEIGHT_RANGE_M
-
     lo, hi = CATEGORY_HEIGHT_RANGE_M.get(category, (1.0, 1.0))
     return 0.5 * (lo + hi)
 

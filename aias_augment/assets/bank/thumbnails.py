@@ -1,4 +1,5 @@
-"""Rendered thumbnails of bank assets and a labelled contact sheet (rendering through ``aias_augment.apply.render``)."""
+"""Rendered thumbnails of bank assets and a labelled contact sheet, drawn by the ``render`` callable passed in
+(:func:`aias_augment.apply.render.render_object`)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,9 @@ import cv2
 import numpy as np
 
 from aias_augment.assets.asset import Asset, AssetError
+from aias_augment.assets.rendering import RenderObject
 from aias_augment.core.geometry import Intrinsics, make_rigid
+from aias_augment.core.hdr import linear_to_srgb
 
 log = logging.getLogger(__name__)
 
@@ -50,12 +53,13 @@ def framing_camera(
     return look_at_cam_from_object(eye, centre), intr
 
 
-def render_thumbnail(asset: Asset, tile_px: int = 160, background=(235, 235, 235)) -> np.ndarray:
-    """(tile, tile, 3) uint8 sRGB: albedo shaded by a fixed key light from the camera's upper left."""
-    from aias_augment.apply.render import linear_to_srgb, render_object
-
+def render_thumbnail(
+    asset: Asset, tile_px: int = 160, background=(235, 235, 235), *, render: RenderObject
+) -> np.ndarray:
+    """(tile, tile, 3) uint8 sRGB: albedo (drawn by ``render``) shaded by a fixed key light from the camera's upper
+    left."""
     cam_from_object, intr = framing_camera(asset, tile_px)
-    layers = render_object(asset, cam_from_object, intr, ssaa=2, znear=0.01, zfar=1000.0)
+    layers = render(asset, cam_from_object, intr, ssaa=2, znear=0.01, zfar=1000.0)
     light_in_cam = np.array([-0.4, -0.6, -0.7])
     light_in_cam /= np.linalg.norm(light_in_cam)
     shade = 0.45 + 0.55 * np.clip(layers.normals_in_cam @ light_in_cam, 0, 1)
@@ -66,9 +70,10 @@ def render_thumbnail(asset: Asset, tile_px: int = 160, background=(235, 235, 235
 
 
 def contact_sheet(
-    bank, record_ids: list[str], tile_px: int = 160, columns: int = 10, seed: int = 0
+    bank, record_ids: list[str], tile_px: int = 160, columns: int = 10, seed: int = 0, *, render: RenderObject
 ) -> tuple[np.ndarray, int]:
-    """A labelled grid of thumbnails (category, name, height); failures show their reason in red."""
+    """A labelled grid of thumbnails (category, name, height; :func:`render_thumbnail`, drawn by ``render``);
+    failures show their reason in red."""
     rng = np.random.default_rng(seed)
     label_h = 28
     rows = max(1, -(-len(record_ids) // columns))
@@ -80,7 +85,7 @@ def contact_sheet(
         rec = bank.record(rid)
         try:
             asset = bank.load(rid, rng)
-            tile = render_thumbnail(asset, tile_px)
+            tile = render_thumbnail(asset, tile_px, render=render)
             text2, colour = f"{rec.name[:18]} {asset.height_m:.2f}m", (40, 40, 40)
             ok += 1
         except (AssetError, ValueError) as e:

@@ -14,6 +14,8 @@ import cv2
 import numpy as np
 import pytest
 import trimesh
+
+from aias_augment.apply.render import render_object
 from aias_augment.assets.asset import Asset, normalise_meshes
 from aias_augment.assets.reconstruct import (
     ReconstructConfig,
@@ -46,7 +48,7 @@ def test_analytic_shapes_from_24_posed_views(name, mesh, bound):
     views = shoot(truth, cameras(truth, 24))
     lo, hi = search_box(views)
     assert np.all(lo <= truth.bounds_m[0]) and np.all(hi >= truth.bounds_m[1])  # the search box holds it
-    rec = reconstruct(views, lo, hi, category="object", cfg=ReconstructConfig(resolution=64))
+    rec = reconstruct(views, lo, hi, category="object", cfg=ReconstructConfig(resolution=64), render=render_object)
     m = compare(truth, rec, np.random.default_rng(0))
     assert m["chamfer_rel"] <= bound
     assert m["normal_consistency"] >= 0.95
@@ -61,7 +63,9 @@ def test_height_scales_and_colour_comes_from_the_views():
     truth = coloured(trimesh.creation.box((0.4, 0.4, 0.4)), "cube")
     views = shoot(truth, cameras(truth, 12))
     lo, hi = search_box(views)
-    rec = reconstruct(views, lo, hi, category="object", height_m=1.0, cfg=ReconstructConfig(resolution=48))
+    rec = reconstruct(
+        views, lo, hi, category="object", height_m=1.0, cfg=ReconstructConfig(resolution=48), render=render_object
+    )
     assert rec.height_m == pytest.approx(1.0)
     # the rendered albedo of (200, 120, 40), as the views show it, is what the vertices got (sRGB round trip)
     col = np.asarray(rec.meshes[0].visual.vertex_colors)[:, :3].astype(float)
@@ -124,6 +128,7 @@ def test_a_textured_sphere_from_24_unposed_views_on_a_textured_floor():
         height_m=truth.height_m,
         seed=0,
         cfg=ReconstructConfig(resolution=64),
+        render=render_object,
     )
     assert rec.meta["registered_views"] >= 20
     assert rec.height_m == pytest.approx(truth.height_m)
@@ -167,7 +172,7 @@ def test_a_decimated_hull_keeps_its_shape_its_closure_and_its_budget(tmp_path, c
     views = shoot(truth, cameras(truth, 24))
     lo, hi = search_box(views)
     cfg = ReconstructConfig(resolution=64, max_faces=800)
-    rec = reconstruct(views, lo, hi, category="object", cfg=cfg)
+    rec = reconstruct(views, lo, hi, category="object", cfg=cfg, render=render_object)
     assert rec.meta["faces"] <= 800 < len(visual_hull(views, lo, hi, ReconstructConfig(resolution=64)).faces)
     assert len(rec.meshes[0].faces) == rec.meta["faces"] and rec.meshes[0].is_watertight
     m = compare(truth, rec, np.random.default_rng(0))
@@ -196,7 +201,12 @@ def test_a_texture_atlas_keeps_colour_detail_that_vertex_colours_lose_on_a_decim
     psnr = {}
     for tex in (None, 256):
         rec = reconstruct(
-            views, lo, hi, category="object", cfg=ReconstructConfig(resolution=48, max_faces=400, texture_px=tex)
+            views,
+            lo,
+            hi,
+            category="object",
+            cfg=ReconstructConfig(resolution=48, max_faces=400, texture_px=tex),
+            render=render_object,
         )
         assert rec.meta["faces"] <= 400
         assert trimesh.Trimesh(rec.meshes[0].vertices, rec.meshes[0].faces).is_watertight  # seams merged: closed
@@ -262,7 +272,7 @@ def test_photo_consistency_digs_the_pit_the_hull_fills_and_leaves_flat_surfaces_
     lo, hi = search_box(views)
     hull = visual_hull(views, lo, hi, cfg)
     assert np.median(_top_height(hull, xy_pit)) > 0.24  # the hull fills the pit
-    rec = reconstruct(views, lo, hi, category="object", cfg=cfg)
+    rec = reconstruct(views, lo, hi, category="object", cfg=cfg, render=render_object)
     mesh = rec.meshes[0]
     assert mesh.is_watertight
     assert rec.meta["refinement"]["moved_share"] > 0
@@ -271,7 +281,7 @@ def test_photo_consistency_digs_the_pit_the_hull_fills_and_leaves_flat_surfaces_
     flat = _pit_block(False)
     views = shoot(flat, cameras(flat, 24, elevations=(10.0, 80.0)))
     lo, hi = search_box(views)
-    rec = reconstruct(views, lo, hi, category="object", cfg=cfg)
+    rec = reconstruct(views, lo, hi, category="object", cfg=cfg, render=render_object)
     assert rec.meta["refinement"]["moved_share"] == 0.0
 
 

@@ -9,6 +9,8 @@ import json
 import numpy as np
 import pytest
 import trimesh
+
+from aias_augment.apply.render import render_object
 from aias_augment.assets.asset import Asset, normalise_meshes
 from aias_augment.assets.reconstruct import ReconstructConfig, View, reconstruct, search_box
 from aias_augment.assets.reconstruct_quality import ReconstructionRefused, check_reprojection
@@ -30,7 +32,7 @@ def cone_views():
 
 def _rebuilt(views):
     lo, hi = search_box(views)
-    return reconstruct(views, lo, hi, category="traffic_cone", cfg=CFG)
+    return reconstruct(views, lo, hi, category="traffic_cone", cfg=CFG, render=render_object)
 
 
 def test_clean_views_are_accepted_at_their_size(cone_views):
@@ -77,7 +79,7 @@ def test_blank_white_photos_with_full_masks_are_refused(cone_views):
 def test_a_height_outside_the_category_is_refused(cone_views):
     lo, hi = search_box(cone_views)
     with pytest.raises(ReconstructionRefused, match="outside traffic_cone's 0.25-1.1 m"):
-        reconstruct(cone_views, lo, hi, category="traffic_cone", height_m=2.7, cfg=CFG)
+        reconstruct(cone_views, lo, hi, category="traffic_cone", height_m=2.7, cfg=CFG, render=render_object)
 
 
 def test_a_bad_sfm_reprojection_error_is_refused():

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from aias_augment.apply.render import render_object
 from aias_augment.assets.bank import AssetBank
 from aias_augment.assets.bank.cache import MeshCache
 from aias_augment.assets.bank.thumbnails import contact_sheet, framing_camera, look_at_cam_from_object
@@ -52,7 +53,7 @@ def test_road_objects_render_at_catalog_size(bank, record_id):
 
 
 def test_contact_sheet(bank):
-    sheet, ok = contact_sheet(bank, ROAD_IDS[:2] + ["sh3f:Scopia#cone"], tile_px=64, columns=2)
+    sheet, ok = contact_sheet(bank, ROAD_IDS[:2] + ["sh3f:Scopia#cone"], tile_px=64, columns=2, render=render_object)
     assert ok == 3 and sheet.shape == (2 * (64 + 28), 128, 3) and sheet.dtype == np.uint8
     tile = sheet[:64, :64].astype(int)
     # the cone is red and white: its tile has strongly red pixels; the background is light grey
