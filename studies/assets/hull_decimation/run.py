@@ -79,6 +79,7 @@ def main(argv=None) -> int:
                     category=truth.category,
                     name=f"{name}_{budget}",
                     cfg=ReconstructConfig(a.resolution, max_faces=budget, texture_px=tex),
+                    render=render_object,
                 )
             except ValueError as err:  # the budget cannot keep the hull closed: a failed row, shown
                 rows.append(

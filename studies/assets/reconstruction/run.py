@@ -237,6 +237,7 @@ def main(argv=None) -> int:
                 category=truth.category,
                 name=f"{name}_{n}",
                 cfg=ReconstructConfig(a.resolution),
+                render=render_object,
             )
             seconds = time.perf_counter() - t0
             # the poses are metric and share the truth's frame: compare in it (both rest on z = 0, centred in x/y)
@@ -259,6 +260,7 @@ def main(argv=None) -> int:
                         seed=a.seed,
                         name=f"{name}_{n}_unposed",
                         cfg=ReconstructConfig(a.resolution),
+                        render=render_object,
                     )
                 except ValueError as err:  # SfM registered too few views: a failed row, shown
                     row_u = {"object": name, "views": n, "posed": False, "failed": str(err)}

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aias_augment.apply.render import render_object
 from aias_augment.assets.asset import default_asset
 from aias_augment.assets.reconstruct import (
     ReconstructConfig,
@@ -61,7 +62,7 @@ def main(argv=None) -> int:
         for std, depth in SWEEP:
             cfg = dataclasses.replace(base, refine=True, refine_min_std=std, refine_depth=depth)
             t0 = time.perf_counter()
-            refined, info = refine_photo_consistent(hull, views, cfg)
+            refined, info = refine_photo_consistent(hull, views, cfg, render=render_object)
             row[f"std{std}_depth{depth}"] = {
                 **compare(truth, as_asset(refined, truth), np.random.default_rng(a.seed)),
                 **info,
@@ -90,7 +91,7 @@ def main(argv=None) -> int:
             for refine in (False, True):
                 cfg = dataclasses.replace(base, refine=refine, refine_min_std=std, refine_depth=depth)
                 t0 = time.perf_counter()
-                rec = reconstruct(views, lo - pad, hi + pad, category=truth.category, cfg=cfg)
+                rec = reconstruct(views, lo - pad, hi + pad, category=truth.category, cfg=cfg, render=render_object)
                 row = {
                     "object": name,
                     "views": n,
