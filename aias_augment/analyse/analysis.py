@@ -2,7 +2,7 @@
 lighting) and, per module, what was used or "skipped: why".
 
 :func:`analyse_scene` is a pure function of the frame (image, K, depth, semantics, metadata) and of the few config
-fields it reads (:meth:`InsertionConfig.analysis_fields`): its random draws (RANSAC, pixel subsampling) come from a
+fields it reads (:meth:`~aias_augment.analyse.config.AnalyseConfig.key_fields`): its random draws (RANSAC, pixel subsampling) come from a
 generator with a fixed seed, never from the sample's. So the result is cached by :func:`scene_key` (``cache.py``).
 """
 
@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 import xxhash
 
+from aias_augment.analyse.config import AnalyseConfig, analyse_config
 from aias_augment.analyse.exposure import ExposureMatch
 from aias_augment.analyse.ground import GroundFitError, GroundPlane, ground_plane_from_depth, prior_ground_plane
 from aias_augment.analyse.lighting.envmap import EnvironmentMap
@@ -26,7 +27,6 @@ from aias_augment.analyse.single_image import SingleImageConfig, estimate_camera
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.report import skipped
-from aias_augment.pipeline.config import InsertionConfig
 
 #: Bumped whenever what analyse_scene computes changes: on-disk cache entries of another version are not read.
 ANALYSIS_VERSION = "4"  # the record's format: a cached analysis of another version is computed again
@@ -171,18 +171,18 @@ def hash_value(h, v) -> None:
 _CFG_BYTES: dict = {}
 
 
-def _cfg_bytes(cfg: InsertionConfig) -> bytes:
+def _cfg_bytes(cfg: AnalyseConfig) -> bytes:
     """What the key hashes of ``cfg``: the repr of its sorted analysis fields (a frozen config: memoised by
     identity, the memo holding the config so that its id is not reused)."""
     got = _CFG_BYTES.get(id(cfg))
     if got is None or got[0] is not cfg:
         if len(_CFG_BYTES) > 64:
             _CFG_BYTES.clear()
-        got = _CFG_BYTES[id(cfg)] = (cfg, repr(sorted(cfg.analysis_fields().items())).encode())
+        got = _CFG_BYTES[id(cfg)] = (cfg, repr(sorted(cfg.key_fields().items())).encode())
     return got[1]
 
 
-def scene_key(frame: Frame, cfg: InsertionConfig) -> str:
+def scene_key(frame: Frame, cfg: AnalyseConfig) -> str:
     """xxh3-128 (hex) of what :func:`analyse_scene` reads: image bytes, K, depth, semantics, scene meta, the config
     fields it uses and the analysis version. Not sha256: every call hashes the image (640x480: 0.03 ms against
     0.6 ms); 128 bits make an accidental collision negligible (a cache of your own data, not a defence against
@@ -197,7 +197,7 @@ def scene_key(frame: Frame, cfg: InsertionConfig) -> str:
         h.update(name.encode())
         hash_value(h, v)
     h.update(b"cfg")
-    h.update(_cfg_bytes(cfg))
+    h.update(_cfg_bytes(analyse_config(cfg)))
     for k in sorted(frame.meta):
         if k not in PLAN_META_KEYS:
             h.update(f"meta:{k}".encode())
@@ -205,10 +205,11 @@ def scene_key(frame: Frame, cfg: InsertionConfig) -> str:
     return h.hexdigest()
 
 
-def analyse_scene(frame: Frame, cfg: InsertionConfig = InsertionConfig(), *, key: str | None = None) -> SceneAnalysis:
+def analyse_scene(frame: Frame, cfg: AnalyseConfig = AnalyseConfig(), *, key: str | None = None) -> SceneAnalysis:
     """Camera, ground, placeable region and lighting of ``frame`` (see the module docstring). ``key``: the frame's
-    :func:`scene_key` when the caller computed it already."""
-    cfg = cfg.effective()
+    :func:`scene_key` when the caller computed it already. ``cfg``: the analysis' record, or a config that carries
+    one (the door's ``InsertionConfig``: its ``analyse``)."""
+    cfg = analyse_config(cfg)
     img = frame.image
     h, w = img.shape[:2]
     meta = dict(frame.meta)
@@ -318,7 +319,7 @@ def _scaled_intrinsics(K: Intrinsics, width: int, height: int) -> Intrinsics:
 
 
 def scene_geometry(
-    image: np.ndarray, intrinsics, depth, rng, cfg: InsertionConfig, modules: dict, need_ground: bool
+    image: np.ndarray, intrinsics, depth, rng, cfg: AnalyseConfig, modules: dict, need_ground: bool
 ) -> tuple[Intrinsics, GroundPlane | None]:
     """Camera and ground plane from what the scene offers: depth (RANSAC) > vanishing lines in the image (horizon,
     pitch, roll, focal when unknown) > priors (FOV, level camera at the configured height)."""
@@ -369,7 +370,7 @@ def scene_geometry(
 
 
 def scene_lighting(
-    image, intr: Intrinsics, ground: GroundPlane, rng, cfg: InsertionConfig, meta: dict, modules: dict
+    image, intr: Intrinsics, ground: GroundPlane, rng, cfg: AnalyseConfig, meta: dict, modules: dict
 ) -> LightingEstimate:
     """Sun (kept apart, for shading and shadows) + SH ambient in the image's linear radiometric units."""
     if not cfg.lighting:

@@ -11,8 +11,8 @@ from collections import OrderedDict
 from pathlib import Path
 
 from aias_augment.analyse.analysis import SceneAnalysis, analyse_scene, scene_key
+from aias_augment.analyse.config import AnalyseConfig, analyse_config
 from aias_augment.core.frame import Frame
-from aias_augment.pipeline.config import InsertionConfig
 
 log = logging.getLogger(__name__)
 
@@ -39,7 +39,9 @@ class SceneCache:
     def __len__(self) -> int:
         return len(self._lru)
 
-    def get(self, frame: Frame, cfg: InsertionConfig) -> SceneAnalysis:
+    def get(self, frame: Frame, cfg: AnalyseConfig) -> SceneAnalysis:
+        """The analysis of ``frame`` with ``cfg`` (the analysis' record, or a config that carries one)."""
+        cfg = analyse_config(cfg)
         key = scene_key(frame, cfg)
         a = self._lru.get(key)
         if a is not None:

@@ -1,7 +1,7 @@
 """The frame-level steps of :func:`~aias_augment.apply.stages.apply_plan`, after the objects are composited: the
 harmonizer (inside the objects' context window where that gives the same bytes), the frame stages of the stage list
 (:mod:`aias_augment.core.stages`), the camera match and a monochrome camera's grey. ``cfg`` throughout: the
-insertion's config (:class:`~aias_augment.pipeline.config.InsertionConfig`), read for its harmonizer fields."""
+apply step's record (:class:`~aias_augment.apply.config.ApplyConfig`), read for its harmonizer fields."""
 
 from __future__ import annotations
 

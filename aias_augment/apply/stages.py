@@ -15,6 +15,7 @@ from aias_augment.analyse.analysis import SceneAnalysis
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window
+from aias_augment.apply.config import ApplyConfig, apply_config
 from aias_augment.apply.frame_steps import frame_steps, frame_without_objects, paste_window
 from aias_augment.apply.occluders import ground_scale, image_occluders, visibility_under_nearer
 from aias_augment.apply.projected_shadow import projected_ground
@@ -34,7 +35,6 @@ from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics, invert_rigid, transform_points, unproject_points
 from aias_augment.core.report import skipped
 from aias_augment.core.stages import ObjectLayer, apply_layer_stages
-from aias_augment.pipeline.config import InsertionConfig
 from aias_augment.plan.insertion import InsertionPlan
 from aias_augment.plan.placement import Placement
 
@@ -79,14 +79,15 @@ def apply_plan(
     frame: Frame,
     analysis: SceneAnalysis,
     plan: InsertionPlan,
-    cfg: InsertionConfig = InsertionConfig(),
+    cfg: ApplyConfig = ApplyConfig(),
     *,
     view_cache: ViewCache | None = None,
     motions_px: tuple | None = None,
     labelled_xywh: np.ndarray | None = None,
 ) -> AppliedPlan:
-    """Render the plan's objects into ``frame.image`` (see the module docstring). ``cfg``: ssaa, render method,
-    shadow and harmonization switches (the plan fixed everything random). ``view_cache``: where
+    """Render the plan's objects into ``frame.image`` (see the module docstring). ``cfg``: the apply step's record
+    (or a config that carries one: the door's ``InsertionConfig``): ssaa, render method, shadow and harmonization
+    switches (the plan fixed everything random). ``view_cache``: where
     ``render_method="view_cache"`` keeps its views (None: the process-wide :func:`default_view_cache`).
     ``motions_px``: per object, its image motion during one frame interval ((2,) px) for the layer stages, or None
     (a still image; a clip frame passes its objects' motion). ``labelled_xywh``: (N, 4) COCO boxes of the frame's
@@ -98,7 +99,7 @@ def apply_plan(
     the stage list; the camera's own stages (camera match, a monochrome camera's grey); the boxes. All float work
     happens inside one window: the union of the objects' and their shadows' render windows (the sRGB -> linear ->
     sRGB round trip is exact on uint8, so the pixels outside it are the input's, unless a frame stage changes them)."""
-    cfg = cfg.effective()
+    cfg = apply_config(cfg)
     img = frame.image
     h, w = img.shape[:2]
     if analysis.image_shape != (h, w):

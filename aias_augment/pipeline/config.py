@@ -4,66 +4,35 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, is_dataclass, replace
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
 
+from aias_augment.analyse.config import ANALYSE_BOUNDS, AnalyseConfig, check_analysis_widths
 from aias_augment.analyse.lighting.estimate import LightingConfig
+from aias_augment.apply.config import APPLY_BOUNDS, ApplyConfig, HarmonizeMethod
 from aias_augment.assets.deform import DeformConfig
 from aias_augment.core.config import CONFIG_DIR, ConfigValueError, UnknownConfigKeys, checked_config, load_config
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M
+from aias_augment.plan.config import PLAN_BOUNDS, PLAN_ORDERS, EdgeBlendMode, PlanConfig, check_plan_fields
 from aias_augment.plan.placement import PlacementConfig
 
 PRESETS = ("fast", "balanced", "accurate")
 
-#: ``harmonize.api.METHODS`` (tests/aias_augment/pipeline/test_config.py checks they agree).
-HarmonizeMethod = Literal["none", "reinhard", "camera", "fast", "network"]
-#: The edge-blend modes of ``core/stages/edge_blend.MODES`` (tests/aias_augment/pipeline/test_config.py).
-EdgeBlendMode = Literal["rendered", "hard", "feather"]
+__all__ = ["InsertionConfig", "load_preset", "PRESETS", "HarmonizeMethod", "EdgeBlendMode"]
 
 
-# Every field is checked at construction against its type hint and these bounds (config.checked_config): a wrong
-# type or a value out of range raises, naming the field, instead of a skip on every call.
-@checked_config(
-    {
-        # Cost bounds: a range that can never finish an image is refused here, not met as a skip on every image.
-        # 64 objects: each needs its own render and placement tries (10000 took 510 s for one image); far more than
-        # one photo shows of one category (TraCon: at most 16 cones a photo).
-        "min_objects": "[0, 64]",
-        "max_objects": "[0, 64]",
-        # 4: 16 samples a pixel; the render is the frame's size times ssaa (a 4K frame at 4 is 15360 px wide, near
-        # the common 16384 GL limit) and costs ~ssaa^2.
-        "ssaa": "[1, 4]",
-        "analysis_max_width": "[0, inf)",  # and 0 or >= 64 (__post_init__)
-        "camera_analysis_width": "[0, inf)",  # and 0 or >= 64 (__post_init__)
-        "camera_height_m": "(0, inf)",
-        "max_camera_pitch_deg": "[0, 90]",
-        "max_camera_roll_deg": "[0, 180]",
-        "default_hfov_deg": "(0, 180)",
-        "naive_height_frac_range": "(0, 1] lo<=hi",
-        "naive_height_frac_samples": "(0, 1]",
-        # The streak's kernel is ~length^2 pixels and the layer grows by it: 200 px is a fast object across a 4K
-        # frame, 1e6 made every image a MemoryError.
-        "motion_blur_px": "[0, 200] lo<=hi",
-        # The layer grows by 3 sigma on each side: 50 px feathers any edge a photo shows.
-        "edge_feather_px": "[0, 50] lo<=hi",
-        "deform_probability": "[0, 1]",
-        "naive_share": "[0, 1]",
-        "decoys": "[0, 64] lo<=hi",  # as max_objects
-        "arrangement_spacing_m": "(0, inf) lo<=hi",
-        "arrangement_cluster_radius_m": "(0.35, inf)",
-        "contact_shadow_strength": "[0, 1]",
-        "contact_shadow_radius": "(0, inf)",
-        "box_convention": "[0, 0.45]",
-        "coating_f0": "[0, 0.2]",
-        "coating_roughness": "[0.05, 1]",
-        "family_members": "[1, 65536]",  # family_cache.MAX_MEMBERS
-        "family_seed": "[0, inf)",
-    },
-    orders=["min_objects <= max_objects"],
-)
+# Every field is checked at construction against its type hint and the bounds of the step that reads it
+# (config.checked_config): a wrong type or a value out of range raises, naming the field, instead of a skip on every
+# call.
+@checked_config({**ANALYSE_BOUNDS, **PLAN_BOUNDS, **APPLY_BOUNDS, "naive_share": "[0, 1]"}, orders=PLAN_ORDERS)
 @dataclass(frozen=True)
 class InsertionConfig:
+    """The insertion's config as users write it: flat keys (YAML presets, CLI ``--config``, keyword overrides). Each
+    step reads its own record built from the effective values (:meth:`effective`): :attr:`analyse`, :attr:`plan`,
+    :attr:`apply`."""
+
     categories: tuple[str, ...] = ("traffic_cone",)
     min_objects: int = 1
     max_objects: int = 3
@@ -173,29 +142,11 @@ class InsertionConfig:
     lighting_cfg: LightingConfig = LightingConfig()  # thresholds and analysis resolutions of estimate_lighting
 
     def __post_init__(self):  # after the checks of every field's type and bounds (checked_config)
-        if not self.categories:
-            raise ConfigValueError(("InsertionConfig", "categories"), "must not be empty")
-        for name in ("analysis_max_width", "camera_analysis_width"):
-            if 0 < getattr(self, name) < 64:
-                raise ConfigValueError(
-                    ("InsertionConfig", name), f"must be 0 (off) or >= 64, got {getattr(self, name)}"
-                )
+        check_plan_fields(self, "InsertionConfig")
+        check_analysis_widths(self, "InsertionConfig")
         if self.naive_paste and self.naive_share > 0:
             raise ConfigValueError(
                 ("InsertionConfig", "naive_share"), "must be 0 when naive_paste is on (every image is a naive paste)"
-            )
-        if self.family_members is not None and (self.family_seed is None or self.asset_source != "procedural"):
-            raise ConfigValueError(
-                ("InsertionConfig", "family_members"),
-                f"{self.family_members} needs asset_source 'procedural' (got {self.asset_source!r}) and a "
-                f"family_seed >= 0 (got {self.family_seed}): set both, or family_members None",
-            )
-        if self.decoys[1] > 0 and not self.decoy_categories:
-            raise ConfigValueError(("InsertionConfig", "decoy_categories"), "must not be empty when decoys are drawn")
-        if set(self.decoy_categories) & set(self.categories):
-            raise ConfigValueError(
-                ("InsertionConfig", "decoy_categories"),
-                f"{sorted(set(self.decoy_categories) & set(self.categories))} are also annotated categories",
             )
 
     def for_image(self, rng: np.random.Generator) -> "InsertionConfig":
@@ -223,27 +174,28 @@ class InsertionConfig:
             return replace(self, placement=False, shadow=False, lighting=False, harmonize=False)
         return self
 
+    def _record(self, cls):
+        effective = self.effective()
+        return cls(**{f.name: getattr(effective, f.name) for f in fields(cls)})
+
+    @cached_property
+    def analyse(self) -> AnalyseConfig:
+        """The analysis step's record (:func:`aias_augment.analyse.analyse_scene`)."""
+        return self._record(AnalyseConfig)
+
+    @cached_property
+    def plan(self) -> PlanConfig:
+        """The planning step's record (:func:`aias_augment.plan.plan_insertion`)."""
+        return self._record(PlanConfig)
+
+    @cached_property
+    def apply(self) -> ApplyConfig:
+        """The apply step's record (:func:`aias_augment.apply.apply_plan`)."""
+        return self._record(ApplyConfig)
+
     def analysis_fields(self) -> dict:
         """The fields :func:`aias_augment.analyse.analyse_scene` reads (part of the scene cache key)."""
-        c = self.effective()
-        out = {
-            k: getattr(c, k)
-            for k in (
-                "placement",
-                "lighting",
-                "estimate_camera",
-                "camera_height_m",
-                "max_camera_pitch_deg",
-                "max_camera_roll_deg",
-                "default_hfov_deg",
-                "lighting_cfg",
-            )
-        }
-        if c.analysis_max_width:  # only when set: the keys of full-resolution analyses stay what they were
-            out["analysis_max_width"] = c.analysis_max_width
-            if c.camera_analysis_width:
-                out["camera_analysis_width"] = c.camera_analysis_width
-        return out
+        return self.analyse.key_fields()
 
 
 def load_preset(name: str, **overrides) -> InsertionConfig:

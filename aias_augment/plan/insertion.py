@@ -16,8 +16,8 @@ from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, A
 from aias_augment.assets.deform import apply_deformation, sample_deformation
 from aias_augment.core.geometry import Intrinsics, make_rigid, project_points
 from aias_augment.core.stages import draw_frame_params, draw_layer_params
-from aias_augment.pipeline.config import InsertionConfig
 from aias_augment.plan.collision import OrientedBox
+from aias_augment.plan.config import PlanConfig, plan_config
 from aias_augment.plan.placement import (
     Placement,
     draw_box_height_target,
@@ -75,7 +75,7 @@ class InsertionPlan:
 
 def plan_insertion(
     analysis: SceneAnalysis,
-    cfg: InsertionConfig,
+    cfg: PlanConfig,
     rng: np.random.Generator,
     *,
     existing_boxes_xyxy: np.ndarray | None = None,
@@ -90,10 +90,11 @@ def plan_insertion(
     'lidar_points_in_cam' / 'boxes_in_cam', the scene's 3D points and boxes. ``depth`` (H, W) metres or None.
     ``existing_labels`` (N,): the boxes' labels; those naming an inserted category are the scene's own objects of
     that kind, which set the sizes with ``placement_cfg.sizes_from_existing`` (without labels, none does). Last, the
-    plan's seed and the stage list's parameters (:mod:`aias_augment.core.stages`) from generators of their own."""
+    plan's seed and the stage list's parameters (:mod:`aias_augment.core.stages`) from generators of their own.
+    ``cfg``: the plan's record (or a config that carries one: the door's ``InsertionConfig``)."""
     if rng is None:
         raise ValueError("plan_insertion needs an explicit numpy Generator (rng) for reproducibility")
-    cfg = cfg.effective()
+    cfg = plan_config(cfg)
     k = int(n_objects if n_objects is not None else rng.integers(cfg.min_objects, cfg.max_objects + 1))
     draft = _Draft.start(analysis, cfg, rng, existing_boxes_xyxy, existing_labels, depth, meta or {})
     object_cfgs = [draft.pcfg] * k
@@ -156,7 +157,7 @@ class _Draft:
     the first object), what a new object must avoid, and the objects placed so far with the searches' reports."""
 
     analysis: SceneAnalysis
-    cfg: InsertionConfig
+    cfg: PlanConfig
     rng: np.random.Generator
     depth: np.ndarray | None
     ground: object
@@ -266,7 +267,7 @@ class _Draft:
         return placement
 
 
-def draw_arrangement(kind: str, rng: np.random.Generator, cfg: InsertionConfig) -> dict | None:
+def draw_arrangement(kind: str, rng: np.random.Generator, cfg: PlanConfig) -> dict | None:
     """The draws of one arrangement. "line": objects at a spacing along a ground direction (its angle from the
     camera's forward direction: within 20 deg of it, a row along the road going away from the camera, or with
     probability 0.3 across it, a closure, to one side of the first), each one step from the last. "cluster": each object within
@@ -289,7 +290,7 @@ def draw_arrangement(kind: str, rng: np.random.Generator, cfg: InsertionConfig) 
 
 
 def arrangement_pixels(
-    leader: Placement, i: int, kind: str, params: dict, intr: Intrinsics, cfg: InsertionConfig, shape
+    leader: Placement, i: int, kind: str, params: dict, intr: Intrinsics, cfg: PlanConfig, shape
 ) -> np.ndarray:
     """(H, W) bool: the pixels whose rays meet the leader's ground plane within a tenth of the spacing (0.1 m in a
     cluster) of where the ``i``-th object of the arrangement stands (the nearest pixel when none is that close;
@@ -417,7 +418,7 @@ def _json_safe(x):
     return x.item() if isinstance(x, np.generic) else x
 
 
-def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tuple[np.ndarray, float]:
+def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: PlanConfig) -> tuple[np.ndarray, float]:
     """Random 2D position and size with no scene geometry: the object stands upright facing the camera at the
     depth that gives the sampled pixel height, centred on a random pixel."""
     if cfg.naive_height_frac_samples:  # the same empirical size distribution the placement targets use
@@ -439,7 +440,7 @@ def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: InsertionConfig) -> tup
     return make_rigid(R_up @ R_yaw, t), yaw
 
 
-def choose_asset(category: str, rng, cfg: InsertionConfig, bank=None) -> Asset:
+def choose_asset(category: str, rng, cfg: PlanConfig, bank=None) -> Asset:
     """The caller's asset source, else a new seeded procedural asset (asset_source "procedural", categories with a
     generator: :data:`aias_augment.assets.bank.procedural.CATEGORY_SPECS`), else the shared-data default of the category
     (asset_source "default"; "procedural" for other categories), else the asset bank (``aias_augment.assets.bank``:
