@@ -8,7 +8,7 @@ from pathlib import Path
 
 from aias_augment.core.config import CONFIG_DIR, REPO_ROOT, data_root, from_dict
 from detection_eval.inherit import load_inherited
-from detection_eval.study.arms import ARM_FLAGS
+from detection_eval.study.arm_table import ARM_FLAGS
 
 log = logging.getLogger("detection_eval.study")
 
