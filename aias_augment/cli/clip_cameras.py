@@ -12,7 +12,7 @@ from aias_augment.cli.clip_inputs import read_camera, read_clip_frames
 from aias_augment.core.errors import InputError
 
 if TYPE_CHECKING:
-    from aias_augment.cli.clip import ClipJob
+    from aias_augment.cli.clip_job import ClipJob
 
 log = logging.getLogger("aias_augment.cli.clip")
 

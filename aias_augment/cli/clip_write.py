@@ -18,7 +18,7 @@ from aias_augment.core.viz import contact_sheet, draw_boxes
 from aias_augment.pipeline.clip_objects import RenderedClip
 
 if TYPE_CHECKING:
-    from aias_augment.cli.clip import ClipInputs, ClipJob
+    from aias_augment.cli.clip_job import ClipInputs, ClipJob
 
 
 def job_dict(job: ClipJob) -> dict:

@@ -12,7 +12,7 @@ from aias_augment.assets.asset import Asset
 from aias_augment.plan.collision import OrientedBox, boxes_intersect
 
 if TYPE_CHECKING:
-    from aias_augment.pipeline.clip import ClipPlan, VideoInsertionConfig
+    from aias_augment.pipeline.clip_plan import ClipPlan, VideoInsertionConfig
 
 
 def travel_m(n: int, start: int, cfg: VideoInsertionConfig) -> np.ndarray:
