@@ -26,9 +26,11 @@ __all__ = [
     "GENERATORS",
     "CATEGORY_SPECS",
     "ProceduralSpec",
+    "ConeLook",
     "generate",
     "procedural_asset",
     "procedural_asset_from_seed",
+    "procedural_asset_like",
     "make_stone",
     "make_concrete_block",
     "make_crumpled_sheet",
@@ -224,8 +226,72 @@ def _loft(
     return np.concatenate(verts), np.concatenate(faces), np.concatenate(normals), np.concatenate(uvs)
 
 
-def cone_params(rng: np.random.Generator, h: float) -> dict:
-    """Every shape/colour/wear parameter of one cone, drawn from ``rng`` (lengths in metres, z from the ground)."""
+@dataclass(frozen=True)
+class ConeLook:
+    """What a photo's own cones look like, to draw inserted cones like them: the body colour (sRGB 0-255), the base's
+    colour class (``"black"``, ``"grey"`` or ``"body"``), the number of white sleeves (0-3) and each sleeve's width as a
+    fraction of the body's height. Measured on labelled crops by :func:`aias_augment.analyse.instances.fit_cone_looks`.
+    """
+
+    colour_rgb: tuple[float, float, float]
+    base_colour: str
+    bands: int
+    band_width_frac: float
+
+    def __post_init__(self) -> None:
+        if self.base_colour not in ("black", "grey", "body"):
+            raise ValueError(f"ConeLook.base_colour must be black, grey or body, got {self.base_colour!r}")
+        if not 0 <= int(self.bands) <= 3:
+            raise ValueError(f"ConeLook.bands must be 0-3, got {self.bands}")
+        if not (len(self.colour_rgb) == 3 and all(0 <= float(c) <= 255 for c in self.colour_rgb)):
+            raise ValueError(f"ConeLook.colour_rgb must be 3 values in 0-255, got {self.colour_rgb}")
+        if self.bands and not 0.02 <= float(self.band_width_frac) <= 0.4:
+            raise ValueError(f"ConeLook.band_width_frac must be in 0.02-0.4 with sleeves, got {self.band_width_frac}")
+
+    def to_dict(self) -> dict:
+        return {
+            "colour_rgb": [float(c) for c in self.colour_rgb],
+            "base_colour": self.base_colour,
+            "bands": int(self.bands),
+            "band_width_frac": float(self.band_width_frac),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ConeLook:
+        return cls(
+            tuple(float(c) for c in d["colour_rgb"]),
+            str(d["base_colour"]),
+            int(d["bands"]),
+            float(d["band_width_frac"]),
+        )
+
+
+def _apply_look(p: dict, look: ConeLook, h: float) -> dict:
+    """``p`` with the body colour, base colour and sleeves of ``look``; the sleeves evenly spaced on the body's upper
+    part (real cones carry them there), shape, base shape, dirt and wear as drawn."""
+    lo, hi = (0.18, 0.88) if p["shape"] == "cone" else (0.45, 0.95)
+    zb = p["base_height_m"]
+    body_h = h - zb
+    bands = []
+    if look.bands:
+        slot = (hi - lo) / look.bands
+        w = min(look.band_width_frac, slot * 0.8)
+        for i in range(look.bands):
+            c = lo + slot * (i + 0.5)
+            bands.append([zb + body_h * (c - w / 2), zb + body_h * (c + w / 2)])
+    return {
+        **p,
+        "colour": "fitted",
+        "colour_rgb": [float(c) for c in look.colour_rgb],
+        "base_colour": look.base_colour,
+        "bands_z_m": bands,
+        "band_colour": "white",
+    }
+
+
+def cone_params(rng: np.random.Generator, h: float, look: ConeLook | None = None) -> dict:
+    """Every shape/colour/wear parameter of one cone, drawn from ``rng`` (lengths in metres, z from the ground);
+    with ``look``, its colours and sleeves are the look's (the same draws of ``rng`` either way)."""
     shape = "delineator" if h >= 0.7 and rng.random() < 0.15 else "cone"
     colour_name = _choice(rng, CONE_COLOURS)
     rgb = np.array(CONE_COLOURS[colour_name][0], float) * rng.uniform(0.92, 1.0) + rng.normal(0, 6, 3)
@@ -257,7 +323,7 @@ def cone_params(rng: np.random.Generator, h: float) -> dict:
             c = lo + slot * (i + 0.5) + rng.uniform(-1, 1) * (slot - w) * 0.3
             bands.append((base_h + body_h * (c - w / 2), base_h + body_h * (c + w / 2)))
     band_colour = "white" if rng.random() < 0.75 else "silver"
-    return {
+    p = {
         "shape": shape,
         "colour": colour_name,
         "colour_rgb": [float(x) for x in np.clip(rgb, 0, 255)],
@@ -272,6 +338,7 @@ def cone_params(rng: np.random.Generator, h: float) -> dict:
         "dirt": float(rng.uniform(0.05, 0.45) if rng.random() < 0.35 else 0.0),  # most real cones are clean
         "wear_seed": int(rng.integers(2**31 - 1)),
     }
+    return p if look is None else _apply_look(p, look, h)
 
 
 def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image:
@@ -332,14 +399,19 @@ def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image
 
 
 def make_traffic_cone(
-    rng: np.random.Generator, height_m: float, texture: Image.Image | None = None, segments: int = 64
+    rng: np.random.Generator,
+    height_m: float,
+    texture: Image.Image | None = None,
+    segments: int = 64,
+    look: ConeLook | None = None,
 ) -> trimesh.Trimesh:
     """One traffic cone (or, for tall draws, sometimes a slim delineator post) of total height ``height_m``: a
     smooth surface of revolution on a square (rounded-corner) or round base, with a drawn texture. All parameters
     come from ``rng`` and are stored in ``mesh.metadata['procedural_params']`` (band heights in metres above the
-    ground contact). ``texture``: an optional photo that modulates the dirt."""
+    ground contact). ``texture``: an optional photo that modulates the dirt; ``look``: colours and sleeves to draw
+    (:class:`ConeLook`)."""
     h = float(height_m)
-    p = cone_params(rng, h)
+    p = cone_params(rng, h, look)
     zb, a, r0, rt = p["base_height_m"], p["base_half_width_m"], p["body_bottom_radius_m"], p["top_radius_m"]
     n_base = 8.0 if p["base_shape"] == "square" else 2.0
     vb = _V_BASE[1] * 0.5  # base rows of the texture
@@ -396,14 +468,22 @@ CATEGORY_SPECS: dict[str, ProceduralSpec] = {
 
 
 def generate(
-    spec: ProceduralSpec, rng: np.random.Generator, texture: Image.Image | None = None, name: str | None = None
+    spec: ProceduralSpec,
+    rng: np.random.Generator,
+    texture: Image.Image | None = None,
+    name: str | None = None,
+    look: ConeLook | None = None,
 ) -> Asset:
-    """One procedural asset in the canonical frame, its height drawn uniformly from the spec's range."""
+    """One procedural asset in the canonical frame, its height drawn uniformly from the spec's range; ``look`` (cones
+    only) sets its colours and sleeves."""
     if spec.generator not in GENERATORS:
         raise ValueError(f"unknown generator {spec.generator!r}; known: {sorted(GENERATORS)}")
+    if look is not None and spec.generator != "traffic_cone":
+        raise ValueError(f"a ConeLook applies to traffic cones only, not to {spec.generator!r}")
     lo, hi = spec.height_range_m
     height = float(rng.uniform(lo, hi))
-    mesh = GENERATORS[spec.generator](rng, height, texture)
+    extra = {} if look is None else {"look": look}
+    mesh = GENERATORS[spec.generator](rng, height, texture, **extra)
     params = mesh.metadata.pop("procedural_params", {})  # generators that record their draws (traffic_cone)
     parts = normalise_meshes([mesh], crease_deg=None)  # analytic normals (smooth within a section) kept
     return Asset(
@@ -423,8 +503,24 @@ def procedural_asset(category: str, rng: np.random.Generator) -> Asset:
     return procedural_asset_from_seed(category, int(rng.integers(2**63 - 1)))
 
 
-def procedural_asset_from_seed(category: str, seed: int) -> Asset:
+def procedural_asset_from_seed(category: str, seed: int, look: ConeLook | dict | None = None) -> Asset:
     """The procedural asset of ``category`` that the seed ``seed`` makes (the one a record's ``asset_meta['seed']``
-    names)."""
-    a = generate(CATEGORY_SPECS[category], np.random.default_rng(int(seed)))
-    return Asset(a.name, a.category, a.meshes, a.source, a.licence, True, {**a.meta, "seed": int(seed)})
+    names), with ``look`` (a :class:`ConeLook` or its dict, the record's ``asset_meta['look']``) when it was drawn
+    like a photo's own cones."""
+    look = ConeLook.from_dict(look) if isinstance(look, dict) else look
+    a = generate(CATEGORY_SPECS[category], np.random.default_rng(int(seed)), look=look)
+    meta = {**a.meta, "seed": int(seed)}
+    if look is not None:
+        meta["look"] = look.to_dict()
+    return Asset(a.name, a.category, a.meshes, a.source, a.licence, True, meta)
+
+
+def procedural_asset_like(category: str, rng: np.random.Generator, looks) -> Asset:
+    """A new procedural cone drawn like one of ``looks`` (a non-empty sequence of :class:`ConeLook`, a photo's own
+    cones): one draw of ``rng`` (its seed, as :func:`procedural_asset`), the look chosen from that seed, so a record's
+    ``asset_meta['seed']`` and ``['look']`` rebuild it."""
+    if not looks:
+        raise ValueError("procedural_asset_like needs at least one ConeLook")
+    seed = int(rng.integers(2**63 - 1))
+    look = looks[int(np.random.default_rng([seed, 53]).integers(len(looks)))]
+    return procedural_asset_from_seed(category, seed, look)

@@ -1,0 +1,99 @@
+"""What the photo's own labelled cones look like: body colour, base colour, white sleeves, measured on their crops.
+
+A cone is a surface of revolution seen upright, so its box's central column runs down the body from the tip to the
+base. Along that column (the middle 10 % of the box's width, where the body fills it even near the tip):
+
+- **body**: the median colour of the saturated pixels (HSV S >= 0.45, V >= 0.2) between 15 % and 88 % of the box's
+  height (cone bodies are fluorescent plastics, so their pixels are the saturated ones), scaled to a brightest channel
+  of 245: the look keeps the body's chromaticity, and the photo's light is the lighting stage's to apply;
+- **sleeves**: runs of rows where most pixels are white (S < 0.3 and V at least 0.8 of the body's V), at least 3 % of
+  the box's height long, counted and measured (width as a fraction of the body's height);
+- **base**: the median of the band at 90-97 % of the box's height over its central 60 %: ``"black"`` when darker than
+  0.13 of the body's V (the texture's black is 0.07 of white, its grey 0.22), ``"body"`` when saturated and within 25 deg of the body's hue, else ``"grey"``.
+
+A box cut by the frame, shorter than 24 px, or whose column holds too few saturated pixels (a cone seen from above,
+a wrong label) gives no look; the caller counts those.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from aias_augment.assets.bank.procedural import ConeLook
+
+__all__ = ["fit_cone_looks", "fit_cone_look"]
+
+MIN_BOX_PX = 24  # below this a sleeve is a pixel or two: nothing to measure
+BODY_MAX = 245.0  # the brightest channel of a fitted body colour: the family's fluorescent bodies reach 210-255
+
+
+def _hsv(rgb: np.ndarray) -> np.ndarray:
+    """(..., 3) uint8 RGB -> float HSV with H in degrees [0, 360), S and V in [0, 1]."""
+    hsv = cv2.cvtColor(np.ascontiguousarray(rgb, np.uint8).reshape(-1, 1, 3), cv2.COLOR_RGB2HSV_FULL)
+    h = hsv[..., 0].astype(float) * (360.0 / 256.0)
+    return np.stack([h, hsv[..., 1] / 255.0, hsv[..., 2] / 255.0], -1).reshape(rgb.shape)
+
+
+def _hue_gap(a: float, b: float) -> float:
+    d = abs(a - b) % 360.0
+    return min(d, 360.0 - d)
+
+
+def fit_cone_look(image_rgb: np.ndarray, box_xyxy) -> ConeLook | None:
+    """The :class:`ConeLook` of the cone in ``box_xyxy`` (pixels, x0 y0 x1 y1) of ``image_rgb`` (H, W, 3) uint8, or None
+    when the box cannot be measured (see the module's docstring)."""
+    H, W = image_rgb.shape[:2]
+    x0, y0, x1, y1 = (float(v) for v in box_xyxy)
+    if not (x1 > x0 and y1 > y0) or y0 <= 1 or y1 >= H - 2 or x0 < 0 or x1 > W:
+        return None
+    h, w = y1 - y0, x1 - x0
+    if h < MIN_BOX_PX:
+        return None
+    cx0, cx1 = int(round(x0 + 0.45 * w)), max(int(round(x0 + 0.55 * w)), int(round(x0 + 0.45 * w)) + 1)
+    r0, r1 = int(round(y0 + 0.15 * h)), int(round(y0 + 0.88 * h))
+    col = image_rgb[r0:r1, cx0:cx1]
+    hsv = _hsv(col)
+    sat = (hsv[..., 1] >= 0.45) & (hsv[..., 2] >= 0.2)
+    if sat.mean() < 0.25:
+        return None
+    body_rgb = np.median(col[sat].astype(float), axis=0)
+    body_hsv = _hsv(np.clip(body_rgb, 0, 255).astype(np.uint8)[None])[0]
+    body_h, body_v = float(body_hsv[0]), float(body_hsv[2])
+    white = (hsv[..., 1] < 0.3) & (hsv[..., 2] >= 0.8 * body_v)
+    rows = white.mean(axis=1) > 0.5
+    min_run = max(2, int(round(0.03 * h)))
+    widths, run = [], 0
+    for r in np.r_[rows, False]:
+        if r:
+            run += 1
+            continue
+        if run >= min_run:
+            widths.append(run)
+        run = 0
+    body_px = 0.9 * h  # the body's height: the box less the base
+    bands = min(len(widths), 3)
+    width = float(np.clip(np.median(widths) / body_px, 0.02, 0.4)) if widths else 0.0
+    b0, b1 = int(round(y0 + 0.90 * h)), max(int(round(y0 + 0.97 * h)), int(round(y0 + 0.90 * h)) + 1)
+    band = image_rgb[b0:b1, int(round(x0 + 0.2 * w)) : max(int(round(x1 - 0.2 * w)), int(round(x0 + 0.2 * w)) + 1)]
+    if band.size == 0:
+        return None
+    bh, bs, bv = np.median(_hsv(band).reshape(-1, 3), axis=0)
+    if bv < 0.13 * body_v:
+        base = "black"
+    elif bs >= 0.45 and _hue_gap(float(bh), body_h) <= 25.0:
+        base = "body"
+    else:
+        base = "grey"
+    albedo = body_rgb * (BODY_MAX / max(float(body_rgb.max()), 1.0))  # 1.0: a black column never passes `sat`
+    return ConeLook(tuple(float(c) for c in albedo), base, bands, width if bands else 0.0)
+
+
+def fit_cone_looks(image_rgb: np.ndarray, boxes_xyxy) -> list[ConeLook]:
+    """The looks of every measurable cone among ``boxes_xyxy`` (N, 4): see :func:`fit_cone_look`."""
+    out = []
+    for b in np.asarray(boxes_xyxy, float).reshape(-1, 4):
+        look = fit_cone_look(image_rgb, b)
+        if look is not None:
+            out.append(look)
+    return out

@@ -1,0 +1,96 @@
+"""The ground's pitch from the photo's own labelled objects (single-view metrology as in Hoiem, Efros and Hebert,
+"Putting objects in perspective", CVPR 2006).
+
+Objects of one kind standing on a planar ground have box heights fixed by where they stand: their bottom rows and
+heights together say how far the camera looks down. A single photo's camera estimate (vanishing lines, or the
+level-camera prior when it finds none) is often far from that on close-ups looking down at cones, and an inserted
+object then takes the wrong size wherever it stands away from the labelled ones. :func:`ground_from_references`
+turns the estimated ground about the camera's x axis to the pitch whose exact projection best gives the labelled
+boxes' heights from their bottom rows (roll and camera height kept; the scene's scale is then fitted to the same
+boxes). The fit searches the turn and the object-to-camera-height ratio on a grid: the projection of a standing
+object depends on nothing else.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aias_augment.analyse.ground import GroundPlane
+from aias_augment.core.geometry import Intrinsics
+
+__all__ = ["ground_from_references"]
+
+MIN_SPREAD_FRAC = 0.1  # the bottom rows must spread over this fraction of the image height
+MAX_RMS_LOG = 0.15  # with three or more boxes, the fit's RMS log height error (about 15 %) must stay below this
+_TURN_STEP_DEG = 0.25
+_RATIOS = np.geomspace(0.02, 2.0, 240)  # object height / camera height
+
+
+def _pitched(normal: np.ndarray, angle: float) -> np.ndarray:
+    ca, sa = np.cos(angle), np.sin(angle)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])
+    return rx @ normal
+
+
+def _log_errors(normal: np.ndarray, rays: np.ndarray, v_bottom: np.ndarray, log_h: np.ndarray, K: np.ndarray):
+    """(len(_RATIOS), N) log(predicted / observed) box heights of objects standing at ``rays`` (N, 3) on the plane
+    ``normal``, camera 1 above it, for every height ratio; NaN where the ray misses the ground or a top is behind."""
+    nr = rays @ normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        base = np.where((nr < 0)[:, None], -rays / nr[:, None], np.nan)  # n.p + 1 = 0
+        top = base[None] + _RATIOS[:, None, None] * normal  # (R, N, 3)
+        z = top[..., 2]
+        v_top = (top @ K[1]) / z
+        h = v_bottom[None] - v_top
+        return np.where((z > 0) & (h > 0), np.log(h) - log_h[None], np.nan)
+
+
+def ground_from_references(
+    ground: GroundPlane, intrinsics: Intrinsics, boxes_xyxy: np.ndarray, max_change_deg: float = 25.0
+) -> tuple[GroundPlane | None, str]:
+    """``ground`` turned about the camera's x axis (at most ``max_change_deg``) to the pitch at which objects of one
+    height standing at the bottom centres of ``boxes_xyxy`` (whole boxes of one kind) are as tall as the boxes;
+    (None, why) for a measured ground (not ``assumed_scale``: kept), fewer than two boxes, bottom rows spread less than
+    10 % of the image height, or (three or more boxes) an RMS height error above 15 %. The reason names the turn and
+    says when it stopped at the limit."""
+    if not ground.assumed_scale:
+        return None, f"measured ground ({ground.source}): kept"
+    b = np.asarray(boxes_xyxy, float).reshape(-1, 4)
+    if len(b) < 2:
+        return None, f"{len(b)} whole reference box(es): two or more give the pitch"
+    vb, h = b[:, 3], b[:, 3] - b[:, 1]
+    if np.ptp(vb) < MIN_SPREAD_FRAC * intrinsics.height:
+        return None, f"the references' bottom rows spread {np.ptp(vb):.0f} px (< {MIN_SPREAD_FRAC:.0%} of the height)"
+    K = intrinsics.K
+    uv1 = np.c_[(b[:, 0] + b[:, 2]) / 2, vb, np.ones(len(b))]
+    rays = uv1 @ np.linalg.inv(K).T
+    turns = np.radians(np.arange(-max_change_deg, max_change_deg + 1e-9, _TURN_STEP_DEG))
+    best = (np.inf, 0.0)
+    log_h = np.log(np.maximum(h, 1.0))
+    for t in turns:
+        err = _log_errors(_pitched(ground.normal, t), rays, vb, log_h, K)
+        ok = np.isfinite(err).all(axis=1)
+        if ok.any():
+            rms = float(np.sqrt((err[ok] ** 2).mean(axis=1)).min())
+            if rms < best[0] - 1e-12:
+                best = (rms, float(t))
+    rms, angle = best
+    if not np.isfinite(rms):
+        return None, f"no pitch within {max_change_deg:.0f} deg puts the references on the ground"
+    if len(b) >= 3 and rms > MAX_RMS_LOG:
+        return None, f"one height on one ground fits the {len(b)} references only to {rms:.0%} (RMS)"
+    at_limit = abs(abs(np.degrees(angle)) - max_change_deg) < _TURN_STEP_DEG / 2
+    out = GroundPlane(
+        _pitched(ground.normal, angle),
+        ground.d,
+        f"{ground.source}:references",
+        ground.inlier_ratio,
+        ground.rms_m,
+        ground.num_inliers,
+        ground.assumed_scale,
+    )
+    note = f" (stopped at the {max_change_deg:.0f} deg limit)" if at_limit else ""
+    return out, (
+        f"the ground turned {np.degrees(angle):+.2f} deg about the camera's x axis to fit {len(b)} reference boxes "
+        f"(RMS height error {rms:.1%}){note}"
+    )

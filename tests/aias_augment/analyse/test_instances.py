@@ -1,0 +1,109 @@
+"""The looks of labelled cones, measured on renders whose looks are known.
+
+Each cone is drawn with a chosen :class:`ConeLook` (body colour, base colour, sleeves), rendered by the real renderer
+standing on the road of ``road_image`` about 4 m from the camera, and measured on the output image inside its
+projected box: the fit must give back the look that was drawn."""
+
+import numpy as np
+import pytest
+
+from aias_augment.analyse.analysis import analyse_scene
+from aias_augment.analyse.instances import fit_cone_look, fit_cone_looks
+from aias_augment.apply.stages import apply_plan
+from aias_augment.assets.bank.procedural import ConeLook, procedural_asset_from_seed
+from aias_augment.core.frame import Frame
+from aias_augment.core.geometry import Intrinsics
+from aias_augment.pipeline.config import InsertionConfig
+from aias_augment.plan.insertion import InsertionPlan, PlannedObject
+from aias_augment.plan.placement import object_pose_on_ground, placement_at
+from tests.aias_augment.analyse.test_analysis import road_image
+
+K = Intrinsics(900.0, 900.0, 319.5, 239.5, 640, 480)
+
+LOOKS = [
+    ConeLook((255.0, 72.0, 18.0), "black", 2, 0.12),
+    ConeLook((210.0, 28.0, 34.0), "body", 0, 0.0),
+    ConeLook((252.0, 196.0, 8.0), "grey", 1, 0.2),
+]
+
+
+def _hue(rgb) -> float:
+    r, g, b = (float(c) / 255.0 for c in rgb)
+    mx, mn = max(r, g, b), min(r, g, b)
+    if mx == mn:
+        return 0.0
+    if mx == r:
+        h = (g - b) / (mx - mn) % 6
+    elif mx == g:
+        h = (b - r) / (mx - mn) + 2
+    else:
+        h = (r - g) / (mx - mn) + 4
+    return 60.0 * h
+
+
+def _render(look: ConeLook, seed: int = 3):
+    frame = Frame(road_image(), K)
+    cfg = InsertionConfig(categories=("traffic_cone",), harmonize=False, shadow=False, ssaa=2)
+    an = analyse_scene(frame, cfg)
+    asset = procedural_asset_from_seed("traffic_cone", seed, look)
+    asset = asset.scaled(0.7 / asset.height_m)
+    p = an.ground.intersect_pixels(np.array([[320.0, 420.0]]), K)[0]
+    T = object_pose_on_ground(p, an.ground, 0.3)
+    placement = placement_at(asset, T, K, 0.3, an.ground)
+    plan = InsertionPlan((PlannedObject(placement, asset),), 0, 1)
+    out = apply_plan(frame, an, plan, cfg)
+    return out.image, np.asarray(placement.amodal_box_xyxy, float)
+
+
+@pytest.mark.parametrize("look", LOOKS, ids=["black-2-sleeves", "body-base-plain", "grey-1-sleeve"])
+def test_the_fit_gives_back_the_drawn_look(look):
+    image, box = _render(look)
+    assert box[3] - box[1] >= 80, box  # large enough to measure sleeves
+    fit = fit_cone_look(image, box)
+    assert fit is not None
+    assert fit.base_colour == look.base_colour
+    assert fit.bands == look.bands
+    if look.bands:
+        assert abs(fit.band_width_frac - look.band_width_frac) <= 0.04, (fit.band_width_frac, look.band_width_frac)
+    gap = abs(_hue(fit.colour_rgb) - _hue(look.colour_rgb)) % 360
+    assert min(gap, 360 - gap) <= 12.0, (fit.colour_rgb, look.colour_rgb)
+
+
+def test_boxes_that_cannot_be_measured_give_no_look():
+    image, box = _render(LOOKS[0])
+    cut = box.copy()
+    cut[1] = 0.0  # cut by the frame's top edge: its height is unknown
+    tiny = np.array([box[0], box[3] - 12, box[0] + 6, box[3]])  # 12 px tall
+    road = np.array([10.0, 400.0, 60.0, 470.0])  # grey road: no saturated body
+    assert fit_cone_look(image, cut) is None
+    assert fit_cone_look(image, tiny) is None
+    assert fit_cone_look(image, road) is None
+    assert len(fit_cone_looks(image, np.stack([box, cut, tiny, road]))) == 1
+
+
+def test_a_drawn_look_changes_colours_and_sleeves_only_and_rebuilds_from_its_record():
+    look = LOOKS[0]
+    plain = procedural_asset_from_seed("traffic_cone", 11)
+    looked = procedural_asset_from_seed("traffic_cone", 11, look)
+    for key in ("shape", "base_shape", "base_half_width_m", "base_height_m", "body_bottom_radius_m", "height_m"):
+        assert looked.meta[key] == plain.meta[key], key
+    assert looked.meta["base_colour"] == "black" and len(looked.meta["bands_z_m"]) == 2
+    assert looked.meta["colour_rgb"] == list(look.colour_rgb)
+    again = procedural_asset_from_seed("traffic_cone", 11, looked.meta["look"])  # what a replay reads
+    a, b = looked.meshes[0], again.meshes[0]
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(np.asarray(a.visual.material.image), np.asarray(b.visual.material.image))
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"colour_rgb": (255.0, 72.0, 18.0), "base_colour": "blue", "bands": 1, "band_width_frac": 0.1},
+        {"colour_rgb": (255.0, 72.0, 18.0), "base_colour": "black", "bands": 5, "band_width_frac": 0.1},
+        {"colour_rgb": (300.0, 72.0, 18.0), "base_colour": "black", "bands": 1, "band_width_frac": 0.1},
+        {"colour_rgb": (255.0, 72.0, 18.0), "base_colour": "black", "bands": 1, "band_width_frac": 0.9},
+    ],
+)
+def test_a_look_out_of_range_is_refused_at_construction(kwargs):
+    with pytest.raises(ValueError, match="ConeLook"):
+        ConeLook(**kwargs)
