@@ -25,11 +25,19 @@ from aias_augment.analyse.lighting.envmap import (
     pixel_solid_angles,
 )
 from aias_augment.analyse.lighting.sky import preetham_exposure_fit_cost
+from aias_augment.analyse.lighting.solar_position import (
+    enu_from_cam_from_metadata,
+    rotation_of,
+    solar_direction_enu,
+    sun_direction_in_cam_from_metadata,
+)
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.hdr import luminance, srgb_to_linear
 from aias_augment.core.rng import require_rng
 
 __all__ = [
+    "enu_from_cam_from_metadata",
+    "rotation_of",
     "solar_direction_enu",
     "sun_direction_in_cam_from_metadata",
     "SunFromEnv",
@@ -73,73 +81,6 @@ def frame_from_up(up: np.ndarray, forward_hint: np.ndarray | None = None) -> np.
     x = _unit(x)
     y = np.cross(z, x)
     return np.stack([x, y, z], axis=0)
-
-
-# ------------------------------------------------------------------------------------------------ solar position
-
-
-def solar_direction_enu(lat_deg: float, lon_deg: float, utc: str) -> np.ndarray:
-    """Unit direction to the sun in ENU from latitude/longitude (deg) and an ISO UTC time, via pvlib (SPA, apparent
-    elevation including refraction). Below the horizon the vector simply points below (z < 0)."""
-    import pandas as pd
-    import pvlib
-
-    if not (-90.0 <= float(lat_deg) <= 90.0 and -180.0 <= float(lon_deg) <= 360.0):
-        raise ValueError(f"invalid GPS position lat={lat_deg}, lon={lon_deg}")
-    try:
-        ts = pd.Timestamp(utc)
-    except (ValueError, TypeError) as e:
-        raise ValueError(f"cannot parse UTC time {utc!r}: {e}") from e
-    ts = ts.tz_localize("UTC") if ts.tzinfo is None else ts.tz_convert("UTC")
-    sp = pvlib.solarposition.get_solarposition(pd.DatetimeIndex([ts]), float(lat_deg), float(lon_deg))
-    el = np.deg2rad(float(sp["apparent_elevation"].iloc[0]))
-    az = np.deg2rad(float(sp["azimuth"].iloc[0]))  # clockwise from north
-    return np.array([np.sin(az) * np.cos(el), np.cos(az) * np.cos(el), np.sin(el)])
-
-
-def rotation_of(T) -> np.ndarray:
-    T = np.asarray(T, dtype=np.float64)
-    if T.shape == (4, 4):
-        T = T[:3, :3]
-    if T.shape != (3, 3) or not np.allclose(T @ T.T, np.eye(3), atol=1e-4):
-        raise ValueError(f"expected a 3x3 rotation (or 4x4 rigid), got shape {T.shape}")
-    return T
-
-
-def enu_from_cam_from_metadata(meta: dict, cam_from_world: np.ndarray | None = None) -> np.ndarray | None:
-    """Camera orientation in ENU from metadata, or None when the metadata does not say.
-
-    Accepted keys (first match wins): ``enu_from_cam`` (3x3); ``enu_from_world`` (3x3, combined with
-    ``cam_from_world``); ``heading_deg`` (camera forward azimuth, clockwise from north, level camera) with optional
-    ``pitch_deg`` (up positive) and ``roll_deg``.
-    """
-    if "enu_from_cam" in meta:
-        return rotation_of(meta["enu_from_cam"])
-    if "enu_from_world" in meta:
-        if cam_from_world is None:
-            raise ValueError("meta['enu_from_world'] needs cam_from_world")
-        return rotation_of(meta["enu_from_world"]) @ rotation_of(cam_from_world).T
-    if "heading_deg" in meta:
-        from aias_augment.analyse.lighting.envmap import cam_from_env_look
-
-        # Env frame with x = east, y = north is exactly ENU; env azimuth is counter-clockwise from east.
-        yaw = np.deg2rad(90.0 - float(meta["heading_deg"]))
-        cam_from_enu = cam_from_env_look(
-            yaw, np.deg2rad(float(meta.get("pitch_deg", 0.0))), np.deg2rad(float(meta.get("roll_deg", 0.0)))
-        )
-        return cam_from_enu.T
-    return None
-
-
-def sun_direction_in_cam_from_metadata(meta: dict, cam_from_world: np.ndarray | None = None) -> np.ndarray | None:
-    """Sun direction in the camera frame from ``meta['lat'], meta['lon'], meta['utc']`` plus an orientation (see
-    :func:`enu_from_cam_from_metadata`); None when position/time or orientation are missing."""
-    if not all(k in meta for k in ("lat", "lon", "utc")):
-        return None
-    enu_from_cam = enu_from_cam_from_metadata(meta, cam_from_world)
-    if enu_from_cam is None:
-        return None
-    return enu_from_cam.T @ solar_direction_enu(meta["lat"], meta["lon"], meta["utc"])
 
 
 # ------------------------------------------------------------------------------------------------ from an HDR map
@@ -337,6 +278,78 @@ def sky_smooth_window_px(width: int) -> int:
     return int(np.clip(round(SKY_SMOOTH_WINDOW_PX * width / SKY_SMOOTH_REFERENCE_WIDTH), 2, SKY_SMOOTH_WINDOW_PX))
 
 
+def _sky_pixels(unit, lin, Y, logY, above, sky_mask) -> np.ndarray:
+    """(H, W) bool: the sky pixels the luminance fit uses (see :func:`sun_cue_from_image`); ``unit`` is the image in
+    [0, 1], ``lin`` its linear radiance, ``Y`` / ``logY`` its luminance, ``above`` the pixels above the horizon."""
+    if sky_mask is not None:
+        return np.asarray(sky_mask, bool) & above & (unit.max(axis=2) < 0.98)
+    # The smoothness window is 5 px at the estimator's analysis width (400 px) and shrinks with narrower images
+    # (down to 2 px at 160, the fast preset's cheap analysis): a fixed 5 px window there spans 2.5x more of the
+    # scene, so branches and roof edges leave a quarter of the open sky "rough" (KITTI 06: 5 % of the pixels
+    # above the horizon instead of 20 %), and the indoor guard (min_sky_fraction_for_sun) then refused the sun.
+    win = sky_smooth_window_px(unit.shape[1])
+    mean = ndimage.uniform_filter(logY, win)
+    sq = ndimage.uniform_filter(logY * logY, win)
+    local_std = np.sqrt(np.clip(sq - mean * mean, 0.0, None))
+    ref = np.percentile(Y[above], 95) if above.any() else 1.0
+    bluish = lin[..., 2] >= lin[..., 0]
+    return (
+        above
+        & (local_std < 0.06)
+        & (unit.max(axis=2) < 0.98)
+        & (Y > max(0.15 * ref, 0.01))
+        & (bluish | (Y > 0.5 * ref))
+    )
+
+
+def _sky_pattern_loglik(
+    d, ly, lin_px, up_in_cam, grid_in_cam, grid_in_world, up_in_world, turbidities, effective_samples, whiteness_weight
+) -> tuple[np.ndarray, float, float]:
+    """The sky cues of :func:`sun_cue_from_image` for the sampled sky pixels (rays ``d`` (P, 3) in the camera frame,
+    log-luminance ``ly`` (P,), linear colours ``lin_px`` (P, 3)): the candidates' log-likelihood (luminance pattern,
+    plus the weighted colour cue), the sky's contrast in [0, 1] (0: no azimuthal information) and the agreement
+    factor of the two cues (1 when they point the same way, down to 0.2 when opposite)."""
+    cue_agreement = 1.0
+    cos_theta = d @ up_in_cam  # view zenith cosine
+    cos_gamma = np.clip(grid_in_cam @ d.T, -1.0, 1.0)  # (N, P)
+    best_cost = preetham_exposure_fit_cost(ly, cos_theta, cos_gamma, turbidities)
+    sigma2 = max(float(best_cost.min()), 1e-4)  # eps: a perfect fit would otherwise be infinitely sharp
+    # How much better the best sun explains the sky than a typical candidate: 0 = no azimuthal information.
+    sky_contrast = float(np.clip(1.0 - best_cost.min() / max(float(np.median(best_cost)), 1e-12), 0.0, 1.0))
+    sky_loglik = -0.5 * effective_samples * (best_cost - best_cost.min()) / sigma2
+    if whiteness_weight > 0:
+        blue = _blue_chromaticity(lin_px)
+        colour_loglik = whiteness_weight * sun_whiteness_loglik(blue, cos_gamma, cos_theta, effective_samples)
+    else:  # the colour cue is off (the default): not computed at all
+        colour_loglik = np.zeros(len(grid_in_world))
+    if colour_loglik.max() - colour_loglik.min() > 1.0:  # the colour says something: compare the two sky cues
+        h = grid_in_world - (grid_in_world @ up_in_world)[:, None] * up_in_world
+        a, b = h[int(np.argmax(sky_loglik))], h[int(np.argmax(colour_loglik))]
+        cos_dphi = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)  # eps: zenith candidate
+        cue_agreement = max(0.2, 0.5 * (1.0 + cos_dphi))
+    return sky_loglik + colour_loglik, sky_contrast, cue_agreement
+
+
+def _checked_image(image_rgb_uint8, intrinsics: Intrinsics) -> np.ndarray:
+    img = np.asarray(image_rgb_uint8)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError(f"sun_cue_from_image: expected (H, W, 3) uint8, got {img.shape} {img.dtype}")
+    if (intrinsics.height, intrinsics.width) != img.shape[:2]:
+        raise ValueError("sun_cue_from_image: intrinsics do not match the image size")
+    return img
+
+
+def _sky_confidence(concentration: float, sky_contrast: float, n_sky: int, cue_agreement: float, excluded: bool):
+    """Confidence of a sky-only cue (no sun disc): the posterior's concentration, the sky's contrast, how much sky
+    there is (full at 400 pixels) and the agreement of the two sky cues."""
+    confidence = concentration * sky_contrast * min(1.0, n_sky / 400.0) * cue_agreement
+    # Honesty: when the sky fit's favourite is a sun the visible sky rules out, the cues disagree and what is left
+    # (the best of the remaining candidates) is weaker evidence.
+    if excluded:
+        confidence *= 0.5
+    return confidence
+
+
 def sun_cue_from_image(
     image_rgb_uint8: np.ndarray,
     intrinsics: Intrinsics,
@@ -373,11 +386,7 @@ def sun_cue_from_image(
     there; ``exclusion_kappa`` x the exclusion score is added. This removes the Preetham fit's favourite failure, a
     hazy horizon in front of the camera read as a low sun in view.
     """
-    img = np.asarray(image_rgb_uint8)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise ValueError(f"sun_cue_from_image: expected (H, W, 3) uint8, got {img.shape} {img.dtype}")
-    if (intrinsics.height, intrinsics.width) != img.shape[:2]:
-        raise ValueError("sun_cue_from_image: intrinsics do not match the image size")
+    img = _checked_image(image_rgb_uint8, intrinsics)
     rng = require_rng(rng, "sun_cue_from_image")
     cam_from_world = np.eye(3) if cam_from_world is None else rotation_of(cam_from_world)
     if up_in_world is None:
@@ -405,51 +414,24 @@ def sun_cue_from_image(
 
     Y = np.maximum(luminance(lin), 1e-4)
     logY = np.log(Y)
-    if sky_mask is None:
-        # The smoothness window is 5 px at the estimator's analysis width (400 px) and shrinks with narrower images
-        # (down to 2 px at 160, the fast preset's cheap analysis): a fixed 5 px window there spans 2.5x more of the
-        # scene, so branches and roof edges leave a quarter of the open sky "rough" (KITTI 06: 5 % of the pixels
-        # above the horizon instead of 20 %), and the indoor guard (min_sky_fraction_for_sun) then refused the sun.
-        win = sky_smooth_window_px(img.shape[1])
-        mean = ndimage.uniform_filter(logY, win)
-        sq = ndimage.uniform_filter(logY * logY, win)
-        local_std = np.sqrt(np.clip(sq - mean * mean, 0.0, None))
-        ref = np.percentile(Y[above], 95) if above.any() else 1.0
-        bluish = lin[..., 2] >= lin[..., 0]
-        sky = (
-            above
-            & (local_std < 0.06)
-            & (unit.max(axis=2) < 0.98)
-            & (Y > max(0.15 * ref, 0.01))
-            & (bluish | (Y > 0.5 * ref))
-        )
-    else:
-        sky = np.asarray(sky_mask, bool) & above & (unit.max(axis=2) < 0.98)
+    sky = _sky_pixels(unit, lin, Y, logY, above, sky_mask)
     idx = np.flatnonzero(sky.ravel())
     n_sky = int(idx.size)
     if n_sky >= 50:
         if n_sky > max_sky_pixels:
             idx = rng.choice(idx, max_sky_pixels, replace=False)
-        d = rays.reshape(-1, 3)[idx]
-        ly = logY.ravel()[idx]
-        cos_theta = d @ up_in_cam  # view zenith cosine
-        cos_gamma = np.clip(grid_in_cam @ d.T, -1.0, 1.0)  # (N, P)
-        best_cost = preetham_exposure_fit_cost(ly, cos_theta, cos_gamma, turbidities)
-        sigma2 = max(float(best_cost.min()), 1e-4)  # eps: a perfect fit would otherwise be infinitely sharp
-        # How much better the best sun explains the sky than a typical candidate: 0 = no azimuthal information.
-        sky_contrast = float(np.clip(1.0 - best_cost.min() / max(float(np.median(best_cost)), 1e-12), 0.0, 1.0))
-        sky_loglik = -0.5 * effective_samples * (best_cost - best_cost.min()) / sigma2
-        if whiteness_weight > 0:
-            blue = _blue_chromaticity(lin.reshape(-1, 3)[idx])
-            colour_loglik = whiteness_weight * sun_whiteness_loglik(blue, cos_gamma, cos_theta, effective_samples)
-        else:  # the colour cue is off (the default): not computed at all
-            colour_loglik = np.zeros(len(grid_in_world))
-        if colour_loglik.max() - colour_loglik.min() > 1.0:  # the colour says something: compare the two sky cues
-            h = grid_in_world - (grid_in_world @ up_in_world)[:, None] * up_in_world
-            a, b = h[int(np.argmax(sky_loglik))], h[int(np.argmax(colour_loglik))]
-            cos_dphi = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)  # eps: zenith candidate
-            cue_agreement = max(0.2, 0.5 * (1.0 + cos_dphi))
-        sky_loglik = sky_loglik + colour_loglik
+        sky_loglik, sky_contrast, cue_agreement = _sky_pattern_loglik(
+            rays.reshape(-1, 3)[idx],
+            logY.ravel()[idx],
+            lin.reshape(-1, 3)[idx],
+            up_in_cam,
+            grid_in_cam,
+            grid_in_world,
+            up_in_world,
+            turbidities,
+            effective_samples,
+            whiteness_weight,
+        )
         loglik += sky_loglik
     exclusion = np.zeros(len(grid_in_world))
     if disc is None and n_sky >= 50:
@@ -464,11 +446,8 @@ def sun_cue_from_image(
     elif n_sky < 50:
         confidence = 0.0
     else:
-        confidence = concentration * sky_contrast * min(1.0, n_sky / 400.0) * cue_agreement
-        # Honesty: when the sky fit's favourite is a sun the visible sky rules out, the cues disagree and what is left
-        # (the best of the remaining candidates) is weaker evidence.
-        if exclusion[int(np.argmax(sky_loglik))] < -0.5:
-            confidence *= 0.5
+        excluded = bool(exclusion[int(np.argmax(sky_loglik))] < -0.5)
+        confidence = _sky_confidence(concentration, sky_contrast, n_sky, cue_agreement, excluded)
     return SunCue(grid_in_world, loglik, direction, confidence, disc is not None, n_sky, up_in_world)
 
 

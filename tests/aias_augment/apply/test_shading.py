@@ -84,7 +84,7 @@ _KB = None
 
 
 def _barrel_scene(keep: float):
-    from aias_augment.analyse.lighting.estimate import temper_sun
+    from aias_augment.analyse.lighting.exposure import temper_sun
     from aias_augment.assets.asset import default_asset
     from aias_augment.core.geometry import Intrinsics, make_rigid
 

@@ -92,7 +92,7 @@ def test_neutral_ambient_keeps_the_brightness_in_every_direction_and_has_one_col
     """The SH of a map lit red from one side and blue-white from the other: after neutral_ambient the irradiance
     luminance is the same in every direction (luminance is linear in the coefficients) and its chromaticity is
     everywhere that of the upward irradiance."""
-    from aias_augment.analyse.lighting.estimate import neutral_ambient
+    from aias_augment.analyse.lighting.ambient import neutral_ambient
     from aias_augment.analyse.lighting.sh import fibonacci_sphere, project_envmap_to_sh, sh_irradiance
     from aias_augment.core.hdr import luminance
 
@@ -116,7 +116,7 @@ def test_a_sunlit_white_takes_the_colour_of_the_photos_grey_surfaces():
     with r_c = E_sun,c cos z / E_sky,c per channel (lit over shadowed ground, minus 1). The neutral ambient took that
     colour; once the sun is added as its own light, a white facing up in the sun must receive the grey surfaces'
     colour again, E_sky,c (1 + r_c), not that colour times the sun's (here warm: r_R > r_B)."""
-    from aias_augment.analyse.lighting.estimate import neutral_ambient, sky_part_of_neutral
+    from aias_augment.analyse.lighting.ambient import neutral_ambient, sky_part_of_neutral
     from aias_augment.analyse.lighting.sh import sh_irradiance
 
     up = np.array([0.0, -1.0, 0.0])

@@ -189,7 +189,7 @@ def test_overcast_video_frame_has_no_dominant_sun():
 
 
 def test_side_agreement_lowers_confidence_when_cues_do_not_pick_the_shadow_end():
-    from aias_augment.analyse.lighting.estimate import _side_agreement
+    from aias_augment.analyse.lighting.sun_direction import _side_agreement
 
     up = np.array([0.0, 0.0, 1.0])
     grid, _ = sun.sun_direction_grid()
@@ -222,7 +222,7 @@ def test_kitti_sun_is_on_the_left(idx):
 
 
 def test_sky_side_mixture_caps_the_side_vote_and_keeps_the_peak():
-    from aias_augment.analyse.lighting.estimate import _half_turn_index, sky_side_mixture
+    from aias_augment.analyse.lighting.sun_direction import _half_turn_index, sky_side_mixture
 
     grid, azel = sun.sun_direction_grid()
     half = _half_turn_index(azel)
@@ -362,7 +362,7 @@ def test_a_bright_strip_on_a_dark_verge_is_not_a_sun():
     img, _ = render(verge, sun_direction(0.0, 35.0), _KS, sun_irradiance=0.0, rng=np.random.default_rng(0))
     cues = LightingConfig(sun_decision="cues")  # the cue decision's measurement is under test (see above)
     assert not estimate_lighting(img, _KS, config=cues, rng=np.random.default_rng(0)).dominant_sun
-    from aias_augment.analyse.lighting.estimate import fallback_measurement_ok
+    from aias_augment.analyse.lighting.frame import fallback_measurement_ok
     from aias_augment.analyse.lighting.ratio import ground_region_mask, measure_lit_shadow
     from aias_augment.core.hdr import srgb_to_linear
 

@@ -4,9 +4,8 @@ guard. Truths come from the analytic scene (known albedo, sky and sun), a unifor
 import numpy as np
 import pytest
 
-from aias_augment.analyse.lighting.estimate import (
-    LightingConfig,
-    estimate_lighting,
+from aias_augment.analyse.lighting.estimate import LightingConfig, estimate_lighting
+from aias_augment.analyse.lighting.exposure import (
     ground_exposure_scale,
     ground_white_balance_gains,
     peak_white_radiance,

@@ -68,7 +68,8 @@ def test_shadow_axis_of_pole_shadow_bands():
 
 
 def test_sun_over_sky_colour_from_a_lit_and_shadowed_pair_and_a_non_physical_pair_made_grey():
-    from aias_augment.analyse.lighting.estimate import LightingConfig, sun_over_sky_rgb
+    from aias_augment.analyse.lighting.ambient import sun_over_sky_rgb
+    from aias_augment.analyse.lighting.config import LightingConfig
     from aias_augment.core.hdr import luminance
 
     # a warm sun and a blue sky on one coloured surface: lit = a (E_sky + E_sun cos z), shadow = a E_sky

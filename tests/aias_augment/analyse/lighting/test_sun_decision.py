@@ -20,8 +20,8 @@ from aias_augment.analyse.lighting.sun_evidence import (
 
 from .test_sun_evidence import OVERCAST, SUNNY
 
-STUDY = Path(__file__).resolve().parents[4] / "results" / "lighting" / "asymmetric"
-BENCH = STUDY.parent / "benchmark"
+STUDY = Path(__file__).resolve().parents[4] / "studies" / "lighting" / "sun_asymmetric" / "result"
+BENCH = STUDY.parents[1] / "sun_benchmark" / "labels"
 
 
 def test_decision_is_probability_at_or_above_threshold():

@@ -202,7 +202,7 @@ def test_estimate_sun_direction_picks_the_side_on_a_rendered_street(sun_az_deg):
 
 
 def test_half_turn_index_mirrors_the_azimuth():
-    from aias_augment.analyse.lighting.estimate import _half_turn_index
+    from aias_augment.analyse.lighting.sun_direction import _half_turn_index
 
     grid, azel = sun.sun_direction_grid()
     idx = _half_turn_index(azel)
