@@ -298,10 +298,10 @@ def test_box_height_samples_follow_the_given_distribution():
 
 
 def test_candidate_cache_changes_nothing_and_sees_a_mask_changed_in_place():
-    """Planning again on the same scene reuses the candidate pixels (placement._GROUND_CANDIDATES); the result must
+    """Planning again on the same scene reuses the candidate pixels (box_size.GROUND_CANDIDATES); the result must
     be the one a cold computation gives, every contact must respect the analytic horizon and the region, and a
     region edited in place (same array object) must not be served from the cache."""
-    from aias_augment.plan import placement as pm
+    from aias_augment.plan import box_size
 
     region = np.zeros((K.height, K.width), bool)
     region[300:, :320] = True  # left half of the lower image
@@ -313,7 +313,7 @@ def test_candidate_cache_changes_nothing_and_sees_a_mask_changed_in_place():
         )
         return pl
 
-    pm._GROUND_CANDIDATES._entries.clear()
+    box_size.GROUND_CANDIDATES._entries.clear()
     cold = [draw(s) for s in range(6)]
     warm = [draw(s) for s in range(6)]  # cache hits now
     assert cold == warm and all(p is not None for p in cold)
