@@ -56,6 +56,15 @@ import cv2
 import numpy as np
 
 from aias_augment.apply.render import RenderLayers, render_object_window
+from aias_augment.apply.view_bins import (
+    DEFAULT_BINNING,
+    CachedView,
+    ViewBinning,
+    bin_direction,
+    centre_and_radius,
+    view_key,
+    view_rotation,
+)
 from aias_augment.assets.asset import Asset
 from aias_augment.core.geometry import Intrinsics, make_rigid
 
@@ -74,48 +83,6 @@ __all__ = [
     "rotational_symmetry_order",
     "asset_digest",
 ]
-
-
-@dataclass(frozen=True)
-class ViewBinning:
-    """Bin sizes of the view cache (see the module docstring). ``max_nearness``: a closer object (u above it) and an
-    object whose projected size exceeds 1.5 ``max_px`` are rendered in full instead (the caller's fallback)."""
-
-    azimuth_step_deg: float = 7.5
-    elevation_step_deg: float = 4.0
-    nearness_step: float = 0.04
-    min_px: int = 16
-    max_px: int = 256
-    max_nearness: float = 0.5
-    ssaa: int = 2
-
-    def __post_init__(self):
-        if not (0 < self.azimuth_step_deg <= 90 and 0 < self.elevation_step_deg <= 45 and 0 < self.nearness_step < 1):
-            raise ValueError(f"ViewBinning: bad steps {self}")
-        if self.min_px < 8 or self.max_px < self.min_px:
-            raise ValueError(f"ViewBinning: need 8 <= min_px <= max_px, got {self.min_px}, {self.max_px}")
-
-
-DEFAULT_BINNING = ViewBinning()
-#: The view camera never looks straight down/up its up axis (the view's "up" would be undefined).
-MAX_ELEVATION_DEG = 85.0
-
-
-@dataclass(frozen=True, eq=False)
-class CachedView:
-    """One rendered view. Layers cover ``roi`` of the view image (x0, y0 offset); ``K_view`` the view camera's
-    intrinsics (full view image), ``distance`` the bin's distance to the object's centre (root units).
-    ``premultiplied`` (h, w, 8) float32: albedo x coverage (3), normal (object frame) x coverage (3), depth offset
-    from ``distance`` x coverage (1), coverage (1): interpolating premultiplied layers keeps edges clean."""
-
-    premultiplied: np.ndarray
-    roi: tuple[int, int, int, int]
-    K_view: np.ndarray
-    distance: float
-
-    @property
-    def nbytes(self) -> int:
-        return int(self.premultiplied.nbytes)
 
 
 class ViewCache:
@@ -373,7 +340,7 @@ def rotational_symmetry_order(
     if asset.procedural:
         return 1
     n_az = int(round(360.0 / binning.azimuth_step_deg))
-    c_obj, radius = _centre_and_radius(asset)
+    c_obj, radius = centre_and_radius(asset)
     if radius <= 0 or np.hypot(c_obj[0], c_obj[1]) > SYMMETRY_TOL_POSITION * radius:
         return 1
     for n in sorted((d for d in range(2, n_az + 1) if n_az % d == 0), reverse=True):
@@ -394,79 +361,14 @@ def rotational_symmetry_order(
     return 1
 
 
-def _centre_and_radius(asset: Asset) -> tuple[np.ndarray, float]:
-    got = asset.__dict__.get("_view_centre_radius")  # a memo on the (immutable) asset, as its bounds
-    if got is None:
-        lo, hi = asset.bounds_m
-        got = ((lo + hi) / 2.0, float(np.linalg.norm(hi - lo) / 2.0))
-        got[0].setflags(write=False)
-        asset.__dict__["_view_centre_radius"] = got
-    return got
-
-
-def _view_rotation(v_obj: np.ndarray) -> np.ndarray:
-    """view_from_object rotation (rows x, y, z of the OpenCV view camera in the object frame) of a camera looking
-    along -v_obj (v_obj: unit, from the object toward the camera) with the object's up (z) pointing up in the image."""
-    vx, vy, vz = (float(c) for c in v_obj)
-    zx, zy, zz = -vx, -vy, -vz
-    ux, uy, uz = (0.0, 0.0, 1.0) if abs(vz) < 0.999 else (1.0, 0.0, 0.0)
-    k = ux * zx + uy * zy + uz * zz
-    yx, yy, yz = -(ux - k * zx), -(uy - k * zy), -(uz - k * zz)
-    n = math.sqrt(yx * yx + yy * yy + yz * yz)
-    yx, yy, yz = yx / n, yy / n, yz / n
-    return np.array([[yy * zz - yz * zy, yz * zx - yx * zz, yx * zy - yy * zx], [yx, yy, yz], [zx, zy, zz]])
-
-
-def _bin_direction(ia: int, ie: int, b: ViewBinning) -> np.ndarray:
-    az = math.radians(ia * b.azimuth_step_deg)
-    el = math.radians(
-        min((ie + 0.5) * b.elevation_step_deg, MAX_ELEVATION_DEG)
-        if ie >= 0
-        else max((ie + 0.5) * b.elevation_step_deg, -MAX_ELEVATION_DEG)
-    )
-    return np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-
-
-def view_key(
-    asset: Asset,
-    cam_from_object: np.ndarray,
-    intrinsics: Intrinsics,
-    binning: ViewBinning = DEFAULT_BINNING,
-    znear: float = 0.05,
-) -> tuple | None:
-    """(azimuth bin, elevation bin, nearness bin, resolution px) of the sample, or None when the view cache does not
-    apply (the object is partly behind ``znear``, nearer than ``max_nearness``, or larger than 1.5 ``max_px``)."""
-    c_obj, r = _centre_and_radius(asset)
-    R, t = cam_from_object[:3, :3], cam_from_object[:3, 3]
-    if float((asset.corners_m() @ R[2] + t[2]).min()) <= znear:  # the corners' z in the camera
-        return None
-    c_cam = R @ c_obj + t
-    d = math.sqrt(float(c_cam @ c_cam))
-    u = r / d
-    if u >= binning.max_nearness:
-        return None
-    vx, vy, vz = (-(R.T @ c_cam) / d).tolist()
-    az = math.degrees(math.atan2(vy, vx))
-    el = math.degrees(math.asin(min(max(vz, -1.0), 1.0)))
-    n_az = int(round(360.0 / binning.azimuth_step_deg))
-    ia = int(round(az / binning.azimuth_step_deg)) % n_az
-    ie = int(math.floor(el / binning.elevation_step_deg))
-    iu = int(math.floor(u / binning.nearness_step))
-    diameter_px = 2.0 * max(intrinsics.fx, intrinsics.fy) * math.tan(math.asin(u))
-    if diameter_px > 1.5 * binning.max_px:
-        return None
-    px = int(min(max(2 ** math.ceil(math.log2(max(diameter_px, 1.0))), binning.min_px), binning.max_px))
-    return ia, ie, iu, px
-
-
 def render_view(root: Asset, key: tuple, binning: ViewBinning = DEFAULT_BINNING) -> CachedView:
     """Render the view of ``root`` for ``key`` (the one GL call of the fast path, made on a cache miss)."""
     ia, ie, iu, px = key
-    c_obj, r = _centre_and_radius(root)
+    c_obj, r = centre_and_radius(root)
     u_b = (iu + 0.5) * binning.nearness_step
     d0 = r / u_b
-    v_b = _bin_direction(ia, ie, binning)
-    R_v = _view_rotation(v_b)
+    v_b = bin_direction(ia, ie, binning)
+    R_v = view_rotation(v_b)
     view_from_object = make_rigid(R_v, -R_v @ (c_obj + d0 * v_b))
     # The bounding sphere (angular radius asin(u_b)) spans px pixels; 2 px of margin each side.
     f0 = (px / 2.0) / math.tan(math.asin(u_b))
@@ -549,10 +451,10 @@ def warp_from_view_cache(
             T_root = make_rigid(R, t_root)
             key = (key[0] - turn * sector,) + tuple(key[1:])
     view = cache.get(root, key)
-    c_obj, _ = _centre_and_radius(root)
+    c_obj, _ = centre_and_radius(root)
     c_cam = R @ c_obj + t_root
     d = math.sqrt(float(c_cam @ c_cam))
-    R_e = _view_rotation(-(R.T @ c_cam) / d)  # a virtual camera here looking at the centre, object up = image up
+    R_e = view_rotation(-(R.T @ c_cam) / d)  # a virtual camera here looking at the centre, object up = image up
     # view pixel -> image pixel: K R R_e^T (the rotation about the camera centre) after scaling the view about its
     # principal point by d0 / d (the distance within the bin: the object's centre plane scales as 1 / distance).
     Kv = view.K_view
