@@ -213,19 +213,9 @@ class _Media:
         return f"media/{name}"
 
 
-def build_study(
-    arms: list[str | Path],
-    out: str | Path,
-    *,
-    names: list[str] | None = None,
-    baseline: str | None = None,
-    design: str = "baseline",
-    seed: int = 0,
-    title: str | None = None,
-    force: bool = False,
-) -> dict:
-    """Write a study to ``out``; returns a summary (pairs per comparison, what was left out and why)."""
-    out = Path(out)
+def _checked_arms(arms, out: Path, names, baseline, design: str, force: bool) -> tuple[list[str], str]:
+    """The arms' names and the baseline of :func:`build_study`, after its arguments and ``out`` are checked
+    (StudyError naming what to change)."""
     if len(arms) < 2:
         raise StudyError("a study needs at least two arms")
     names = list(names) if names else [Path(a).resolve().name for a in arms]
@@ -248,6 +238,44 @@ def build_study(
         )
     if (out / "study.json").exists() and not force:
         raise StudyError(f"{out} already holds a study; use --force to rebuild it")
+    return names, baseline
+
+
+def _new_pair_id(rng: random.Random, used_ids: set[str]) -> str:
+    """A 12-hex-digit pair id drawn from ``rng``, not in ``used_ids`` (added to it)."""
+    while True:
+        pid = f"{rng.getrandbits(48):012x}"
+        if pid not in used_ids:
+            used_ids.add(pid)
+            return pid
+
+
+def _pair_record(pid: str, source: Entry, left: Entry, right: Entry, media: _Media) -> dict:
+    """A pair as the study file holds it: its media copied into ``media/`` (left, then right)."""
+    return {
+        "id": pid,
+        "kind": left.kind,
+        "source": source.name,
+        "fps": left.fps if left.kind == "clip" else None,
+        "left": [media.add(f) for f in left.files],
+        "right": [media.add(f) for f in right.files],
+    }
+
+
+def build_study(
+    arms: list[str | Path],
+    out: str | Path,
+    *,
+    names: list[str] | None = None,
+    baseline: str | None = None,
+    design: str = "baseline",
+    seed: int = 0,
+    title: str | None = None,
+    force: bool = False,
+) -> dict:
+    """Write a study to ``out``; returns a summary (pairs per comparison, what was left out and why)."""
+    out = Path(out)
+    names, baseline = _checked_arms(arms, out, names, baseline, design, force)
     entries = {n: read_arm(a) for n, a in zip(names, arms)}
     kinds = {e.kind for es in entries.values() for e in es}
     if len(kinds) > 1:
@@ -285,22 +313,8 @@ def build_study(
         rng.shuffle(first_left)
         for (ea, eb), a_left in zip(kept, first_left):
             (l_arm, le), (r_arm, re_) = ((a_name, ea), (b_name, eb)) if a_left else ((b_name, eb), (a_name, ea))
-            while True:
-                pid = f"{rng.getrandbits(48):012x}"
-                if pid not in used_ids:
-                    used_ids.add(pid)
-                    break
-            fps = le.fps if le.kind == "clip" else None
-            pairs.append(
-                {
-                    "id": pid,
-                    "kind": le.kind,
-                    "source": ea.name,
-                    "fps": fps,
-                    "left": [media.add(f) for f in le.files],
-                    "right": [media.add(f) for f in re_.files],
-                }
-            )
+            pid = _new_pair_id(rng, used_ids)
+            pairs.append(_pair_record(pid, ea, le, re_, media))
             key[pid] = {"left": l_arm, "right": r_arm, "source": ea.key}
         summary["comparisons"][label] = len(kept)
     rng.shuffle(pairs)

@@ -85,6 +85,55 @@ def clean_rater(name: str | None) -> str | None:
     return name
 
 
+def rater_of(request: Request, explicit: str | None = None) -> str | None:
+    """The request's rater: ``explicit`` (a vote's field), else the ``rater`` query parameter, else the cookie (a
+    stale or foreign cookie counts as none)."""
+    if explicit is not None:
+        return clean_rater(explicit)
+    q = request.query_params.get("rater")
+    if q is not None:
+        return clean_rater(q)
+    c = request.cookies.get(COOKIE)
+    if c:
+        try:
+            return clean_rater(unquote(c))
+        except HTTPException:
+            return None  # a stale or foreign cookie: as if there were none
+    return None
+
+
+def need_rater(request: Request, explicit: str | None = None) -> str:
+    r = rater_of(request, explicit)
+    if r is None:
+        raise HTTPException(400, "no rater: enter your name first (POST /api/rater) or send 'rater'")
+    return r
+
+
+def order_for(study, order_seed: int, rater: str) -> list[str]:
+    """The study's pair ids in ``rater``'s own order: shuffled by a seed made of the study's seed and the rater."""
+    ids = list(study.pairs)
+    h = int(hashlib.sha256(f"{order_seed}:{rater}".encode()).hexdigest()[:16], 16)
+    random.Random(h).shuffle(ids)
+    return ids
+
+
+def progress(study, store: VoteStore, rater: str | None) -> dict:
+    done = len(store.voted_pairs(rater) & study.pairs.keys()) if rater else 0
+    return {"rater": rater, "done": done, "total": len(study.pairs)}
+
+
+def public_pair(study, pid: str) -> dict:
+    """What a rater's page is sent of a pair: its kind, frame rate and media URLs (not which side is which arm)."""
+    p = study.pairs[pid]
+    return {
+        "id": pid,
+        "kind": p["kind"],
+        "fps": p.get("fps"),
+        "left": [f"/media/{pid}/L/{i}" for i in range(len(p["left"]))],
+        "right": [f"/media/{pid}/R/{i}" for i in range(len(p["right"]))],
+    }
+
+
 def create_app(study_dir: str | Path, allowed_hosts=None) -> FastAPI:
     """The app of the study in ``study_dir``; ``allowed_hosts``: the ``Host`` headers it answers (``host:port``;
     None: any, until :func:`serve` sets them once its port is bound). Bodies and JSON are guarded (``guard.py``)."""
@@ -106,46 +155,15 @@ def create_app(study_dir: str | Path, allowed_hosts=None) -> FastAPI:
             resp.headers["Cache-Control"] = "no-store"
         return resp
 
-    def rater_of(request: Request, explicit: str | None = None) -> str | None:
-        if explicit is not None:
-            return clean_rater(explicit)
-        q = request.query_params.get("rater")
-        if q is not None:
-            return clean_rater(q)
-        c = request.cookies.get(COOKIE)
-        if c:
-            try:
-                return clean_rater(unquote(c))
-            except HTTPException:
-                return None  # a stale or foreign cookie: as if there were none
-        return None
+    _add_page_routes(app, study, store)
+    _add_rater_routes(app, study, store, order_seed)
+    _add_vote_and_media_routes(app, study, store)
+    _add_result_routes(app, study, store)
+    app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+    return app
 
-    def need_rater(request: Request, explicit: str | None = None) -> str:
-        r = rater_of(request, explicit)
-        if r is None:
-            raise HTTPException(400, "no rater: enter your name first (POST /api/rater) or send 'rater'")
-        return r
 
-    def order_for(rater: str) -> list[str]:
-        ids = list(study.pairs)
-        h = int(hashlib.sha256(f"{order_seed}:{rater}".encode()).hexdigest()[:16], 16)
-        random.Random(h).shuffle(ids)
-        return ids
-
-    def progress(rater: str | None) -> dict:
-        done = len(store.voted_pairs(rater) & study.pairs.keys()) if rater else 0
-        return {"rater": rater, "done": done, "total": len(study.pairs)}
-
-    def public_pair(pid: str) -> dict:
-        p = study.pairs[pid]
-        return {
-            "id": pid,
-            "kind": p["kind"],
-            "fps": p.get("fps"),
-            "left": [f"/media/{pid}/L/{i}" for i in range(len(p["left"]))],
-            "right": [f"/media/{pid}/R/{i}" for i in range(len(p["right"]))],
-        }
-
+def _add_page_routes(app: FastAPI, study, store: VoteStore) -> None:
     @app.get("/", include_in_schema=False)
     def index():
         return FileResponse(STATIC_DIR / "index.html", media_type="text/html")
@@ -166,27 +184,31 @@ def create_app(study_dir: str | Path, allowed_hosts=None) -> FastAPI:
     def api_study():
         return {"title": study.meta.get("title"), "kind": study.meta.get("kind"), "pairs": len(study.pairs)}
 
+
+def _add_rater_routes(app: FastAPI, study, store: VoteStore, order_seed: int) -> None:
     @app.post("/api/rater")
     def api_rater(body: RaterIn):
         rater = clean_rater(body.name)
         if rater is None:
             raise HTTPException(422, "rater id is empty")
         store.add_rater(rater)
-        resp = JSONResponse(progress(rater))
+        resp = JSONResponse(progress(study, store, rater))
         resp.set_cookie(COOKIE, quote(rater, safe=""), max_age=365 * 24 * 3600, samesite="strict", httponly=True)
         return resp
 
     @app.get("/api/me")
     def api_me(request: Request):
-        return progress(rater_of(request))
+        return progress(study, store, rater_of(request))
 
     @app.get("/api/next")
     def api_next(request: Request):
         rater = need_rater(request)
         voted = store.voted_pairs(rater)
-        left = [pid for pid in order_for(rater) if pid not in voted]
-        return {**progress(rater), "pair": public_pair(left[0]) if left else None}
+        left = [pid for pid in order_for(study, order_seed, rater) if pid not in voted]
+        return {**progress(study, store, rater), "pair": public_pair(study, left[0]) if left else None}
 
+
+def _add_vote_and_media_routes(app: FastAPI, study, store: VoteStore) -> None:
     @app.post("/api/vote", status_code=201)
     def api_vote(body: VoteIn, request: Request):
         rater = need_rater(request, body.rater)
@@ -211,7 +233,7 @@ def create_app(study_dir: str | Path, allowed_hosts=None) -> FastAPI:
                 {"detail": f"the server cannot write its vote store ({reason}); try again later", "recorded": False},
                 status_code=503,
             )
-        return progress(rater)
+        return progress(study, store, rater)
 
     @app.get("/media/{pair_id}/{side}/{index}")
     def media(pair_id: str, side: str, index: str):
@@ -228,6 +250,8 @@ def create_app(study_dir: str | Path, allowed_hosts=None) -> FastAPI:
             headers={"Cache-Control": "private, max-age=3600"},
         )
 
+
+def _add_result_routes(app: FastAPI, study, store: VoteStore) -> None:
     @app.get("/api/results")
     def api_results():
         return compute_report(study, store.votes())
@@ -247,9 +271,6 @@ def create_app(study_dir: str | Path, allowed_hosts=None) -> FastAPI:
             media_type="text/csv",
             headers={"Content-Disposition": 'attachment; filename="abstudy_votes.csv"'},
         )
-
-    app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
-    return app
 
 
 def serve(study_dir: str | Path, host: str = "127.0.0.1", port: int = 8000, log_level: str = "warning") -> None:
