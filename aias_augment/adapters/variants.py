@@ -35,8 +35,8 @@ import numpy as np
 import xxhash
 
 from aias_augment.analyse.analysis import hash_value
-from aias_augment.analyse.lighting.envmap import EnvironmentMap
 from aias_augment.apply.view_cache import write_atomic
+from aias_augment.core.envmap import EnvironmentMap
 
 log = logging.getLogger(__name__)
 

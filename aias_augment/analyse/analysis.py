@@ -20,10 +20,10 @@ import xxhash
 from aias_augment.analyse.config import AnalyseConfig, analyse_config
 from aias_augment.analyse.exposure import ExposureMatch
 from aias_augment.analyse.ground import GroundFitError, GroundPlane, ground_plane_from_depth, prior_ground_plane
-from aias_augment.analyse.lighting.envmap import EnvironmentMap
 from aias_augment.analyse.lighting.estimate import LightingEstimate, estimate_lighting
 from aias_augment.analyse.region import PlaceableRegion, below_horizon_mask, placeable_region
 from aias_augment.analyse.single_image import SingleImageConfig, estimate_camera_from_image
+from aias_augment.core.envmap import EnvironmentMap
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.report import skipped

@@ -351,7 +351,8 @@ def envmap_fact(path: str):
     """``--envmap FILE`` as the scene fact ``envmap``: an :class:`EnvironmentMap` placed for a single image (whose
     world is the camera frame): the camera looks level at the map's centre column (env +x), env z up."""
     from aias_augment.adapters.boundary import InputError
-    from aias_augment.analyse.lighting.envmap import EnvironmentMap, cam_from_env_look
+    from aias_augment.analyse.lighting.envmap import cam_from_env_look
+    from aias_augment.core.envmap import EnvironmentMap
     from aias_augment.core.scene_inputs import SceneInputs
 
     try:

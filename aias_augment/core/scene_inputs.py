@@ -37,7 +37,7 @@ class SceneInputs:
     enu_from_cam, enu_from_world, world_from_env: 3x3 rotations (camera / world frame to East-North-Up; an HDR
         environment map's frame to the world).
     up_in_world: (3,) the world's up direction.
-    envmap: the scene's HDR environment map: an :class:`aias_augment.analyse.lighting.envmap.EnvironmentMap` (its own
+    envmap: the scene's HDR environment map: an :class:`aias_augment.core.envmap.EnvironmentMap` (its own
         ``world_from_env`` places it; for a single image the world is the camera frame) or an (H, 2H, 3) linear
         radiance array (placed by ``world_from_env``, default identity). The lighting is read from it (source
         'envmap': its brightest compact light as the sun, the rest as ambient) instead of estimated from the image.

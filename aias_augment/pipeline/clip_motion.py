@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from aias_augment.assets.asset import Asset
-from aias_augment.plan.collision import OrientedBox, boxes_intersect
+from aias_augment.core.oriented_box import OrientedBox
+from aias_augment.plan.collision import boxes_intersect
 
 if TYPE_CHECKING:
     from aias_augment.pipeline.clip_plan import ClipPlan, VideoInsertionConfig

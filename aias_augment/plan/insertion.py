@@ -15,8 +15,8 @@ from aias_augment.analyse.analysis import SceneAnalysis
 from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
 from aias_augment.assets.deform import apply_deformation, sample_deformation
 from aias_augment.core.geometry import Intrinsics, make_rigid, project_points
+from aias_augment.core.oriented_box import OrientedBox
 from aias_augment.core.stages import draw_frame_params, draw_layer_params
-from aias_augment.plan.collision import OrientedBox
 from aias_augment.plan.config import PlanConfig, plan_config
 from aias_augment.plan.placement import (
     Placement,

@@ -5,7 +5,6 @@ Frames: everything handed to the renderer is in the OpenCV camera frame (x right
 point from the scene toward the sun; environment maps follow Blender's equirectangular convention (``envmap``).
 """
 
-from aias_augment.analyse.lighting.envmap import EnvironmentMap
 from aias_augment.analyse.lighting.estimate import (
     LightingConfig,
     LightingEstimate,
@@ -16,6 +15,7 @@ from aias_augment.analyse.lighting.estimate import (
     estimate_sun_direction_clip,
     lighting_from_envmap,
 )
+from aias_augment.core.envmap import EnvironmentMap
 
 __all__ = [
     "EnvironmentMap",

@@ -37,7 +37,8 @@ from aias_augment.analyse.ground import GroundFitError, depth_to_points, fit_gro
 from aias_augment.analyse.region import RegionConfig, placeable_region
 from aias_augment.assets.asset import default_asset
 from aias_augment.core.geometry import project_points
-from aias_augment.plan.collision import OrientedBox, points_inside_box
+from aias_augment.core.oriented_box import OrientedBox
+from aias_augment.plan.collision import points_inside_box
 from aias_augment.plan.placement import PlacementConfig, sample_placement
 
 log = logging.getLogger("eval_placement")

@@ -202,7 +202,8 @@ def _sun_envmap(azimuth_deg, elevation_deg, h=64):
 def test_envmap_fact_is_the_scene_lighting_and_part_of_the_cache_key():
     from aias_augment.analyse.analysis import scene_key
     from aias_augment.analyse.cache import SceneCache
-    from aias_augment.analyse.lighting.envmap import EnvironmentMap, cam_from_env_look
+    from aias_augment.analyse.lighting.envmap import cam_from_env_look
+    from aias_augment.core.envmap import EnvironmentMap
     from aias_augment.core.frame import Frame
     from aias_augment.core.scene_inputs import SceneInputs
     from aias_augment.pipeline.bounded import insert_bounded
