@@ -318,6 +318,29 @@ def make_optimizers(gen: Generator, critic: Critic, cfg: TrainConfig):
     )
 
 
+def _load_initial_weights(gen: Generator, cfg: TrainConfig, init_from, init_global_from) -> tuple[dict, list]:
+    """Load ``init_from`` (a saved generator of the same network config) and ``init_global_from`` (a fast-harmonizer
+    checkpoint for the global stage) into ``gen``; returns what the run continues from (its steps, training time and
+    history) and the earlier run's segments."""
+    prior = {"steps": 0, "train_time_s": 0.0, "history": []}
+    segments: list = []
+    if init_from is not None:
+        ckpt = load_checkpoint_dict(init_from, "network")
+        if from_dict(NetworkConfig, ckpt["config"]) != cfg.network:
+            raise ValueError(f"{init_from}: network config differs from the training config")
+        gen.load_state_dict(ckpt["state_dict"])
+        prior = {k: ckpt["meta"].get(k, prior[k]) for k in prior}
+        segments = list(ckpt["meta"].get("segments", []))
+    if init_global_from is not None:
+        if gen.global_stage is None:
+            raise ValueError("init_global_from needs network.global_stage: true")
+        fast = load_checkpoint_dict(init_global_from, "fast")
+        if from_dict(FastConfig, fast["config"]) != gen.global_stage.cfg:
+            raise ValueError(f"{init_global_from}: fast config {fast['config']} differs from the global stage's")
+        gen.global_stage.load_state_dict(fast["state_dict"])
+    return prior, segments
+
+
 def train_network(
     cfg: TrainConfig,
     out_path: str | Path,
@@ -342,20 +365,7 @@ def train_network(
     with torch.random.fork_rng(devices=[]):  # weight init seeded by cfg.seed; the process' torch state untouched
         torch.manual_seed(cfg.seed)
         gen, critic = Generator(cfg.network), Critic(cfg.network.critic_channels)
-    prior = {"steps": 0, "train_time_s": 0.0, "history": []}
-    if init_from is not None:
-        ckpt = load_checkpoint_dict(init_from, "network")
-        if from_dict(NetworkConfig, ckpt["config"]) != cfg.network:
-            raise ValueError(f"{init_from}: network config differs from the training config")
-        gen.load_state_dict(ckpt["state_dict"])
-        prior = {k: ckpt["meta"].get(k, prior[k]) for k in prior}
-    if init_global_from is not None:
-        if gen.global_stage is None:
-            raise ValueError("init_global_from needs network.global_stage: true")
-        fast = load_checkpoint_dict(init_global_from, "fast")
-        if from_dict(FastConfig, fast["config"]) != gen.global_stage.cfg:
-            raise ValueError(f"{init_global_from}: fast config {fast['config']} differs from the global stage's")
-        gen.global_stage.load_state_dict(fast["state_dict"])
+    prior, prior_segments = _load_initial_weights(gen, cfg, init_from, init_global_from)
     opt_g, opt_d = make_optimizers(gen, critic, cfg)
     scheds = [torch.optim.lr_scheduler.LambdaLR(o, lr_lambda(cfg.lr_schedule, cfg.steps)) for o in (opt_g, opt_d)]
     history, t0, step = list(prior["history"]), time.perf_counter(), 0
@@ -376,7 +386,7 @@ def train_network(
             "best_step": best_step,
             "train_time_s": round(prior["train_time_s"] + elapsed, 1),
             "segments": [
-                *(ckpt["meta"].get("segments", []) if init_from else []),
+                *prior_segments,
                 {"steps": step, "train_time_s": round(elapsed, 1), "init_from": str(init_from)},
             ],
             "holdout_raw_fmse": raw_fmse,
