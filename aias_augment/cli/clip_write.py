@@ -83,6 +83,7 @@ def write_clip(output: ClipOutput, job: ClipJob, inputs: ClipInputs, clip: Rende
         "skipped_objects": clip.skipped_objects,
         **({} if inputs.labels is None else {"labels": _labels_record(job, inputs, clip)}),
         **({} if clip.sun is None else {"sun": clip.sun}),
+        **({"frame_params": clip.frame_params} if clip.frame_params else {}),  # the stage list's frame stages
         "modules": clip.notes,
         "skipped_stages": skipped_stages(clip.notes),
     }

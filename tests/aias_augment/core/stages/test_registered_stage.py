@@ -131,3 +131,47 @@ def test_a_stage_is_registered_once_and_with_a_known_kind():
         register_stage(type("Clash", (), {"name": "edge_blend", "kind": "layer", "order": 0})())
     with pytest.raises(ValueError, match="kind must be one of"):
         register_stage(type("NoKind", (), {"name": "x", "order": 0})())
+
+
+class Brighten:
+    """A frame stage: every channel lifted by a drawn amount, saturating at 255 (a grey frame stays grey)."""
+
+    name = "test_brighten"
+    kind = "frame"
+    order = 0
+
+    def enabled(self, cfg) -> bool:
+        return True
+
+    def draw(self, cfg, rng: np.random.Generator) -> dict:
+        return {"lift": int(rng.integers(10, 40))}
+
+    def apply(self, image: np.ndarray, params: dict) -> np.ndarray:
+        return np.minimum(image.astype(np.int32) + params["lift"], 255).astype(np.uint8)
+
+
+def test_the_clip_door_applies_a_registered_frame_stage_to_every_frame():
+    from aias_augment.analyse.ground import prior_ground_plane
+    from aias_augment.core.config import data_root
+    from aias_augment.pipeline.clip_objects import ClipRequest, insert_objects_into_clip
+
+    seq_dir = data_root() / "kitti06_seq"
+    if not seq_dir.exists():
+        pytest.skip("shared KITTI data not available")
+    from aias_augment.scenes.kitti import open_kitti_sequence
+
+    seq = open_kitti_sequence(seq_dir)
+    frames = [seq.frame(i).image for i in range(4)]
+    poses = np.stack([seq.cam_from_world(i) for i in range(4)])
+    req = ClipRequest(lighting="ambient", harmonize="none", lookahead_frames=0, ahead_m=10.0, seed=2)
+    plain = insert_objects_into_clip(frames, seq.intrinsics, poses, prior_ground_plane(1.65), req)
+    remove = register_stage(Brighten())
+    try:
+        bright = insert_objects_into_clip(frames, seq.intrinsics, poses, prior_ground_plane(1.65), req)
+    finally:
+        remove()
+    lift = bright.frame_params["test_brighten"]["lift"]
+    assert plain.frame_params == {} and 10 <= lift < 40
+    expected = [np.minimum(f.astype(np.int64) + lift, 255).astype(np.uint8) for f in plain.frames]
+    assert all(np.array_equal(a, b) for a, b in zip(bright.frames, expected))
+    assert [r.boxes_xywh for r in bright.results] == [r.boxes_xywh for r in plain.results]
