@@ -44,7 +44,7 @@ __all__ = [
     "plan_clip_objects",
 ]
 
-log = logging.getLogger("aias_augment.cli.clip")
+log = logging.getLogger("aias_augment.cli.clip")  # the clip command's logger: one place to filter its warnings
 
 #: Draws of one object's plan before it is left out for meeting an object already placed in the clip.
 COLLISION_ATTEMPTS = 8
