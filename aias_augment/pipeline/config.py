@@ -80,6 +80,10 @@ class InsertionConfig:
     # process, so the view cache reuses its views (assets/bank/family_cache.py; the member index is in the record).
     family_members: int | None = None
     family_seed: int | None = None
+    # "labels": with asset_source procedural, an image with labelled cones draws its inserted cones like them (body
+    # colour, base, white sleeves measured on their crops: aias_augment/plan/looks.py); "variety": the family's own
+    # colours, bases and sleeves everywhere. Images without labelled cones draw the family either way.
+    cone_look: Literal["labels", "variety"] = "labels"
     # Share of objects inserted as a seeded physical variant of their asset (aias_augment/assets/deform.py: dented,
     # crushed, bent, knocked over; kinds and ranges in ``deform_cfg``), drawn in the plan and recorded in the
     # placement's ``asset_meta["deformation"]``, so a replay rebuilds the same variant. 0: off.

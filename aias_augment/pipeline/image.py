@@ -27,6 +27,7 @@ from aias_augment.pipeline.config import PRESETS, InsertionConfig, load_preset  
 from aias_augment.pipeline.replay import placement_from_dict
 from aias_augment.pipeline.working import WorkingResolution
 from aias_augment.plan.insertion import PlannedObject, plan_insertion
+from aias_augment.plan.looks import labelled_cone_looks
 from aias_augment.plan.placement import Placement
 
 log = logging.getLogger(__name__)
@@ -151,7 +152,7 @@ def insert_into_image(
     inputs = DoorInputs.checked(image, bboxes_xywh, labels, depth, intrinsics, meta, scene)
     cfg = cfg.for_image(rng)  # naive_share: this image a naive paste or a pipeline insertion
     h, w = inputs.image.shape[:2]
-    plan_kw = dict(bank=bank, n_objects=n_objects)
+    plan_kw = dict(bank=bank, n_objects=n_objects, cone_looks=_cone_looks(inputs, cfg))
     if max_pixels and h * w > max_pixels:
         working = WorkingResolution.bound(w, h, max_pixels)
         return _insert_at_working_resolution(
@@ -302,3 +303,11 @@ def assemble_result(
     all_boxes = np.concatenate([boxes[keep], ins], axis=0)
     all_labels = [lab for lab, k in zip(labels, keep) if k] + inserted_labels
     return InsertionResult(applied.image, all_boxes, all_labels, ins, inserted_labels, keep, record)
+
+
+def _cone_looks(inputs: DoorInputs, cfg: InsertionConfig) -> tuple:
+    """The looks of the image's labelled cones (full size), for inserted cones to be drawn like them: only with
+    ``cone_look: labels``, cones among the categories and a placement (a naive paste keeps the family's variety)."""
+    if cfg.cone_look != "labels" or "traffic_cone" not in cfg.categories or not cfg.placement or not len(inputs.boxes):
+        return ()
+    return labelled_cone_looks(inputs.image, inputs.boxes_xyxy, inputs.labels)

@@ -38,7 +38,7 @@ def default_asset_for(p: Placement) -> Asset:
     if p.asset_source.startswith("procedural:") and "seed" in p.asset_meta:
         from aias_augment.assets.bank.procedural import procedural_asset_from_seed
 
-        return procedural_asset_from_seed(p.category, p.asset_meta["seed"])
+        return procedural_asset_from_seed(p.category, p.asset_meta["seed"], p.asset_meta.get("look"))
     for rel in DEFAULT_ASSETS.get(p.category, []):
         a = default_asset(p.category, DEFAULT_ASSETS[p.category].index(rel))
         if a.source == p.asset_source or a.source == str(data_root() / rel):

@@ -83,6 +83,9 @@ class PlanConfig:
     naive_height_frac_range: tuple[float, float] = (0.05, 0.4)
     naive_height_frac_samples: tuple[float, ...] = ()
     placement_cfg: PlacementConfig = PlacementConfig()
+    # "labels": procedural cones drawn like the image's labelled cones (colour, base, sleeves) when it has some;
+    # "variety": the family's own draws everywhere.
+    cone_look: Literal["labels", "variety"] = "labels"
     # The stage list's fields (core/stages: each stage's ``enabled`` and ``draw`` read them at plan time).
     motion_blur_px: tuple[float, float] = (0.0, 0.0)
     edge_blend: tuple[EdgeBlendMode, ...] = ()

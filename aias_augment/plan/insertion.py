@@ -22,12 +22,14 @@ from aias_augment.plan.placement import (
     Placement,
     draw_box_height_target,
     placement_at,
+    predicted_box_heights_px,
     reference_heights_m,
     sample_placement,
     scaled_ground,
     scene_scale_for_sizes,
     scene_scale_from_boxes,
 )
+from aias_augment.plan.references import ground_from_references
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,6 +86,7 @@ def plan_insertion(
     meta: dict | None = None,
     bank=None,
     n_objects: int | None = None,
+    cone_looks: tuple = (),
 ) -> InsertionPlan:
     """Draw the insertion: ``k`` objects (``n_objects`` or uniform in [min_objects, max_objects]), each a category,
     an asset and a placement that avoids ``existing_boxes_xyxy`` (N, 4), earlier objects and, with ``meta``
@@ -91,6 +94,8 @@ def plan_insertion(
     ``existing_labels`` (N,): the boxes' labels; those naming an inserted category are the scene's own objects of
     that kind, which set the sizes with ``placement_cfg.sizes_from_existing`` (without labels, none does). Last, the
     plan's seed and the stage list's parameters (:mod:`aias_augment.core.stages`) from generators of their own.
+    ``cone_looks``: the looks of the image's labelled cones (:func:`aias_augment.plan.looks.labelled_cone_looks`);
+    with ``cone_look: labels`` procedural cones are drawn like them (the same draws of ``rng``).
     ``cfg``: the plan's record (or a config that carries one: the door's ``InsertionConfig``)."""
     if rng is None:
         raise ValueError("plan_insertion needs an explicit numpy Generator (rng) for reproducibility")
@@ -111,7 +116,7 @@ def plan_insertion(
         line = draw_arrangement(arrangement, rng, cfg)
     for i in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
-        base = choose_asset(category, rng, cfg, bank)
+        base = choose_asset(category, rng, cfg, bank, cone_looks)
         if cfg.deform_probability > 0 and rng.uniform() < cfg.deform_probability:
             base = apply_deformation(base, sample_deformation(base, rng, cfg.deform_cfg))
         if cfg.placement and targets is not None and i == 0:
@@ -191,7 +196,14 @@ class _Draft:
                 f"box heights drawn from the image's {len(pcfg.box_height_frac_samples)} existing boxes of the "
                 "inserted kind; an object of a labelled kind as tall as one of them on the ground"
             )
-        return cls(analysis, cfg, rng, depth, analysis.ground, pcfg, ref_kinds, taken, scene_points, boxes_3d, mods)
+        ground = analysis.ground
+        if cfg.placement and pcfg.pitch_from_references and ref_kinds:
+            kinds = [k for _, k in ref_kinds]
+            kind = max(set(kinds), key=lambda k: (kinds.count(k), str(k)))  # the most labelled kind: one height
+            boxes = np.array([b for b, k in ref_kinds if k == kind])
+            turned, mods["pitch"] = ground_from_references(ground, analysis.intrinsics, boxes, pcfg.max_pitch_turn_deg)
+            ground = turned if turned is not None else ground
+        return cls(analysis, cfg, rng, depth, ground, pcfg, ref_kinds, taken, scene_points, boxes_3d, mods)
 
     def scale_scene(self, category: str, base: Asset, targets: list) -> list:
         """The scene's scale from the first object's size targets (or the scene's own objects on their ground rows,
@@ -264,6 +276,8 @@ class _Draft:
             object_height_m=height,
         )
         self.reports.append(report.to_dict())
+        if placement is not None and height is not None:
+            placement = _box_like_references(placement, base, height, self.ground, intr)
         return placement
 
 
@@ -440,11 +454,12 @@ def naive_pose(asset: Asset, intr: Intrinsics, rng, cfg: PlanConfig) -> tuple[np
     return make_rigid(R_up @ R_yaw, t), yaw
 
 
-def choose_asset(category: str, rng, cfg: PlanConfig, bank=None) -> Asset:
+def choose_asset(category: str, rng, cfg: PlanConfig, bank=None, cone_looks: tuple = ()) -> Asset:
     """The caller's asset source, else a new seeded procedural asset (asset_source "procedural", categories with a
     generator: :data:`aias_augment.assets.bank.procedural.CATEGORY_SPECS`), else the shared-data default of the category
     (asset_source "default"; "procedural" for other categories), else the asset bank (``aias_augment.assets.bank``:
-    sweethome3d catalogs, gazebo models, procedural debris), real-size jittered."""
+    sweethome3d catalogs, gazebo models, procedural debris), real-size jittered. A procedural cone is drawn like one
+    of ``cone_looks`` (the image's labelled cones) with ``cone_look: labels``."""
     if bank is not None:
         return bank.sample(category, rng)
     if cfg.asset_source == "procedural":
@@ -454,6 +469,10 @@ def choose_asset(category: str, rng, cfg: PlanConfig, bank=None) -> Asset:
             from aias_augment.assets.bank.family_cache import default_family
 
             return default_family(category, cfg.family_members, cfg.family_seed).sample(rng)
+        if category == "traffic_cone" and cone_looks and cfg.cone_look == "labels":  # one draw: its seed
+            from aias_augment.assets.bank.procedural import procedural_asset_like
+
+            return procedural_asset_like(category, rng, cone_looks)
         if category in CATEGORY_SPECS:  # a new seeded one per object (one draw of rng: its seed)
             return procedural_asset(category, rng)
     if cfg.asset_source in ("default", "procedural") and category in DEFAULT_ASSETS:
@@ -461,3 +480,27 @@ def choose_asset(category: str, rng, cfg: PlanConfig, bank=None) -> Asset:
     from aias_augment.assets.bank import get_bank  # lazy: the bank catalog is only read when a category needs it
 
     return get_bank().sample(category, rng)
+
+
+def _box_like_references(placement: Placement, base: Asset, height_m: float, ground, intr: Intrinsics) -> Placement:
+    """``placement`` rescaled about its contact point so that its box is as tall as a labelled object's box on the
+    same row. The labelled objects' heights are measured as vertical segments on their boxes' bottom rows, but a
+    box also holds the object's footprint (its base seen from above: much of a cone's box when the camera looks
+    down), so an object of the measured height has a taller box than its neighbours; two fixed-point steps shrink it
+    to the segment's height at its own bottom row (no draw)."""
+    for _ in range(2):
+        x0, _, x1, y1 = placement.amodal_box_xyxy
+        target = float(predicted_box_heights_px(np.array([[(x0 + x1) / 2, y1]]), height_m, ground, intr)[0])
+        box_h = placement.amodal_box_xyxy[3] - placement.amodal_box_xyxy[1]
+        if not (np.isfinite(target) and target > 0 and box_h > 0) or abs(target / box_h - 1.0) < 0.01:
+            break
+        asset = base.scaled(placement.scale * target / box_h)
+        again = placement_at(asset, np.asarray(placement.cam_from_object_matrix), intr, placement.yaw_rad, ground)
+        placement = replace(
+            placement,
+            scale=again.scale,
+            height_m=again.height_m,
+            amodal_box_xyxy=again.amodal_box_xyxy,
+            box_in_object_m=again.box_in_object_m,
+        )
+    return placement

@@ -1,0 +1,192 @@
+"""Inserted cones beside a photo's own labelled cones: the same size on the same row, the same look.
+
+Per photo (TraCon photos with >= 2 labelled cones whole in the frame, bottom rows >= 30 px apart; the first N in
+name order of a split), the image door inserts 3 cones (``--preset``, seed ``[53, i]``) with the labelled cones as
+existing boxes, as a user with a labelled dataset runs it. Measured on the output, the same way for real and inserted
+cones (none of it reads the code's records except the inserted boxes):
+
+- **same-row size ratio**: an inserted box's height over the height the photo's own cones have on its bottom row,
+  from the line ``h = c v_bottom + c0`` fitted to the labelled whole boxes (equal objects on a planar ground); the
+  real cones' own ratio, each against the line of the others (leave one out), is the measure's floor;
+- **base brightness**: the median HSV value of a box's base band (rows 88-98 % of its height, the central 60 % of its
+  width), an inserted cone's over the median of the photo's real cones';
+- **look agreement**: :func:`aias_augment.analyse.instances.fit_cone_look` on each inserted box against the photo's
+  labelled cones: the base class and the sleeve count of at least one of them, body hue within 15 deg of it.
+
+Commands (``before``: a checkout of the previous code first on PYTHONPATH; the development split is TraCon train,
+val is reported once)::
+
+  python -m studies.realism.labelled_scenes render --split train --tag after --tmp T
+  PYTHONPATH=OLD:. python -m studies.realism.labelled_scenes render --split train --tag before --tmp T
+  python -m studies.realism.labelled_scenes measure --tmp T --tags before after --out studies/realism/labelled_scenes/result
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from aias_augment.core.config import data_root
+from aias_augment.pipeline.config import load_preset
+from aias_augment.pipeline.image import insert_into_image
+from studies._shared.pictures import write_jpeg
+
+SPREAD_PX = 30
+
+
+def photos(split: str, n: int):
+    """(stem, RGB <= 640 px, cone boxes xyxy) of TraCon ``split`` photos with >= 2 whole cones whose bottom rows
+    spread >= 30 px."""
+    root = data_root() / "tracon"
+    for lab_path in sorted((root / f"labels/{split}").glob("*.txt")):
+        if lab_path.stat().st_size == 0:
+            continue
+        lab = np.loadtxt(lab_path, ndmin=2)
+        if len(lab) < 2:
+            continue
+        path = next((root / f"images/{split}").glob(lab_path.stem + ".*"))
+        img = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
+        s = min(1.0, 640 / max(img.shape[:2]))
+        img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else img
+        H, W = img.shape[:2]
+        cx, cy, bw, bh = lab[:, 1] * W, lab[:, 2] * H, lab[:, 3] * W, lab[:, 4] * H
+        boxes = np.c_[cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2]
+        if len(whole_boxes(boxes, H)) >= 2 and np.ptp(whole_boxes(boxes, H)[:, 3]) >= SPREAD_PX:
+            yield lab_path.stem, img, boxes
+            n -= 1
+            if n == 0:
+                return
+
+
+def whole_boxes(boxes: np.ndarray, height: int) -> np.ndarray:
+    return boxes[(boxes[:, 1] > 1) & (boxes[:, 3] < height - 2)]
+
+
+def render(a) -> None:
+    cfg = load_preset(a.preset)
+    if a.variety:
+        cfg = replace(cfg, cone_look="variety")
+    if a.no_pitch:
+        cfg = replace(cfg, placement_cfg=replace(cfg.placement_cfg, pitch_from_references=False))
+    a.tmp.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for i, (stem, img, boxes) in enumerate(photos(a.split, a.n)):
+        xywh = np.c_[boxes[:, :2], boxes[:, 2:] - boxes[:, :2]]
+        res = insert_into_image(
+            img, xywh, ["cone"] * len(boxes), cfg=cfg, rng=np.random.default_rng([53, i]), n_objects=3
+        )
+        inserted = [list(map(float, p.amodal_box_xyxy)) for p in res.record.placements if not p.decoy]
+        cv2.imwrite(str(a.tmp / f"{a.tag}_{i}.png"), cv2.cvtColor(res.image, cv2.COLOR_RGB2BGR))
+        rows.append({"photo": stem, "real": boxes.tolist(), "inserted": inserted})
+        print(f"{a.tag} {i} {stem}: {len(inserted)} inserted", flush=True)
+    (a.tmp / f"{a.tag}.json").write_text(json.dumps(rows))
+
+
+def base_v(img: np.ndarray, box) -> float:
+    x0, y0, x1, y1 = box
+    h, w = y1 - y0, x1 - x0
+    band = img[int(y0 + 0.88 * h) : int(np.ceil(y0 + 0.98 * h)), int(x0 + 0.2 * w) : int(np.ceil(x1 - 0.2 * w))]
+    return float(np.median(band.max(-1))) if band.size else float("nan")
+
+
+def _hue(rgb) -> float:
+    hsv = cv2.cvtColor(np.uint8([[np.clip(rgb, 0, 255)]]), cv2.COLOR_RGB2HSV_FULL)[0, 0]
+    return float(hsv[0]) * 360.0 / 256.0
+
+
+def _agrees(look, real_looks) -> bool:
+    for r in real_looks:
+        gap = abs(_hue(look.colour_rgb) - _hue(r.colour_rgb)) % 360
+        if look.base_colour == r.base_colour and look.bands == r.bands and min(gap, 360 - gap) <= 15:
+            return True
+    return False
+
+
+def measure_tag(rows: list, images: list) -> dict:
+    from aias_augment.analyse.instances import fit_cone_look  # here: ``render`` also runs on older checkouts
+
+    ratios, base, floor, agree, looked = [], [], [], 0, 0
+    for row, img in zip(rows, images):
+        whole = whole_boxes(np.array(row["real"]), img.shape[0])
+        c, c0 = np.polyfit(whole[:, 3], whole[:, 3] - whole[:, 1], 1)
+        real_v = np.median([base_v(img, b) for b in whole])
+        real_looks = [x for x in (fit_cone_look(img, b) for b in whole) if x is not None]
+        for box in row["inserted"]:
+            ratios.append((box[3] - box[1]) / (c * box[3] + c0))
+            base.append(base_v(img, box) / max(real_v, 1.0))
+            look = fit_cone_look(img, box)
+            if look is not None and real_looks:
+                looked += 1
+                agree += _agrees(look, real_looks)
+        for j in range(len(whole)) if len(whole) >= 3 else ():
+            o = np.delete(whole, j, 0)
+            cj, c0j = np.polyfit(o[:, 3], o[:, 3] - o[:, 1], 1)
+            floor.append((whole[j, 3] - whole[j, 1]) / (cj * whole[j, 3] + c0j))
+    r, b, f = np.array(ratios), np.array(base), np.array(floor)
+    within = lambda x, lo, hi: float(np.mean((x >= lo) & (x <= hi))) if len(x) else None  # noqa: E731
+    return {
+        "photos": len(rows),
+        "inserted": len(r),
+        "size_ratio_median": float(np.median(r)) if len(r) else None,
+        "size_ratio_within_0.8_1.25": within(r, 0.8, 1.25),
+        "size_ratio_within_count": int(((r >= 0.8) & (r <= 1.25)).sum()),
+        "real_leave_one_out_within_0.8_1.25": within(f, 0.8, 1.25),
+        "base_v_ratio_median": float(np.median(b)) if len(b) else None,
+        "base_v_within_10pct": within(b, 0.9, 1.1),
+        "base_v_within_25pct": within(b, 0.75, 1.25),
+        "look_agrees": agree,
+        "look_measured": looked,
+    }
+
+
+def measure(a) -> None:
+    out, tiles = {}, {}
+    for tag in a.tags:
+        rows = json.loads((a.tmp / f"{tag}.json").read_text())
+        imgs = [cv2.cvtColor(cv2.imread(str(a.tmp / f"{tag}_{i}.png")), cv2.COLOR_BGR2RGB) for i in range(len(rows))]
+        out[tag] = measure_tag(rows, imgs)
+        tiles[tag] = []
+        for row, img in zip(rows[: a.sheet], imgs):
+            bgr = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
+            for b in row["real"]:
+                cv2.rectangle(bgr, tuple(map(int, b[:2])), tuple(map(int, b[2:])), (0, 255, 0), 1)
+            for b in row["inserted"]:
+                cv2.rectangle(bgr, tuple(map(int, b[:2])), tuple(map(int, b[2:])), (0, 0, 255), 1)
+            cv2.putText(bgr, tag, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (255, 255, 255), 2)
+            tiles[tag].append(cv2.resize(bgr, (400, int(400 * bgr.shape[0] / bgr.shape[1]))))
+    a.out.mkdir(parents=True, exist_ok=True)
+    (a.out / f"{a.name}.json").write_text(json.dumps(out, indent=1) + "\n")
+    rows_img = []
+    for group in zip(*tiles.values()):
+        h = max(t.shape[0] for t in group)
+        rows_img.append(np.hstack([np.pad(t, ((0, h - t.shape[0]), (0, 0), (0, 0))) for t in group]))
+    if rows_img:
+        write_jpeg(a.out / f"{a.name}_sheet.jpg", np.vstack(rows_img))
+    print(json.dumps(out, indent=1))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="step", required=True)
+    r = sub.add_parser("render")
+    r.add_argument("--split", choices=("train", "val"), default="train")
+    r.add_argument("--n", type=int, default=30)
+    r.add_argument("--preset", default="balanced")
+    r.add_argument("--tag", required=True)
+    r.add_argument("--tmp", type=Path, required=True)
+    r.add_argument("--variety", action="store_true", help="cone_look: variety")
+    r.add_argument("--no-pitch", action="store_true", help="placement_cfg.pitch_from_references: false")
+    m = sub.add_parser("measure")
+    m.add_argument("--tmp", type=Path, required=True)
+    m.add_argument("--tags", nargs="+", required=True)
+    m.add_argument("--name", default="train")
+    m.add_argument("--sheet", type=int, default=8, help="photos per tag on the contact sheet")
+    m.add_argument("--out", type=Path, default=Path(__file__).parent / "result")
+    a = ap.parse_args()
+    render(a) if a.step == "render" else measure(a)
+    return 0

@@ -1,0 +1,97 @@
+"""Cones inserted beside an image's labelled cones: drawn like them, and as tall as them on the same row.
+
+The image's "real" cones are rendered first, each with a known look (yellow body, one sleeve, grey base), standing (0.5 m tall) on
+a ground pitched 20 deg down under a camera 1.3 m up, on a plain road-and-sky image that gives the analysis no
+vanishing lines (it falls back to the level-camera prior). Then the door inserts cones with those cones labelled.
+What is checked comes from the scene as built: the drawn look, and the heights the labelled boxes have on their rows
+(the line through their bottom rows and heights, which equal objects on a planar ground follow)."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from aias_augment.analyse.analysis import analyse_scene
+from aias_augment.analyse.ground import prior_ground_plane
+from aias_augment.apply.stages import apply_plan
+from aias_augment.assets.bank.procedural import ConeLook, procedural_asset_from_seed
+from aias_augment.core.frame import Frame
+from aias_augment.pipeline.config import InsertionConfig
+from aias_augment.pipeline.image import insert_into_image
+from aias_augment.pipeline.replay import replay
+from aias_augment.plan.insertion import InsertionPlan, PlannedObject
+from aias_augment.plan.placement import object_pose_on_ground, placement_at
+from tests.aias_augment.pipeline.test_image import K, road_frame
+
+LOOK = ConeLook((252.0, 196.0, 8.0), "grey", 1, 0.2)
+CFG = InsertionConfig(
+    categories=("traffic_cone",),
+    asset_source="procedural",
+    harmonize=False,
+    shadow=False,
+    ssaa=1,
+    min_objects=3,
+    max_objects=3,
+)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    truth = prior_ground_plane(1.3, np.radians(20.0))
+    frame = Frame(road_frame(), K)
+    an = analyse_scene(frame, CFG)
+    objects = []
+    for i, (u, v) in enumerate([(150.0, 250.0), (470.0, 290.0), (320.0, 340.0)]):
+        asset = procedural_asset_from_seed("traffic_cone", 100 + i, LOOK)
+        asset = asset.scaled(0.5 / asset.height_m)
+        p = truth.intersect_pixels(np.array([[u, v]]), K)[0]
+        T = object_pose_on_ground(p, truth, 0.4 * i)
+        objects.append(PlannedObject(placement_at(asset, T, K, 0.4 * i, truth), asset))
+    image = apply_plan(frame, an, InsertionPlan(tuple(objects), 0, len(objects)), CFG).image
+    boxes = np.array([o.placement.amodal_box_xyxy for o in objects])
+    return image, boxes
+
+
+def _insert(scene, cfg, seed=5):
+    image, boxes = scene
+    xywh = np.c_[boxes[:, :2], boxes[:, 2:] - boxes[:, :2]]
+    return insert_into_image(image, xywh, ["cone"] * len(boxes), cfg=cfg, rng=np.random.default_rng(seed))
+
+
+def test_inserted_cones_are_drawn_like_the_labelled_ones(scene):
+    res = _insert(scene, CFG)
+    placed = [p for p in res.record.placements if not p.decoy]
+    assert placed
+    for p in placed:
+        look = p.asset_meta["look"]
+        assert look["base_colour"] == "grey" and look["bands"] == 1
+        r, g, b = look["colour_rgb"]
+        assert r > 200 and g > 150 and b < 60, look["colour_rgb"]  # yellow
+    variety = _insert(scene, replace(CFG, cone_look="variety"))
+    assert all("look" not in p.asset_meta for p in variety.record.placements)
+
+
+def test_inserted_cones_are_as_tall_as_the_labelled_ones_on_their_row(scene):
+    _, boxes = scene
+    c, c0 = np.polyfit(boxes[:, 3], boxes[:, 3] - boxes[:, 1], 1)  # the labelled cones' heights by bottom row
+
+    def ratios(cfg):
+        out = []
+        for seed in range(4):
+            for p in _insert(scene, cfg, seed).record.placements:
+                x0, y0, x1, y1 = p.amodal_box_xyxy
+                out.append((y1 - y0) / (c * y1 + c0))
+        return np.array(out)
+
+    level = ratios(replace(CFG, placement_cfg=replace(CFG.placement_cfg, pitch_from_references=False)))
+    pitched = ratios(CFG)
+    assert len(pitched) >= 6
+    assert np.all((pitched > 0.85) & (pitched < 1.18)), pitched
+    assert np.any((level < 0.85) | (level > 1.18)), level  # the level prior alone gets rows wrong
+
+
+def test_a_record_with_looks_replays_to_the_same_bytes(scene):
+    image, _ = scene
+    res = _insert(scene, CFG)
+    again = replay(res.record.to_dict(), Frame(image, None), CFG)
+    np.testing.assert_array_equal(again.image, res.image)
