@@ -194,6 +194,22 @@ class EfficientNetLite0Backbone(nn.Module):
         return out
 
 
+def _cspdarknet(depth: float, width: float, depthwise: bool, pretrained: bool, frozen_blocks: int, bn_mode: str):
+    if bn_mode != "train":
+        raise ValueError("backbone_bn 'frozen' needs a pretrained backbone (efficientnet_lite0)")
+    return CSPDarknet(depth, width, depthwise)
+
+
+def _efficientnet_lite0(depth, width, depthwise, pretrained: bool, frozen_blocks: int, bn_mode: str):
+    return EfficientNetLite0Backbone(pretrained, frozen_blocks, bn_mode)
+
+
+#: The backbones a detector config may name: name -> builder(depth, width, depthwise, pretrained, frozen_blocks,
+#: bn_mode) returning a module whose forward gives the ``dark3``/``dark4``/``dark5`` feature maps. A new backbone is
+#: one builder added here (and a config that names it).
+BACKBONE_BUILDERS = {"cspdarknet": _cspdarknet, "efficientnet_lite0": _efficientnet_lite0}
+
+
 def build_backbone(
     name: str,
     depth: float,
@@ -203,10 +219,6 @@ def build_backbone(
     frozen_blocks: int = 0,
     bn_mode: str = "train",
 ) -> nn.Module:
-    if name == "cspdarknet":
-        if bn_mode != "train":
-            raise ValueError("backbone_bn 'frozen' needs a pretrained backbone (efficientnet_lite0)")
-        return CSPDarknet(depth, width, depthwise)
-    if name == "efficientnet_lite0":
-        return EfficientNetLite0Backbone(pretrained, frozen_blocks, bn_mode)
-    raise ValueError(f"unknown backbone {name!r}")
+    if name not in BACKBONE_BUILDERS:
+        raise ValueError(f"unknown backbone {name!r}; known: {sorted(BACKBONE_BUILDERS)}")
+    return BACKBONE_BUILDERS[name](depth, width, depthwise, pretrained, frozen_blocks, bn_mode)

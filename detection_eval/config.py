@@ -12,7 +12,6 @@ from pathlib import Path
 from aias_augment.core.config import CONFIG_DIR, from_dict
 from detection_eval.inherit import load_inherited
 
-BACKBONES = ("cspdarknet", "efficientnet_lite0")
 OPTIMIZERS = ("sgd", "adamw")
 BN_MODES = ("train", "frozen")
 
@@ -33,8 +32,10 @@ class ModelConfig:
     shared_head: bool = False  # the head's 3x3 and prediction convs shared by all levels (BatchNorm per level)
 
     def __post_init__(self):
-        if self.backbone not in BACKBONES:
-            raise ValueError(f"backbone must be one of {BACKBONES}, got {self.backbone!r}")
+        from detection_eval.backbones import BACKBONE_BUILDERS  # the registry (imports torch: only when checked)
+
+        if self.backbone not in BACKBONE_BUILDERS:
+            raise ValueError(f"backbone must be one of {tuple(BACKBONE_BUILDERS)}, got {self.backbone!r}")
         if not (0 < self.depth <= 2 and 0 < self.width <= 2):
             raise ValueError(f"depth and width must lie in (0, 2], got {self.depth}, {self.width}")
         if self.num_classes < 1:
