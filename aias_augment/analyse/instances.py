@@ -20,7 +20,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from aias_augment.assets.bank.procedural import ConeLook
+from aias_augment.assets.cone_look import ConeLook
 
 __all__ = ["fit_cone_looks", "fit_cone_look"]
 

@@ -14,7 +14,7 @@ import logging
 import numpy as np
 
 from aias_augment.analyse.instances import fit_cone_looks
-from aias_augment.assets.bank.procedural import ConeLook
+from aias_augment.assets.cone_look import ConeLook
 
 __all__ = ["labelled_cone_looks"]
 

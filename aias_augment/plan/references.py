@@ -21,9 +21,13 @@ from aias_augment.core.geometry import Intrinsics
 __all__ = ["ground_from_references"]
 
 MIN_SPREAD_FRAC = 0.1  # the bottom rows must spread over this fraction of the image height
+MIN_TURN_DEG = 1.0  # a smaller turn is within what the boxes' footprints and pixels leave unknown: the estimate stands
 MAX_RMS_LOG = 0.15  # with three or more boxes, the fit's RMS log height error (about 15 %) must stay below this
+#: A standing object's base reaches this fraction of its height towards the camera from its axis (a road cone's
+#: base half width is 0.24-0.33 of its height; a barrel's about 0.3).
+FOOTPRINT = 0.28
 _TURN_STEP_DEG = 0.25
-_RATIOS = np.geomspace(0.02, 2.0, 240)  # object height / camera height
+_RATIOS = np.geomspace(0.02, 2.0, 1200)  # object height / camera height (0.4 % steps)
 
 
 def _pitched(normal: np.ndarray, angle: float) -> np.ndarray:
@@ -33,12 +37,17 @@ def _pitched(normal: np.ndarray, angle: float) -> np.ndarray:
 
 
 def _log_errors(normal: np.ndarray, rays: np.ndarray, v_bottom: np.ndarray, log_h: np.ndarray, K: np.ndarray):
-    """(len(_RATIOS), N) log(predicted / observed) box heights of objects standing at ``rays`` (N, 3) on the plane
-    ``normal``, camera 1 above it, for every height ratio; NaN where the ray misses the ground or a top is behind."""
+    """(len(_RATIOS), N) log(predicted / observed) box heights of objects standing with the front of their base at
+    ``rays`` (N, 3) on the plane ``normal``, camera 1 above it, for every height ratio; NaN where the ray misses the
+    ground or a top is behind. A box's bottom row is its base's nearest edge and its top the object's top above the
+    base's centre, :data:`FOOTPRINT` of its height farther along the ground."""
     nr = rays @ normal
     with np.errstate(divide="ignore", invalid="ignore"):
-        base = np.where((nr < 0)[:, None], -rays / nr[:, None], np.nan)  # n.p + 1 = 0
-        top = base[None] + _RATIOS[:, None, None] * normal  # (R, N, 3)
+        front = np.where((nr < 0)[:, None], -rays / nr[:, None], np.nan)  # n.p + 1 = 0
+        away = front - (front @ normal)[:, None] * normal  # the ground direction from the camera's foot
+        away /= np.linalg.norm(away, axis=1, keepdims=True)
+        base = front[None] + (FOOTPRINT * _RATIOS)[:, None, None] * away[None]
+        top = base + _RATIOS[:, None, None] * normal  # (R, N, 3)
         z = top[..., 2]
         v_top = (top @ K[1]) / z
         h = v_bottom[None] - v_top
@@ -51,8 +60,8 @@ def ground_from_references(
     """``ground`` turned about the camera's x axis (at most ``max_change_deg``) to the pitch at which objects of one
     height standing at the bottom centres of ``boxes_xyxy`` (whole boxes of one kind) are as tall as the boxes;
     (None, why) for a measured ground (not ``assumed_scale``: kept), fewer than two boxes, bottom rows spread less than
-    10 % of the image height, or (three or more boxes) an RMS height error above 15 %. The reason names the turn and
-    says when it stopped at the limit."""
+    10 % of the image height, (three or more boxes) an RMS height error above 15 %, a turn under 1 deg or one that
+    would pass the limit. The reason names the turn."""
     if not ground.assumed_scale:
         return None, f"measured ground ({ground.source}): kept"
     b = np.asarray(boxes_xyxy, float).reshape(-1, 4)
@@ -64,22 +73,34 @@ def ground_from_references(
     K = intrinsics.K
     uv1 = np.c_[(b[:, 0] + b[:, 2]) / 2, vb, np.ones(len(b))]
     rays = uv1 @ np.linalg.inv(K).T
-    turns = np.radians(np.arange(-max_change_deg, max_change_deg + 1e-9, _TURN_STEP_DEG))
-    best = (np.inf, 0.0)
     log_h = np.log(np.maximum(h, 1.0))
-    for t in turns:
-        err = _log_errors(_pitched(ground.normal, t), rays, vb, log_h, K)
-        ok = np.isfinite(err).all(axis=1)
-        if ok.any():
-            rms = float(np.sqrt((err[ok] ** 2).mean(axis=1)).min())
-            if rms < best[0] - 1e-12:
-                best = (rms, float(t))
-    rms, angle = best
+    lim = np.radians(max_change_deg)
+
+    def search(turns) -> tuple[float, float]:
+        best = (np.inf, 0.0)
+        for t in turns:
+            err = _log_errors(_pitched(ground.normal, t), rays, vb, log_h, K)
+            ok = np.isfinite(err).all(axis=1)
+            if ok.any():
+                rms = float(np.sqrt((err[ok] ** 2).mean(axis=1)).min())
+                if rms < best[0] - 1e-12:
+                    best = (rms, float(t))
+        return best
+
+    step = np.radians(_TURN_STEP_DEG)
+    rms, angle = search(np.arange(-lim, lim + 1e-12, step))
+    if np.isfinite(rms):  # a finer search around the grid's best
+        rms, angle = search(np.clip(angle + np.linspace(-step, step, 21), -lim, lim))
     if not np.isfinite(rms):
         return None, f"no pitch within {max_change_deg:.0f} deg puts the references on the ground"
     if len(b) >= 3 and rms > MAX_RMS_LOG:
         return None, f"one height on one ground fits the {len(b)} references only to {rms:.0%} (RMS)"
-    at_limit = abs(abs(np.degrees(angle)) - max_change_deg) < _TURN_STEP_DEG / 2
+    if abs(np.degrees(angle)) < MIN_TURN_DEG:
+        return None, f"the references agree with the estimated ground (a turn of {np.degrees(angle):+.2f} deg): kept"
+    if abs(abs(np.degrees(angle)) - max_change_deg) < _TURN_STEP_DEG / 2:
+        # the boxes ask for more than the limit: a ground turned part of the way fits them no better than the
+        # estimate (objects are still the wrong size away from them) and leaves less room for the right size
+        return None, f"the references ask for a turn beyond {max_change_deg:.0f} deg: the estimated ground is kept"
     out = GroundPlane(
         _pitched(ground.normal, angle),
         ground.d,
@@ -89,8 +110,7 @@ def ground_from_references(
         ground.num_inliers,
         ground.assumed_scale,
     )
-    note = f" (stopped at the {max_change_deg:.0f} deg limit)" if at_limit else ""
     return out, (
         f"the ground turned {np.degrees(angle):+.2f} deg about the camera's x axis to fit {len(b)} reference boxes "
-        f"(RMS height error {rms:.1%}){note}"
+        f"(RMS height error {rms:.1%})"
     )

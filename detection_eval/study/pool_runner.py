@@ -21,6 +21,7 @@ import numpy as np
 
 from aias_augment.cli.dataset_out import ImageOut
 from aias_augment.cli.offline_job import Item, process_item
+from aias_augment.core.errors import AiasError
 
 POOL_JPEG_QUALITY = 95  # detection_eval.data.write_yolo_sample's default: every pool image is encoded alike
 
@@ -38,7 +39,7 @@ class PoolCopy:
     jpeg: Path | None = None
 
 
-class RunnerCopyFailed(RuntimeError):
+class RunnerCopyFailed(AiasError, RuntimeError):
     """The runner skipped the copy; the message is its reason (logged and counted by the pool)."""
 
 

@@ -21,6 +21,7 @@ import trimesh
 from PIL import Image
 
 from aias_augment.assets.asset import Asset, normalise_meshes
+from aias_augment.assets.cone_look import ConeLook
 
 __all__ = [
     "GENERATORS",
@@ -224,46 +225,6 @@ def _loft(
         uvs.append(np.concatenate(uv))
         base += len(pos)
     return np.concatenate(verts), np.concatenate(faces), np.concatenate(normals), np.concatenate(uvs)
-
-
-@dataclass(frozen=True)
-class ConeLook:
-    """What a photo's own cones look like, to draw inserted cones like them: the body colour (sRGB 0-255), the base's
-    colour class (``"black"``, ``"grey"`` or ``"body"``), the number of white sleeves (0-3) and each sleeve's width as a
-    fraction of the body's height. Measured on labelled crops by :func:`aias_augment.analyse.instances.fit_cone_looks`.
-    """
-
-    colour_rgb: tuple[float, float, float]
-    base_colour: str
-    bands: int
-    band_width_frac: float
-
-    def __post_init__(self) -> None:
-        if self.base_colour not in ("black", "grey", "body"):
-            raise ValueError(f"ConeLook.base_colour must be black, grey or body, got {self.base_colour!r}")
-        if not 0 <= int(self.bands) <= 3:
-            raise ValueError(f"ConeLook.bands must be 0-3, got {self.bands}")
-        if not (len(self.colour_rgb) == 3 and all(0 <= float(c) <= 255 for c in self.colour_rgb)):
-            raise ValueError(f"ConeLook.colour_rgb must be 3 values in 0-255, got {self.colour_rgb}")
-        if self.bands and not 0.02 <= float(self.band_width_frac) <= 0.4:
-            raise ValueError(f"ConeLook.band_width_frac must be in 0.02-0.4 with sleeves, got {self.band_width_frac}")
-
-    def to_dict(self) -> dict:
-        return {
-            "colour_rgb": [float(c) for c in self.colour_rgb],
-            "base_colour": self.base_colour,
-            "bands": int(self.bands),
-            "band_width_frac": float(self.band_width_frac),
-        }
-
-    @classmethod
-    def from_dict(cls, d: dict) -> ConeLook:
-        return cls(
-            tuple(float(c) for c in d["colour_rgb"]),
-            str(d["base_colour"]),
-            int(d["bands"]),
-            float(d["band_width_frac"]),
-        )
 
 
 def _apply_look(p: dict, look: ConeLook, h: float) -> dict:

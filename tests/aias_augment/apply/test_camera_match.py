@@ -3,6 +3,7 @@ presets): the object gets the surroundings' noise and JPEG, its colour is left t
 object are the input's, and a replay from the JSON record gives the same bytes."""
 
 import json
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -76,7 +77,7 @@ def test_camera_match_stage_after_the_fast_harmonizer_replays_to_the_same_bytes(
     f = Frame(img, K)
     an = analyse_scene(f, cfg)
     plan = plan_insertion(an, cfg, np.random.default_rng(8), bank=OneAsset(asset), n_objects=2)
-    without = apply_plan(f, an, plan, type(CFG)(**{**cfg.__dict__, "camera_match": False}))
+    without = apply_plan(f, an, plan, replace(cfg, camera_match=False))
     assert "camera_match" not in without.modules
     diff = (without.image != res.image).any(-1)
     assert diff.sum() > 50 and not (diff & (without.cover == 0)).any()

@@ -55,8 +55,8 @@ def test_every_exception_class_of_the_project_is_an_aias_error(project_exception
     # The walk reaches every layer (core, analyse, plan, assets, adapters, cli, evaluation), not only core.
     for name in (
         "aias_augment.core.config.ConfigValueError",
-        "aias_augment.analyse.ground.GroundFitError",
-        "aias_augment.plan.placement.UnevenGroundError",
+        "aias_augment.core.plane_fit.GroundFitError",
+        "aias_augment.plan.local_ground.UnevenGroundError",
         "aias_augment.assets.bank.db.BankError",
         "aias_augment.adapters.boundary.ImageSkip",
         "aias_augment.cli.manifest.OutputBusy",

@@ -86,8 +86,8 @@ def test_inserted_cones_are_as_tall_as_the_labelled_ones_on_their_row(scene):
     level = ratios(replace(CFG, placement_cfg=replace(CFG.placement_cfg, pitch_from_references=False)))
     pitched = ratios(CFG)
     assert len(pitched) >= 6
-    assert np.all((pitched > 0.85) & (pitched < 1.18)), pitched
-    assert np.any((level < 0.85) | (level > 1.18)), level  # the level prior alone gets rows wrong
+    assert np.all((pitched >= 0.8) & (pitched <= 1.25)), pitched  # issue 53's band
+    assert np.any((level < 0.8) | (level > 1.25)), level  # the level prior alone gets rows wrong
 
 
 def test_a_record_with_looks_replays_to_the_same_bytes(scene):

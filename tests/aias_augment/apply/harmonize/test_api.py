@@ -95,7 +95,7 @@ def test_bad_inputs_raise(bad):
 def test_missing_checkpoint_names_the_training_command(tmp_path):
     img, mask = np.zeros((16, 16, 3), np.uint8), np.ones((16, 16), np.float32)
     for method in ("network", "fast"):
-        with pytest.raises(FileNotFoundError, match="train_harmonizer.py"):
+        with pytest.raises(FileNotFoundError, match="studies.harmonization.harmonizer.train"):
             harmonize(img, mask, method, checkpoint=str(tmp_path / "nope.pt"), rng=np.random.default_rng(0))
 
 
