@@ -106,10 +106,10 @@ class PlacementConfig:
     scene_scale_from_sizes: bool = True
     camera_height_range_m: tuple[float, float] = (0.4, 4.0)
     # With two or more whole labelled objects of one inserted kind at different rows, an assumed-scale ground is
-    # turned about the camera's x axis (at most ``max_pitch_turn_deg``) to the pitch at which objects of one height
-    # standing on their bottom rows are their boxes' heights (:func:`aias_augment.plan.references
-    # .ground_from_references`): the camera estimate of a close-up looking down at cones is often far from that,
-    # and inserted objects away from the labelled ones then take the wrong size. 25 deg was chosen on 30 labelled
-    # TraCon train photos against 40 (studies/realism/labelled_scenes).
+    # turned about the camera's x axis to the pitch at which objects of one height standing on their rows are their
+    # boxes' heights (:func:`aias_augment.plan.references.ground_from_references`): the camera estimate of a close-up
+    # looking down at cones is often far from that, and inserted objects away from the labelled ones then take the
+    # wrong size. A turn beyond ``max_pitch_turn_deg`` keeps the estimate (25 deg: on 30 labelled TraCon train
+    # photos 40 deg placed no more cones at the right size; studies/realism/labelled_scenes).
     pitch_from_references: bool = True
     max_pitch_turn_deg: float = 25.0
