@@ -24,47 +24,18 @@ import numpy as np
 
 from aias_augment.analyse.analysis import analyse_scene
 from aias_augment.apply.stages import apply_plan
-from aias_augment.core.config import data_root
 from aias_augment.core.frame import Frame
 from aias_augment.pipeline.config import load_preset
 from aias_augment.plan.insertion import plan_insertion
+from studies._shared.labelled_cones import base_v, photos
 
 HERE = Path(__file__).parent / "result"
-
-
-def photos(n: int):
-    """(stem, RGB <= 640 px, cone boxes xyxy) of TraCon val photos with >= 2 whole cones on rows >= 30 px apart."""
-    root = data_root() / "tracon"
-    for lab_path in sorted((root / "labels/val").glob("*.txt")):
-        lab = np.loadtxt(lab_path, ndmin=2)
-        if len(lab) < 2:
-            continue
-        path = next((root / "images/val").glob(lab_path.stem + ".*"))
-        img = cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB)
-        s = min(1.0, 640 / max(img.shape[:2]))
-        img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else img
-        H, W = img.shape[:2]
-        cx, cy, bw, bh = lab[:, 1] * W, lab[:, 2] * H, lab[:, 3] * W, lab[:, 4] * H
-        boxes = np.c_[cx - bw / 2, cy - bh / 2, cx + bw / 2, cy + bh / 2]
-        whole = boxes[(boxes[:, 1] > 1) & (boxes[:, 3] < H - 2)]
-        if len(whole) >= 2 and np.ptp(whole[:, 3]) >= 30:
-            yield lab_path.stem, img, boxes
-            n -= 1
-            if n == 0:
-                return
-
-
-def base_v(img: np.ndarray, box) -> float:
-    x0, y0, x1, y1 = box
-    h, w = y1 - y0, x1 - x0
-    band = img[int(y0 + 0.88 * h) : int(np.ceil(y0 + 0.98 * h)), int(x0 + 0.2 * w) : int(np.ceil(x1 - 0.2 * w))]
-    return float(np.median(band.max(-1))) if band.size else float("nan")
 
 
 def render(tag: str, tmp: Path) -> None:
     cfg = load_preset("balanced")
     rows = []
-    for i, (stem, img, boxes) in enumerate(photos(4)):
+    for i, (stem, img, boxes) in enumerate(photos("val", 4)):
         an = analyse_scene(Frame(img, None), cfg)
         plan = plan_insertion(
             an,
