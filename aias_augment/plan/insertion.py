@@ -357,6 +357,12 @@ def size_references(boxes_xyxy: list, labels: list | None, categories, pcfg) -> 
     return [b for b, _ in size_reference_kinds(boxes_xyxy, labels, categories, pcfg)]
 
 
+def label_category(label: str, categories, taxonomy) -> str | None:
+    """The category a label names: itself when it is one of ``categories``, else the taxonomy's class of it
+    ("cone", "Traffic cone" -> traffic_cone), else None."""
+    return label if label in categories else taxonomy.classify(label.replace("_", " "))
+
+
 def size_reference_kinds(boxes_xyxy: list, labels: list | None, categories, pcfg) -> list[tuple]:
     """(box, category) for the boxes of ``boxes_xyxy`` that are objects of an inserted kind: their label is one of
     ``categories``, is classified into one by the taxonomy's name rules (e.g. "cone", "Traffic cone" ->
@@ -372,7 +378,7 @@ def size_reference_kinds(boxes_xyxy: list, labels: list | None, categories, pcfg
     taxonomy, cats, extra = load_taxonomy(), list(dict.fromkeys(categories)), set(map(str, pcfg.size_reference_labels))
     kinds: dict = {None: False}
     for lab in {str(x) for x in labels if x is not None}:
-        named = lab if lab in cats else taxonomy.classify(lab.replace("_", " "))
+        named = label_category(lab, cats, taxonomy)
         if named in cats:
             kinds[lab] = named
         elif lab in extra:

@@ -15,6 +15,7 @@ import numpy as np
 
 from aias_augment.analyse.instances import fit_cone_looks
 from aias_augment.assets.cone_look import ConeLook
+from aias_augment.plan.insertion import label_category
 
 __all__ = ["labelled_cone_looks"]
 
@@ -31,7 +32,7 @@ def labelled_cone_looks(image_rgb: np.ndarray, boxes_xyxy, labels) -> tuple[Cone
 
     taxonomy = load_taxonomy()
     kinds = {
-        lab: lab == "traffic_cone" or taxonomy.classify(lab.replace("_", " ")) == "traffic_cone"
+        lab: label_category(lab, ("traffic_cone",), taxonomy) == "traffic_cone"
         for lab in {str(x) for x in labels if x is not None}
     }
     cones = [
