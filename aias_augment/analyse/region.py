@@ -219,13 +219,14 @@ def _road_mode(feat: np.ndarray, cfg: RegionConfig) -> tuple[np.ndarray, np.ndar
     return mode, _similar(feat, mode, cfg)
 
 
-def _similar(feat: np.ndarray, road: np.ndarray, cfg: RegionConfig) -> np.ndarray:
-    """Pixels of the road's colour and at most its texture (features [..., 4])."""
+def _similar(feat, road: np.ndarray, cfg: RegionConfig) -> np.ndarray:
+    """Pixels of the road's colour and at most its texture: features (..., 4), or their four planes."""
+    f = [feat[..., j] for j in range(4)] if isinstance(feat, np.ndarray) else feat
     return (
-        (np.abs(feat[..., 0] - road[0]) <= cfg.image_luma_tol)
-        & (np.abs(feat[..., 1] - road[1]) <= cfg.image_chroma_tol)
-        & (np.abs(feat[..., 2] - road[2]) <= cfg.image_chroma_tol)
-        & (feat[..., 3] <= cfg.image_texture_tol * road[3] + cfg.image_texture_floor)
+        (np.abs(f[0] - road[0]) <= cfg.image_luma_tol)
+        & (np.abs(f[1] - road[1]) <= cfg.image_chroma_tol)
+        & (np.abs(f[2] - road[2]) <= cfg.image_chroma_tol)
+        & (f[3] <= cfg.image_texture_tol * road[3] + cfg.image_texture_floor)
     )
 
 
@@ -246,7 +247,8 @@ def image_ground_region(
     gx = cv2.Sobel(lab[..., 0], cv2.CV_32F, 1, 0, ksize=3) / 8.0
     gy = cv2.Sobel(lab[..., 0], cv2.CV_32F, 0, 1, ksize=3) / 8.0
     grad = np.sqrt(gx * gx + gy * gy)
-    feat = np.dstack([lab, cv2.blur(grad, (7, 7))])
+    texture = cv2.blur(grad, (7, 7))
+    planes = (*cv2.split(lab), texture)  # the features [L, a, b, gradient], one contiguous plane each
     # seed zone: rows between the horizon (at each column) and the bottom, central columns
     top = np.argmax(below_s, axis=0)  # first row below the horizon per column (0 when none)
     has = below_s.any(axis=0)
@@ -264,8 +266,8 @@ def image_ground_region(
     empty = PlaceableRegion(np.zeros((h, w), bool), "image:road_appearance", 0.0, {"no seed zone": 1.0})
     if zone.sum() < 50:
         return empty
-    road, zone_ok = _road_mode(feat[zone], cfg)
-    like_road = _similar(feat, road, cfg)
+    road, zone_ok = _road_mode(np.stack([f[zone] for f in planes], axis=-1), cfg)
+    like_road = _similar(planes, road, cfg)
     similar = like_road & below_s
     opened = cv2.morphologyEx(similar.astype(np.uint8), cv2.MORPH_OPEN, _disk(cfg.image_open_px))
     n, comp = cv2.connectedComponents(opened, connectivity=4)

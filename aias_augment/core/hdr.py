@@ -23,6 +23,7 @@ __all__ = [
     "srgb_to_linear",
     "linear_to_srgb",
     "luminance",
+    "max_channel",
     "InverseToneMapParams",
     "inverse_tone_map",
     "tone_map_to_uint8",
@@ -67,6 +68,15 @@ def _as_unit_float(image: np.ndarray) -> np.ndarray:
     if not np.issubdtype(img.dtype, np.floating):
         raise ValueError(f"expected uint8 or float image, got {img.dtype}")
     return np.clip(np.nan_to_num(img.astype(np.float32), nan=0.0), 0.0, 1.0)
+
+
+def max_channel(rgb: np.ndarray) -> np.ndarray:
+    """Each pixel's largest channel, (*, 3) -> (*,): ``rgb.max(axis=-1)`` as two element-wise maxima (numpy reduces
+    a 3-long last axis pixel by pixel, ~30x slower); NaN propagates as there."""
+    a = np.asarray(rgb)
+    if a.ndim == 0 or a.shape[-1] != 3:
+        raise ValueError(f"max_channel: expected (*, 3) values, got {a.shape}")
+    return np.maximum(np.maximum(a[..., 0], a[..., 1]), a[..., 2])
 
 
 def luminance(rgb_linear: np.ndarray) -> np.ndarray:
@@ -119,8 +129,8 @@ def inverse_tone_map(image: np.ndarray, params: InverseToneMapParams = InverseTo
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"inverse_tone_map: expected (H, W, 3), got {img.shape}")
     unit = _as_unit_float(img)
-    linear = srgb_to_linear(unit)
-    clipped = unit.max(axis=2) >= params.clip_level
+    linear = srgb_to_linear(img if img.dtype == np.uint8 else unit)  # uint8: the curve of ``unit``, by table
+    clipped = max_channel(unit) >= params.clip_level
     if not clipped.any() or params.max_gain == 1.0:
         return linear
     # Distance to the nearest unclipped pixel; an image that is clipped everywhere counts its border as the edge.

@@ -12,7 +12,7 @@ from aias_augment.analyse.lighting.sh import project_envmap_to_sh, sh_irradiance
 from aias_augment.analyse.lighting.sky import preetham_sky_radiance
 from aias_augment.analyse.lighting.sun import frame_from_up
 from aias_augment.core.geometry import Intrinsics
-from aias_augment.core.hdr import luminance
+from aias_augment.core.hdr import luminance, max_channel
 
 __all__ = [
     "achromatic_light_colour",
@@ -68,10 +68,11 @@ def achromatic_light_colour(linear: np.ndarray, max_chroma: float = 0.05, min_sh
     white paint, overcast sky), so a large coloured object (a red truck, an orange cone) has no say. None when
     fewer than ``min_share`` of the pixels qualify (a scene without grey surfaces: no evidence)."""
     px = np.asarray(linear, np.float64).reshape(-1, 3)
-    s = px.sum(1)
-    ok = (px.max(1) < 0.98) & (s > 3 * 0.02)
+    s = (px[:, 0] + px[:, 1]) + px[:, 2]  # px.sum(1), in numpy's order, without its per-pixel reduction
+    ok = (max_channel(px) < 0.98) & (s > 3 * 0.02)
     rg = px[ok, :2] / s[ok, None]
-    grey = np.abs(rg - 1.0 / 3.0).max(1) < max_chroma
+    dev = np.abs(rg - 1.0 / 3.0)
+    grey = np.maximum(dev[:, 0], dev[:, 1]) < max_chroma
     if grey.sum() < max(min_share * len(px), 20):
         return None
     c = np.median(px[ok][grey], axis=0)

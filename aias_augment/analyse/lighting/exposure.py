@@ -9,7 +9,7 @@ import numpy as np
 from aias_augment.analyse.lighting.config import LightingConfig
 from aias_augment.analyse.lighting.frame import FrameContext
 from aias_augment.analyse.lighting.sh import sh_irradiance
-from aias_augment.core.hdr import luminance, srgb_to_linear
+from aias_augment.core.hdr import luminance, max_channel, srgb_to_linear
 
 __all__ = [
     "anchor_and_cap",
@@ -145,7 +145,7 @@ def anchor_and_cap(
         g = config.ground_anchor_max_gain
         k = float(np.clip(k, 1.0 / g, g))
     if config.cap_white_to_scene_percentile is not None:
-        ref = float(np.percentile(lin.max(-1), config.cap_white_to_scene_percentile))
+        ref = float(np.percentile(max_channel(lin), config.cap_white_to_scene_percentile))
         if ref < 0.98:
             peak = k * peak_white_radiance(sh, sun_irr, sun_dir)
             if peak > config.white_cap_linear:

@@ -21,7 +21,7 @@ from scipy import ndimage
 
 from aias_augment.analyse.lighting.envmap import camera_ray_directions
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
-from aias_augment.core.hdr import luminance
+from aias_augment.core.hdr import luminance, max_channel
 from aias_augment.core.rng import require_rng
 
 __all__ = [
@@ -163,54 +163,69 @@ def measure_lit_shadow(
 ) -> LitShadowMeasurement | None:
     """Measure lit and shadowed luminance of the ground in ``region_mask``; None if fewer than 200 usable pixels.
 
-    ``image_linear``: (H, W, 3) float linear RGB (use ``hdr.srgb_to_linear``; clipped pixels are excluded).
+    ``image_linear``: (H, W, 3) float linear RGB (use ``hdr.srgb_to_linear``; clipped pixels are excluded). The
+    per-pixel tests run on the region's pixels only (float64, as every statistic below), the luminance on the image.
     """
     from sklearn.mixture import GaussianMixture
 
-    img = np.asarray(image_linear, dtype=np.float64)
+    img = np.asarray(image_linear)
     region = np.asarray(region_mask, bool)
     if img.ndim != 3 or img.shape[2] != 3 or region.shape != img.shape[:2]:
         raise ValueError(f"measure_lit_shadow: image {img.shape} and mask {region.shape} do not match")
     rng = require_rng(rng, "measure_lit_shadow")
-    Y = luminance(img).astype(np.float64)
-    usable = region & np.isfinite(Y) & (Y > 1e-4) & (img.max(axis=2) < 0.97)
-    if usable.sum() < 200:
+    flat = img.reshape(-1, 3)
+    Y = luminance(img).astype(np.float64).ravel()
+
+    def rgb_at(i: np.ndarray) -> np.ndarray:  # float64 colours of the pixels at flat indices ``i``
+        return flat[i].astype(np.float64)
+
+    def mask_at(i: np.ndarray) -> np.ndarray:  # the (H, W) mask of the pixels at flat indices ``i``
+        m = np.zeros(Y.size, bool)
+        m[i] = True
+        return m.reshape(region.shape)
+
+    idx = np.flatnonzero(region)
+    px, y = rgb_at(idx), Y[idx]
+    ok = np.isfinite(y) & (y > 1e-4) & (max_channel(px) < 0.97)
+    if ok.sum() < 200:
         return None
-    chroma = img / np.maximum(img.sum(axis=2, keepdims=True), 1e-6)  # eps: black pixels are already excluded
-    med = np.median(chroma[usable], axis=0)
+    idx, px, y = idx[ok], px[ok], y[ok]
+    total = (px[:, 0] + px[:, 1]) + px[:, 2]  # px.sum(1), in numpy's order, without its per-pixel reduction
+    chroma = px / np.maximum(total, 1e-6)[:, None]  # eps: black pixels are already excluded
+    med = np.median(chroma, axis=0)
     # Shadows are bluer (sky light), so allow more deviation toward blue than elsewhere.
     dev = chroma - med
     dev[..., 2] = np.where(dev[..., 2] > 0, dev[..., 2] * 0.5, dev[..., 2])
-    usable &= np.abs(dev).max(axis=2) < max_chroma_dev * 2.0
-    if usable.sum() < 200:
+    ok = max_channel(np.abs(dev)) < max_chroma_dev * 2.0
+    if ok.sum() < 200:
         return None
-    logY = np.log(np.maximum(Y, 1e-6))  # eps: only usable pixels (Y > 1e-4) are read below
-    idx = np.flatnonzero(usable.ravel())
+    idx, px, y = idx[ok], px[ok], y[ok]  # the usable pixels: flat indices (ascending), colours, luminances
+    usable = mask_at(idx)
+    logY = np.log(np.maximum(y, 1e-6))  # eps: usable pixels have Y > 1e-4
     fit_idx = rng.choice(idx, max_samples, replace=False) if idx.size > max_samples else idx
-    n = int(usable.sum())
-    if float(np.ptp(logY.ravel()[fit_idx])) < 1e-3:  # one flat colour: nothing to separate
-        rgb, y = np.median(img[usable], 0), float(np.median(Y[usable]))
-        return LitShadowMeasurement(rgb, rgb, y, y, 1.0, 0.0, 0.0, 0.0, n, False, usable, np.zeros_like(usable))
-    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=1).fit(logY.ravel()[fit_idx, None])
+    fit_logY = logY[np.searchsorted(idx, fit_idx)]
+    n = int(idx.size)
+    if float(np.ptp(fit_logY)) < 1e-3:  # one flat colour: nothing to separate
+        rgb, yy = np.median(px, 0), float(np.median(y))
+        return LitShadowMeasurement(rgb, rgb, yy, yy, 1.0, 0.0, 0.0, 0.0, n, False, usable, np.zeros_like(usable))
+    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=1).fit(fit_logY[:, None])
     mu = gm.means_.ravel()
     sd = np.sqrt(gm.covariances_.ravel())
     dark, bright = int(np.argmin(mu)), int(np.argmax(mu))
     separation = float(abs(mu[bright] - mu[dark]) / np.sqrt(0.5 * (sd[0] ** 2 + sd[1] ** 2)))
-    post = np.zeros(Y.size)
-    post[idx] = gm.predict_proba(logY.ravel()[idx, None])[:, dark]
-    post = post.reshape(Y.shape)
-    shadow = usable & (post >= min_posterior)
-    lit = usable & (post <= 1.0 - min_posterior)
+    post = gm.predict_proba(logY[:, None])[:, dark]
+    shadow = mask_at(idx[post >= min_posterior])
+    lit = mask_at(idx[post <= 1.0 - min_posterior])
     if erode_px > 0:
         shadow = ndimage.binary_erosion(shadow, iterations=erode_px)
         lit = ndimage.binary_erosion(lit, iterations=erode_px)
     if shadow.sum() < 20 or lit.sum() < 20:
         shadow_fraction = float(shadow.sum()) / n
         return LitShadowMeasurement(
-            np.median(img[usable], 0),
-            np.median(img[usable], 0),
-            float(np.median(Y[usable])),
-            float(np.median(Y[usable])),
+            np.median(px, 0),
+            np.median(px, 0),
+            float(np.median(y)),
+            float(np.median(y)),
             1.0,
             0.0,
             separation,
@@ -220,9 +235,10 @@ def measure_lit_shadow(
             lit,
             shadow,
         )
-    lit_rgb = np.median(img[lit], axis=0)
-    shadow_rgb = np.median(img[shadow], axis=0)
-    lit_y, shadow_y = float(np.median(Y[lit])), float(np.median(Y[shadow]))
+    lit_i, shadow_i = np.flatnonzero(lit), np.flatnonzero(shadow)
+    lit_rgb = np.median(rgb_at(lit_i), axis=0)
+    shadow_rgb = np.median(rgb_at(shadow_i), axis=0)
+    lit_y, shadow_y = float(np.median(Y[lit_i])), float(np.median(Y[shadow_i]))
     shadow_to_lit = shadow_y / max(lit_y, 1e-12)
     frac = float(shadow.sum()) / max(float(shadow.sum() + lit.sum()), 1.0)
     dominant = bool(

@@ -26,6 +26,8 @@ __all__ = [
 ]
 
 MIN_COS_VIEW = 0.01
+#: Elements of one block of :func:`preetham_exposure_fit_cost`'s (N, P) grid (128 KiB of float32: in L2 with its copies).
+_BLOCK_ELEMENTS = 32768
 _XYZ_TO_LINEAR_SRGB = np.array(
     [[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560], [0.0556434, -0.2040259, 1.0572252]]
 )
@@ -113,31 +115,53 @@ def preetham_exposure_fit_cost(
     the gamma term is evaluated on the (N, P) grid (one exp and one log per element and turbidity)."""
     ly = np.asarray(log_luminance, dtype=np.float64)
     ct = np.maximum(np.asarray(cos_theta, dtype=np.float64), MIN_COS_VIEW)
-    cg = np.clip(np.asarray(cos_gamma, dtype=np.float64), -1.0, 1.0)
+    cg = np.asarray(cos_gamma, dtype=np.float64)
     p = ly.shape[0]
     if ly.shape != ct.shape or cg.ndim != 2 or cg.shape[1] != p or p == 0:
         raise ValueError(f"preetham_exposure_fit_cost: need (P,), (P,), (N, P), got {ly.shape}, {ct.shape}, {cg.shape}")
     # The (N, P) gamma term in float32 (7x faster exp/log; ~1e-7 relative error per element), its reductions
     # accumulated in float64: the costs agree with a float64 evaluation to ~1e-8 (tested against the direct fit).
-    gamma = np.arccos(cg.astype(np.float32))
-    cg2 = np.square(cg, dtype=np.float32)
-    best = np.full(cg.shape[0], np.inf)
-    g = np.empty_like(gamma)
+    # Evaluated a block of candidates at a time (element-wise and per row, so the same numbers as on the whole grid)
+    # so that the chain of element-wise passes stays in the CPU cache; the product with h is one BLAS call on the
+    # whole grid (a BLAS call's rounding may depend on how its threads split the rows).
+    n = cg.shape[0]
+    rows = max(1, _BLOCK_ELEMENTS // p)
+    gamma, cg2 = np.empty((n, p), np.float32), np.empty((n, p), np.float32)
+    for s in range(0, n, rows):
+        c32 = np.clip(cg[s : s + rows], -1.0, 1.0).astype(np.float32)
+        np.arccos(c32, out=gamma[s : s + rows])
+        np.square(c32, out=cg2[s : s + rows])
+    best = np.full(n, np.inf)
+    g_buf, e_buf = np.empty((rows, p), np.float32), np.empty((rows, p), np.float32)
+    g64 = np.empty((n, p))
+    gm, gg = np.empty(n), np.empty(n)
+    # Row sums of the float64 copy are those of the float32 rows accumulated in float64; einsum's agree while a row
+    # fits one of numpy's cast buffers (einsum with dtype= sums a longer row buffer by buffer).
+    whole_rows = p <= np.getbufsize()
     for T in turbidities:
         A, B, C, D, E = perez_coefficients(T)["Y"]
         # the floors (1e-12) never bind for turbidities in [1, 20]; they keep the logs finite
         h = ly - np.log(np.maximum(1.0 + A * np.exp(B / ct), 1e-12))
         h -= h.mean()
-        np.multiply(gamma, np.float32(D), out=g)
-        np.exp(g, out=g)
-        g *= np.float32(C)
-        g += np.float32(1.0)
-        g += np.float32(E) * cg2
-        np.maximum(g, np.float32(1e-12), out=g)
-        np.log(g, out=g)
-        gm = g.mean(axis=1, dtype=np.float64)
-        gg = np.einsum("ij,ij->i", g, g, dtype=np.float64)
-        gh = g.astype(np.float64) @ h
+        for s in range(0, n, rows):
+            e = min(n, s + rows)
+            g, eg = g_buf[: e - s], e_buf[: e - s]
+            np.multiply(gamma[s:e], np.float32(D), out=g)
+            np.exp(g, out=g)
+            g *= np.float32(C)
+            g += np.float32(1.0)
+            np.multiply(cg2[s:e], np.float32(E), out=eg)
+            g += eg
+            np.maximum(g, np.float32(1e-12), out=g)
+            np.log(g, out=g)
+            g64[s:e] = g
+            gm[s:e] = g64[s:e].mean(axis=1)
+            gg[s:e] = (
+                np.einsum("ij,ij->i", g64[s:e], g64[s:e])
+                if whole_rows
+                else np.einsum("ij,ij->i", g, g, dtype=np.float64)
+            )
+        gh = g64 @ h
         cost = (h @ h) / p + gg / p - gm * gm - 2.0 * gh / p
         np.minimum(best, np.maximum(cost, 0.0), out=best)
     return best

@@ -32,7 +32,7 @@ from aias_augment.analyse.lighting.solar_position import (
     sun_direction_in_cam_from_metadata,
 )
 from aias_augment.core.geometry import Intrinsics
-from aias_augment.core.hdr import luminance, srgb_to_linear
+from aias_augment.core.hdr import luminance, max_channel, srgb_to_linear
 from aias_augment.core.rng import require_rng
 
 __all__ = [
@@ -219,16 +219,21 @@ def posterior_summary(grid: np.ndarray, loglik: np.ndarray, up: np.ndarray) -> t
 
 
 def _find_sun_disc(
-    unit_rgb: np.ndarray, above: np.ndarray, max_area_frac: float = 0.08, clip_level: float = 250.0 / 255.0
+    unit_rgb: np.ndarray,
+    above: np.ndarray,
+    max_area_frac: float = 0.08,
+    clip_level: float = 250.0 / 255.0,
+    linear: np.ndarray | None = None,
 ) -> tuple[float, float] | None:
     """(u, v) of a visible sun: a clipped (white) blob above the horizon that is compact (< ``max_area_frac`` of the
     image), not cut by the image border, round (area <= 2.5 x the disc inscribed at its deepest point) and surrounded by glare (the 2-pixel ring around it
     is bright everywhere: 10th percentile >= 0.45 linear, mean >= 2x the median above the horizon; 8 samples at 1.5x
-    its radius within a factor 0.35 of each other). Returns its deepest point, or None."""
-    clipped = (unit_rgb.min(axis=2) >= clip_level) & above
+    its radius within a factor 0.35 of each other). Returns its deepest point, or None. ``linear``: the image's
+    linear radiance when the caller has it (else decoded from ``unit_rgb``)."""
+    clipped = (np.minimum(np.minimum(unit_rgb[..., 0], unit_rgb[..., 1]), unit_rgb[..., 2]) >= clip_level) & above
     if not clipped.any():
         return None
-    lum = luminance(srgb_to_linear(unit_rgb))
+    lum = luminance(srgb_to_linear(unit_rgb) if linear is None else linear)
     sky_median = float(np.median(lum[above & ~clipped])) if (above & ~clipped).any() else 0.0
     labels, n = ndimage.label(clipped)
     sizes = ndimage.sum(clipped, labels, index=np.arange(1, n + 1))
@@ -282,7 +287,7 @@ def _sky_pixels(unit, lin, Y, logY, above, sky_mask) -> np.ndarray:
     """(H, W) bool: the sky pixels the luminance fit uses (see :func:`sun_cue_from_image`); ``unit`` is the image in
     [0, 1], ``lin`` its linear radiance, ``Y`` / ``logY`` its luminance, ``above`` the pixels above the horizon."""
     if sky_mask is not None:
-        return np.asarray(sky_mask, bool) & above & (unit.max(axis=2) < 0.98)
+        return np.asarray(sky_mask, bool) & above & (max_channel(unit) < 0.98)
     # The smoothness window is 5 px at the estimator's analysis width (400 px) and shrinks with narrower images
     # (down to 2 px at 160, the fast preset's cheap analysis): a fixed 5 px window there spans 2.5x more of the
     # scene, so branches and roof edges leave a quarter of the open sky "rough" (KITTI 06: 5 % of the pixels
@@ -296,7 +301,7 @@ def _sky_pixels(unit, lin, Y, logY, above, sky_mask) -> np.ndarray:
     return (
         above
         & (local_std < 0.06)
-        & (unit.max(axis=2) < 0.98)
+        & (max_channel(unit) < 0.98)
         & (Y > max(0.15 * ref, 0.01))
         & (bluish | (Y > 0.5 * ref))
     )
@@ -311,7 +316,7 @@ def _sky_pattern_loglik(
     factor of the two cues (1 when they point the same way, down to 0.2 when opposite)."""
     cue_agreement = 1.0
     cos_theta = d @ up_in_cam  # view zenith cosine
-    cos_gamma = np.clip(grid_in_cam @ d.T, -1.0, 1.0)  # (N, P)
+    cos_gamma = grid_in_cam @ d.T  # (N, P); clipped to [-1, 1] where it is read (the fit clips its own)
     best_cost = preetham_exposure_fit_cost(ly, cos_theta, cos_gamma, turbidities)
     sigma2 = max(float(best_cost.min()), 1e-4)  # eps: a perfect fit would otherwise be infinitely sharp
     # How much better the best sun explains the sky than a typical candidate: 0 = no azimuthal information.
@@ -319,6 +324,7 @@ def _sky_pattern_loglik(
     sky_loglik = -0.5 * effective_samples * (best_cost - best_cost.min()) / sigma2
     if whiteness_weight > 0:
         blue = _blue_chromaticity(lin_px)
+        cos_gamma = np.clip(cos_gamma, -1.0, 1.0)
         colour_loglik = whiteness_weight * sun_whiteness_loglik(blue, cos_gamma, cos_theta, effective_samples)
     else:  # the colour cue is off (the default): not computed at all
         colour_loglik = np.zeros(len(grid_in_world))
@@ -399,14 +405,14 @@ def sun_cue_from_image(
     up_in_cam = cam_from_world @ up_in_world
 
     unit = img.astype(np.float32) / 255.0
-    lin = srgb_to_linear(unit)
+    lin = srgb_to_linear(img)  # uint8 (checked): the curve of ``unit``, by table
     rays = camera_ray_directions(intrinsics)
     elev_sin = rays @ up_in_cam
     above = elev_sin > np.sin(np.deg2rad(2.0))
     loglik = np.zeros(len(grid_in_world))
     cue_agreement = 1.0  # 1: the luminance and colour sky cues point to the same azimuth; down to 0.2 when opposite
 
-    disc = _find_sun_disc(unit, above)
+    disc = _find_sun_disc(unit, above, linear=lin)
     if disc is not None:
         ray = rays[int(round(disc[1])), int(round(disc[0]))]
         kappa = 1.0 / np.deg2rad(3.0) ** 2  # ~3 deg spread

@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from aias_augment.core.config import CHECKPOINT_DIR
+from aias_augment.core.hdr import max_channel
 from aias_augment.core.srgb import srgb_to_linear
 
 FEATURE_SIDE = 320
@@ -55,11 +56,12 @@ def sun_evidence_features(image_rgb_uint8: np.ndarray) -> dict[str, float]:
     h = img.shape[0]
     top_l, top_br = lum[: max(h // 3, 1)], log_br[: max(h // 3, 1)]
     sky_blue = float(np.median(top_br[top_l >= np.quantile(top_l, 0.5)]))
-    bot_l, bot_br, bot_x = lum[h // 2 :], log_br[h // 2 :], x[h // 2 :]
+    x_max = max_channel(x)
+    bot_l, bot_br, bot_x_max = lum[h // 2 :], log_br[h // 2 :], x_max[h // 2 :]
     dark = bot_l <= np.quantile(bot_l, 0.2)
-    lit = (bot_l >= np.quantile(bot_l, 0.8)) & (bot_x.max(axis=-1) < _CLIP_LEVEL)
+    lit = (bot_l >= np.quantile(bot_l, 0.8)) & (bot_x_max < _CLIP_LEVEL)
     shadow_blue = float(bot_br[dark].mean() - bot_br[lit].mean()) if dark.any() and lit.any() else 0.0
-    clipped = float(np.mean(x.max(axis=-1) >= _CLIP_LEVEL))
+    clipped = float(np.mean(x_max >= _CLIP_LEVEL))
     return {"sky_blue": sky_blue, "shadow_blue": shadow_blue, "clipped": clipped}
 
 

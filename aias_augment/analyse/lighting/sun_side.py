@@ -29,7 +29,7 @@ import numpy as np
 
 from aias_augment.analyse.lighting.envmap import camera_ray_directions
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
-from aias_augment.core.hdr import luminance, srgb_to_linear
+from aias_augment.core.hdr import luminance, max_channel, srgb_to_linear
 
 __all__ = [
     "LineSegments",
@@ -348,8 +348,8 @@ def ground_darkness(
     gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
     k = int(window_px) | 1
     med = cv2.medianBlur(gray, k) if k <= 255 else cv2.medianBlur(gray, 255)
-    y = srgb_to_linear(gray.astype(np.float32) / 255.0).astype(np.float64)
-    ym = srgb_to_linear(med.astype(np.float32) / 255.0).astype(np.float64)
+    y = srgb_to_linear(gray).astype(np.float64)
+    ym = srgb_to_linear(med).astype(np.float64)
     r = np.log(np.maximum(y, 1e-4) / np.maximum(ym, 1e-4))  # eps: black pixels in black surroundings give r = 0
     return np.clip((np.log(lit_ratio) - r) / np.log(lit_ratio / dark_ratio), 0.0, 1.0)
 
@@ -552,7 +552,7 @@ def sun_side_cue(
     segs = classify_segments(detect_line_segments(img, min_len), K, up)
     if sky_mask is None:
         sky_mask = default_sky_mask(img, K, up)
-    lin = srgb_to_linear(img.astype(np.float32) / 255.0)
+    lin = srgb_to_linear(img)
     fs = facade_clusters(facade_samples(lin, K, up, segs, exclude_mask=sky_mask), up)
     spread = _orientation_spread(fs)
     ll_f, r2 = vertical_surface_loglik(fs, grid_in_cam, up, facade_albedo_sigma)
@@ -576,8 +576,9 @@ def default_sky_mask(image_rgb_uint8: np.ndarray, intrinsics: Intrinsics, up_in_
     without the smoothness of clouds requirement): (H, W) bool."""
     from scipy import ndimage
 
-    unit = np.asarray(image_rgb_uint8).astype(np.float32) / 255.0
-    lin = srgb_to_linear(unit)
+    img = np.asarray(image_rgb_uint8)
+    unit = img.astype(np.float32) / 255.0
+    lin = srgb_to_linear(img if img.dtype == np.uint8 else unit)  # uint8: the same values by table
     rays = camera_ray_directions(intrinsics)
     above = rays @ (np.asarray(up_in_cam) / max(float(np.linalg.norm(up_in_cam)), EPS)) > 0.0
     Y = np.maximum(luminance(lin), 1e-4)
@@ -588,4 +589,4 @@ def default_sky_mask(image_rgb_uint8: np.ndarray, intrinsics: Intrinsics, up_in_
     ref = np.percentile(Y[above], 95) if above.any() else 1.0
     bluish = lin[..., 2] >= 1.05 * lin[..., 0]
     # Clipped pixels are not sky: a sunlit white facade clips, an exposed sky (away from the sun) does not.
-    return above & (local_std < 0.08) & (Y > 0.15 * ref) & (unit.max(axis=2) < 0.98) & (bluish | (Y > 0.5 * ref))
+    return above & (local_std < 0.08) & (Y > 0.15 * ref) & (max_channel(unit) < 0.98) & (bluish | (Y > 0.5 * ref))

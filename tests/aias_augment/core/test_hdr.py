@@ -157,3 +157,13 @@ def test_envmap_flag_refuses_a_16k_map_in_one_line(tmp_path):
     with pytest.raises(InputError, match=r"^--envmap .*huge.exr: .*16384x8192 is above") as e:
         envmap_fact(str(_exr_claiming(tmp_path, 16384, 8192)))
     assert "\n" not in str(e.value)
+
+
+def test_max_channel_is_the_reduction_over_the_last_axis():
+    rng = np.random.default_rng(0)
+    for a in (rng.random((7, 9, 3), dtype=np.float32), rng.normal(size=(11, 3)), rng.integers(0, 256, (4, 5, 3))):
+        np.testing.assert_array_equal(hdr.max_channel(a), a.max(axis=-1))
+    a = np.array([[np.nan, 0.0, 1.0], [0.5, -0.0, 0.0]])
+    np.testing.assert_array_equal(hdr.max_channel(a), a.max(axis=-1))
+    with pytest.raises(ValueError, match="max_channel"):
+        hdr.max_channel(np.zeros((4, 4)))

@@ -74,3 +74,26 @@ def test_composite_and_shading_encode_with_it():
     # a saturated orange given by its sRGB value: the fluorescent weight reads the albedo back in sRGB
     orange_linear = srgb_to_linear(np.array([[1.0, 0.35, 0.0]]), dtype=np.float64)
     assert fluorescent_gain(orange_linear)[0] > 1.0 and fluorescent_gain(np.array([[0.5, 0.5, 0.5]]))[0] == 1.0
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_uint8_table_is_the_curve_of_the_float_levels(dtype):
+    """uint8 input is decoded by a 256-entry table: every level, in any shape and memory layout, is the curve
+    evaluated on the float value level / 255 (the float path), bit for bit."""
+    rng = np.random.default_rng(0)
+    for a in (
+        np.arange(256, dtype=np.uint8),
+        rng.integers(0, 256, (48, 64, 3), dtype=np.uint8),
+        rng.integers(0, 256, (48, 64, 3), dtype=np.uint8)[::2, ::-3],  # not contiguous
+        rng.integers(0, 256, (5,), dtype=np.uint8),
+    ):
+        got = srgb_to_linear(a, dtype)
+        want = srgb_to_linear(a.astype(dtype) / dtype(255.0), dtype)
+        assert got.dtype == dtype and got.shape == a.shape
+        np.testing.assert_array_equal(got, want)
+    zero_d = srgb_to_linear(np.array(200, np.uint8))
+    assert (
+        isinstance(zero_d, np.ndarray)
+        and zero_d.shape == ()
+        and zero_d == srgb_to_linear(np.float32(200) / np.float32(255))
+    )

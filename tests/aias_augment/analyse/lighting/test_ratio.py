@@ -87,3 +87,67 @@ def test_sun_over_sky_colour_from_a_lit_and_shadowed_pair_and_a_non_physical_pai
     np.testing.assert_array_equal(sun_over_sky_rgb(np.full(3, 0.2), np.full(3, 0.3), 2.5), np.zeros(3))
     with pytest.raises(ValueError, match="max_sun_sky_chroma"):
         LightingConfig(max_sun_sky_chroma=0.9)
+
+
+def _lit_shadow_on_the_whole_image(img, region, erode_px=0, rng=None):
+    """measure_lit_shadow's statistics computed over every pixel of the image in float64, then read in the region:
+    (usable, lit, shadow, lit/shadow medians, separation); None where it finds too few pixels."""
+    from scipy import ndimage
+    from sklearn.mixture import GaussianMixture
+
+    img = np.asarray(img, np.float64)
+    Y = (img.astype(np.float32) @ np.array([0.2126, 0.7152, 0.0722], np.float32)).astype(np.float64)
+    usable = region & np.isfinite(Y) & (Y > 1e-4) & (img.max(axis=2) < 0.97)
+    if usable.sum() < 200:
+        return None
+    chroma = img / np.maximum(img.sum(axis=2, keepdims=True), 1e-6)
+    dev = chroma - np.median(chroma[usable], axis=0)
+    dev[..., 2] = np.where(dev[..., 2] > 0, dev[..., 2] * 0.5, dev[..., 2])
+    usable &= np.abs(dev).max(axis=2) < 0.08
+    if usable.sum() < 200:
+        return None
+    logY = np.log(np.maximum(Y, 1e-6)).ravel()
+    idx = np.flatnonzero(usable.ravel())
+    fit_idx = rng.choice(idx, 8000, replace=False) if idx.size > 8000 else idx
+    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=1).fit(logY[fit_idx, None])
+    mu, sd = gm.means_.ravel(), np.sqrt(gm.covariances_.ravel())
+    dark = int(np.argmin(mu))
+    post = np.zeros(Y.size)
+    post[idx] = gm.predict_proba(logY[idx, None])[:, dark]
+    post = post.reshape(Y.shape)
+    shadow, lit = usable & (post >= 0.95), usable & (post <= 0.05)
+    if erode_px:
+        shadow = ndimage.binary_erosion(shadow, iterations=erode_px)
+        lit = ndimage.binary_erosion(lit, iterations=erode_px)
+    separation = float(abs(mu.max() - mu.min()) / np.sqrt(0.5 * (sd[0] ** 2 + sd[1] ** 2)))
+    return usable, lit, shadow, np.median(img[lit], 0), np.median(img[shadow], 0), np.median(Y[lit]), separation
+
+
+@pytest.mark.parametrize("erode_px", [0, 1])
+@pytest.mark.parametrize("big", [False, True])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_region_pixels_only_give_the_whole_image_statistics(erode_px, big, dtype):
+    """The measurement reads only the region's pixels: its masks, medians and mixture are those of the same
+    statistics computed over the whole image (bit for bit), with lane paint (a chroma outlier), clipped and black
+    pixels in the region, more usable pixels than the mixture's sample (``big``: 8000 drawn), and float64 colours
+    (whose channel sums depend on the order of the additions)."""
+    img = _ground(4.0, seed=1).astype(dtype)
+    if dtype == np.float64:
+        img *= np.random.default_rng(2).uniform(0.999, 1.001, img.shape)
+    if big:
+        img = np.tile(img, (2, 2, 1))
+    img[100:104, 10:150] = [0.6, 0.55, 0.1]  # yellow paint
+    img[5:9, 5:60] = 1.0  # clipped
+    img[110:114, 100:140] = 0.0  # black
+    region = np.zeros(img.shape[:2], bool)
+    region[3:, 4:-7] = True
+    m = ratio.measure_lit_shadow(img, region, erode_px=erode_px, rng=np.random.default_rng(5))
+    usable, lit, shadow, lit_rgb, shadow_rgb, lit_y, separation = _lit_shadow_on_the_whole_image(
+        img, region, erode_px, np.random.default_rng(5)
+    )
+    assert m.dominant_sun and m.n_pixels == usable.sum()
+    np.testing.assert_array_equal(m.lit_mask, lit)
+    np.testing.assert_array_equal(m.shadow_mask, shadow)
+    np.testing.assert_array_equal(m.lit_rgb, lit_rgb)
+    np.testing.assert_array_equal(m.shadow_rgb, shadow_rgb)
+    assert m.lit_luminance == lit_y and m.separation == separation

@@ -65,3 +65,43 @@ def test_exposure_fit_cost_equals_the_direct_fit():
     assert int(np.argmin(fast)) == int(np.argmin(direct))
     with pytest.raises(ValueError):
         sky.preetham_exposure_fit_cost(ly[:-1], cos_theta, cos_gamma)
+
+
+def _exposure_fit_cost_whole_grid(ly, cos_theta, cos_gamma, turbidities):
+    """preetham_exposure_fit_cost's arithmetic on the whole (N, P) grid at once: each element-wise step over the
+    grid, the row reductions with float64 accumulation, one BLAS product."""
+    ct = np.maximum(cos_theta, sky.MIN_COS_VIEW)
+    cg = np.clip(cos_gamma, -1.0, 1.0)
+    p = len(ly)
+    gamma = np.arccos(cg.astype(np.float32))
+    cg2 = np.square(cg, dtype=np.float32)
+    best = np.full(cg.shape[0], np.inf)
+    for T in turbidities:
+        A, B, C, D, E = sky.perez_coefficients(T)["Y"]
+        h = ly - np.log(np.maximum(1.0 + A * np.exp(B / ct), 1e-12))
+        h -= h.mean()
+        g = np.exp(gamma * np.float32(D)) * np.float32(C) + np.float32(1.0)
+        g += np.float32(E) * cg2
+        g = np.log(np.maximum(g, np.float32(1e-12)))
+        gm = g.mean(axis=1, dtype=np.float64)
+        gg = np.einsum("ij,ij->i", g, g, dtype=np.float64)
+        cost = (h @ h) / p + gg / p - gm * gm - 2.0 * (g.astype(np.float64) @ h) / p
+        best = np.minimum(best, np.maximum(cost, 0.0))
+    return best
+
+
+@pytest.mark.parametrize("n, p", [(2070, 800), (2070, 333), (97, 41), (3, 1), (5, 9000)])
+def test_exposure_fit_cost_in_blocks_is_the_whole_grid_bit_for_bit(n, p):
+    """The fit runs over blocks of candidates (so its chain of element-wise passes stays in the cache): the costs
+    are those of the whole-grid evaluation exactly, for grids that are not a whole number of blocks and for rows
+    longer than numpy's cast buffer (9000 > 8192)."""
+    rng = np.random.default_rng(p)
+    d = rng.normal(size=(p, 3))
+    d[:, 2] = np.abs(d[:, 2])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    suns = rng.normal(size=(n, 3))
+    suns /= np.linalg.norm(suns, axis=1, keepdims=True)
+    ly = rng.normal(-2.0, 0.5, p)
+    cos_gamma = suns @ d.T * 1.0000001  # a few just outside [-1, 1]: the fit clips them
+    args = (ly, d[:, 2], cos_gamma, (2.5, 4.0, 7.0))
+    np.testing.assert_array_equal(sky.preetham_exposure_fit_cost(*args), _exposure_fit_cost_whole_grid(*args))
