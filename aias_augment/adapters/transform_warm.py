@@ -115,7 +115,7 @@ class WarmVariants:
                 out["skipped"] += 1
                 continue
             out["analysed" if cache.misses > before else "already_cached"] += 1
-            if view_plans and self.config.render_method == "view_cache" and h * w <= ANALYSIS_MAX_PIXELS:
+            if view_plans and self.config.render_method in ("view_cache", "raycast") and h * w <= ANALYSIS_MAX_PIXELS:
                 self._warm_views(rgb, k, d, view_plans, i, out)
             if variants:
                 try:

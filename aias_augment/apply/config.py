@@ -48,7 +48,7 @@ class ApplyConfig:
     shadow_method: Literal["catcher", "projected"] = "catcher"
     contact_shadow_strength: float = 0.15
     contact_shadow_radius: float = 0.25
-    render_method: Literal["full", "view_cache"] = "full"
+    render_method: Literal["full", "view_cache", "raycast"] = "full"
 
 
 def apply_config(cfg) -> ApplyConfig:

@@ -15,6 +15,7 @@ from aias_augment.analyse.analysis import SceneAnalysis
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window
+from aias_augment.apply.cone_raycast import raycast_cone
 from aias_augment.apply.config import ApplyConfig, apply_config
 from aias_augment.apply.frame_steps import frame_steps, frame_without_objects, paste_window
 from aias_augment.apply.occluders import ground_scale, image_occluders, visibility_under_nearer
@@ -210,10 +211,13 @@ def _render_objects(
     # the glossy coating reflects the estimated light: not in a render without lighting (ablation, naive paste)
     coating = Coating(cfg.coating_f0, cfg.coating_roughness) if cfg.lighting else Coating()
     rendered, dropped = [], []
-    n_cached = 0
+    n_cached = n_cast = 0
     for k, obj in enumerate(plan.objects):
         warped = None
-        if cfg.render_method == "view_cache":
+        if cfg.render_method == "raycast":
+            warped = raycast_cone(obj.asset, obj.cam_from_object, intr)
+            n_cast += warped is not None
+        if warped is None and cfg.render_method in ("view_cache", "raycast"):
             warped = warp_from_view_cache(obj.asset, obj.cam_from_object, intr, view_cache)
             n_cached += warped is not None
         layer = _shaded_layer(obj, warped, intr, analysis.lighting, cfg, coating)
@@ -224,7 +228,12 @@ def _render_objects(
         if params:
             layer = apply_layer_stages(layer, params, shape, None if motions_px is None else motions_px[k])
         rendered.append((obj, layer.roi, layer.alpha, layer.depth, layer.rgb, params))
-    if cfg.render_method == "view_cache":
+    if cfg.render_method == "raycast":
+        mods["render"] = (
+            f"ray cast: {n_cast} of {len(plan.objects)} objects (procedural cones); view cache: {n_cached} of "
+            f"{len(plan.objects)} warped from their view bin's render (the others rendered in full)"
+        )
+    elif cfg.render_method == "view_cache":
         mods["render"] = (
             f"view cache: {n_cached} of {len(plan.objects)} objects warped from their view bin's "
             "render and relit (the others rendered in full: too near or too large for the cache)"

@@ -412,6 +412,19 @@ class WarpedView:
     albedo: np.ndarray
     normals: np.ndarray
 
+    @classmethod
+    def from_layers(cls, roi: tuple[int, int, int, int], layers: RenderLayers) -> "WarpedView":
+        """The pixel lists of a render's ``layers`` over ``roi`` (the covered pixels: coverage > 0)."""
+        inside = layers.alpha > 0
+        return cls(
+            tuple(int(v) for v in roi),
+            layers.alpha,
+            layers.depth,
+            inside,
+            np.ascontiguousarray(layers.albedo_linear[inside], np.float32),
+            np.ascontiguousarray(layers.normals_in_cam[inside], np.float32),
+        )
+
     def layers(self) -> RenderLayers:
         """The full-roi :class:`RenderLayers` (0 outside the object)."""
         h, w = self.alpha.shape

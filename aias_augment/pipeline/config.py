@@ -125,8 +125,10 @@ class InsertionConfig:
     contact_shadow_radius: float = 0.25
     # Object layers: "full" (a GL render of the asset at the sample's pose) or "view_cache" (the asset's view for the
     # sample's view bin, rendered once per process and warped into the image, no GL call on a hit; poses the cache
-    # does not cover fall back to "full": apply/view_cache.py, tests/aias_augment/apply/test_view_cache.py).
-    render_method: Literal["full", "view_cache"] = "full"
+    # does not cover fall back to "full": apply/view_cache.py, tests/aias_augment/apply/test_view_cache.py), or
+    # "raycast" (procedural cones ray-cast in NumPy at their own pose, no view bin and no GL call: a new cone per
+    # object costs what a cached view does; other assets as "view_cache": apply/cone_raycast.py).
+    render_method: Literal["full", "view_cache", "raycast"] = "full"
     # Cheap analysis (the fast preset's lighting estimate for a new image): the camera (vanishing lines) and the
     # lighting are estimated on a copy at most this many pixels wide (0: the image as given); the record says so.
     analysis_max_width: int = 0

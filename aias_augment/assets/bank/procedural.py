@@ -359,20 +359,11 @@ def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image
     return Image.fromarray(np.clip(img, 0, 255, out=img).astype(np.uint8))
 
 
-def make_traffic_cone(
-    rng: np.random.Generator,
-    height_m: float,
-    texture: Image.Image | None = None,
-    segments: int = 64,
-    look: ConeLook | None = None,
-) -> trimesh.Trimesh:
-    """One traffic cone (or, for tall draws, sometimes a slim delineator post) of total height ``height_m``: a
-    smooth surface of revolution on a square (rounded-corner) or round base, with a drawn texture. All parameters
-    come from ``rng`` and are stored in ``mesh.metadata['procedural_params']`` (band heights in metres above the
-    ground contact). ``texture``: an optional photo that modulates the dirt; ``look``: colours and sleeves to draw
-    (:class:`ConeLook`)."""
-    h = float(height_m)
-    p = cone_params(rng, h, look)
+def cone_sections(p: dict, h: float) -> list[list[tuple[float, float, float, float]]]:
+    """The cone's surface of revolution as :func:`_loft` takes it: sections of rings (z, r, superellipse n, texture
+    v) going up, for the parameters ``p`` (:func:`cone_params`) and total height ``h``: the base's bottom face, its
+    side with a small bevel, its top face out to the body, then the body (a slight concave flare, straight to the
+    cap, a rounded top closing at a pole). The mesh and the ray-cast render draw these same rings."""
     zb, a, r0, rt = p["base_height_m"], p["base_half_width_m"], p["body_bottom_radius_m"], p["top_radius_m"]
     n_base = 8.0 if p["base_shape"] == "square" else 2.0
     vb = _V_BASE[1] * 0.5  # base rows of the texture
@@ -397,7 +388,25 @@ def make_traffic_cone(
         (z_cap + cap_h * np.sin(f), rt * np.cos(f) if f < np.pi / 2 else 0.0, 2.0, body_v(z_cap + cap_h * np.sin(f)))
         for f in phi
     ]
-    verts, faces, normals, uv = _loft(base + [body], segments)
+    return base + [body]
+
+
+def make_traffic_cone(
+    rng: np.random.Generator,
+    height_m: float,
+    texture: Image.Image | None = None,
+    segments: int = 64,
+    look: ConeLook | None = None,
+) -> trimesh.Trimesh:
+    """One traffic cone (or, for tall draws, sometimes a slim delineator post) of total height ``height_m``: a
+    smooth surface of revolution on a square (rounded-corner) or round base, with a drawn texture. All parameters
+    come from ``rng`` and are stored in ``mesh.metadata['procedural_params']`` (band heights in metres above the
+    ground contact). ``texture``: an optional photo that modulates the dirt; ``look``: colours and sleeves to draw
+    (:class:`ConeLook`)."""
+    h = float(height_m)
+    p = cone_params(rng, h, look)
+    zb = p["base_height_m"]
+    verts, faces, normals, uv = _loft(cone_sections(p, h), segments)
     img = _cone_texture(p, h, texture)
     mat = trimesh.visual.material.SimpleMaterial(image=img, diffuse=np.array([255, 255, 255, 255], np.uint8))
     m = trimesh.Trimesh(

@@ -179,7 +179,7 @@ def test_fast_preset_on_a_warm_cache_makes_no_gl_call(monkeypatch):
     from tests.aias_augment.analyse.test_cache import OneAsset
 
     cfg = _fast_cfg()
-    assert cfg.render_method == "view_cache" and cfg.shadow_method == "projected"
+    assert cfg.render_method in ("view_cache", "raycast") and cfg.shadow_method == "projected"
     img = road_image()
     f = Frame(img, K)
     an = analyse_scene(f, cfg)

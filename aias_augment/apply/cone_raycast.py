@@ -1,0 +1,364 @@
+"""Procedural traffic cones drawn without GL: rays cast in NumPy against the cone's own surface of revolution.
+
+A procedural cone (:func:`aias_augment.assets.bank.procedural.make_traffic_cone`) is the rings of
+:func:`~aias_augment.assets.bank.procedural.cone_sections`: a base (a superellipse prism, square or round, with a flat
+top) and a body whose radius is piecewise linear in height. Each pixel's rays (``ssaa`` x ``ssaa`` per pixel) are
+intersected exactly with that shape in the object frame: the body as truncated cones (a quadratic per segment), the
+base's side as the 64-sided prism the mesh has (Cyrus-Beck clipping), its top as a plane. The nearest hit gives the
+layers :func:`aias_augment.apply.render.render_object_window` gives: linear albedo (the cone's texture sampled at the
+hit's (u, v), filtered to the footprint as mipmapping does), coverage, z-depth and normals (the mesh's smooth normals:
+interpolated along the profile between rings, the superellipse's gradient on the base's side).
+
+Every object is drawn at its own pose, so there is no view bin and no warp: a new cone per object costs what a cached
+view costs, without the render its first view needs. The ray count is the object's window times ``ssaa``^2, so the
+cost follows the object's size on screen. Differences to the GL render of the same mesh: the body's cross-section is
+the exact circle (the mesh's is a 64-gon: 0.1 % of the radius), the 4 mm bevel of the base's top edge is left out
+(under a pixel for cones below ~150 px) and normals are not quantised to 8 bits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from aias_augment.apply.render import RenderLayers, _crop_intrinsics, _downsample, _roi
+from aias_augment.apply.view_cache import WarpedView
+from aias_augment.assets.asset import Asset
+from aias_augment.core.geometry import Intrinsics
+from aias_augment.core.srgb import srgb_to_linear
+
+__all__ = ["ConeShape", "cone_shape", "raycast_cone", "raycast_cone_window", "RAYCAST_SSAA"]
+
+#: Rays per pixel side of the fast path's ray-cast objects (as the view cache's views: anti-aliased edges).
+RAYCAST_SSAA = 2
+#: Sides of the base's prism (the mesh's ``segments``).
+BASE_SIDES = 64
+#: Newton steps onto the base's superellipse side (quadratic convergence from the bounding square: 8 leave < 1e-9 of
+#: its half-width for rays that do not graze it).
+NEWTON_STEPS = 8
+#: Rays per chunk: bounds the temporaries of a large window (a near cone at 4K) to a few hundred MB.
+CHUNK_RAYS = 1 << 17
+
+
+@dataclass(frozen=True)
+class ConeShape:
+    """The rings of one procedural cone (unscaled root, metres): the body's profile (z, r, texture v) going up, its
+    per-ring smooth normals in the (radial, up) plane, the base (half-width ``a``, superellipse ``n``, top ``zb``,
+    texture row ``v_base``) and the base's 64-gon, plus the cone's texture (H, W, 3) uint8 sRGB."""
+
+    body_z: np.ndarray
+    body_r: np.ndarray
+    body_v: np.ndarray
+    ring_normals: np.ndarray  # (R, 2): (radial, z), unit
+    segments: np.ndarray  # (S, 4): the profile's straight pieces (z0, r0, z1, r1), collinear rings merged
+    a: float
+    n: float
+    a_top: float
+    zb: float
+    v_base: float
+    polygon: np.ndarray  # (BASE_SIDES, 2) CCW
+    texture: np.ndarray
+    height: float
+
+
+def _ring_normals(z: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Per-ring smooth normals (radial, z) of a profile, as the mesh's area-weighted vertex normals: the outward
+    normals of the segments on each side, each weighted by its slant length times its mean radius; a pole (r = 0 at
+    the top) points up."""
+    dz, dr = np.diff(z), np.diff(r)
+    seg = np.stack([dz, -dr], axis=1) * ((r[:-1] + r[1:]) / 2.0)[:, None]  # |(dz, -dr)| is the slant length
+    acc = np.zeros((len(z), 2))
+    acc[:-1] += seg
+    acc[1:] += seg
+    if r[-1] <= 0:
+        acc[-1] = (0.0, 1.0)
+    return acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-12)
+
+
+def _merged_segments(z: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The profile's pieces (z0, r0, z1, r1), consecutive collinear ones merged (the body's straight part is many
+    rings for the texture's and normals' sake, one cone for intersection)."""
+    out = []
+    for k in range(len(z) - 1):
+        if z[k + 1] <= z[k]:
+            continue
+        if out:
+            z0, r0, z1, r1 = out[-1]
+            cross = (z1 - z0) * (r[k + 1] - r[k]) - (r1 - r0) * (z[k + 1] - z[k])
+            if z1 == z[k] and r1 == r[k] and abs(cross) <= 1e-9 * (z1 - z0) * (z[k + 1] - z[k]):
+                out[-1] = (z0, r0, z[k + 1], r[k + 1])
+                continue
+        out.append((z[k], r[k], z[k + 1], r[k + 1]))
+    return np.array(out, float)
+
+
+def cone_shape(asset: Asset) -> ConeShape | None:
+    """The :class:`ConeShape` of ``asset`` (or of its unscaled root), or None when it is not an undeformed procedural
+    traffic cone whose mesh has the bounds its parameters give (then it is rendered from its mesh)."""
+    root = asset.render_root if asset.render_root is not None else asset
+    meta = root.meta
+    if not root.procedural or meta.get("generator") != "traffic_cone" or "deformation" in meta or "tipped" in meta:
+        return None
+    got = root.__dict__.get("_cone_shape")
+    if got is not None:
+        return got
+    from aias_augment.assets.bank.procedural import cone_sections  # trimesh: only where a procedural cone is drawn
+
+    try:
+        h = float(meta["height_m"])
+        sections = cone_sections(meta, h)
+        image = root.meshes[0].visual.material.image
+    except (KeyError, TypeError, AttributeError, IndexError):
+        return None
+    base_side, base_top, body = sections[1], sections[2], np.array(sections[3], float)
+    a, n, zb = float(base_side[0][1]), float(base_side[0][2]), float(base_top[0][0])
+    lo, hi = root.bounds_m
+    if abs(hi[2] - h) > 1e-6 * h or abs(lo[2]) > 1e-6 * h or abs((hi[0] - lo[0]) / 2.0 - a) > 1e-6 * h:
+        return None
+    theta = np.linspace(0.0, 2 * np.pi, BASE_SIDES + 1)[:-1]
+    rr = a * (np.abs(np.cos(theta)) ** n + np.abs(np.sin(theta)) ** n) ** (-1.0 / n)
+    shape = ConeShape(
+        body_z=body[:, 0],
+        body_r=body[:, 1],
+        body_v=body[:, 3],
+        ring_normals=_ring_normals(body[:, 0], body[:, 1]),
+        segments=_merged_segments(body[:, 0], body[:, 1]),
+        a=a,
+        n=n,
+        a_top=float(base_top[0][1]),
+        zb=zb,
+        v_base=float(base_side[0][3]),
+        polygon=np.c_[rr * np.cos(theta), rr * np.sin(theta)],
+        texture=np.ascontiguousarray(np.asarray(image.convert("RGB"), np.uint8)),
+        height=h,
+    )
+    root.__dict__["_cone_shape"] = shape  # a memo, as the asset's bounds: its meshes never change
+    return shape
+
+
+def _body_hits(o: np.ndarray, d: np.ndarray, shape: ConeShape) -> np.ndarray:
+    """Per ray the nearest t > 0 on the body (inf: none): each segment of the profile a truncated cone."""
+    best = np.full(len(o), np.inf)
+    dxy2 = d[:, 0] ** 2 + d[:, 1] ** 2
+    odd = o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]
+    oxy2 = o[:, 0] ** 2 + o[:, 1] ** 2
+    for za, ra, zc, rc in shape.segments:
+        m = (rc - ra) / (zc - za)
+        A = ra + m * (o[:, 2] - za)  # the radius at the ray's z, linear in t: A + B t
+        B = m * d[:, 2]
+        qa, qb, qc = dxy2 - B * B, odd - A * B, oxy2 - A * A
+        disc = qb * qb - qa * qc
+        ok = disc >= 0
+        sq = np.sqrt(np.where(ok, disc, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lin = np.abs(qa) < 1e-12
+            t1 = np.where(lin, -qc / (2 * qb), (-qb - sq) / qa)
+            t2 = np.where(lin, np.inf, (-qb + sq) / qa)
+        for t in (np.minimum(t1, t2), np.maximum(t1, t2)):
+            zt = o[:, 2] + t * d[:, 2]
+            valid = ok & (t > 0) & (zt >= za) & (zt <= zc) & (A + B * t >= 0) & np.isfinite(t)
+            best = np.where(valid & (t < best), t, best)
+    return best
+
+
+def _base_side_hits(o: np.ndarray, d: np.ndarray, shape: ConeShape) -> np.ndarray:
+    """Per ray the t > 0 where it enters the base's superellipse prism |x/a|^n + |y/a|^n <= 1 through its side (inf:
+    none). Along a ray f(t) = |x/a|^n + |y/a|^n - 1 is convex, and f >= 0 where the ray enters the square |x|, |y| <=
+    a that holds the superellipse: Newton's steps from there rise monotonically to the first root (a ray that only
+    grazes the square stops descending with f > 0: a miss)."""
+    a, n = shape.a, shape.n
+    ox, oy, dx, dy = o[:, 0] / a, o[:, 1] / a, d[:, 0] / a, d[:, 1] / a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tx0, tx1 = (-1.0 - ox) / dx, (1.0 - ox) / dx
+        ty0, ty1 = (-1.0 - oy) / dy, (1.0 - oy) / dy
+    tx0, tx1 = (
+        np.where(dx == 0, np.where(np.abs(ox) <= 1, -np.inf, np.inf), np.minimum(tx0, tx1)),
+        np.where(dx == 0, np.where(np.abs(ox) <= 1, np.inf, -np.inf), np.maximum(tx0, tx1)),
+    )
+    ty0, ty1 = (
+        np.where(dy == 0, np.where(np.abs(oy) <= 1, -np.inf, np.inf), np.minimum(ty0, ty1)),
+        np.where(dy == 0, np.where(np.abs(oy) <= 1, np.inf, -np.inf), np.maximum(ty0, ty1)),
+    )
+    t = np.maximum(tx0, ty0)
+    live = (t <= np.minimum(tx1, ty1)) & (t > 0)
+    t = np.where(live, t, 0.0)
+    for _ in range(NEWTON_STEPS):
+        x, y = ox + t * dx, oy + t * dy
+        ax, ay = np.abs(x), np.abs(y)
+        f = ax**n + ay**n - 1.0
+        df = n * (np.sign(x) * ax ** (n - 1) * dx + np.sign(y) * ay ** (n - 1) * dy)
+        live &= df < 0  # still descending toward the root
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(live, t - np.maximum(f, 0.0) / df, t)
+    x, y = ox + t * dx, oy + t * dy
+    close = np.abs(np.abs(x) ** n + np.abs(y) ** n - 1.0) <= 1e-4
+    zt = o[:, 2] + t * d[:, 2]
+    return np.where(live & close & (zt >= 0) & (zt <= shape.zb), t, np.inf)
+
+
+def _base_top_hits(o: np.ndarray, d: np.ndarray, shape: ConeShape) -> np.ndarray:
+    """Per ray the t > 0 where it meets the base's flat top (inf: none)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (shape.zb - o[:, 2]) / d[:, 2]
+    x, y = o[:, 0] + t * d[:, 0], o[:, 1] + t * d[:, 1]
+    inside = (np.abs(x) / shape.a_top) ** shape.n + (np.abs(y) / shape.a_top) ** shape.n <= 1.0
+    return np.where((d[:, 2] < 0) & (t > 0) & inside, t, np.inf)
+
+
+def _meets_cylinder(o: np.ndarray, d: np.ndarray, radius: float, z0: float, z1: float) -> np.ndarray:
+    """Rays (t > 0) that pass through the upright cylinder of ``radius`` about the z axis between ``z0`` and ``z1``:
+    a conservative test before the exact ones."""
+    R = radius * (1 + 1e-6)
+    qa = d[:, 0] ** 2 + d[:, 1] ** 2
+    qb = o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]
+    qc = o[:, 0] ** 2 + o[:, 1] ** 2 - R * R
+    disc = qb * qb - qa * qc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        c0 = np.where(qa > 0, (-qb - sq) / qa, np.where(qc <= 0, -np.inf, np.inf))
+        c1 = np.where(qa > 0, (-qb + sq) / qa, np.where(qc <= 0, np.inf, -np.inf))
+        ta, tb = (z0 - o[:, 2]) / d[:, 2], (z1 - o[:, 2]) / d[:, 2]
+    flat = d[:, 2] == 0
+    inside = (o[:, 2] >= z0) & (o[:, 2] <= z1)
+    s0 = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
+    s1 = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
+    lo, hi = np.maximum(c0, s0), np.minimum(c1, s1)
+    return (disc >= 0) & (lo <= hi) & (hi > 0)
+
+
+def _surface(p: np.ndarray, kind: np.ndarray, shape: ConeShape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(normals (N, 3) in the object frame, texture u, texture v) at hit points ``p`` on surface ``kind`` (0 body,
+    1 base side, 2 base top)."""
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    rho = np.hypot(x, y)
+    cx, sy = np.where(rho > 0, x / np.maximum(rho, 1e-12), 1.0), np.where(rho > 0, y / np.maximum(rho, 1e-12), 0.0)
+    nr = np.interp(z, shape.body_z, shape.ring_normals[:, 0])
+    nz = np.interp(z, shape.body_z, shape.ring_normals[:, 1])
+    nrm = np.stack([nr * cx, nr * sy, nz], axis=1)
+    side = kind == 1
+    if side.any():  # the superellipse's gradient, horizontal
+        gx = np.sign(x[side]) * np.abs(x[side]) ** (shape.n - 1)
+        gy = np.sign(y[side]) * np.abs(y[side]) ** (shape.n - 1)
+        g = np.stack([gx, gy, np.zeros_like(gx)], axis=1)
+        nrm[side] = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
+    nrm[kind == 2] = (0.0, 0.0, 1.0)
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+    u = np.mod(np.arctan2(y, x), 2 * np.pi) / (2 * np.pi)
+    v = np.where(kind == 0, np.interp(z, shape.body_z, shape.body_v), shape.v_base)
+    return nrm, u, v
+
+
+def _texture_level(shape: ConeShape, body_px: float) -> np.ndarray:
+    """The texture (float32 sRGB in [0, 1]) shrunk to about one texel per sample over the body's height (as a
+    mipmap level would be), never enlarged."""
+    th, tw = shape.texture.shape[:2]
+    rows = th * (shape.body_v[-1] - shape.body_v[0])
+    f = min(1.0, max(body_px, 1.0) / rows)
+    tex = shape.texture.astype(np.float32) / 255.0
+    if f < 0.999:
+        tex = cv2.resize(tex, (max(int(round(tw * f)), 4), max(int(round(th * f)), 4)), interpolation=cv2.INTER_AREA)
+    return tex
+
+
+def _sample(tex: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear lookup at texture (u, v) (v = 0 at the image's bottom row), wrapping round in u."""
+    th, tw = tex.shape[:2]
+    n = len(u)
+    if n == 0:
+        return np.zeros((0, 3), np.float32)
+    cols = 1024  # OpenCV's remap takes maps under 32767 rows: the lookups as a block of this width
+    rows = -(-n // cols)
+    mx = np.zeros(rows * cols, np.float32)
+    my = np.zeros(rows * cols, np.float32)
+    mx[:n] = u * tw - 0.5
+    my[:n] = np.clip((1.0 - v) * th - 0.5, 0.0, th - 1.0)
+    out = cv2.remap(tex, mx.reshape(rows, cols), my.reshape(rows, cols), cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+    return out.reshape(-1, 3)[:n]
+
+
+def raycast_cone_window(
+    asset: Asset,
+    cam_from_object: np.ndarray,
+    intrinsics: Intrinsics,
+    *,
+    ssaa: int = 2,
+    znear: float = 0.05,
+) -> tuple[tuple[int, int, int, int], RenderLayers] | None:
+    """(roi, layers) as :func:`aias_augment.apply.render.render_object_window` returns them, ray-cast; None when
+    ``asset`` is not a procedural cone (:func:`cone_shape`) or a bounding-box corner is not in front of the camera
+    (the caller renders the mesh)."""
+    shape = cone_shape(asset)
+    if shape is None:
+        return None
+    s = float(asset.render_scale) if asset.render_root is not None else 1.0
+    R = np.asarray(cam_from_object[:3, :3], np.float64)
+    t = np.asarray(cam_from_object[:3, 3], np.float64) / s  # the root at t / s projects as the scaled asset at t
+    corners = asset.corners_m()
+    zc = corners @ R[2] + cam_from_object[2, 3]
+    if (zc <= znear).any():
+        return None
+    roi = _roi(corners, cam_from_object, intrinsics, 2.0, znear)
+    x0, y0, x1, y1 = roi
+    if x1 <= x0 or y1 <= y0:
+        z = np.zeros((0, 0), np.float32)
+        return (0, 0, 0, 0), RenderLayers(np.zeros((0, 0, 3), np.float32), z, z.copy(), np.zeros((0, 0, 3), np.float32))
+    K = _crop_intrinsics(intrinsics, roi)
+    h, w = (y1 - y0) * ssaa, (x1 - x0) * ssaa
+    # sub-sample centres in the window's OpenCV coordinates, as the GL path's supersampled camera puts them
+    us = (np.arange(w) + 0.5) / ssaa - 0.5
+    vs = (np.arange(h) + 0.5) / ssaa - 0.5
+    a = (us - K.cx) / K.fx - (K.K[0, 1] / K.fx) * ((vs[:, None] - K.cy) / K.fy)
+    b = np.broadcast_to(((vs - K.cy) / K.fy)[:, None], (h, w))
+    rays_cam = np.stack([np.broadcast_to(a, (h, w)).ravel(), b.ravel(), np.ones(h * w)], axis=1)
+    origin = -R.T @ t
+    dirs = rays_cam @ R  # object-frame directions (R^T d, row-wise)
+    covered = np.zeros(h * w, bool)
+    albedo = np.zeros((h * w, 3), np.float32)
+    normals = np.zeros((h * w, 3), np.float32)
+    depth = np.zeros(h * w, np.float32)
+    body_px = (shape.body_z[-1] - shape.body_z[0]) / max(float(np.mean(zc)) / s, 1e-9) * K.fy * ssaa
+    tex = _texture_level(shape, body_px)
+    base_radius = float(np.hypot(*shape.polygon.T).max())
+    for c0 in range(0, h * w, CHUNK_RAYS):
+        idx = np.arange(c0, min(c0 + CHUNK_RAYS, h * w))
+        d = dirs[idx]
+        o = np.broadcast_to(origin, d.shape)
+        on_body = _meets_cylinder(o, d, float(shape.body_r.max()), shape.zb, shape.height)
+        on_base = _meets_cylinder(o, d, base_radius, 0.0, shape.zb)
+        keep = on_body | on_base
+        idx, d, o, on_body, on_base = idx[keep], d[keep], o[keep], on_body[keep], on_base[keep]
+        hits = np.full((len(d), 3), np.inf)
+        hits[on_body, 0] = _body_hits(o[on_body], d[on_body], shape)
+        hits[on_base, 1] = _base_side_hits(o[on_base], d[on_base], shape)
+        hits[on_base, 2] = _base_top_hits(o[on_base], d[on_base], shape)
+        kind = np.argmin(hits, axis=1)
+        th = hits[np.arange(len(d)), kind]
+        got = np.isfinite(th)
+        idx, d, kind, th = idx[got], d[got], kind[got], th[got]
+        p = origin + th[:, None] * d
+        n_obj, u, v = _surface(p, kind, shape)
+        covered[idx] = True
+        albedo[idx] = srgb_to_linear(_sample(tex, u, v))
+        normals[idx] = n_obj @ R.T
+        depth[idx] = s * (p @ R[2] + t[2])
+    cov = covered.reshape(h, w).astype(np.float32)
+    alpha = _downsample(cov, ssaa)
+    wgt = np.maximum(alpha, 1e-6)[..., None]  # eps: avoid 0/0 where nothing is covered (forced to 0 below)
+    alb = _downsample(albedo.reshape(h, w, 3), ssaa) / wgt
+    n_cam = _downsample(normals.reshape(h, w, 3), ssaa)
+    n_len = np.linalg.norm(n_cam, axis=-1, keepdims=True)
+    n_cam = np.where(n_len > 1e-6, n_cam / np.maximum(n_len, 1e-6), 0.0)
+    dep = np.where(alpha > 0, _downsample(depth.reshape(h, w), ssaa) / np.maximum(alpha, 1e-6), 0.0)
+    alb[alpha <= 0] = 0
+    return roi, RenderLayers(alb.astype(np.float32), alpha, dep.astype(np.float32), n_cam.astype(np.float32))
+
+
+def raycast_cone(
+    asset: Asset, cam_from_object: np.ndarray, intrinsics: Intrinsics, *, ssaa: int = RAYCAST_SSAA, znear: float = 0.05
+) -> WarpedView | None:
+    """:func:`raycast_cone_window` as the pixel lists the fast path shades (:class:`WarpedView`); None where it
+    does not apply."""
+    got = raycast_cone_window(asset, cam_from_object, intrinsics, ssaa=ssaa, znear=znear)
+    return None if got is None else WarpedView.from_layers(*got)

@@ -1,0 +1,156 @@
+"""The ray-cast procedural cone (apply/cone_raycast.py): its depth against the analytic surface, its layers against
+the GL render of the same mesh, scaled assets, the cases it leaves to the mesh, and the fast preset's calls."""
+
+import numpy as np
+import pytest
+
+from aias_augment.apply.cone_raycast import cone_shape, raycast_cone, raycast_cone_window
+from aias_augment.apply.render import render_object_window
+from aias_augment.assets.bank.procedural import procedural_asset_from_seed
+from aias_augment.core.geometry import Intrinsics, make_rigid
+from tests.aias_augment.fixtures import box_asset
+
+K = Intrinsics(700.0, 700.0, 320.0, 240.0, 640, 480)
+
+
+def _look_at(centre, target=(0.0, 0.0, 0.35)):
+    """cam_from_object of an upright OpenCV camera at ``centre`` (object frame) looking at ``target``."""
+    c = np.asarray(centre, float)
+    f = np.asarray(target, float) - c
+    f /= np.linalg.norm(f)
+    r = np.cross(f, [0.0, 0.0, 1.0])
+    r /= np.linalg.norm(r)
+    R = np.stack([r, np.cross(f, r), f])
+    return make_rigid(R, -R @ c)
+
+
+def _view(dist, elev_deg, az_deg):
+    e, a = np.radians(elev_deg), np.radians(az_deg)
+    return _look_at([dist * np.cos(e) * np.cos(a), dist * np.cos(e) * np.sin(a), dist * np.sin(e)])
+
+
+def _radius_at(shape, z):
+    return float(np.interp(z, shape.body_z, shape.body_r))
+
+
+def test_depth_on_the_body_is_the_analytic_surface():
+    """A level camera's central pixel column crosses the body where x = r(z) on the camera's side: the ray through
+    the projection of that point gives its depth (independent of the renderer: the profile and a projection)."""
+    a = procedural_asset_from_seed("traffic_cone", 3)
+    shape = cone_shape(a)
+    T = _look_at([4.0, 0.0, 0.35], target=(0.0, 0.0, 0.35))  # level, on the +x axis: the body's silhouette centre
+    roi, layers = raycast_cone_window(a, T, K, ssaa=1)
+    x0, y0 = roi[:2]
+    checked = 0
+    for z in np.linspace(shape.zb + 0.05, shape.body_z[-1] - 0.08, 6):
+        p = np.array([_radius_at(shape, z), 0.0, z])
+        pc = T[:3, :3] @ p + T[:3, 3]
+        u, v = K.fx * pc[0] / pc[2] + K.cx, K.fy * pc[1] / pc[2] + K.cy
+        iu, iv = int(round(u)), int(round(v))
+        # the pixel centre's ray meets the surface within a pixel's height of z: depth within that slope's change
+        got = layers.depth[iv - y0, iu - x0]
+        assert got == pytest.approx(pc[2], abs=0.004), (z, got, pc[2])
+        n = layers.normals_in_cam[iv - y0, iu - x0]
+        assert n[2] < -0.9  # the body faces the camera there
+        checked += 1
+    assert checked == 6
+
+
+def test_tip_and_base_project_where_the_geometry_says():
+    """The topmost row the cone touches holds the tip's projection, the lowest the base's front corner's (within a pixel)."""
+    a = procedural_asset_from_seed("traffic_cone", 11)
+    shape = cone_shape(a)
+    T = _view(5.0, 15.0, 30.0)
+    roi, layers = raycast_cone_window(a, T, K, ssaa=2)
+    rows = np.nonzero((layers.alpha > 0).any(1))[0] + roi[1]
+
+    def v_of(p):
+        pc = T[:3, :3] @ np.asarray(p, float) + T[:3, 3]
+        return K.fy * pc[1] / pc[2] + K.cy
+
+    assert rows.min() == pytest.approx(v_of([0.0, 0.0, shape.height]), abs=1.0)
+    base = shape.polygon
+    lowest = max(v_of([x, y, 0.0]) for x, y in base)
+    assert rows.max() == pytest.approx(lowest, abs=1.0)
+
+
+@pytest.mark.parametrize("seed", [0, 2, 5, 8])
+def test_layers_match_the_gl_render_of_the_mesh(seed):
+    """The same cone through the GL renderer (its mesh and texture): coverage IoU >= 0.95, albedo within 3 sRGB
+    levels on average, normals within 1 deg (median) where both cover the pixel fully, depth within 1 cm (median)."""
+    a = procedural_asset_from_seed("traffic_cone", seed)
+    T = _view(3.0 + seed * 0.7, 6.0 + 4 * seed, 23.0 * seed)
+    roi_g, g = render_object_window(a, T, K, ssaa=2)
+    roi_c, c = raycast_cone_window(a, T, K, ssaa=2)
+    assert roi_g == roi_c
+    mg, mc = g.alpha > 0.5, c.alpha > 0.5
+    assert (mg & mc).sum() / (mg | mc).sum() >= 0.95
+    both = (g.alpha > 0.99) & (c.alpha > 0.99)
+
+    def srgb(x):
+        return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.clip(x, 0, None) ** (1 / 2.4) - 0.055) * 255
+
+    assert np.abs(srgb(g.albedo_linear[both]) - srgb(c.albedo_linear[both])).mean() <= 3.0
+    cos = np.clip((g.normals_in_cam[both] * c.normals_in_cam[both]).sum(-1), -1, 1)
+    assert np.median(np.degrees(np.arccos(cos))) <= 1.0
+    assert np.median(np.abs(g.depth[both] - c.depth[both])) <= 0.01
+
+
+def test_a_near_cone_over_many_ray_chunks_matches_the_gl_render():
+    """A cone filling much of the frame (its rays in several chunks, some chunks hitting nothing): the coverage is
+    the GL render's (IoU >= 0.98)."""
+    from aias_augment.apply import cone_raycast
+
+    a = procedural_asset_from_seed("traffic_cone", 6)
+    T = _view(1.1, 10.0, 15.0)
+    roi_g, g = render_object_window(a, T, K, ssaa=2)
+    roi_c, c = raycast_cone_window(a, T, K, ssaa=2)
+    assert (roi_c[2] - roi_c[0]) * (roi_c[3] - roi_c[1]) * 4 > 2 * cone_raycast.CHUNK_RAYS
+    mg, mc = g.alpha > 0.5, c.alpha > 0.5
+    assert (mg & mc).sum() / (mg | mc).sum() >= 0.98
+
+
+def test_a_scaled_cone_is_the_root_scaled():
+    """A scaled asset at a scaled pose is the same image: coverage identical, depth times the scale."""
+    a = procedural_asset_from_seed("traffic_cone", 4)
+    T = _view(4.0, 12.0, 40.0)
+    T2 = T.copy()
+    T2[:3, 3] *= 1.6
+    roi1, l1 = raycast_cone_window(a, T, K)
+    roi2, l2 = raycast_cone_window(a.scaled(1.6), T2, K)
+    assert roi1 == roi2
+    np.testing.assert_allclose(l2.alpha, l1.alpha)
+    np.testing.assert_allclose(l2.depth, 1.6 * l1.depth, rtol=1e-5)
+
+
+def test_left_to_the_mesh():
+    """Not a procedural cone, a deformed one, or a cone reaching behind the camera: None (the mesh is rendered)."""
+    assert raycast_cone(box_asset(extents=(0.5, 0.4, 0.9)), _view(4.0, 10.0, 0.0), K) is None
+    a = procedural_asset_from_seed("traffic_cone", 1)
+    from aias_augment.assets.asset import Asset
+
+    bent = Asset(a.name, a.category, a.meshes, a.source, a.licence, True, {**a.meta, "deformation": {"p": 1}})
+    assert raycast_cone(bent, _view(4.0, 10.0, 0.0), K) is None
+    assert raycast_cone(a, _look_at([0.05, 0.0, 0.3], target=(1.0, 0.0, 0.3)), K) is None
+    off = _view(4.0, 10.0, 0.0)
+    off[0, 3] += 50.0  # far off to the side: an empty window
+    got = raycast_cone(a, off, K)
+    assert got is not None and got.alpha.size == 0
+
+
+def test_fast_preset_ray_casts_its_cones_and_replays():
+    """The fast preset's procedural cones are ray-cast (the record says so) and a replay of the record gives the same
+    bytes."""
+    from aias_augment.core.frame import Frame
+    from aias_augment.pipeline.image import insert_into_image, load_preset
+    from aias_augment.pipeline.replay import replay
+    from tests.aias_augment.pipeline.test_image import road_frame
+
+    img = road_frame()
+    cfg = load_preset("fast", categories=("traffic_cone",), min_objects=2, max_objects=2)
+    res = insert_into_image(img, np.zeros((0, 4)), [], np.random.default_rng(5), cfg)
+    assert len(res.inserted_bboxes) >= 1
+    render = res.record.modules["render"]
+    assert render.startswith("ray cast: 2 of 2"), render
+    again = replay(res.record.to_dict(), Frame(img, None), cfg)
+    np.testing.assert_array_equal(again.image, res.image)
