@@ -23,13 +23,14 @@ from aias_augment.analyse.ground import GroundFitError, GroundPlane, ground_plan
 from aias_augment.analyse.lighting.estimate import LightingEstimate, estimate_lighting
 from aias_augment.analyse.region import PlaceableRegion, below_horizon_mask, placeable_region
 from aias_augment.analyse.single_image import SingleImageConfig, estimate_camera_from_image
+from aias_augment.analyse.thin_structures import thin_structure_segments
 from aias_augment.core.envmap import EnvironmentMap
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.report import skipped
 
 #: Bumped whenever what analyse_scene computes changes: on-disk cache entries of another version are not read.
-ANALYSIS_VERSION = "4"  # the record's format: a cached analysis of another version is computed again
+ANALYSIS_VERSION = "5"  # the record's format: a cached analysis of another version is computed again
 #                        cameras are recorded (modules["colour"]) and their insertions rendered as luminance
 #: Seed of the analysis' own generator (the analysis must not depend on the sample's random stream).
 ANALYSIS_SEED = 20240614
@@ -123,7 +124,13 @@ class SceneAnalysis:
         region = (
             None
             if r is None
-            else PlaceableRegion(mask.astype(bool), r["evidence"], r["fraction"], r.get("excluded", {}))
+            else PlaceableRegion(
+                mask.astype(bool),
+                r["evidence"],
+                r["fraction"],
+                r.get("excluded", {}),
+                np.array(r.get("thin_segments", []), np.float32).reshape(-1, 4),
+            )
         )
         L = d["lighting"]
         lighting = LightingEstimate(
@@ -253,6 +260,9 @@ def analyse_scene(frame: Frame, cfg: AnalyseConfig = AnalyseConfig(), *, key: st
         mods["region"] = f"{region.evidence} ({100 * region.fraction:.0f}% of the image placeable)"
         if region.excluded:
             mods["region"] += ", excluded: " + ", ".join(f"{k} {100 * v:.0f}%" for k, v in region.excluded.items())
+        if cfg.thin_structures:
+            region = dataclasses.replace(region, thin_segments=thin_structure_segments(img, region.mask))
+            mods["region"] += f"; {len(region.thin_segments)} thin structures off the ground (poles, rails)"
         # measured regions only: the image region leaves cast shadows out, it would bias the sun/sky ratio
         if region.measured and "ground_mask" not in meta:
             meta["ground_mask"] = region.mask  # lit/shadowed ground for the sun/sky ratio

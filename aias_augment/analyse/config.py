@@ -45,6 +45,9 @@ class AnalyseConfig:
     # Priors when the scene does not say.
     camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
     estimate_camera: bool = True  # horizon/pitch/roll (and focal when unknown) from vanishing lines
+    # Long straight edges off the ground (poles, rails: analyse/thin_structures.py), kept with the placeable region:
+    # the placement refuses sites they may stand in front of.
+    thin_structures: bool = False
     max_camera_pitch_deg: float = 25.0  # estimates beyond these bounds fall back to the level-camera prior
     max_camera_roll_deg: float = 10.0
     default_hfov_deg: float = 60.0
@@ -62,6 +65,7 @@ class AnalyseConfig:
                 "placement",
                 "lighting",
                 "estimate_camera",
+                "thin_structures",
                 "camera_height_m",
                 "max_camera_pitch_deg",
                 "max_camera_roll_deg",

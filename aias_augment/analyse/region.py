@@ -111,6 +111,9 @@ class PlaceableRegion:
     fraction: float  # of the image
     # Image evidence: fraction of the below-horizon pixels each step excluded (why a pixel is not placeable).
     excluded: dict = field(default_factory=dict)
+    # (N, 4) x1, y1, x2, y2: long straight edges off the ground (poles, rails) that may stand in front of a site
+    # (analyse/thin_structures.py); empty when not looked for.
+    thin_segments: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
 
     @property
     def measured(self) -> bool:
@@ -124,11 +127,16 @@ class PlaceableRegion:
         m = np.array(self.mask, dtype=bool, copy=True)
         m.setflags(write=False)
         object.__setattr__(self, "mask", m)
+        s = np.array(self.thin_segments, dtype=np.float32, copy=True).reshape(-1, 4)
+        s.setflags(write=False)
+        object.__setattr__(self, "thin_segments", s)
 
     def to_dict(self) -> dict:
         d = {"evidence": self.evidence, "fraction": self.fraction}
         if self.excluded:
             d["excluded"] = dict(self.excluded)
+        if len(self.thin_segments):
+            d["thin_segments"] = [[float(v) for v in row] for row in self.thin_segments]
         return d
 
 

@@ -139,6 +139,9 @@ class InsertionConfig:
     # Priors when the scene does not say.
     camera_height_m: float = CAMERA_HEIGHT_PRIOR_M
     estimate_camera: bool = True  # horizon/pitch/roll (and focal when unknown) from vanishing lines
+    # Poles and rails (long straight edges off the ground) detected with the placeable region; a site one of them may
+    # stand in front of is refused (analyse/thin_structures.py, plan/placement.py). False: not looked for.
+    thin_structures: bool = False
     max_camera_pitch_deg: float = 25.0  # estimates beyond these bounds fall back to the level-camera prior
     max_camera_roll_deg: float = 10.0
     default_hfov_deg: float = 60.0

@@ -274,6 +274,7 @@ class _Draft:
             points_in_cam=self.scene_points,
             existing_objects=self.boxes_3d if "collision" in self.mods else None,
             object_height_m=height,
+            thin_segments=region.thin_segments,
         )
         self.reports.append(report.to_dict())
         if placement is not None and height is not None:

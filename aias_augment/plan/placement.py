@@ -252,6 +252,38 @@ def _box_rejection(box: np.ndarray, w: int, h: int, existing: np.ndarray, cfg: P
     return None
 
 
+def thin_structure_in_front(box: np.ndarray, segments: np.ndarray) -> str | None:
+    """Why a site whose projected box (xyxy, the object's base on its bottom edge) is refused because of the scene's
+    thin structures (``segments`` (N, 4), :func:`aias_augment.analyse.thin_structures.thin_structure_segments`), or
+    None. A segment is clipped to the box above its lowest tenth (where the ground under the base shows): a
+    near-vertical one inside it for a quarter of the box's height whose lower end reaches the base row or below
+    stands on nearer ground (a pole in front); any other crossing the box for 60 % of its width may be nearer (a
+    rail: its foot is not seen)."""
+    x0, y0, x1, y1 = (float(v) for v in box)
+    bw, bh = x1 - x0, y1 - y0
+    if len(segments) == 0 or bw <= 0 or bh <= 0:
+        return None
+    s = np.asarray(segments, np.float64)
+    px, py = s[:, 0], s[:, 1]
+    dx, dy = s[:, 2] - px, s[:, 3] - py
+    t0, t1 = np.zeros(len(s)), np.ones(len(s))
+    ok = np.ones(len(s), bool)
+    for pk, qk in ((-dx, px - x0), (dx, x1 - px), (-dy, py - y0), (dy, (y1 - 0.1 * bh) - py)):  # Liang-Barsky
+        ok &= ~((pk == 0) & (qk < 0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = qk / pk
+        t0 = np.where(pk < 0, np.maximum(t0, r), t0)
+        t1 = np.where(pk > 0, np.minimum(t1, r), t1)
+    inside = np.where(ok & (t1 > t0), (t1 - t0) * np.hypot(dx, dy), 0.0)
+    vertical = np.abs(dy) > 2.0 * np.abs(dx)
+    foot = np.maximum(py, s[:, 3])
+    if np.any(vertical & (inside >= max(4.0, 0.25 * bh)) & (foot >= y1 - 0.05 * bh)):
+        return "a pole (thin structure) stands in front"
+    if np.any(~vertical & (inside >= max(4.0, 0.6 * bw))):
+        return "a rail (thin structure) crosses the object"
+    return None
+
+
 def _local_plane(band, ground, p, refit_rng, cfg, uv, intrinsics, report):
     """(plane, "local" or "global", contact point) for a candidate contact ``p`` at pixel ``uv``: the ground refit
     on ``band`` around it, or the coarse ``ground`` when the refit finds too few points (``cfg.local_fallback``
@@ -350,6 +382,7 @@ def sample_placement(
     existing_objects: list | None = None,
     collision_cfg=None,
     object_height_m: float | None = None,
+    thin_segments: np.ndarray | None = None,
 ) -> tuple[Placement | None, PlacementReport]:
     """Choose a ground point, scale and yaw for ``asset``; ``None`` (with reasons) when no candidate passes.
 
@@ -361,6 +394,8 @@ def sample_placement(
     records ``ground_used``). Then checked: distance range, scene depth agrees with the plane at that pixel (when
     depth is known), projected box inside the image, pixel size, overlap with existing boxes, and the 3D checks
     of :mod:`.collision` when ``points_in_cam`` or ``existing_objects`` (OrientedBox list) are given.
+
+    ``thin_segments``: the scene's poles and rails (:func:`thin_structure_in_front` refuses sites behind them).
 
     Height: ``object_height_m`` when given, else drawn uniformly from ``height_range_m`` (the category's range);
     with a box-height target it is drawn once, before the candidates are chosen for it.
@@ -417,6 +452,8 @@ def sample_placement(
         box = box_of_points(uvc)
         bh = box[3] - box[1]
         reason = _box_rejection(box, w, h, existing, cfg)
+        if reason is None and thin_segments is not None:
+            reason = thin_structure_in_front(box, thin_segments)
         if reason is None and (points_in_cam is not None or existing_objects):
             box3d = OrientedBox.standing_on_ground(cam_from_object, tuple(asset.extents_m * scale), asset.category)
             reason = _collision_kind(box3d, plane, intrinsics, points_in_cam, existing_objects, depth, collision_cfg)
