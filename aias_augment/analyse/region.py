@@ -191,7 +191,7 @@ def placeable_region(
             mask = on_ground.astype(bool) & ~obstacle.astype(bool) & below
             return PlaceableRegion(mask, "depth", float(mask.mean()))
     if image is not None and cfg.image_region:
-        region = image_ground_region(image, ground, intrinsics, cfg)
+        region = image_ground_region(image, ground, intrinsics, cfg, below=below)
         if region.fraction >= cfg.image_min_fraction:
             return region
         return PlaceableRegion(
@@ -203,6 +203,19 @@ def placeable_region(
     return PlaceableRegion(below, "prior:below_horizon", float(below.mean()))
 
 
+def _unique_bins(key: np.ndarray, n_keys: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(key, return_inverse=True, return_counts=True)[1:]`` for integer keys in [0, n_keys): counted
+    with ``np.bincount`` when there are few possible keys (no sort), else ``np.unique``."""
+    if n_keys <= max(1 << 20, 4 * key.size):  # the default tolerances give <= 11 x 33 x 33 colour bins
+        per_key = np.bincount(key)
+        present = np.flatnonzero(per_key)  # the keys np.unique lists, in its (ascending) order
+        rank = np.zeros(per_key.size, np.intp)
+        rank[present] = np.arange(present.size)
+        return rank[key], per_key[present]
+    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return inverse.reshape(-1), counts
+
+
 def _road_mode(feat: np.ndarray, cfg: RegionConfig) -> tuple[np.ndarray, np.ndarray]:
     """(road feature [L, a, b, gradient], inliers) of seed-zone features (N, 4): the peak of the (L, a, b)
     histogram of the zone, each bin weighted by how road-like its colour is (asphalt, concrete: grey, neither
@@ -212,8 +225,7 @@ def _road_mode(feat: np.ndarray, cfg: RegionConfig) -> tuple[np.ndarray, np.ndar
     # Unique (L, a, b) bins via one integer per bin: sorted like np.unique(q, axis=0) (lexicographic), ~10x faster.
     q = q - q.min(axis=0)
     m = int(q.max()) + 1
-    _, inverse, counts = np.unique((q[:, 0] * m + q[:, 1]) * m + q[:, 2], return_inverse=True, return_counts=True)
-    inverse = inverse.reshape(-1)
+    inverse, counts = _unique_bins((q[:, 0] * m + q[:, 1]) * m + q[:, 2], m**3)
     centre = np.stack([np.bincount(inverse, feat[:, j]) / counts for j in range(3)], axis=1)
     chroma = np.hypot(centre[:, 1] - 128.0, centre[:, 2] - 128.0)
     lo, hi = cfg.image_road_luma
@@ -239,14 +251,21 @@ def _similar(feat, road: np.ndarray, cfg: RegionConfig) -> np.ndarray:
 
 
 def image_ground_region(
-    image: np.ndarray, ground: GroundPlane, intrinsics: Intrinsics, cfg: RegionConfig = RegionConfig()
+    image: np.ndarray,
+    ground: GroundPlane,
+    intrinsics: Intrinsics,
+    cfg: RegionConfig = RegionConfig(),
+    *,
+    below: np.ndarray | None = None,
 ) -> PlaceableRegion:
-    """Road surface from the image alone (see the module doc, evidence 4), below the horizon of ``ground``."""
+    """Road surface from the image alone (see the module doc, evidence 4), below the horizon of ``ground``.
+    ``below``: ``below_horizon_mask(ground, intrinsics, cfg.horizon_margin_px)`` when the caller has it."""
     h, w = intrinsics.height, intrinsics.width
     img = np.asarray(image)
     if img.shape[:2] != (h, w) or img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"image {img.shape} does not match the camera {(h, w)} (need H x W x 3)")
-    below = below_horizon_mask(ground, intrinsics, cfg.horizon_margin_px)
+    if below is None:
+        below = below_horizon_mask(ground, intrinsics, cfg.horizon_margin_px)
     scale = min(1.0, cfg.image_width_px / w)
     sw, sh = max(1, round(w * scale)), max(1, round(h * scale))
     small = cv2.resize(np.ascontiguousarray(img, np.uint8), (sw, sh), interpolation=cv2.INTER_AREA)

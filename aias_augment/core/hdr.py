@@ -128,11 +128,25 @@ def inverse_tone_map(image: np.ndarray, params: InverseToneMapParams = InverseTo
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"inverse_tone_map: expected (H, W, 3), got {img.shape}")
-    unit = _as_unit_float(img)
-    linear = srgb_to_linear(img if img.dtype == np.uint8 else unit)  # uint8: the curve of ``unit``, by table
-    clipped = max_channel(unit) >= params.clip_level
+    if img.dtype == np.uint8:  # the curve and the clip test of img / 255 (float32), by 256-entry tables
+        linear = srgb_to_linear(img)
+        clipped = (np.arange(256, dtype=np.float32) / np.float32(255.0) >= params.clip_level)[max_channel(img)]
+    else:
+        unit = _as_unit_float(img)
+        linear = srgb_to_linear(unit)
+        clipped = max_channel(unit) >= params.clip_level
     if not clipped.any() or params.max_gain == 1.0:
         return linear
+    # Only clipped pixels are expanded: the work runs on their bounding box grown by one pixel, the same numbers as on
+    # the whole image. Outside the box nothing is clipped, so the nearest unclipped pixel of a clipped one is in the
+    # box or its one-pixel ring, and the blurred map is 0 there (its first and last rows and columns, which the
+    # blur's "nearest" border repeats, are unclipped: 0 as well).
+    rows, cols = np.flatnonzero(clipped.any(axis=1)), np.flatnonzero(clipped.any(axis=0))
+    box = (
+        slice(max(rows[0] - 1, 0), min(rows[-1] + 2, img.shape[0])),
+        slice(max(cols[0] - 1, 0), min(cols[-1] + 2, img.shape[1])),
+    )
+    clipped = clipped[box]
     # Distance to the nearest unclipped pixel; an image that is clipped everywhere counts its border as the edge.
     padded = np.pad(clipped, 1, constant_values=False)
     dist = ndimage.distance_transform_edt(padded)[1:-1, 1:-1]
@@ -141,7 +155,8 @@ def inverse_tone_map(image: np.ndarray, params: InverseToneMapParams = InverseTo
         s = ndimage.gaussian_filter(s, params.smooth_sigma_px, mode="nearest")
     s = np.where(clipped, s, 0.0)
     gain = 1.0 + (params.max_gain - 1.0) * s
-    return (linear * gain[..., None].astype(np.float32)).astype(np.float32)
+    linear[box] = (linear[box] * gain[..., None].astype(np.float32)).astype(np.float32)
+    return linear
 
 
 # ----------------------------------------------------------------------------------------------------------- file IO

@@ -126,11 +126,9 @@ def preetham_exposure_fit_cost(
     # whole grid (a BLAS call's rounding may depend on how its threads split the rows).
     n = cg.shape[0]
     rows = max(1, _BLOCK_ELEMENTS // p)
-    gamma, cg2 = np.empty((n, p), np.float32), np.empty((n, p), np.float32)
-    for s in range(0, n, rows):
-        c32 = np.clip(cg[s : s + rows], -1.0, 1.0).astype(np.float32)
-        np.arccos(c32, out=gamma[s : s + rows])
-        np.square(c32, out=cg2[s : s + rows])
+    c32 = cg.astype(np.float32)  # rounding then clipping to [-1, 1] (both float32): the same as the other way round
+    np.clip(c32, np.float32(-1.0), np.float32(1.0), out=c32)
+    gamma, cg2 = np.arccos(c32), np.square(c32)
     best = np.full(n, np.inf)
     g_buf, e_buf = np.empty((rows, p), np.float32), np.empty((rows, p), np.float32)
     g64 = np.empty((n, p))

@@ -175,3 +175,16 @@ def test_single_image_analysis_and_plan_use_the_image_region():
     assert len(contacts) >= 6
     for u, v in contacts:
         assert road[int(round(v)), int(round(u))] and not car[int(round(v)), int(round(u))]
+
+
+@pytest.mark.parametrize("n_keys", [7, 11 * 33 * 33, 10**9])
+def test_colour_bins_are_numpys_unique(n_keys):
+    """The road histogram's bins: counted (few possible keys) or sorted (many), the inverse and the counts of
+    np.unique, in its order."""
+    from aias_augment.analyse.region import _unique_bins
+
+    key = np.random.default_rng(n_keys).integers(0, n_keys, 5000)
+    _, want_inverse, want_counts = np.unique(key, return_inverse=True, return_counts=True)
+    inverse, counts = _unique_bins(key, n_keys)
+    np.testing.assert_array_equal(inverse, want_inverse)
+    np.testing.assert_array_equal(counts, want_counts)

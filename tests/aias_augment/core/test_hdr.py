@@ -167,3 +167,38 @@ def test_max_channel_is_the_reduction_over_the_last_axis():
     np.testing.assert_array_equal(hdr.max_channel(a), a.max(axis=-1))
     with pytest.raises(ValueError, match="max_channel"):
         hdr.max_channel(np.zeros((4, 4)))
+
+
+def _inverse_tone_map_whole_image(img, p):
+    """inverse_tone_map's expansion computed on every pixel of the image (distance map, blur, gain)."""
+    from scipy import ndimage
+
+    unit = img.astype(np.float32) / 255.0
+    linear = hdr.srgb_to_linear(unit)
+    clipped = unit.max(axis=2) >= p.clip_level
+    if not clipped.any():
+        return linear
+    dist = ndimage.distance_transform_edt(np.pad(clipped, 1))[1:-1, 1:-1]
+    s = np.clip(dist / p.core_radius_px, 0.0, 1.0) ** p.gamma
+    if p.smooth_sigma_px > 0:
+        s = ndimage.gaussian_filter(s, p.smooth_sigma_px, mode="nearest")
+    gain = 1.0 + (p.max_gain - 1.0) * np.where(clipped, s, 0.0)
+    return (linear * gain[..., None].astype(np.float32)).astype(np.float32)
+
+
+@pytest.mark.parametrize("sigma", [0.0, 1.5, 4.0])
+def test_inverse_tone_map_on_the_clipped_box_is_the_whole_image_bit_for_bit(sigma):
+    """The expansion runs on the clipped pixels' bounding box grown by one pixel: every pixel equals the whole-image
+    computation, for blobs inside, at the border, far apart (a box mostly unclipped) and everywhere."""
+    rng = np.random.default_rng(int(sigma * 10))
+    p = hdr.InverseToneMapParams(smooth_sigma_px=sigma)
+    base = rng.integers(0, 240, (60, 90, 3), dtype=np.uint8)
+    images = [base.copy() for _ in range(4)]
+    images[0][20:29, 30:44] = 255  # one blob inside
+    images[1][0:7, 80:90, 1] = 252  # a blob at the corner, one channel
+    images[2][5:9, 3:8] = 255
+    images[2][50:55, 70:88] = 251  # two blobs far apart
+    images[3][:] = 255  # clipped everywhere
+    images.append(base)  # nothing clipped
+    for img in images:
+        np.testing.assert_array_equal(hdr.inverse_tone_map(img, p), _inverse_tone_map_whole_image(img, p))
