@@ -1,6 +1,7 @@
 """Speed and variety of a finite procedural cone family (``InsertionConfig.family_members``) against the
-continuous family (a new cone per object), the shared mesh (``asset_source: default``) and albumentations'
-``OverlayElements``.
+continuous family (a new cone per object, ray-cast: the fast preset's ``render_method: raycast``; and the same
+through the view cache, ``render_method: view_cache``), the shared mesh (``asset_source: default``) and
+albumentations' ``OverlayElements``.
 
     taskset -c 0 nice python -m benchmarks.bench_family_speed --out results/bench/family_speed
 
@@ -41,7 +42,7 @@ FAMILY_SEED = 56
 
 
 def arm_overrides(sizes: list[int]) -> dict[str, dict]:
-    arms = {"continuous": {}}
+    arms = {"continuous": {}, "continuous_view_cache": {"render_method": "view_cache"}}
     for n in sizes:
         arms[f"family_{n}"] = {"family_members": n, "family_seed": FAMILY_SEED}
     arms["asset_default"] = {"asset_source": "default"}
@@ -216,7 +217,8 @@ def main(argv=None) -> int:
         "load_before": load_before,
         "load_after": round(os.getloadavg()[0], 1),
     }
-    command = "taskset -c 0 nice python -m benchmarks.bench_family_speed " + shlex.join(sys.argv[1:] or [])
+    cpus = ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
+    command = f"taskset -c {cpus} nice python -m benchmarks.bench_family_speed " + shlex.join(sys.argv[1:] or [])
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.with_suffix(".json").write_text(json.dumps(res, indent=1))
     a.out.with_suffix(".md").write_text(markdown(res, command))
