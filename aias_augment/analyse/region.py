@@ -275,7 +275,7 @@ def image_ground_region(
     gy = cv2.Sobel(lab[..., 0], cv2.CV_32F, 0, 1, ksize=3) / 8.0
     grad = np.sqrt(gx * gx + gy * gy)
     texture = cv2.blur(grad, (7, 7))
-    planes = (*cv2.split(lab), texture)  # the features [L, a, b, gradient], one contiguous plane each
+    planes = (lab[..., 0], lab[..., 1], lab[..., 2], texture)  # the features [L, a, b, gradient], as planes
     # seed zone: rows between the horizon (at each column) and the bottom, central columns
     top = np.argmax(below_s, axis=0)  # first row below the horizon per column (0 when none)
     has = below_s.any(axis=0)
@@ -314,7 +314,8 @@ def image_ground_region(
     er = eroded.astype(bool)
     vs, us = np.nonzero(er)
     uv = np.stack([(us + 0.5) / scale - 0.5, (vs + 0.5) / scale - 0.5], axis=-1).astype(np.float64)
-    dist = np.linalg.norm(ground.intersect_pixels(uv, intrinsics), axis=1) if len(uv) else np.zeros(0)
+    p = ground.intersect_pixels(uv, intrinsics) if len(uv) else np.zeros((0, 3))
+    dist = np.sqrt((p[:, 0] * p[:, 0] + p[:, 1] * p[:, 1]) + p[:, 2] * p[:, 2])  # np.linalg.norm(p, axis=1), 3x faster
     far = np.zeros((sh, sw), bool)
     far[vs, us] = ~(np.isfinite(dist) & (dist <= cfg.image_max_distance_m))
     kept = er & ~far

@@ -92,11 +92,14 @@ def _consistency_deg(seg: np.ndarray, vps: np.ndarray) -> np.ndarray:
     mid = (seg[:, :2] + seg[:, 2:]) / 2
     direction = seg[:, 2:] - seg[:, :2]
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    # direction midpoint -> vp in homogeneous form: vp_xy - w * mid (valid for w = 0: points at infinity)
-    to_vp = vps[:, None, :2] - vps[:, None, 2:3] * mid[None]
-    norm = np.linalg.norm(to_vp, axis=2)
-    to_vp = to_vp / np.maximum(norm, 1e-12)[..., None]
-    cos = np.abs(np.sum(to_vp * direction[None], axis=2))
+    # direction midpoint -> vp in homogeneous form: vp_xy - w * mid (valid for w = 0: points at infinity); its x and
+    # y as (K, N) planes: the norm and the dot product as element-wise sums (numpy's order for a 2-long axis: x + y),
+    # not reductions over a 2-long last axis
+    tx = vps[:, 0, None] - vps[:, 2, None] * mid[None, :, 0]
+    ty = vps[:, 1, None] - vps[:, 2, None] * mid[None, :, 1]
+    norm = np.sqrt(tx * tx + ty * ty)
+    unit = np.maximum(norm, 1e-12)
+    cos = np.abs((tx / unit) * direction[None, :, 0] + (ty / unit) * direction[None, :, 1])
     ang = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
     return np.where(norm > 1e-9, ang, 90.0)
 

@@ -63,10 +63,12 @@ def perez_coefficients(turbidity: float) -> dict[str, np.ndarray]:
     }
 
 
-def _perez(coef: np.ndarray, cos_theta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+def _perez(coef: np.ndarray, cos_theta: np.ndarray, gamma: np.ndarray, cos2_gamma=None) -> np.ndarray:
+    """The Perez function; ``cos2_gamma``: ``np.cos(gamma) ** 2`` when the caller has it (the same numbers)."""
     A, B, C, D, E = coef
     ct = np.maximum(cos_theta, MIN_COS_VIEW)
-    return (1.0 + A * np.exp(B / ct)) * (1.0 + C * np.exp(D * gamma) + E * np.cos(gamma) ** 2)
+    c2 = np.cos(gamma) ** 2 if cos2_gamma is None else cos2_gamma
+    return (1.0 + A * np.exp(B / ct)) * (1.0 + C * np.exp(D * gamma) + E * c2)
 
 
 def preetham_zenith(turbidity: float, sun_zenith_rad: float) -> tuple[float, float, float]:
@@ -184,8 +186,14 @@ def preetham_sky_radiance(
     Yz, xz, yz = preetham_zenith(turbidity, ts)
     ts_c = min(ts, np.pi / 2)
 
+    cos2_gamma = np.cos(gamma) ** 2  # shared by the three channels
+
     def channel(name, zenith_value):
-        return zenith_value * _perez(coef[name], cos_theta, gamma) / _perez(coef[name], np.array(1.0), np.array(ts_c))
+        return (
+            zenith_value
+            * _perez(coef[name], cos_theta, gamma, cos2_gamma)
+            / _perez(coef[name], np.array(1.0), np.array(ts_c))
+        )
 
     Y = channel("Y", Yz)
     x = channel("x", xz)

@@ -237,20 +237,27 @@ def _find_sun_disc(
     sky_median = float(np.median(lum[above & ~clipped])) if (above & ~clipped).any() else 0.0
     labels, n = ndimage.label(clipped)
     sizes = ndimage.sum(clipped, labels, index=np.arange(1, n + 1))
+    boxes = ndimage.find_objects(labels)
     h, w = clipped.shape
     best = None
     for idx in np.argsort(sizes)[::-1][:5]:
         area = float(sizes[idx])
         if area < 4 or area > max_area_frac * h * w:
             continue
-        blob = labels == idx + 1
-        if blob[0].any() or blob[-1].any() or blob[:, 0].any() or blob[:, -1].any():
+        rows, cols = boxes[idx]
+        if rows.start == 0 or cols.start == 0 or rows.stop == h or cols.stop == w:
             continue  # cut by the image border: its centre is unknown (the sky fit still sees the glare)
+        # The blob on its box grown by 2 pixels (its distance map and its 2-pixel ring lie within): the same
+        # numbers as on the whole image, at the cost of the blob's size.
+        r0, c0 = max(rows.start - 2, 0), max(cols.start - 2, 0)
+        box = (slice(r0, min(rows.stop + 2, h)), slice(c0, min(cols.stop + 2, w)))
+        blob = labels[box] == idx + 1
         dist = ndimage.distance_transform_edt(np.pad(blob, 1))[1:-1, 1:-1]
         depth = float(dist.max())
         if area > 2.5 * np.pi * depth**2:  # elongated or ragged: a white object or a gap between leaves
             continue
         v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
+        v, u = v + r0, u + c0
         # Glare is isotropic: 8 samples around the blob at 1.5x its radius must all be bright relative to each other.
         ang = np.arange(8) * np.pi / 4
         rad_px = 1.5 * depth + 3.0
@@ -265,7 +272,8 @@ def _find_sun_disc(
         # Glare: every pixel just outside a clipped sun is nearly clipped too; a white facade or a sky gap between
         # leaves has dark pixels on its border.
         ring = ndimage.binary_dilation(blob, iterations=2) & ~blob
-        if not ring.any() or float(np.percentile(lum[ring], 10)) < 0.45 or float(lum[ring].mean()) < 2.0 * sky_median:
+        ring_lum = lum[box][ring]
+        if not ring.any() or float(np.percentile(ring_lum, 10)) < 0.45 or float(ring_lum.mean()) < 2.0 * sky_median:
             continue
         if best is None or area > best[0]:
             best = (area, float(u), float(v))

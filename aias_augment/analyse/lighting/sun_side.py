@@ -161,9 +161,9 @@ def facade_samples(
     the median linear luminance (eps 1e-4 for black), kept when at least ``min_valid_fraction`` of the reads are valid.
     Weight = segment length x normal weight.
     """
-    img = np.asarray(image_linear, dtype=np.float64)
+    img = np.asarray(image_linear)
     h, w = img.shape[:2]
-    Y = luminance(img)
+    Y = luminance(img)  # float32 (as from a float64 copy of float32 values)
     up = np.asarray(up_in_cam, dtype=np.float64) / max(float(np.linalg.norm(up_in_cam)), EPS)
     Kinv = np.linalg.inv(intrinsics.K)
     normals, logs, weights = [], [], []

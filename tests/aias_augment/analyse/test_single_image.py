@@ -97,3 +97,23 @@ def test_weighted_pairs_are_numpys_pairs_and_leave_the_same_state(seed):
     expect = np.stack([a_rng.choice(len(prob), 2, replace=False, p=prob) for _ in range(300)])
     np.testing.assert_array_equal(weighted_pairs(b_rng, prob, 300), expect)
     assert a_rng.random() == b_rng.random()
+
+
+def test_consistency_angles_are_the_reductions_over_xy_bit_for_bit():
+    """The segment-to-VP angles, computed on (K, N) planes of x and y: the same numbers as norms and dot products
+    reduced over a last axis of 2, for finite VPs, VPs at infinity (w = 0) and a VP on a segment's midpoint."""
+    from aias_augment.analyse.single_image import _consistency_deg
+
+    rng = np.random.default_rng(7)
+    seg = rng.uniform(0, 640, (120, 4))
+    vps = rng.normal(size=(300, 3))
+    vps[::5, 2] = 0.0
+    vps[0] = [*(seg[0, :2] + seg[0, 2:]) / 2, 1.0]
+    vps /= np.linalg.norm(vps, axis=1, keepdims=True)
+    mid = (seg[:, :2] + seg[:, 2:]) / 2
+    direction = (seg[:, 2:] - seg[:, :2]) / np.linalg.norm(seg[:, 2:] - seg[:, :2], axis=1, keepdims=True)
+    to_vp = vps[:, None, :2] - vps[:, None, 2:3] * mid[None]
+    norm = np.linalg.norm(to_vp, axis=2)
+    cos = np.abs(np.sum(to_vp / np.maximum(norm, 1e-12)[..., None] * direction[None], axis=2))
+    want = np.where(norm > 1e-9, np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))), 90.0)
+    np.testing.assert_array_equal(_consistency_deg(seg, vps), want)

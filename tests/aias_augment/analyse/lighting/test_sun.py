@@ -274,3 +274,63 @@ def test_exclusion_counts_equal_the_brute_force_angles():
     expect = -np.clip(count / 12.0, 0.0, 1.0)
     np.testing.assert_array_equal(sun.sun_exclusion_by_visible_sky(rays, grid, radius_deg=4.0, min_pixels=12), expect)
     assert (expect < 0).sum() > 10 and (expect == 0).sum() > 10  # both outcomes occur
+
+
+def _sun_disc_on_the_whole_image(unit_rgb, above, max_area_frac=0.08, clip_level=250.0 / 255.0):
+    """_find_sun_disc's blob tests with each blob's distance map and ring computed on the whole image."""
+    from scipy import ndimage
+
+    clipped = (unit_rgb.min(axis=2) >= clip_level) & above
+    lum = hdr.luminance(hdr.srgb_to_linear(unit_rgb))
+    sky_median = float(np.median(lum[above & ~clipped])) if (above & ~clipped).any() else 0.0
+    labels, n = ndimage.label(clipped)
+    sizes = ndimage.sum(clipped, labels, index=np.arange(1, n + 1))
+    h, w = clipped.shape
+    best, seen = None, []
+    for idx in np.argsort(sizes)[::-1][:5]:
+        area, blob = float(sizes[idx]), labels == idx + 1
+        if area < 4 or area > max_area_frac * h * w or blob[[0, -1]].any() or blob[:, [0, -1]].any():
+            continue
+        dist = ndimage.distance_transform_edt(np.pad(blob, 1))[1:-1, 1:-1]
+        depth = float(dist.max())
+        if area > 2.5 * np.pi * depth**2:
+            continue
+        v, u = np.unravel_index(int(np.argmax(dist)), dist.shape)
+        ring = ndimage.binary_dilation(blob, iterations=2) & ~blob
+        seen.append((u, v, float(np.percentile(lum[ring], 10)), float(lum[ring].mean())))
+        ang = np.arange(8) * np.pi / 4
+        su = np.round(u + (1.5 * depth + 3.0) * np.cos(ang)).astype(int)
+        sv = np.round(v + (1.5 * depth + 3.0) * np.sin(ang)).astype(int)
+        inside = (su >= 0) & (su < w) & (sv >= 0) & (sv < h)
+        if inside.sum() < 5 or lum[sv[inside], su[inside]].min() < 0.35 * lum[sv[inside], su[inside]].max():
+            continue
+        if seen[-1][2] < 0.45 or seen[-1][3] < 2.0 * sky_median:
+            continue
+        if best is None or area > best[0]:
+            best = (area, float(u), float(v))
+    return None if best is None else (best[1], best[2])
+
+
+def test_sun_disc_tests_on_each_blobs_box_are_the_whole_image_bit_for_bit():
+    """Each clipped blob's distance map and glare ring are computed on its box grown by 2 pixels: the disc found
+    (or not) is the whole-image computation's, for suns with glare, without, ragged, and 1-2 pixels from the border."""
+    rng = np.random.default_rng(4)
+    yy, xx = np.mgrid[:90, :160]
+    for trial in range(40):
+        img = np.full((90, 160, 3), 0.45, np.float32) + rng.uniform(0, 0.05, (90, 160, 3)).astype(np.float32)
+        for _ in range(rng.integers(1, 5)):
+            cy, cx, r = rng.integers(3, 60), rng.integers(3, 157), rng.uniform(1.5, 7.0)
+            d = np.hypot(yy - cy, xx - cx)
+            glare = d < r + rng.uniform(0.5, 3.0 * r)  # down to a 1-pixel halo: the ring's outer pixels dark
+            img[glare] = np.maximum(img[glare], rng.uniform(0.7, 0.97))  # bright glare, or not
+            img[d < r] = 1.0
+        img[rng.integers(2, 60), 1:150] = 1.0 if trial % 3 == 0 else img[0, 0]  # a ragged bright line
+        above = yy < 70
+        assert sun._find_sun_disc(img, above) == _sun_disc_on_the_whole_image(img, above)
+    # a halo bright but for the outer pixels of its ring below and right of the disc: the box must hold them
+    img = np.full((90, 160, 3), 0.45, np.float32)
+    d = np.hypot(yy - 40, xx - 80)
+    img[d < 6.5] = 0.97
+    img[(d >= 5.0) & (yy > 40) & (xx > 80)] = 0.45
+    img[d < 4.0] = 1.0
+    assert sun._find_sun_disc(img, yy < 70) == _sun_disc_on_the_whole_image(img, yy < 70)
