@@ -199,7 +199,10 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         counts = attribute(parse_raw(raw.read_text()))
         timings = json.loads(res.read_text())
-    command = "taskset -c 0 nice python -m benchmarks.profile_fast_stages " + " ".join(shlex.quote(x) for x in argv)
+    cpus = ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
+    command = f"taskset -c {cpus} nice python -m benchmarks.profile_fast_stages " + " ".join(
+        shlex.quote(x) for x in argv
+    )
     text = markdown(command, a, counts, timings, (load_before[0], os.getloadavg()[0]), _code_version())
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(text)
