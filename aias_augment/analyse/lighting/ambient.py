@@ -12,7 +12,7 @@ from aias_augment.analyse.lighting.sh import project_envmap_to_sh, sh_irradiance
 from aias_augment.analyse.lighting.sky import preetham_sky_radiance
 from aias_augment.analyse.lighting.sun import frame_from_up
 from aias_augment.core.geometry import Intrinsics
-from aias_augment.core.hdr import luminance, max_channel
+from aias_augment.core.hdr import luminance
 
 __all__ = [
     "achromatic_light_colour",
@@ -67,15 +67,15 @@ def achromatic_light_colour(linear: np.ndarray, max_chroma: float = 0.05, min_sh
     the unclipped, not dark pixels whose rg chromaticity lies within ``max_chroma`` of grey (roads, concrete,
     white paint, overcast sky), so a large coloured object (a red truck, an orange cone) has no say. None when
     fewer than ``min_share`` of the pixels qualify (a scene without grey surfaces: no evidence)."""
-    px = np.asarray(linear, np.float64).reshape(-1, 3)
-    s = (px[:, 0] + px[:, 1]) + px[:, 2]  # px.sum(1), in numpy's order, without its per-pixel reduction
-    ok = (max_channel(px) < 0.98) & (s > 3 * 0.02)
-    rg = px[ok, :2] / s[ok, None]
-    dev = np.abs(rg - 1.0 / 3.0)
-    grey = np.maximum(dev[:, 0], dev[:, 1]) < max_chroma
+    px = np.asarray(linear).reshape(-1, 3)
+    r, g, b = (px[:, j].astype(np.float64) for j in range(3))  # channel planes: no per-pixel reductions over 3
+    s = (r + g) + b  # px.sum(1), in numpy's order
+    ok = (np.maximum(np.maximum(r, g), b) < 0.98) & (s > 3 * 0.02)
+    r, g, b, s = r[ok], g[ok], b[ok], s[ok]
+    grey = np.maximum(np.abs(r / s - 1.0 / 3.0), np.abs(g / s - 1.0 / 3.0)) < max_chroma
     if grey.sum() < max(min_share * len(px), 20):
         return None
-    c = np.median(px[ok][grey], axis=0)
+    c = np.array([np.median(r[grey]), np.median(g[grey]), np.median(b[grey])])  # the median over axis 0, by column
     lum = float(luminance(c))
     return c / lum if lum > 0 and c.min() > 0 else None
 
