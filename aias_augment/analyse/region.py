@@ -216,32 +216,37 @@ def _unique_bins(key: np.ndarray, n_keys: int) -> tuple[np.ndarray, np.ndarray]:
     return inverse.reshape(-1), counts
 
 
-def _road_mode(feat: np.ndarray, cfg: RegionConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(road feature [L, a, b, gradient], inliers) of seed-zone features (N, 4): the peak of the (L, a, b)
-    histogram of the zone, each bin weighted by how road-like its colour is (asphalt, concrete: grey, neither
-    black nor white; dark bins are mostly shadows, tyres and dark car bodies, saturated ones car paint), then
-    refined by medians over the pixels within the tolerances."""
-    q = np.floor(feat[:, :3] / [cfg.image_luma_tol, cfg.image_chroma_tol, cfg.image_chroma_tol]).astype(np.int64)
+def _road_mode(feat, cfg: RegionConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(road feature [L, a, b, gradient], inliers) of the seed zone's features, four planes (N,) (float32): the
+    peak of the (L, a, b) histogram of the zone, each bin weighted by how road-like its colour is (asphalt,
+    concrete: grey, neither black nor white; dark bins are mostly shadows, tyres and dark car bodies, saturated
+    ones car paint), then refined by medians over the pixels within the tolerances (per plane: the medians over
+    axis 0 of the (N, 4) features)."""
+    tol = (cfg.image_luma_tol, cfg.image_chroma_tol, cfg.image_chroma_tol)
+    q = [np.floor(f / np.float64(t)).astype(np.int64) for f, t in zip(feat[:3], tol)]  # in float64, as (N, 3) / tol
     # Unique (L, a, b) bins via one integer per bin: sorted like np.unique(q, axis=0) (lexicographic), ~10x faster.
-    q = q - q.min(axis=0)
-    m = int(q.max()) + 1
-    inverse, counts = _unique_bins((q[:, 0] * m + q[:, 1]) * m + q[:, 2], m**3)
-    centre = np.stack([np.bincount(inverse, feat[:, j]) / counts for j in range(3)], axis=1)
+    q = [qj - qj.min() for qj in q]
+    m = int(max(qj.max() for qj in q)) + 1
+    inverse, counts = _unique_bins((q[0] * m + q[1]) * m + q[2], m**3)
+    centre = np.stack([np.bincount(inverse, feat[j]) / counts for j in range(3)], axis=1)
     chroma = np.hypot(centre[:, 1] - 128.0, centre[:, 2] - 128.0)
     lo, hi = cfg.image_road_luma
     prior = np.where((centre[:, 0] >= lo) & (centre[:, 0] <= hi) & (chroma <= cfg.image_road_chroma), 1.0, 0.25)
-    mode = np.median(feat[inverse == np.argmax(counts * prior)], axis=0)
+
+    def medians(sel: np.ndarray) -> np.ndarray:
+        return np.array([np.median(f[sel]) for f in feat])
+
+    mode = medians(inverse == np.argmax(counts * prior))
     for _ in range(3):
         ok = _similar(feat, mode, cfg)
         if not ok.any():
             break
-        mode = np.median(feat[ok], axis=0)
+        mode = medians(ok)
     return mode, _similar(feat, mode, cfg)
 
 
-def _similar(feat, road: np.ndarray, cfg: RegionConfig) -> np.ndarray:
-    """Pixels of the road's colour and at most its texture: features (..., 4), or their four planes."""
-    f = [feat[..., j] for j in range(4)] if isinstance(feat, np.ndarray) else feat
+def _similar(f, road: np.ndarray, cfg: RegionConfig) -> np.ndarray:
+    """Pixels of the road's colour and at most its texture, from the four feature planes [L, a, b, gradient]."""
     return (
         (np.abs(f[0] - road[0]) <= cfg.image_luma_tol)
         & (np.abs(f[1] - road[1]) <= cfg.image_chroma_tol)
@@ -293,7 +298,7 @@ def image_ground_region(
     empty = PlaceableRegion(np.zeros((h, w), bool), "image:road_appearance", 0.0, {"no seed zone": 1.0})
     if zone.sum() < 50:
         return empty
-    road, zone_ok = _road_mode(np.stack([f[zone] for f in planes], axis=-1), cfg)
+    road, zone_ok = _road_mode([f[zone] for f in planes], cfg)
     like_road = _similar(planes, road, cfg)
     similar = like_road & below_s
     opened = cv2.morphologyEx(similar.astype(np.uint8), cv2.MORPH_OPEN, _disk(cfg.image_open_px))

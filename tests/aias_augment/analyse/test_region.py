@@ -188,3 +188,46 @@ def test_colour_bins_are_numpys_unique(n_keys):
     inverse, counts = _unique_bins(key, n_keys)
     np.testing.assert_array_equal(inverse, want_inverse)
     np.testing.assert_array_equal(counts, want_counts)
+
+
+def _road_mode_on_stacked_features(feat, cfg):
+    """The road's feature from the zone's (N, 4) features: histogram peak by np.unique, medians over axis 0."""
+    q = np.floor(feat[:, :3] / [cfg.image_luma_tol, cfg.image_chroma_tol, cfg.image_chroma_tol]).astype(np.int64)
+    _, inverse, counts = np.unique(q, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    centre = np.stack([np.bincount(inverse, feat[:, j]) / counts for j in range(3)], axis=1)
+    chroma = np.hypot(centre[:, 1] - 128.0, centre[:, 2] - 128.0)
+    lo, hi = cfg.image_road_luma
+    prior = np.where((centre[:, 0] >= lo) & (centre[:, 0] <= hi) & (chroma <= cfg.image_road_chroma), 1.0, 0.25)
+
+    def similar(road):
+        return (
+            (np.abs(feat[:, 0] - road[0]) <= cfg.image_luma_tol)
+            & (np.abs(feat[:, 1:3] - road[1:3]) <= cfg.image_chroma_tol).all(axis=1)
+            & (feat[:, 3] <= cfg.image_texture_tol * road[3] + cfg.image_texture_floor)
+        )
+
+    mode = np.median(feat[inverse == np.argmax(counts * prior)], axis=0)
+    for _ in range(3):
+        if not similar(mode).any():
+            break
+        mode = np.median(feat[similar(mode)], axis=0)
+    return mode, similar(mode)
+
+
+@pytest.mark.parametrize("n", [5000, 5001])
+def test_road_mode_on_feature_planes_is_the_stacked_computation(n):
+    """The seed zone's road colour from four feature planes: the same float32 mode and inliers as from the stacked
+    (N, 4) features (np.unique's bins, medians over axis 0), odd and even counts, a road among cars and shadows."""
+    from aias_augment.analyse.region import RegionConfig, _road_mode
+
+    rng = np.random.default_rng(n)
+    road = rng.normal([120.0, 128.0, 130.0, 3.0], [12.0, 2.0, 2.0, 1.0], (n, 4))
+    other = rng.uniform([0.0, 90.0, 90.0, 0.0], [255.0, 170.0, 170.0, 30.0], (n // 3, 4))
+    feat = np.concatenate([road, other]).astype(np.float32)
+    cfg = RegionConfig()
+    want_mode, want_ok = _road_mode_on_stacked_features(feat, cfg)
+    mode, ok = _road_mode([np.ascontiguousarray(feat[:, j]) for j in range(4)], cfg)
+    assert mode.dtype == want_mode.dtype == np.float32
+    np.testing.assert_array_equal(mode, want_mode)
+    np.testing.assert_array_equal(ok, want_ok)
