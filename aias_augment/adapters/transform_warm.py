@@ -135,6 +135,7 @@ class WarmVariants:
         return out
 
     def _warm_views(self, rgb, k, d, view_plans: int, i: int, out: dict) -> None:
+        from aias_augment.apply.cone_raycast import cone_shape
         from aias_augment.apply.view_cache import default_view_cache, render_from_view_cache
         from aias_augment.core.frame import Frame
         from aias_augment.core.geometry import Intrinsics
@@ -148,6 +149,8 @@ class WarmVariants:
         for j in range(view_plans):
             plan = plan_insertion(analysis, self.config, np.random.default_rng([i, j, 1]), depth=depth, bank=self._bank)
             for o in plan.objects:
+                if self.config.render_method == "raycast" and cone_shape(o.asset) is not None:
+                    continue  # ray-cast at its pose in every call: no view to render
                 m0 = vc.misses
                 if render_from_view_cache(o.asset, o.cam_from_object, analysis.intrinsics, vc) is not None:
                     out["views_rendered" if vc.misses > m0 else "views_cached"] += 1

@@ -164,6 +164,25 @@ def test_warm_with_view_plans_renders_views_the_calls_then_read(tmp_path):
     assert np.allclose(np.asarray(a["bboxes"]), np.asarray(fresh["bboxes"]))
 
 
+def test_warm_renders_no_view_for_ray_cast_cones(tmp_path):
+    """The fast preset ray-casts its procedural cones at their pose in every call: ``warm(..., view_plans=n)``
+    analyses the image and renders no view for them (no GL call: the renderer's entry point raises)."""
+    import aias_augment.apply.render as render
+
+    tf = _compose(seed=11, scene_cache=str(tmp_path))
+    assert tf.transforms[0].config.render_method == "raycast"
+
+    def no_gl(*a, **k):
+        raise AssertionError("GL call while warming ray-cast cones")
+
+    old, render._renderer = render._renderer, no_gl
+    try:
+        got = tf.transforms[0].warm([road_frame()], camera_ks=[K], view_plans=4)
+    finally:
+        render._renderer = old
+    assert got["analysed"] == 1 and got["views_rendered"] == 0 and got["views_cached"] == 0
+
+
 def test_scene_target_reaches_the_planner_and_a_bad_one_is_a_counted_skip():
     from aias_augment import SceneInputs
 
