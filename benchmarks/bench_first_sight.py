@@ -22,10 +22,7 @@ import subprocess
 import sys
 import time
 
-if __package__ in (None, ""):  # run by path as a side's worker: the side's root is on PYTHONPATH
-    sys.path.pop(0)
-
-from benchmarks.bench_regression_guard import REPO, ROTATION, SINGLE_THREAD, tracon_files  # noqa: E402
+from benchmarks.bench_regression_guard import REPO, ROTATION, SINGLE_THREAD, tracon_files
 
 
 def worker(warmup: int, first_sight: int) -> dict:
@@ -66,7 +63,8 @@ def worker(warmup: int, first_sight: int) -> dict:
 def run_side(root: str, a) -> dict:
     env = {**os.environ, **SINGLE_THREAD, "PYTHONPATH": root, "NO_ALBUMENTATIONS_UPDATE": "1"}
     env.setdefault("PYOPENGL_PLATFORM", "egl")
-    cmd = [sys.executable, os.path.abspath(__file__), "--worker", str(a.warmup), str(a.first_sight)]
+    # -P: the script's own folder is not put on sys.path, the side's root (PYTHONPATH) is what it imports
+    cmd = [sys.executable, "-P", os.path.abspath(__file__), "--worker", str(a.warmup), str(a.first_sight)]
     out = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, check=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 

@@ -65,7 +65,6 @@ class AnalyseConfig:
                 "placement",
                 "lighting",
                 "estimate_camera",
-                "thin_structures",
                 "camera_height_m",
                 "max_camera_pitch_deg",
                 "max_camera_roll_deg",
@@ -73,6 +72,8 @@ class AnalyseConfig:
                 "lighting_cfg",
             )
         }
+        if self.thin_structures:  # only when set: the keys of analyses without them stay what they were
+            out["thin_structures"] = True
         if self.analysis_max_width:  # only when set: the keys of full-resolution analyses stay what they were
             out["analysis_max_width"] = self.analysis_max_width
             if self.camera_analysis_width:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from aias_augment.apply.render import RenderLayers, _crop_intrinsics, _downsample, _roi
+from aias_augment.apply.render import RenderLayers, box_downsample, crop_intrinsics, window_roi
 from aias_augment.apply.view_cache import WarpedView
 from aias_augment.assets.asset import Asset
 from aias_augment.core.geometry import Intrinsics
@@ -299,12 +299,12 @@ def raycast_cone_window(
     zc = corners @ R[2] + cam_from_object[2, 3]
     if (zc <= znear).any():
         return None
-    roi = _roi(corners, cam_from_object, intrinsics, 2.0, znear)
+    roi = window_roi(corners, cam_from_object, intrinsics, 2.0, znear)
     x0, y0, x1, y1 = roi
     if x1 <= x0 or y1 <= y0:
         z = np.zeros((0, 0), np.float32)
         return (0, 0, 0, 0), RenderLayers(np.zeros((0, 0, 3), np.float32), z, z.copy(), np.zeros((0, 0, 3), np.float32))
-    K = _crop_intrinsics(intrinsics, roi)
+    K = crop_intrinsics(intrinsics, roi)
     h, w = (y1 - y0) * ssaa, (x1 - x0) * ssaa
     # sub-sample centres in the window's OpenCV coordinates, as the GL path's supersampled camera puts them
     us = (np.arange(w) + 0.5) / ssaa - 0.5
@@ -344,13 +344,13 @@ def raycast_cone_window(
         normals[idx] = n_obj @ R.T
         depth[idx] = s * (p @ R[2] + t[2])
     cov = covered.reshape(h, w).astype(np.float32)
-    alpha = _downsample(cov, ssaa)
+    alpha = box_downsample(cov, ssaa)
     wgt = np.maximum(alpha, 1e-6)[..., None]  # eps: avoid 0/0 where nothing is covered (forced to 0 below)
-    alb = _downsample(albedo.reshape(h, w, 3), ssaa) / wgt
-    n_cam = _downsample(normals.reshape(h, w, 3), ssaa)
+    alb = box_downsample(albedo.reshape(h, w, 3), ssaa) / wgt
+    n_cam = box_downsample(normals.reshape(h, w, 3), ssaa)
     n_len = np.linalg.norm(n_cam, axis=-1, keepdims=True)
     n_cam = np.where(n_len > 1e-6, n_cam / np.maximum(n_len, 1e-6), 0.0)
-    dep = np.where(alpha > 0, _downsample(depth.reshape(h, w), ssaa) / np.maximum(alpha, 1e-6), 0.0)
+    dep = np.where(alpha > 0, box_downsample(depth.reshape(h, w), ssaa) / np.maximum(alpha, 1e-6), 0.0)
     alb[alpha <= 0] = 0
     return roi, RenderLayers(alb.astype(np.float32), alpha, dep.astype(np.float32), n_cam.astype(np.float32))
 

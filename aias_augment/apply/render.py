@@ -123,7 +123,7 @@ def _camera_pose_gl(cam_from_world: np.ndarray) -> np.ndarray:
     return invert_rigid(opengl_from_opencv(cam_from_world))
 
 
-def _downsample(x: np.ndarray, s: int) -> np.ndarray:
+def box_downsample(x: np.ndarray, s: int) -> np.ndarray:
     if s == 1:
         return x
     h, w = x.shape[0] // s, x.shape[1] // s
@@ -230,7 +230,7 @@ def _render_flat(
     return color, depth
 
 
-def _roi(
+def window_roi(
     points_in_obj: np.ndarray, cam_from_object: np.ndarray, intr: Intrinsics, margin_px: float, znear: float
 ) -> tuple[int, int, int, int]:
     """Pixel window (x0, y0, x1, y1), x1/y1 exclusive, that contains the projection of ``points_in_obj`` (whose
@@ -250,7 +250,7 @@ def _roi(
     return x0, y0, x1, y1
 
 
-def _crop_intrinsics(intr: Intrinsics, roi: tuple[int, int, int, int]) -> Intrinsics:
+def crop_intrinsics(intr: Intrinsics, roi: tuple[int, int, int, int]) -> Intrinsics:
     x0, y0, x1, y1 = roi
     return Intrinsics(intr.fx, intr.fy, intr.cx - x0, intr.cy - y0, x1 - x0, y1 - y0)
 
@@ -312,13 +312,13 @@ def render_object_window(
     if ssaa < 1 or int(ssaa) != ssaa:
         raise ValueError(f"ssaa must be a positive integer, got {ssaa}")
     # Only the window around the object is rendered (the projected bounding-box corners bound the silhouette).
-    roi = _roi(asset.corners_m(), cam_from_object, intrinsics, 2.0, znear)
+    roi = window_roi(asset.corners_m(), cam_from_object, intrinsics, 2.0, znear)
     if roi[2] <= roi[0] or roi[3] <= roi[1]:
         roi = (0, 0, 0, 0)
         z = np.zeros((0, 0), np.float32)
         return roi, RenderLayers(np.zeros((0, 0, 3), np.float32), z, z.copy(), np.zeros((0, 0, 3), np.float32))
     return roi, _render_object_window(
-        asset, cam_from_object, _crop_intrinsics(intrinsics, roi), ssaa, znear, zfar, with_normals
+        asset, cam_from_object, crop_intrinsics(intrinsics, roi), ssaa, znear, zfar, with_normals
     )
 
 
@@ -345,14 +345,14 @@ def _render_object_window(
         n_cam = n_obj @ cam_from_object[:3, :3].T.astype(np.float32)
     else:
         n_cam = np.zeros(color.shape[:2] + (3,), np.float32)
-    alpha = _downsample(covered, ssaa)
+    alpha = box_downsample(covered, ssaa)
     # Average colour over covered sub-samples only (un-premultiply), z-depth: nearest covered sub-sample mean.
     w = np.maximum(alpha, 1e-6)[..., None]  # eps: avoid 0/0 where nothing is covered (result forced to 0 below)
-    albedo = _downsample(albedo, ssaa) / w
-    n_cam = _downsample(n_cam * covered[..., None], ssaa)
+    albedo = box_downsample(albedo, ssaa) / w
+    n_cam = box_downsample(n_cam * covered[..., None], ssaa)
     n_len = np.linalg.norm(n_cam, axis=-1, keepdims=True)
     n_cam = np.where(n_len > 1e-6, n_cam / np.maximum(n_len, 1e-6), 0.0)
-    depth_sum = _downsample(depth.astype(np.float32), ssaa)
+    depth_sum = box_downsample(depth.astype(np.float32), ssaa)
     d = np.where(alpha > 0, depth_sum / np.maximum(alpha, 1e-6), 0.0)
     inside = alpha > 0
     albedo[~inside] = 0
@@ -440,7 +440,7 @@ def shadow_window(
         radius = float(max(np.abs(corners[:, :2]).max() + reach, ring) * 1.2)
     else:
         radius = float(np.abs(corners[:, :2]).max() + ring)
-    return _roi(np.concatenate(pts), cam_from_object, intrinsics, 2.0, znear), radius
+    return window_roi(np.concatenate(pts), cam_from_object, intrinsics, 2.0, znear), radius
 
 
 def render_ground_shadow(
@@ -473,7 +473,7 @@ def render_ground_shadow(
         return ShadowLayers(np.ones(full, np.float32), np.zeros(full, bool), np.zeros(full, np.float32), roi)
     if window:
         full = None
-    crop = _crop_intrinsics(intrinsics, roi)
+    crop = crop_intrinsics(intrinsics, roi)
     h, w = crop.height, crop.width
     base = pyrender.Scene(bg_color=np.zeros(4), ambient_light=np.zeros(3))
     # pyrender sorts opaque nodes by the distance of their origin to the camera (far first) and breaks ties by set

@@ -210,12 +210,13 @@ from aias_augment import InsertObjects
 img = np.ascontiguousarray(cv2.imread(sys.argv[1])[..., ::-1])
 hashes = []
 for i in range(int(sys.argv[2])):  # fresh transforms, same seed; the process-wide view cache warms up meanwhile
-    tf = A.Compose([InsertObjects(p=1.0, min_objects=3, preset="fast")],
+    # the shared cone mesh: the preset's view cache serves it (procedural cones are ray-cast, no view)
+    tf = A.Compose([InsertObjects(p=1.0, min_objects=3, preset="fast", config_overrides={"asset_source": "default"})],
                    bbox_params=A.BboxParams(format="coco", label_fields=["l"]), seed=7)
     out = tf(image=img, bboxes=np.zeros((0, 4)), l=[])
     hashes.append(hashlib.sha256(out["image"]).hexdigest())
 rec = tf.transforms[0].last_record
-print(rec.modules["render"].split(":")[0], len(rec.placements), *sorted(set(hashes)))
+print(rec.modules["render"].split(";")[-1].split(":")[0].strip(), len(rec.placements), *sorted(set(hashes)))
 """
 
 
