@@ -4,7 +4,7 @@ A procedural cone (:func:`aias_augment.assets.bank.procedural.make_traffic_cone`
 :func:`~aias_augment.assets.bank.procedural.cone_sections`: a base (a superellipse prism, square or round, with a flat
 top) and a body whose radius is piecewise linear in height. Each pixel's rays (``ssaa`` x ``ssaa`` per pixel) are
 intersected exactly with that shape in the object frame: the body as truncated cones (a quadratic per segment), the
-base's side as the 64-sided prism the mesh has (Cyrus-Beck clipping), its top as a plane. The nearest hit gives the
+base's side as its superellipse (Newton's steps along the ray), its top as a plane. The nearest hit gives the
 layers :func:`aias_augment.apply.render.render_object_window` gives: linear albedo (the cone's texture sampled at the
 hit's (u, v), filtered to the footprint as mipmapping does), coverage, z-depth and normals (the mesh's smooth normals:
 interpolated along the profile between rings, the superellipse's gradient on the base's side).
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from aias_augment.apply.render import RenderLayers, box_downsample, crop_intrinsics, window_roi
+from aias_augment.apply.render import RenderLayers, crop_intrinsics, supersampled_layers, window_roi
 from aias_augment.apply.view_cache import WarpedView
 from aias_augment.assets.asset import Asset
 from aias_augment.core.geometry import Intrinsics
@@ -343,16 +343,14 @@ def raycast_cone_window(
         albedo[idx] = srgb_to_linear(_sample(tex, u, v))
         normals[idx] = n_obj @ R.T
         depth[idx] = s * (p @ R[2] + t[2])
-    cov = covered.reshape(h, w).astype(np.float32)
-    alpha = box_downsample(cov, ssaa)
-    wgt = np.maximum(alpha, 1e-6)[..., None]  # eps: avoid 0/0 where nothing is covered (forced to 0 below)
-    alb = box_downsample(albedo.reshape(h, w, 3), ssaa) / wgt
-    n_cam = box_downsample(normals.reshape(h, w, 3), ssaa)
-    n_len = np.linalg.norm(n_cam, axis=-1, keepdims=True)
-    n_cam = np.where(n_len > 1e-6, n_cam / np.maximum(n_len, 1e-6), 0.0)
-    dep = np.where(alpha > 0, box_downsample(depth.reshape(h, w), ssaa) / np.maximum(alpha, 1e-6), 0.0)
-    alb[alpha <= 0] = 0
-    return roi, RenderLayers(alb.astype(np.float32), alpha, dep.astype(np.float32), n_cam.astype(np.float32))
+    layers = supersampled_layers(
+        covered.reshape(h, w).astype(np.float32),
+        albedo.reshape(h, w, 3),
+        normals.reshape(h, w, 3),
+        depth.reshape(h, w),
+        ssaa,
+    )
+    return roi, layers
 
 
 def raycast_cone(

@@ -41,6 +41,9 @@ __all__ = [
     "render_object",
     "render_object_window",
     "render_ground_shadow",
+    "supersampled_layers",
+    "window_roi",
+    "crop_intrinsics",
     "srgb_to_linear",
     "linear_to_srgb",
 ]
@@ -123,7 +126,7 @@ def _camera_pose_gl(cam_from_world: np.ndarray) -> np.ndarray:
     return invert_rigid(opengl_from_opencv(cam_from_world))
 
 
-def box_downsample(x: np.ndarray, s: int) -> np.ndarray:
+def _downsample(x: np.ndarray, s: int) -> np.ndarray:
     if s == 1:
         return x
     h, w = x.shape[0] // s, x.shape[1] // s
@@ -345,14 +348,23 @@ def _render_object_window(
         n_cam = n_obj @ cam_from_object[:3, :3].T.astype(np.float32)
     else:
         n_cam = np.zeros(color.shape[:2] + (3,), np.float32)
-    alpha = box_downsample(covered, ssaa)
+    return supersampled_layers(covered, albedo, n_cam, depth.astype(np.float32), ssaa)
+
+
+def supersampled_layers(
+    covered: np.ndarray, albedo: np.ndarray, n_cam: np.ndarray, depth: np.ndarray, ssaa: int
+) -> RenderLayers:
+    """Pixel layers from ``ssaa`` x ``ssaa`` sub-samples per pixel: ``covered`` (h, w) float 0/1, ``albedo`` (h, w, 3)
+    linear and 0 where not covered, ``n_cam`` (h, w, 3) camera-frame normals, ``depth`` (h, w) z-depth, 0 where not
+    covered. Coverage is the covered share; colour, normal and depth are the means over the covered sub-samples."""
+    alpha = _downsample(covered, ssaa)
     # Average colour over covered sub-samples only (un-premultiply), z-depth: nearest covered sub-sample mean.
     w = np.maximum(alpha, 1e-6)[..., None]  # eps: avoid 0/0 where nothing is covered (result forced to 0 below)
-    albedo = box_downsample(albedo, ssaa) / w
-    n_cam = box_downsample(n_cam * covered[..., None], ssaa)
+    albedo = _downsample(albedo, ssaa) / w
+    n_cam = _downsample(n_cam * covered[..., None], ssaa)
     n_len = np.linalg.norm(n_cam, axis=-1, keepdims=True)
     n_cam = np.where(n_len > 1e-6, n_cam / np.maximum(n_len, 1e-6), 0.0)
-    depth_sum = box_downsample(depth.astype(np.float32), ssaa)
+    depth_sum = _downsample(depth, ssaa)
     d = np.where(alpha > 0, depth_sum / np.maximum(alpha, 1e-6), 0.0)
     inside = alpha > 0
     albedo[~inside] = 0
