@@ -29,7 +29,7 @@ from aias_augment.plan.placement import (
     scene_scale_for_sizes,
     scene_scale_from_boxes,
 )
-from aias_augment.plan.references import ground_from_references
+from aias_augment.plan.references import ground_from_references, row_heights
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,6 +175,7 @@ class _Draft:
     objects: list = field(default_factory=list)
     reports: list = field(default_factory=list)
     ref_heights: dict = field(default_factory=dict)  # per labelled kind: its objects' heights, measured once
+    row_lines: dict = field(default_factory=dict)  # per labelled kind: its box height on each row (RowHeights)
 
     @classmethod
     def start(cls, analysis, cfg, rng, existing_boxes_xyxy, existing_labels, depth, meta: dict) -> "_Draft":
@@ -203,7 +204,15 @@ class _Draft:
             boxes = np.array([b for b, k in ref_kinds if k == kind])
             turned, mods["pitch"] = ground_from_references(ground, analysis.intrinsics, boxes, pcfg.max_pitch_turn_deg)
             ground = turned if turned is not None else ground
-        return cls(analysis, cfg, rng, depth, ground, pcfg, ref_kinds, taken, scene_points, boxes_3d, mods)
+        draft = cls(analysis, cfg, rng, depth, ground, pcfg, ref_kinds, taken, scene_points, boxes_3d, mods)
+        if cfg.placement and pcfg.sizes_from_rows:
+            for kind in sorted({k for _, k in ref_kinds if k is not None}):
+                boxes = np.array([b for b, k in ref_kinds if k == kind])
+                line, why = row_heights(ground, analysis.intrinsics, boxes)
+                mods[f"row_sizes:{kind}"] = why
+                if line is not None:
+                    draft.row_lines[kind] = line
+        return draft
 
     def scale_scene(self, category: str, base: Asset, targets: list) -> list:
         """The scene's scale from the first object's size targets (or the scene's own objects on their ground rows,
@@ -260,7 +269,12 @@ class _Draft:
         intr, region = self.analysis.intrinsics, self.analysis.region
         if self.ref_kinds and not self.ref_heights:
             self.ref_heights.update(_heights_by_kind(self.ref_kinds, self.ground, intr))
-        height = _height_like_references(self.ref_heights.get(category), self.rng, self.pcfg.reference_height_jitter)
+        heights, line = self.ref_heights.get(category), self.row_lines.get(category)
+        if line is None:
+            height = _height_like_references(heights, self.rng, self.pcfg.reference_height_jitter)
+        else:  # sized on its row: the labelled objects' median height is where the search starts
+            line = line.scaled(np.exp(self.rng.normal(0.0, self.pcfg.reference_height_jitter)))
+            height = float(np.median(heights)) if heights is not None else None
         placement, report = sample_placement(
             base,
             self.ground,
@@ -275,9 +289,10 @@ class _Draft:
             existing_objects=self.boxes_3d if "collision" in self.mods else None,
             object_height_m=height,
             thin_segments=region.thin_segments,
+            row_heights=line,
         )
         self.reports.append(report.to_dict())
-        if placement is not None and height is not None:
+        if placement is not None and height is not None and line is None:
             placement = _box_like_references(placement, base, height, self.ground, intr)
         return placement
 

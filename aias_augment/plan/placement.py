@@ -24,6 +24,7 @@ from aias_augment.plan.box_size import (
 from aias_augment.plan.collision import CollisionConfig, OrientedBox, check_candidate
 from aias_augment.plan.local_ground import UnevenGroundError, ground_band_points, refit_local_ground
 from aias_augment.plan.placement_config import PlacementConfig
+from aias_augment.plan.references import RowHeights
 from aias_augment.plan.scene_scale import (
     reference_heights_m,
     scaled_ground,
@@ -209,12 +210,18 @@ def _child_generator(rng: np.random.Generator) -> np.random.Generator:
         return np.random.default_rng(rng.integers(2**63))
 
 
-def _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_height_m, report):
+def _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_height_m, row_heights, report):
     """(flat candidate pixel indices, a note on the size target, the object's height when drawn once) for
     :func:`sample_placement`, or None (counted in ``report``) when no ground pixel is in view. With a size target
-    the object's height is drawn once and the candidates are the pixels where it has that size."""
+    the object's height is drawn once and the candidates are the pixels where it has that size (its size on each row
+    from ``row_heights`` when given; rows where that is under ``cfg.min_box_height_px`` are no candidates)."""
     entry = GROUND_CANDIDATES.get(ground, intrinsics, region_mask, cfg.horizon_margin_px)
     cand = entry["cand"]
+    rows_pred = None
+    if row_heights is not None and len(cand):
+        rows_pred = row_heights.at(cand // intrinsics.width)
+        keep = rows_pred >= cfg.min_box_height_px
+        cand, rows_pred = cand[keep], rows_pred[keep]
     if len(cand) == 0:
         report.rejected["no ground pixels in view"] += 1
         return None
@@ -231,10 +238,37 @@ def _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_heig
             ground,
             intrinsics,
             cfg.box_height_tolerance,
-            pred=GROUND_CANDIDATES.predicted(entry, fixed_h, ground, intrinsics),
+            pred=GROUND_CANDIDATES.predicted(entry, fixed_h, ground, intrinsics) if rows_pred is None else rows_pred,
         )
         report.target_box_height_px = target_frac * intrinsics.height
     return cand, size_note, fixed_h
+
+
+#: A row-sized object keeps within this factor of the height it was drawn at (beyond it the site is refused: the
+#: labelled boxes' line and the ground disagree there by more than any camera estimate should).
+ROW_RESCALE_LIMIT = 10.0
+
+
+def _sized_to_row(asset, scale, cam_from_object, intrinsics, row_heights: RowHeights):
+    """(scale, corners projected (8, 2), their depths) of ``asset`` at ``cam_from_object`` rescaled about its
+    contact point until its box is ``row_heights``' height on the box's own bottom row (fixed-point steps: the
+    bottom row moves a little with the scale), or (None, reason)."""
+    start = scale
+    for step in range(4):
+        corners = transform_points(cam_from_object, asset.corners_m() * scale)
+        uvc, z = project_points(corners, intrinsics.K)
+        if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
+            return None, "object crosses the camera plane"
+        box = box_of_points(uvc)
+        target, bh = float(row_heights.at(box[3])), float(box[3] - box[1])
+        if not (target > 0 and bh > 0):
+            return None, "the labelled objects' size line gives no height on this row"
+        if abs(target / bh - 1.0) < 0.005 or step == 3:
+            break
+        scale *= target / bh
+        if not (1.0 / ROW_RESCALE_LIMIT <= scale / start <= ROW_RESCALE_LIMIT):
+            return None, "the labelled objects' size on this row is out of the object's reach"
+    return scale, (uvc, z)
 
 
 def _box_rejection(box: np.ndarray, w: int, h: int, existing: np.ndarray, cfg: PlacementConfig) -> str | None:
@@ -383,6 +417,7 @@ def sample_placement(
     collision_cfg=None,
     object_height_m: float | None = None,
     thin_segments: np.ndarray | None = None,
+    row_heights: RowHeights | None = None,
 ) -> tuple[Placement | None, PlacementReport]:
     """Choose a ground point, scale and yaw for ``asset``; ``None`` (with reasons) when no candidate passes.
 
@@ -398,7 +433,9 @@ def sample_placement(
     ``thin_segments``: the scene's poles and rails (:func:`thin_structure_in_front` refuses sites behind them).
 
     Height: ``object_height_m`` when given, else drawn uniformly from ``height_range_m`` (the category's range);
-    with a box-height target it is drawn once, before the candidates are chosen for it.
+    with a box-height target it is drawn once, before the candidates are chosen for it. ``row_heights``: the box
+    height the object must have on each bottom row (the image's labelled objects of its kind): the object is
+    rescaled about its contact point to it before the checks, and its height is what that scale gives.
     """
     w, h = intrinsics.width, intrinsics.height
     K = _intrinsics_tuple(intrinsics)
@@ -409,7 +446,7 @@ def sample_placement(
         asset.category, (asset.reference_height_m, asset.reference_height_m)
     )
     report = PlacementReport()
-    chosen = _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_height_m, report)
+    chosen = _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_height_m, row_heights, report)
     if chosen is None:
         return None, report
     cand, size_note, fixed_h = chosen
@@ -444,11 +481,19 @@ def sample_placement(
         scale = target_h / max(asset.reference_height_m, 1e-9)
         yaw = rng.uniform(-np.pi, np.pi)
         cam_from_object = object_pose_on_ground(p, plane, yaw)
-        corners = transform_points(cam_from_object, asset.corners_m() * scale)
-        uvc, z = project_points(corners, intrinsics.K)
-        if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
-            report.rejected["object crosses the camera plane"] += 1
-            continue
+        if row_heights is not None:
+            scale, got = _sized_to_row(asset, scale, cam_from_object, intrinsics, row_heights)
+            if scale is None:
+                report.rejected[got] += 1
+                continue
+            uvc, z = got
+            target_h = scale * asset.reference_height_m
+        else:
+            corners = transform_points(cam_from_object, asset.corners_m() * scale)
+            uvc, z = project_points(corners, intrinsics.K)
+            if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
+                report.rejected["object crosses the camera plane"] += 1
+                continue
         box = box_of_points(uvc)
         bh = box[3] - box[1]
         reason = _box_rejection(box, w, h, existing, cfg)

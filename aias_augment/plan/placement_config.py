@@ -113,3 +113,8 @@ class PlacementConfig:
     # photos 40 deg placed no more cones at the right size; studies/realism/labelled_scenes).
     pitch_from_references: bool = True
     max_pitch_turn_deg: float = 25.0
+    # An inserted object of a labelled kind is rescaled about its contact point to the box height the labelled
+    # objects of its kind have on its bottom row (:func:`aias_augment.plan.references.row_heights`: the line of their
+    # heights against their rows, or through the ground's horizon when their rows do not spread), times the
+    # reference jitter above: its neighbours' size wherever the camera estimate is wrong.
+    sizes_from_rows: bool = True

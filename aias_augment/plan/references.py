@@ -9,16 +9,25 @@ turns the estimated ground about the camera's x axis to the pitch whose exact pr
 boxes' heights from their bottom rows (roll and camera height kept; the scene's scale is then fitted to the same
 boxes). The fit searches the turn and the object-to-camera-height ratio on a grid: the projection of a standing
 object depends on nothing else.
+
+The same metrology sizes each inserted object without any camera model: objects of one height standing on a plane
+seen by a level-rolled camera have box heights linear in their bottom rows, zero on the horizon
+(:class:`RowHeights`). The labelled boxes give that line directly when their rows spread; the ground's horizon
+anchors it when they do not. An inserted object of the labelled kind is scaled to the line's height on its own
+bottom row, so it has its neighbours' size wherever the ground estimate is wrong (a wrong focal length or a pitch
+the boxes ask to turn past :func:`ground_from_references`'s limit).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from aias_augment.analyse.ground import GroundPlane
 from aias_augment.core.geometry import Intrinsics
 
-__all__ = ["ground_from_references"]
+__all__ = ["RowHeights", "ground_from_references", "row_heights", "whole_box_mask"]
 
 MIN_SPREAD_FRAC = 0.1  # the bottom rows must spread over this fraction of the image height
 MIN_TURN_DEG = 1.0  # a smaller turn is within what the boxes' footprints and pixels leave unknown: the estimate stands
@@ -113,4 +122,66 @@ def ground_from_references(
     return out, (
         f"the ground turned {np.degrees(angle):+.2f} deg about the camera's x axis to fit {len(b)} reference boxes "
         f"(RMS height error {rms:.1%})"
+    )
+
+
+def whole_box_mask(b: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
+    """(N,) bool: boxes (N, 4) xyxy not cut by the frame's top or bottom edge (height and base seen), >= 4 px tall."""
+    return (b[:, 1] > 1.0) & (b[:, 3] < intrinsics.height - 2.0) & (b[:, 3] - b[:, 1] >= 4.0)
+
+
+@dataclass(frozen=True)
+class RowHeights:
+    """The box height in pixels of an object of one labelled kind whose box's bottom edge is on image row ``v``:
+    ``slope * (v - zero_row)`` (``zero_row``: the horizon's row, where such an object shrinks to a point).
+    ``source`` says where the line came from."""
+
+    slope: float
+    zero_row: float
+    source: str
+
+    def __post_init__(self):
+        if not (np.isfinite(self.slope) and self.slope > 0 and np.isfinite(self.zero_row)):
+            raise ValueError(f"RowHeights needs a finite slope > 0 and a finite zero row, got {self}")
+
+    def at(self, v):
+        """Box height(s) in pixels at bottom row(s) ``v`` (<= 0 on and above the horizon)."""
+        return self.slope * (np.asarray(v, float) - self.zero_row)
+
+    def scaled(self, factor: float) -> "RowHeights":
+        """The line of objects ``factor`` times as tall."""
+        return RowHeights(self.slope * float(factor), self.zero_row, self.source)
+
+
+def row_heights(ground: GroundPlane, intrinsics: Intrinsics, boxes_xyxy: np.ndarray) -> tuple[RowHeights | None, str]:
+    """The box heights that objects of the kind of ``boxes_xyxy`` (N, 4: labelled boxes of one kind) have on each
+    bottom row, from their whole boxes (:func:`whole_box_mask`): the least-squares line of height against bottom row
+    when two or more spread over :data:`MIN_SPREAD_FRAC` of the image height and it rises towards the camera (each
+    box's fitted height positive); else the line through ``ground``'s horizon (at the boxes' mean column) fitted to
+    the boxes below it (the median of their height over their depth below it). ``(None, why)`` when neither
+    exists."""
+    b = np.asarray(boxes_xyxy, float).reshape(-1, 4)
+    b = b[whole_box_mask(b, intrinsics)]
+    if not len(b):
+        return None, "no whole labelled box"
+    vb, h = b[:, 3], b[:, 3] - b[:, 1]
+    if len(b) >= 2 and np.ptp(vb) >= MIN_SPREAD_FRAC * intrinsics.height:
+        c, c0 = np.polyfit(vb, h, 1)
+        if c > 0 and np.all(c * vb + c0 > 0):
+            rms = float(np.sqrt(np.mean((np.log(h) - np.log(c * vb + c0)) ** 2)))
+            return RowHeights(float(c), float(-c0 / c), "fit"), (
+                f"box heights on each row from the line through the {len(b)} labelled boxes (zero on row "
+                f"{-c0 / c:.0f}, RMS {rms:.0%})"
+            )
+    try:
+        zero = float(ground.horizon_row_at(float(np.mean((b[:, 0] + b[:, 2]) / 2)), intrinsics))
+    except ValueError:
+        zero = float("nan")
+    below = vb - zero
+    ok = below > 1.0
+    if not (np.isfinite(zero) and ok.any()):
+        return None, "the labelled boxes' rows do not spread and none stands below the ground's horizon"
+    slope = float(np.median(h[ok] / below[ok]))
+    return RowHeights(slope, zero, "horizon"), (
+        f"box heights on each row from the ground's horizon (row {zero:.0f}) and {int(ok.sum())} labelled box(es)"
     )

@@ -10,6 +10,7 @@ from aias_augment.analyse.ground import GroundPlane
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.plan.box_size import GROUND_CANDIDATES, box_heights_at_pixels
 from aias_augment.plan.placement_config import PlacementConfig
+from aias_augment.plan.references import whole_box_mask
 
 __all__ = ["reference_heights_m", "scaled_ground", "scene_scale_for_sizes", "scene_scale_from_boxes"]
 
@@ -75,7 +76,7 @@ def scene_scale_from_boxes(
     b = np.asarray(boxes_xyxy, float).reshape(-1, 4)
     heights = np.broadcast_to(np.asarray(object_height_m, float), (len(b),))
     h_px = b[:, 3] - b[:, 1]
-    inside = _whole_boxes(b, intrinsics)
+    inside = whole_box_mask(b, intrinsics)
     if not inside.any() or not (ground.d > 0):
         return None, f"none of {len(b)} reference boxes is whole in the frame"
     b, h_px, heights = b[inside], h_px[inside], heights[inside]
@@ -95,18 +96,13 @@ def scene_scale_from_boxes(
     )
 
 
-def _whole_boxes(b: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
-    """(N,) bool: boxes (N, 4) xyxy not cut by the frame's top or bottom edge (height and base seen), >= 4 px tall."""
-    return (b[:, 1] > 1.0) & (b[:, 3] < intrinsics.height - 2.0) & (b[:, 3] - b[:, 1] >= 4.0)
-
-
 def reference_heights_m(ground: GroundPlane, intrinsics: Intrinsics, boxes_xyxy: np.ndarray) -> np.ndarray:
     """(N,) height in metres of the upright object whose box is each of ``boxes_xyxy`` (N, 4), standing on ``ground``
     at the box's bottom centre: the height whose projection (:func:`predicted_box_heights_px`) is the box's height.
     nan for a box cut by the frame's top or bottom edge or whose base is not on the visible ground."""
     b = np.asarray(boxes_xyxy, float).reshape(-1, 4)
     out = np.full(len(b), np.nan)
-    ok = _whole_boxes(b, intrinsics)
+    ok = whole_box_mask(b, intrinsics)
     if ok.any() and ground.d > 0:
         uv = np.c_[(b[ok, 0] + b[ok, 2]) / 2, b[ok, 3]]
         out[ok] = 1.0 / _scales_for_heights(uv, b[ok, 3] - b[ok, 1], np.ones(int(ok.sum())), ground, intrinsics)

@@ -9,7 +9,7 @@ import pytest
 
 from aias_augment.analyse.ground import GroundPlane, prior_ground_plane
 from aias_augment.core.geometry import Intrinsics
-from aias_augment.plan.references import ground_from_references
+from aias_augment.plan.references import RowHeights, ground_from_references, row_heights
 
 K = Intrinsics(700.0, 700.0, 319.5, 239.5, 640, 480)
 HEIGHT_M = 0.7
@@ -66,3 +66,46 @@ def test_what_gives_no_pitch():
     measured = GroundPlane(truth.normal, 1.3, "depth", assumed_scale=False)
     got, why = ground_from_references(measured, K, _boxes(truth, [(150, 300), (330, 360), (500, 420)]))
     assert got is None and "measured" in why
+
+
+# --- box heights on each row (RowHeights) --------------------------------------------------------------------------
+
+
+def _truth_height_at(truth: GroundPlane, u: float, v: float) -> float:
+    b = _boxes(truth, [(u, v)])[0]
+    return float(b[3] - b[1])
+
+
+@pytest.mark.parametrize("pitch_deg", [2.0, 12.0, 35.0])
+def test_row_heights_from_spread_boxes_give_the_height_on_other_rows(pitch_deg):
+    """The line through four labelled boxes gives the analytic box height of the same object on rows between and
+    beyond them (a wrong ground estimate does not enter: the boxes spread)."""
+    truth = prior_ground_plane(1.3, np.radians(pitch_deg))
+    rows = [300, 340, 380, 420] if pitch_deg < 30 else [120, 200, 280, 360]
+    boxes = _boxes(truth, [(150 + 90 * i, v) for i, v in enumerate(rows)])
+    line, why = row_heights(prior_ground_plane(1.65), K, boxes)  # the level prior: far from the truth
+    assert line is not None and line.source == "fit", why
+    for v in (rows[0] + 20, rows[-1] - 20, min(rows[-1] + 50, 470)):
+        want = _truth_height_at(truth, 320.0, v)
+        assert abs(float(line.at(v)) / want - 1.0) < 0.03, (v, float(line.at(v)), want)
+
+
+def test_row_heights_through_the_horizon_when_the_rows_do_not_spread():
+    truth = prior_ground_plane(1.3, np.radians(10.0))
+    boxes = _boxes(truth, [(150, 400), (450, 410)])  # 10 px apart: no line from them alone
+    line, why = row_heights(truth, K, boxes)
+    assert line is not None and line.source == "horizon", why
+    assert abs(line.zero_row - float(truth.horizon_row_at(300.0, K))) < 0.5
+    for v in (300, 460):
+        assert abs(float(line.at(v)) / _truth_height_at(truth, 300.0, v) - 1.0) < 0.05
+
+
+def test_what_gives_no_row_heights():
+    truth = prior_ground_plane(1.3, np.radians(10.0))
+    cut = _boxes(truth, [(150, 400), (450, 470)])
+    cut[:, 1] = 0.0  # both cut by the frame's top: no height seen
+    assert row_heights(truth, K, cut)[0] is None
+    above = np.array([[100.0, 50.0, 140.0, 90.0]])  # a lone box above the horizon
+    assert row_heights(truth, K, above)[0] is None
+    with pytest.raises(ValueError):
+        RowHeights(-1.0, 100.0, "fit")

@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from aias_augment.analyse.analysis import analyse_scene
+from aias_augment.analyse.ground import prior_ground_plane
 from aias_augment.assets.bank.procedural import procedural_asset_from_seed
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import project_points, transform_points
@@ -77,7 +78,8 @@ def test_inserted_cones_are_the_size_of_the_real_cones_on_their_row_even_after_a
             x0, y0, x1, y1 = o.placement.amodal_box_xyxy
             rx0, ry0, rx1, ry1 = _box_on_ground(real, truth, o.placement.contact_pixel, o.placement.yaw_rad)
             ratios.append((y1 - y0) / (ry1 - ry0))
-            # the drawn height projected at the contact point, against the box (a cone's box adds its base's depth)
+            # the drawn height projected at the contact point, against the box: a cone's box adds its base's depth, up to a
+            # quarter of its height where the camera looks down at a wide base
             base = np.asarray(o.placement.contact_point_in_cam)
             top = base + o.asset.height_m * np.asarray(o.placement.ground_normal_in_cam)
             seg = abs(K.fy * (base[1] / base[2] - top[1] / top[2]))
@@ -88,7 +90,7 @@ def test_inserted_cones_are_the_size_of_the_real_cones_on_their_row_even_after_a
     inside = np.mean((ratios >= 0.8) & (ratios <= 1.25))
     assert inside >= 0.9, (inside, np.round(np.sort(ratios), 2))
     analytic = np.array(analytic)
-    assert np.all((analytic >= 1.0) & (analytic <= 1.2)), np.round(analytic, 3)
+    assert np.all((analytic >= 1.0) & (analytic <= 1.25)), np.round(analytic, 3)
 
 
 def test_scene_scale_comes_from_the_labelled_kind_not_the_first_object():
@@ -113,3 +115,46 @@ def test_scene_scale_comes_from_the_labelled_kind_not_the_first_object():
             # the real cones' boxes are their mesh's box (base depth included): within 5 % of the truth
             assert abs(o.placement.ground_d / 0.8 - 1) < 0.05, (s, plan.modules["scene_scale"])
     assert firsts == {"barrel", "traffic_cone"}
+
+
+def _row_ratios(an, truth, boxes, real, pcfg) -> np.ndarray:
+    """Inserted cones' box heights over the real cone's on the true ground with its box's bottom on the same row
+    (its contact pixel found by bisection along the box's centre column)."""
+    ratios = []
+    for s in range(12):
+        plan = plan_insertion(
+            an,
+            replace(CFG, categories=("traffic_cone",), placement_cfg=pcfg),
+            np.random.default_rng(s),
+            bank=ConesAndBarrels(),
+            n_objects=3,
+            existing_boxes_xyxy=boxes,
+            existing_labels=["traffic_cone"] * len(boxes),
+        )
+        for o in plan.objects:
+            x0, y0, x1, y1 = o.placement.amodal_box_xyxy
+            lo, hi = 0.0, float(K.height)
+            for _ in range(40):
+                mid = (lo + hi) / 2
+                lo, hi = (mid, hi) if _box_on_ground(real, truth, [(x0 + x1) / 2, mid])[3] < y1 else (lo, mid)
+            ry0, ry1 = _box_on_ground(real, truth, [(x0 + x1) / 2, lo])[[1, 3]]
+            ratios.append((y1 - y0) / (ry1 - ry0))
+    return np.array(ratios)
+
+
+def test_cones_take_their_row_size_when_the_camera_estimate_is_far_off():
+    """The labelled cones stand on a ground pitched 30 deg more than the image's (level) estimate, which is kept
+    (no pitch fit): inserted cones still have the real cone's box height on their rows; without the row sizes they
+    spread far wider."""
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    truth = prior_ground_plane(3.0, an.ground.pitch_roll_rad()[0] + np.radians(30.0))
+    real = _real_cone()
+    pixels = [[110.0, 260.0], [330.0, 320.0], [520.0, 380.0], [220.0, 440.0]]
+    boxes = np.array([_box_on_ground(real, truth, px) for px in pixels])
+    pcfg = replace(CFG.placement_cfg, pitch_from_references=False)
+    rows = _row_ratios(an, truth, boxes, real, pcfg)
+    assert len(rows) >= 15
+    assert np.all((rows >= 0.8) & (rows <= 1.25)), np.round(np.sort(rows), 2)
+    off = _row_ratios(an, truth, boxes, real, replace(pcfg, sizes_from_rows=False))
+    # the row sizes leave only the drawn jitter (0.06 in log); the ground estimate alone spreads them far wider
+    assert np.std(np.log(off)) > 2 * np.std(np.log(rows)), (np.round(np.sort(rows), 2), np.round(np.sort(off), 2))
