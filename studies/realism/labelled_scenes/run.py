@@ -8,17 +8,20 @@ cones (none of it reads the code's records except the inserted boxes):
 - **same-row size ratio**: an inserted box's height over the height the photo's own cones have on its bottom row,
   from the line ``h = c v_bottom + c0`` fitted to the labelled whole boxes (equal objects on a planar ground); the
   real cones' own ratio, each against the line of the others (leave one out), is the measure's floor;
+- **nearest-row neighbour ratio** (no line): an inserted box's height over the labelled whole box whose bottom row
+  is nearest, counted when the rows are within 5 % of the image height; the real cones' own ratio against their
+  nearest other real cone is its floor;
 - **base brightness**: the median HSV value of a box's base band (rows 88-98 % of its height, the central 60 % of its
   width), an inserted cone's over the median of the photo's real cones';
 - **look agreement**: :func:`aias_augment.analyse.instances.fit_cone_look` on each inserted box against the photo's
   labelled cones: the base class and the sleeve count of at least one of them, body hue within 15 deg of it.
 
-Commands (``before``: a checkout of the previous code first on PYTHONPATH; the development split is TraCon train,
-val is reported once)::
+Commands (``before``: rendered from a checkout of the previous code, its own ``render``; the development split is
+TraCon train, val is reported once)::
 
   python -m studies.realism.labelled_scenes render --split train --tag after --tmp T
-  PYTHONPATH=OLD:. python -m studies.realism.labelled_scenes render --split train --tag before --tmp T
-  python -m studies.realism.labelled_scenes measure --tmp T --tags before after --out studies/realism/labelled_scenes/result
+  (cd OLD && python -m studies.realism.labelled_scenes render --split train --tag before --tmp T)
+  python -m studies.realism.labelled_scenes measure --tmp T --tags before after --name train
 """
 
 from __future__ import annotations
@@ -36,6 +39,8 @@ from aias_augment.pipeline.image import insert_into_image
 from studies._shared.labelled_cones import base_v, photos, whole_boxes
 from studies._shared.pictures import write_jpeg
 
+NEIGHBOUR_ROWS = 0.05  # a labelled cone is an inserted one's neighbour when their bottom rows are this close
+
 
 def render(a) -> None:
     cfg = load_preset(a.preset)
@@ -43,6 +48,8 @@ def render(a) -> None:
         cfg = replace(cfg, cone_look="variety")
     if a.no_pitch:
         cfg = replace(cfg, placement_cfg=replace(cfg.placement_cfg, pitch_from_references=False))
+    if a.no_rows:
+        cfg = replace(cfg, placement_cfg=replace(cfg.placement_cfg, sizes_from_rows=False))
     a.tmp.mkdir(parents=True, exist_ok=True)
     rows = []
     for i, (stem, img, boxes) in enumerate(photos(a.split, a.n)):
@@ -74,8 +81,19 @@ def measure_tag(rows: list, images: list) -> dict:
     from aias_augment.analyse.instances import fit_cone_look  # here: ``render`` also runs on older checkouts
 
     ratios, base, floor, agree, looked = [], [], [], 0, 0
+    near, near_floor = [], []
     for row, img in zip(rows, images):
         whole = whole_boxes(np.array(row["real"]), img.shape[0])
+        gap = NEIGHBOUR_ROWS * img.shape[0]
+        for box in row["inserted"]:
+            d = np.abs(whole[:, 3] - box[3])
+            if d.min() <= gap:
+                near.append((box[3] - box[1]) / (whole[d.argmin(), 3] - whole[d.argmin(), 1]))
+        for j in range(len(whole)):
+            d = np.abs(whole[:, 3] - whole[j, 3])
+            d[j] = np.inf
+            if d.min() <= gap:
+                near_floor.append((whole[j, 3] - whole[j, 1]) / (whole[d.argmin(), 3] - whole[d.argmin(), 1]))
         c, c0 = np.polyfit(whole[:, 3], whole[:, 3] - whole[:, 1], 1)
         real_v = np.median([base_v(img, b) for b in whole])
         real_looks = [x for x in (fit_cone_look(img, b) for b in whole) if x is not None]
@@ -90,7 +108,7 @@ def measure_tag(rows: list, images: list) -> dict:
             o = np.delete(whole, j, 0)
             cj, c0j = np.polyfit(o[:, 3], o[:, 3] - o[:, 1], 1)
             floor.append((whole[j, 3] - whole[j, 1]) / (cj * whole[j, 3] + c0j))
-    r, b, f = np.array(ratios), np.array(base), np.array(floor)
+    r, b, f, nr, nf = np.array(ratios), np.array(base), np.array(floor), np.array(near), np.array(near_floor)
     within = lambda x, lo, hi: float(np.mean((x >= lo) & (x <= hi))) if len(x) else None  # noqa: E731
     return {
         "photos": len(rows),
@@ -99,6 +117,10 @@ def measure_tag(rows: list, images: list) -> dict:
         "size_ratio_within_0.8_1.25": within(r, 0.8, 1.25),
         "size_ratio_within_count": int(((r >= 0.8) & (r <= 1.25)).sum()),
         "real_leave_one_out_within_0.8_1.25": within(f, 0.8, 1.25),
+        "neighbour_ratio_counted": len(nr),
+        "neighbour_ratio_median": float(np.median(nr)) if len(nr) else None,
+        "neighbour_ratio_within_0.8_1.25": within(nr, 0.8, 1.25),
+        "real_neighbour_ratio_within_0.8_1.25": within(nf, 0.8, 1.25),
         "base_v_ratio_median": float(np.median(b)) if len(b) else None,
         "base_v_within_10pct": within(b, 0.9, 1.1),
         "base_v_within_25pct": within(b, 0.75, 1.25),
@@ -144,6 +166,7 @@ def main() -> int:
     r.add_argument("--tmp", type=Path, required=True)
     r.add_argument("--variety", action="store_true", help="cone_look: variety")
     r.add_argument("--no-pitch", action="store_true", help="placement_cfg.pitch_from_references: false")
+    r.add_argument("--no-rows", action="store_true", help="placement_cfg.sizes_from_rows: false")
     m = sub.add_parser("measure")
     m.add_argument("--tmp", type=Path, required=True)
     m.add_argument("--tags", nargs="+", required=True)
