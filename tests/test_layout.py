@@ -1,6 +1,6 @@
 """The repository's layout rules: every study folder has its README, its ``run.py`` (runnable with ``python -m``) and
 its ``result/`` with a ``run.json``; no file or folder is named for when it was made; no Python file edits
-``sys.path``; the committed results stay under 12 MB, their pictures JPEG of at most 1600 px on a side; every
+``sys.path``; the committed results stay under 12 MB, their pictures JPEG of at most 1200 px on a side; every
 relative link of their Markdown resolves."""
 
 import ast
@@ -13,7 +13,7 @@ from PIL import Image
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULT_LIMIT_BYTES = 12 * 1024 * 1024
-MAX_SIDE = 1600
+MAX_SIDE = 1200
 DATED = re.compile(r"(stop|session|run|idle)_?\d+", re.IGNORECASE)
 PICTURES = {".png", ".jpg", ".jpeg", ".gif", ".bmp", ".tif", ".tiff", ".webp"}
 
@@ -111,7 +111,7 @@ def test_the_committed_results_stay_under_12_mb():
     assert total < RESULT_LIMIT_BYTES, f"{total / 2**20:.1f} MiB of results"
 
 
-def test_result_pictures_are_jpeg_of_at_most_1600_px():
+def test_result_pictures_are_jpeg_of_at_most_1200_px():
     wrong = []
     for p in result_files():
         if p.suffix.lower() in PICTURES:

@@ -1,4 +1,4 @@
-"""How the studies write their pictures: JPEG at quality 85, at most 1600 px on a side (larger pictures are shrunk
+"""How the studies write their pictures: JPEG at quality 85, at most 1200 px on a side (larger pictures are shrunk
 with area averaging), so that a committed result stays small and every picture opens in a browser."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 JPEG_QUALITY = 85
-MAX_SIDE = 1600
+MAX_SIDE = 1200
 
 
 def fit_max_side(image: np.ndarray, max_side: int = MAX_SIDE) -> np.ndarray:

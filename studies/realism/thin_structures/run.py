@@ -33,8 +33,6 @@ OUT = Path(__file__).resolve().parent / "result"
 SEED, MAX_W, SHEET_PAIRS = 7, 1280, 8
 
 
-SHEET_WIDTH = 1200  # px: the contact sheet is scaled down to this width
-
 
 def photos():
     """Every val photo: (name, RGB image, COCO boxes of its labelled cones), at most MAX_W wide."""
@@ -108,8 +106,6 @@ def main() -> int:
         sheet += [np.zeros_like(sheet[0])] * (len(sheet) % 2)
         half = len(sheet) // 2
         grid = np.concatenate([np.concatenate(sheet[:half], 0), np.concatenate(sheet[half:], 0)], 1)
-        s = min(1.0, SHEET_WIDTH / grid.shape[1])  # the committed results stay small
-        grid = cv2.resize(grid, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else grid
         write_jpeg(OUT / "contact_sheet.jpg", cv2.cvtColor(grid, cv2.COLOR_RGB2BGR))
     print(json.dumps({k: v for k, v in res.items() if k != "per_photo"}, indent=1))
     return 0

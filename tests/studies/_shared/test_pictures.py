@@ -1,4 +1,4 @@
-"""studies._shared.pictures: a picture is written as a JPEG of at most 1600 px on a side, read back by PIL."""
+"""studies._shared.pictures: a picture is written as a JPEG of at most MAX_SIDE px on a side, read back by PIL."""
 
 import numpy as np
 import pytest
@@ -12,7 +12,7 @@ def test_a_large_picture_is_shrunk_to_the_bound_with_its_aspect_and_colour(tmp_p
     bgr[..., 2] = 200  # red in BGR
     write_jpeg(tmp_path / "wide.jpg", bgr)
     with Image.open(tmp_path / "wide.jpg") as im:
-        assert im.format == "JPEG" and im.size == (MAX_SIDE, 400)
+        assert im.format == "JPEG" and im.size == (MAX_SIDE, MAX_SIDE // 4)  # 3600 x 900: aspect 4
         rgb = np.asarray(im.convert("RGB"), float)
     assert np.abs(rgb.mean((0, 1)) - [200, 0, 0]).max() < 3
 
@@ -39,4 +39,4 @@ def test_a_figure_is_written_as_a_bounded_jpeg(tmp_path):
     save_figure_jpeg(fig, tmp_path / "plot.jpg", dpi=110)  # 2200 x 440 before the bound
     plt.close(fig)
     with Image.open(tmp_path / "plot.jpg") as im:
-        assert im.format == "JPEG" and im.size == (MAX_SIDE, 320)
+        assert im.format == "JPEG" and im.size == (MAX_SIDE, MAX_SIDE // 5)  # 2200 x 440: aspect 5
