@@ -33,7 +33,6 @@ OUT = Path(__file__).resolve().parent / "result"
 SEED, MAX_W, SHEET_PAIRS = 7, 1280, 8
 
 
-
 def photos():
     """Every val photo: (name, RGB image, COCO boxes of its labelled cones), at most MAX_W wide."""
     root = data_root() / "tracon"
