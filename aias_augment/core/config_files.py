@@ -16,6 +16,7 @@ Every problem raises :class:`ConfigFileError` (an :class:`~aias_augment.core.err
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -127,6 +128,13 @@ def _no_constant(name: str):
     raise ValueError(f"{name} is not a JSON number")
 
 
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):  # a literal past the float range (1e310) reads as inf
+        raise ValueError(f"{text} is out of the float range")
+    return value
+
+
 def _json_depth(value: Any) -> int:
     depth, level = 0, [value]
     while level:
@@ -142,9 +150,10 @@ def _json_depth(value: Any) -> int:
 
 
 def parse_json(text: str, source: str) -> Any:
-    """``text`` as strict JSON (no NaN/Infinity, nesting <= :data:`MAX_NESTING`); :class:`ConfigFileError`."""
+    """``text`` as strict JSON (no NaN/Infinity nor a number past the float range, nesting <= :data:`MAX_NESTING`);
+    :class:`ConfigFileError`."""
     try:
-        value = json.loads(text, parse_constant=_no_constant)
+        value = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
     except ValueError as e:  # json.JSONDecodeError, and a NaN/Infinity refused by _no_constant
         raise ConfigFileError(source, f"not valid JSON ({e})") from None
     except RecursionError:
