@@ -302,6 +302,11 @@ def cone_params(rng: np.random.Generator, h: float, look: ConeLook | None = None
     return p if look is None else _apply_look(p, look, h)
 
 
+#: Texture rows per pass of :func:`_cone_texture`'s per-texel arithmetic: a block's colours stay in the CPU cache
+#: through all of its steps (each texel goes through the same operations as in whole-image passes).
+_TEXTURE_BLOCK_ROWS = 64
+
+
 def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image:
     """The cone's texture image: base colour patch at the bottom rows, the body above it with v linear in height,
     bands where ``p['bands_z_m']`` says, slight colour noise, dirt (darker, desaturated blotches, more near the
@@ -312,51 +317,69 @@ def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image
     zb = p["base_height_m"]
     z = zb + (v - _V_BODY[0]) / (_V_BODY[1] - _V_BODY[0]) * (h - zb)  # row -> height on the body
     body = np.asarray(p["colour_rgb"], float) / 255.0
-    img = np.empty((th, tw, 3))
-    img[:] = body
     band = np.zeros(th, bool)
     for a, b in p["bands_z_m"]:
         band |= (z >= a) & (z <= b)
     band &= v >= _V_BODY[0]
     white = np.array([0.96, 0.96, 0.95]) if p["band_colour"] == "white" else np.array([0.84, 0.85, 0.86])
-    img[band] = white
     base_rgb = {"black": np.array([0.07, 0.07, 0.07]), "grey": np.array([0.22, 0.22, 0.23]), "body": body * 0.85}[
         p["base_colour"]
     ]
-    img[v < (_V_BASE[1] + _V_BODY[0]) / 2] = base_rgb
-    # slight colour noise: smooth low-frequency plus fine grain (retroreflective bands get a sparkle grain)
+    row_rgb = np.empty((th, 3))  # each row's colour before the noise: body, band or base
+    row_rgb[:] = body
+    row_rgb[band] = white
+    row_rgb[v < (_V_BASE[1] + _V_BODY[0]) / 2] = base_rgb
+    # the random fields, drawn in a fixed order: slight colour noise, smooth low-frequency plus fine grain
+    # (retroreflective bands get a sparkle grain), then the dirt's blotches
     low = _wrapped_blur(rng.normal(0, 1, (th // 8, tw // 8)), 2.0)
     low = cv2.resize(low / max(low.std(), 1e-9), (tw, th))  # eps: flat noise
     grain = rng.normal(0, 1, (th, tw))
-    img *= (1 + 0.04 * low + 0.015 * grain)[..., None]
-    img[band] *= (1 + 0.03 * rng.normal(0, 1, (int(band.sum()), tw)))[..., None]
-    # the sheeting's prism cells: a fine diamond lattice, its period (8 texels) dividing the width so that it closes
-    # round the seam and keeps the cone's 4-fold symmetry
-    i, j = np.nonzero(band)[0][:, None], np.arange(tw)[None, :]
-    cell = (np.abs((i + j) % 8 - 3.5) + np.abs((i - j) % 8 - 3.5)) / 7.0  # 0 at a cell's centre, 1 at its corners
-    img[band] *= (1 + 0.06 * (0.5 - cell))[..., None]
-    if p["dirt"] > 0:
+    sparkle = rng.normal(0, 1, (int(band.sum()), tw))
+    sparkle_row = np.cumsum(band) - 1  # a band row's index into ``sparkle``
+    cols = np.arange(tw)[None, :]
+    dirt = p["dirt"] > 0
+    if dirt:
         blot = _wrapped_blur(rng.normal(0, 1, (th // 4, tw // 4)), 3.0)  # patchy, periodic around the cone
         blot = cv2.resize(np.clip(blot / max(blot.std(), 1e-9) * 0.6 + 0.1, 0, 1), (tw, th))  # eps: flat noise
         ground = np.clip(1.2 - (z - zb) / (0.5 * (h - zb)), 0.2, 1.0)[:, None]  # dirtier near the ground
         if texture is not None:
             photo = np.asarray(texture.convert("L").resize((tw, th)), float) / 255.0
             blot = blot * (0.5 + photo)
-        d = np.clip(p["dirt"] * blot * ground, 0, 0.85)[..., None]
         grime = np.array([0.28, 0.24, 0.2])  # brownish road dirt
-        grey = img.mean(-1, keepdims=True)
-        # desaturate, darken: (img (1 - d/2) + grey d/2) (1 - 0.45 d) + 0.15 grime d, without full-size temporaries
-        img *= 1 - 0.5 * d
-        img += grey * 0.5 * d
-        img *= 1 - 0.45 * d
-        img += grime * 0.15 * d
+    img = np.empty((th, tw, 3))
+    for r0 in range(0, th, _TEXTURE_BLOCK_ROWS):
+        rows = slice(r0, min(th, r0 + _TEXTURE_BLOCK_ROWS))
+        blk = img[rows]
+        blk[:] = row_rgb[rows, None, :]
+        blk *= (1 + 0.04 * low[rows] + 0.015 * grain[rows])[..., None]
+        in_band = band[rows]
+        if in_band.any():
+            blk[in_band] *= (1 + 0.03 * sparkle[sparkle_row[rows][in_band]])[..., None]
+            # the sheeting's prism cells: a fine diamond lattice, its period (8 texels) dividing the width so that it
+            # closes round the seam and keeps the cone's 4-fold symmetry
+            i = np.flatnonzero(in_band)[:, None] + r0
+            cell = (np.abs((i + cols) % 8 - 3.5) + np.abs((i - cols) % 8 - 3.5)) / 7.0  # 0 at a cell's centre
+            blk[in_band] *= (1 + 0.06 * (0.5 - cell))[..., None]
+        if dirt:
+            d = np.clip(p["dirt"] * blot[rows] * ground[rows], 0, 0.85)[..., None]
+            grey = blk.mean(-1, keepdims=True)
+            # desaturate, darken: (img (1 - d/2) + grey d/2) (1 - 0.45 d) + 0.15 grime d
+            blk *= 1 - 0.5 * d
+            blk += grey * 0.5 * d
+            blk *= 1 - 0.45 * d
+            blk += grime * 0.15 * d
+    if dirt:
         for _ in range(int(p["dirt"] * 40)):  # scuffs: short dark horizontal streaks
             r0, c0 = rng.integers(th), rng.integers(tw)
             ln, wd = rng.integers(4, 30), rng.integers(1, 3)
             img[r0 : r0 + wd, c0 : c0 + ln] *= rng.uniform(0.55, 0.85)
-    img *= 255
-    img += 0.5
-    return Image.fromarray(np.clip(img, 0, 255, out=img).astype(np.uint8))
+    out = np.empty((th, tw, 3), np.uint8)
+    for r0 in range(0, th, _TEXTURE_BLOCK_ROWS):
+        blk = img[r0 : r0 + _TEXTURE_BLOCK_ROWS]
+        blk *= 255
+        blk += 0.5
+        out[r0 : r0 + _TEXTURE_BLOCK_ROWS] = np.clip(blk, 0, 255, out=blk)
+    return Image.fromarray(out)
 
 
 def cone_sections(p: dict, h: float) -> list[list[tuple[float, float, float, float]]]:
