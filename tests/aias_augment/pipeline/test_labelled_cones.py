@@ -83,10 +83,13 @@ def test_inserted_cones_are_as_tall_as_the_labelled_ones_on_their_row(scene):
                 out.append((y1 - y0) / (c * y1 + c0))
         return np.array(out)
 
-    level = ratios(replace(CFG, placement_cfg=replace(CFG.placement_cfg, pitch_from_references=False)))
-    pitched = ratios(CFG)
-    assert len(pitched) >= 6
-    assert np.all((pitched >= 0.8) & (pitched <= 1.25)), pitched  # issue 53's band
+    level_cfg = replace(CFG.placement_cfg, pitch_from_references=False, sizes_from_rows=False)
+    level = ratios(replace(CFG, placement_cfg=level_cfg))
+    pitched = ratios(replace(CFG, placement_cfg=replace(CFG.placement_cfg, sizes_from_rows=False)))
+    rows = ratios(replace(CFG, placement_cfg=replace(level_cfg, sizes_from_rows=True)))
+    assert len(pitched) >= 6 and len(rows) >= 6
+    assert np.all((pitched >= 0.8) & (pitched <= 1.25)), pitched  # issue 53's band, from the pitch fit
+    assert np.all((rows >= 0.8) & (rows <= 1.25)), rows  # and from the row sizes on the level prior
     assert np.any((level < 0.8) | (level > 1.25)), level  # the level prior alone gets rows wrong
 
 
