@@ -11,7 +11,7 @@ boxes). The fit searches the turn and the object-to-camera-height ratio on a gri
 object depends on nothing else.
 
 The same metrology sizes each inserted object without any camera model: objects of one height standing on a plane
-seen by a level-rolled camera have box heights linear in their bottom rows, zero on the horizon
+seen by a camera without roll have box heights linear in their bottom rows, zero on the horizon
 (:class:`RowHeights`). The labelled boxes give that line directly when their rows spread; the ground's horizon
 anchors it when they do not. An inserted object of the labelled kind is scaled to the line's height on its own
 bottom row, so it has its neighbours' size wherever the ground estimate is wrong (a wrong focal length or a pitch
