@@ -25,19 +25,17 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from statistics import median
 
-REPO = Path(__file__).resolve().parents[1]
+from aias_augment.core.config import data_root
+from benchmarks.bench_regression_guard import REPO, SINGLE_THREAD, tracon_files
+
 BOUND_S = {"fast": 0.3, "balanced": 1.0}
-SINGLE_THREAD = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")}
-
-
-def _data_root() -> Path:
-    return Path(os.environ.get("AIAS_DATA", REPO.parent / "shared" / "data"))
 
 
 def photo_sets() -> dict[str, list[Path]]:
-    root = _data_root()
-    tracon = sorted((root / "tracon" / "images" / "train").glob("*.jpg"))[:12]
+    root = data_root()
+    tracon = tracon_files(12)
     dgp = sorted((root / "dgp_scene").rglob("rgb/*/*.jpg"))
     kitti = [root / "kitti06_color_snippet" / f"kitti06-{i}-color.png" for i in (12, 13, 14)]
     sets = {"tracon": tracon, "road_2mp": dgp + kitti}
@@ -86,16 +84,12 @@ def main(argv: list[str] | None = None) -> int:
                     samples[name][preset].append(run_cli(folder, preset, a.cpu, tmp))
                     print(f"{name} {preset} round {r + 1}: {samples[name][preset][-1]}", flush=True)
 
-    def med(xs):
-        xs = sorted(xs)
-        return xs[len(xs) // 2] if len(xs) % 2 else 0.5 * (xs[len(xs) // 2 - 1] + xs[len(xs) // 2])
-
     rows = []
     for name in sets:
         for preset, bound in BOUND_S.items():
             s = samples[name][preset]
-            per = med([x["median_s_per_image"] for x in s])
-            wall = med([x["wall_s"] / x["images"] for x in s])
+            per = median([x["median_s_per_image"] for x in s])
+            wall = median([x["wall_s"] / x["images"] for x in s])
             rows.append(
                 {
                     "set": name,

@@ -249,16 +249,18 @@ def _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_heig
 ROW_RESCALE_LIMIT = 10.0
 
 
-def _sized_to_row(asset, scale, cam_from_object, intrinsics, row_heights: RowHeights):
-    """(scale, corners projected (8, 2), their depths) of ``asset`` at ``cam_from_object`` rescaled about its
-    contact point until its box is ``row_heights``' height on the box's own bottom row (fixed-point steps: the
-    bottom row moves a little with the scale), or (None, reason)."""
+def _projected_at_scale(asset, scale, cam_from_object, intrinsics, row_heights: RowHeights | None):
+    """(scale, corners projected (8, 2), their depths) of ``asset`` at ``cam_from_object``, or (None, reason). With
+    ``row_heights`` the object is rescaled about its contact point until its box is the line's height on the box's
+    own bottom row (fixed-point steps: the bottom row moves a little with the scale); without, ``scale`` is kept."""
     start = scale
     for step in range(4):
         corners = transform_points(cam_from_object, asset.corners_m() * scale)
         uvc, z = project_points(corners, intrinsics.K)
         if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
             return None, "object crosses the camera plane"
+        if row_heights is None:
+            break
         box = box_of_points(uvc)
         target, bh = float(row_heights.at(box[3])), float(box[3] - box[1])
         if not (target > 0 and bh > 0):
@@ -481,19 +483,13 @@ def sample_placement(
         scale = target_h / max(asset.reference_height_m, 1e-9)
         yaw = rng.uniform(-np.pi, np.pi)
         cam_from_object = object_pose_on_ground(p, plane, yaw)
-        if row_heights is not None:
-            scale, got = _sized_to_row(asset, scale, cam_from_object, intrinsics, row_heights)
-            if scale is None:
-                report.rejected[got] += 1
-                continue
-            uvc, z = got
+        scale, got = _projected_at_scale(asset, scale, cam_from_object, intrinsics, row_heights)
+        if scale is None:
+            report.rejected[got] += 1
+            continue
+        uvc, z = got
+        if row_heights is not None:  # the height the row's scale gives
             target_h = scale * asset.reference_height_m
-        else:
-            corners = transform_points(cam_from_object, asset.corners_m() * scale)
-            uvc, z = project_points(corners, intrinsics.K)
-            if np.any(z <= 0.05) or not np.all(np.isfinite(uvc)):
-                report.rejected["object crosses the camera plane"] += 1
-                continue
         box = box_of_points(uvc)
         bh = box[3] - box[1]
         reason = _box_rejection(box, w, h, existing, cfg)
