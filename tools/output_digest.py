@@ -183,7 +183,7 @@ def clip(seed: int):
         frames = [seq.frame(i).image for i in range(CLIP_FRAMES)]
         poses = np.stack([seq.cam_from_world(i) for i in range(CLIP_FRAMES)])
         rng = np.random.default_rng(seed)
-        lighting = estimate_lighting_clip(frames, seq.intrinsics, poses, rng=rng)
+        lighting = estimate_lighting_clip(frames, seq.intrinsics, poses)
         res = insert_into_clip(
             frames,
             seq.intrinsics,

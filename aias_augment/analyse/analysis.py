@@ -271,7 +271,7 @@ def analyse_scene(frame: Frame, cfg: AnalyseConfig = AnalyseConfig(), *, key: st
     # copy the sun's side and the cast-shadow contrast are lost (studies/lighting/kitti_cast_shadow/result/kitti_cast_shadow.md).
     lsmall = _analysis_copy(img, max(cfg.analysis_max_width, cfg.lighting_cfg.min_input_width)) if cheap else None
     if lsmall is None:
-        lighting = scene_lighting(img, intr, up_ground, rng, cfg, meta, mods)
+        lighting = scene_lighting(img, intr, up_ground, cfg, meta, mods)
     else:
         sh_, sw_ = lsmall.shape[:2]
         meta_s = dict(meta)
@@ -280,7 +280,7 @@ def analyse_scene(frame: Frame, cfg: AnalyseConfig = AnalyseConfig(), *, key: st
                 rows = ((np.arange(sh_) + 0.5) * h / sh_).astype(int)
                 cols = ((np.arange(sw_) + 0.5) * w / sw_).astype(int)
                 meta_s[k] = np.asarray(meta_s[k])[rows][:, cols]
-        lighting = scene_lighting(lsmall, _scaled_intrinsics(intr, sw_, sh_), up_ground, rng, cfg, meta_s, mods)
+        lighting = scene_lighting(lsmall, _scaled_intrinsics(intr, sw_, sh_), up_ground, cfg, meta_s, mods)
     monochrome = is_monochrome(img)
     if monochrome:
         mods["colour"] = (
@@ -380,7 +380,7 @@ def scene_geometry(
 
 
 def scene_lighting(
-    image, intr: Intrinsics, ground: GroundPlane, rng, cfg: AnalyseConfig, meta: dict, modules: dict
+    image, intr: Intrinsics, ground: GroundPlane, cfg: AnalyseConfig, meta: dict, modules: dict
 ) -> LightingEstimate:
     """Sun (kept apart, for shading and shadows) + SH ambient in the image's linear radiometric units."""
     if not cfg.lighting:
@@ -397,7 +397,7 @@ def scene_lighting(
         lcfg = dataclasses.replace(lcfg, camera_height_m=float(ground.camera_height_m))
     # A given environment map (scene fact 'envmap') is the lighting: its sun and ambient, not the image's cues.
     est = estimate_lighting(
-        image, intr, None, {**meta, "up_in_world": ground.normal}, envmap=meta.get("envmap"), rng=rng, config=lcfg
+        image, intr, None, {**meta, "up_in_world": ground.normal}, envmap=meta.get("envmap"), config=lcfg
     )
     if est.dominant_sun:
         modules["lighting"] = (

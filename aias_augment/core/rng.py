@@ -16,3 +16,14 @@ def require_rng(rng, where: str) -> np.random.Generator:
         got = "nothing" if rng is None else type(rng).__name__
         raise TypeError(f"{where}: rng is required: pass a numpy Generator (e.g. np.random.default_rng(0)), got {got}")
     return rng
+
+
+def systematic_sample(n: int, k: int) -> np.ndarray:
+    """Indices of a draw-free sample of ``k`` of ``n`` items: all ``n`` (ascending) when ``n <= k``, else ``k`` evenly
+    spaced ones from the first to the last. A statistic of pixels taken in raster order this way is a property of the
+    image: it does not move with a generator's state."""
+    if n < 0 or k < 1:
+        raise ValueError(f"systematic_sample: need n >= 0 and k >= 1, got n={n}, k={k}")
+    if n <= k:
+        return np.arange(n)
+    return np.linspace(0, n - 1, k).round().astype(np.int64)

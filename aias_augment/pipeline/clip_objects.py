@@ -168,7 +168,7 @@ def insert_objects_into_clip(
     category = request.categories[int(rng.integers(len(request.categories)))]
     # the preset's asset source, as the image door draws (procedural: one seeded family member per object)
     asset = choose_asset(category, rng, InsertionConfig(categories=(category,), asset_source=preset.asset_source))
-    lighting, lighting_note = _clip_lighting(frames, intrinsics, cams_from_world, ground_in_cam0, preset, request, rng)
+    lighting, lighting_note = _clip_lighting(frames, intrinsics, cams_from_world, ground_in_cam0, preset, request)
     # each object's layer stages from generators of their own: rng untouched
     layer_params = draw_layer_params(preset, request.seed, request.objects)
     frame_params = draw_frame_params(preset, request.seed)  # the clip's frame stages: one draw for all its frames
@@ -218,7 +218,7 @@ def is_grey_clip(frames) -> bool:
     return all(np.array_equal(f[..., 0], f[..., 1]) and np.array_equal(f[..., 1], f[..., 2]) for f in frames)
 
 
-def _clip_lighting(frames, intr, poses, ground0, preset, request: ClipRequest, rng):
+def _clip_lighting(frames, intr, poses, ground0, preset, request: ClipRequest):
     """(per-frame lighting or None, its note): one sun fused over the clip with the image door's lighting config at
     the clip's camera height, or ambient when asked for or when the estimator cannot read the clip (said why)."""
     from aias_augment.analyse.lighting.estimate import estimate_lighting_clip
@@ -229,7 +229,7 @@ def _clip_lighting(frames, intr, poses, ground0, preset, request: ClipRequest, r
         height = ground0.camera_height_m
         height = height if np.isfinite(height) and height > 0 else request.camera_height_m
         lcfg = dataclasses.replace(preset.lighting_cfg, camera_height_m=float(height))
-        lighting = estimate_lighting_clip(frames, intr, poses, rng=rng.spawn(1)[0], config=lcfg)
+        lighting = estimate_lighting_clip(frames, intr, poses, config=lcfg)
     except (ValueError, np.linalg.LinAlgError) as e:  # a clip the estimator cannot read: ambient, said why
         log.warning("clip lighting failed (%s): ambient light only", e)
         return None, skipped(str(e))

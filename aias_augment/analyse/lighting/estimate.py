@@ -55,7 +55,6 @@ from aias_augment.analyse.lighting.sun_evidence import decide_direct_sun, direct
 from aias_augment.core.envmap import EnvironmentMap
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.hdr import luminance
-from aias_augment.core.rng import require_rng
 
 __all__ = [
     "LightingEstimate",
@@ -270,7 +269,6 @@ def estimate_lighting(
     meta: dict | None = None,
     envmap: EnvironmentMap | np.ndarray | None = None,
     *,
-    rng: np.random.Generator,
     config: LightingConfig = LightingConfig(),
 ) -> LightingEstimate:
     """Estimate the lighting of one RGB uint8 frame (see the module docstring for frames, units and sources).
@@ -278,11 +276,10 @@ def estimate_lighting(
     ``meta`` keys used: 'lat', 'lon', 'utc' (ISO string) with an orientation ('enu_from_cam', 'enu_from_world' or
     'heading_deg' [+ 'pitch_deg', 'roll_deg']); 'up_in_world' (3,); 'indoor' (bool); 'ground_mask' ((H, W) bool: the
     ground region used for lit/shadow); 'world_from_env' (3x3, orientation of ``envmap`` given as an array).
-    ``rng`` (required) subsamples pixels. The result is always finite.
+    No random draws: the estimate is a property of the inputs. The result is always finite.
     """
     img = check_image(image_rgb_uint8)
     meta = dict(meta or {})
-    rng = require_rng(rng, "estimate_lighting")
     R_cw = np.eye(3) if cam_from_world is None else rotation_of(cam_from_world)
     if envmap is not None:
         up_in_world, _ = up_vectors(R_cw, meta)
@@ -294,13 +291,13 @@ def estimate_lighting(
         return lighting_from_envmap(
             env, R_cw, up_in_world if "up_in_world" in meta else None, config, bool(meta.get("indoor", False))
         )
-    ctx = prepare_frame(img, intrinsics, R_cw, meta, config, rng)
+    ctx = prepare_frame(img, intrinsics, R_cw, meta, config)
     if ctx.indoor:
         return _finish(ctx, None, 0.0, "none", None, config)
     sun_dir = _metadata_sun(ctx, cam_from_world is not None)
     if sun_dir is not None:
         return _finish(ctx, sun_dir, 0.95, "metadata", None, config)
-    sun_est = image_cue_sun([ctx], ctx.up_in_world, config, rng)
+    sun_est = image_cue_sun([ctx], ctx.up_in_world, config)
     sun_dir = ctx.R_cw @ sun_est.direction_in_world
     confidence = sun_est.confidence * (1.0 if ctx.known_camera else 0.5)
     cue = sun_est.sky_cues[0]
@@ -314,7 +311,6 @@ def estimate_lighting_clip(
     cams_from_world: Sequence[np.ndarray],
     metas: Sequence[dict] | dict | None = None,
     *,
-    rng: np.random.Generator,
     config: LightingConfig = LightingConfig(),
 ) -> list[LightingEstimate]:
     """Lighting of the frames of one clip with known poses: one sun, fused in world coordinates.
@@ -325,15 +321,14 @@ def estimate_lighting_clip(
     fused direction rotated into its camera. Metadata (GPS + UTC + orientation) on every frame overrides fusion. Sun
     strength and ambient stay per frame. The world's up is ``metas[0]['up_in_world']`` or the first camera's -y.
     """
-    rng = require_rng(rng, "estimate_lighting_clip")
-    ctxs, up_in_world = prepare_clip(images, intrinsics, cams_from_world, metas, config, rng)
+    ctxs, up_in_world = prepare_clip(images, intrinsics, cams_from_world, metas, config)
     meta_suns = [None if c.indoor else _metadata_sun(c, True) for c in ctxs]
     if all(s is not None for s in meta_suns):
         return [_finish(c, s, 0.95, "metadata", None, config) for c, s in zip(ctxs, meta_suns)]
     live = [c for c in ctxs if not c.indoor]
     if not live:
         return [_finish(c, None, 0.0, "none", None, config) for c in ctxs]
-    sun_est = image_cue_sun(live, up_in_world, config, rng)
+    sun_est = image_cue_sun(live, up_in_world, config)
     d_world, confidence = sun_est.direction_in_world, sun_est.confidence
     cues = iter(sun_est.sky_cues)
     # one decision for the clip: the median of its frames' probabilities (one sun, one weather)

@@ -79,7 +79,6 @@ def prepare_frame(
     R_cw: np.ndarray,
     meta: dict,
     config: LightingConfig,
-    rng: np.random.Generator,
 ) -> FrameContext:
     h, w = img.shape[:2]
     up_in_world, up_in_cam = up_vectors(R_cw, meta)
@@ -99,12 +98,12 @@ def prepare_frame(
     if region.shape != (h, w):
         raise ValueError(f"estimate_lighting: ground_mask must be {(h, w)}, got {region.shape}")
     linear = srgb_to_linear(img)
-    measurement = measure_lit_shadow(linear, region, rng=rng)
+    measurement = measure_lit_shadow(linear, region)
     measurement_region = region
     if not (measurement is not None and measurement.dominant_sun):
         for lateral, forward in config.fallback_ground_boxes_m:
             box = ground_region_mask(K, up_in_cam, config.camera_height_m, tuple(lateral), tuple(forward))
-            m = measure_lit_shadow(linear, box, rng=rng)
+            m = measure_lit_shadow(linear, box)
             if fallback_measurement_ok(m, config):
                 measurement, measurement_region = m, box
                 break
@@ -140,7 +139,7 @@ def fallback_measurement_ok(m: LitShadowMeasurement | None, config: LightingConf
     )
 
 
-def prepare_clip(images, intrinsics, cams_from_world, metas, config: LightingConfig, rng: np.random.Generator):
+def prepare_clip(images, intrinsics, cams_from_world, metas, config: LightingConfig):
     """Frame contexts of a clip and its world up (``metas[0]['up_in_world']`` or the first camera's -y)."""
     n = len(images)
     if n == 0 or len(cams_from_world) != n:
@@ -154,7 +153,7 @@ def prepare_clip(images, intrinsics, cams_from_world, metas, config: LightingCon
     for m in ms:
         m.setdefault("up_in_world", up_in_world)
     ctxs = [
-        prepare_frame(check_image(img), K, rotation_of(T), m, config, rng)
+        prepare_frame(check_image(img), K, rotation_of(T), m, config)
         for img, K, T, m in zip(images, Ks, cams_from_world, ms)
     ]
     return ctxs, up_in_world

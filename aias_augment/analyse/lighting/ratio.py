@@ -1,7 +1,7 @@
 """Sun-to-sky ratio from lit versus shadowed ground of one material, and detection of scenes with no dominant sun.
 
 Method: inside a ground region (given, or the road-like area below the horizon), fit a two-component Gaussian mixture
-to log-luminance (sklearn). A sunny ground with cast shadows is bimodal: the dark mode is shadow (sky light only), the
+to log-luminance (:class:`TwoGaussians`, on an evenly spaced sample of the region's pixels: no draws). A sunny ground with cast shadows is bimodal: the dark mode is shadow (sky light only), the
 bright mode lit (sky + sun). Same material is enforced loosely by dropping pixels whose chromaticity is far from the
 region's median (lane paint, grass, cars). Pixels near the class boundary (penumbrae, texture) are dropped by keeping only
 confident posteriors and eroding each class. The ratio uses class medians of linear luminance.
@@ -22,7 +22,7 @@ from scipy import ndimage
 from aias_augment.analyse.lighting.envmap import camera_ray_directions
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from aias_augment.core.hdr import luminance, max_channel
-from aias_augment.core.rng import require_rng
+from aias_augment.core.rng import systematic_sample
 
 __all__ = [
     "LitShadowMeasurement",
@@ -31,6 +31,60 @@ __all__ = [
     "ground_coordinates",
     "shadow_axis_on_ground",
 ]
+
+
+@dataclass(frozen=True)
+class TwoGaussians:
+    """A two-component Gaussian mixture in one dimension, fitted by EM from the two-means split of the sorted sample
+    (the k-means start, found exactly in 1-D). No draws: the fit is a property of the sample."""
+
+    weights: np.ndarray
+    means: np.ndarray
+    variances: np.ndarray
+
+    @classmethod
+    def fit(cls, x: np.ndarray, *, max_iter: int = 100, tol: float = 1e-3, reg: float = 1e-6) -> TwoGaussians:
+        """EM until the mean log-likelihood gains less than ``tol``; ``reg`` is added to each variance (sklearn's
+        ``reg_covar``). ``x`` needs two or more distinct values."""
+        xs = np.sort(np.asarray(x, dtype=np.float64).ravel())
+        n = xs.size
+        if n < 2 or xs[0] == xs[-1]:
+            raise ValueError(f"TwoGaussians.fit: need two or more distinct values, got {n} samples")
+        csum = np.concatenate([[0.0], np.cumsum(xs)])
+        k = n // 2
+        for _ in range(64):  # two-means in 1-D: the split at the midpoint of the two halves' means, to a fixed point
+            mid = 0.5 * (csum[k] / k + (csum[n] - csum[k]) / (n - k))
+            k_next = int(np.clip(np.searchsorted(xs, mid, side="right"), 1, n - 1))
+            if k_next == k:
+                break
+            k = k_next
+        model = cls(
+            np.array([k, n - k], dtype=np.float64) / n,
+            np.array([xs[:k].mean(), xs[k:].mean()]),
+            np.array([xs[:k].var(), xs[k:].var()]) + reg,
+        )
+        previous = -np.inf
+        for _ in range(max_iter):
+            log_joint = model._log_joint(xs)
+            log_total = np.logaddexp(log_joint[:, 0], log_joint[:, 1])
+            resp = np.exp(log_joint - log_total[:, None])
+            nk = resp.sum(axis=0) + 10.0 * np.finfo(np.float64).eps
+            means = (resp * xs[:, None]).sum(axis=0) / nk
+            model = cls(nk / n, means, (resp * (xs[:, None] - means) ** 2).sum(axis=0) / nk + reg)
+            mean_ll = float(log_total.mean())
+            if abs(mean_ll - previous) < tol:
+                break
+            previous = mean_ll
+        return model
+
+    def _log_joint(self, x: np.ndarray) -> np.ndarray:
+        d = x[:, None] - self.means
+        return -0.5 * (d * d / self.variances + np.log(2.0 * np.pi * self.variances)) + np.log(self.weights)
+
+    def posterior(self, x: np.ndarray) -> np.ndarray:
+        """(N, 2) probability of each component given each value."""
+        log_joint = self._log_joint(np.asarray(x, dtype=np.float64).ravel())
+        return np.exp(log_joint - np.logaddexp(log_joint[:, 0], log_joint[:, 1])[:, None])
 
 
 @dataclass(frozen=True)
@@ -159,20 +213,16 @@ def measure_lit_shadow(
     min_fraction: float = 0.01,
     min_lit_to_shadow: float = 1.5,
     max_samples: int = 8000,
-    rng: np.random.Generator,
 ) -> LitShadowMeasurement | None:
     """Measure lit and shadowed luminance of the ground in ``region_mask``; None if fewer than 200 usable pixels.
 
     ``image_linear``: (H, W, 3) float linear RGB (use ``hdr.srgb_to_linear``; clipped pixels are excluded). The
     per-pixel tests run on the region's pixels only (float64, as every statistic below), the luminance on the image.
     """
-    from sklearn.mixture import GaussianMixture
-
     img = np.asarray(image_linear)
     region = np.asarray(region_mask, bool)
     if img.ndim != 3 or img.shape[2] != 3 or region.shape != img.shape[:2]:
         raise ValueError(f"measure_lit_shadow: image {img.shape} and mask {region.shape} do not match")
-    rng = require_rng(rng, "measure_lit_shadow")
     flat = img.reshape(-1, 3)
     Y = luminance(img).astype(np.float64).ravel()
 
@@ -202,18 +252,16 @@ def measure_lit_shadow(
     idx, px, y = idx[ok], px[ok], y[ok]  # the usable pixels: flat indices (ascending), colours, luminances
     usable = mask_at(idx)
     logY = np.log(np.maximum(y, 1e-6))  # eps: usable pixels have Y > 1e-4
-    fit_idx = rng.choice(idx, max_samples, replace=False) if idx.size > max_samples else idx
-    fit_logY = logY[np.searchsorted(idx, fit_idx)]
+    fit_logY = logY[systematic_sample(idx.size, max_samples)]
     n = int(idx.size)
     if float(np.ptp(fit_logY)) < 1e-3:  # one flat colour: nothing to separate
         rgb, yy = np.median(px, 0), float(np.median(y))
         return LitShadowMeasurement(rgb, rgb, yy, yy, 1.0, 0.0, 0.0, 0.0, n, False, usable, np.zeros_like(usable))
-    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=1).fit(fit_logY[:, None])
-    mu = gm.means_.ravel()
-    sd = np.sqrt(gm.covariances_.ravel())
+    mixture = TwoGaussians.fit(fit_logY)
+    mu, var = mixture.means, mixture.variances
     dark, bright = int(np.argmin(mu)), int(np.argmax(mu))
-    separation = float(abs(mu[bright] - mu[dark]) / np.sqrt(0.5 * (sd[0] ** 2 + sd[1] ** 2)))
-    post = gm.predict_proba(logY[:, None])[:, dark]
+    separation = float(abs(mu[bright] - mu[dark]) / np.sqrt(0.5 * (var[0] + var[1])))
+    post = mixture.posterior(logY)[:, dark]
     shadow = mask_at(idx[post >= min_posterior])
     lit = mask_at(idx[post <= 1.0 - min_posterior])
     if erode_px > 0:

@@ -33,7 +33,7 @@ from aias_augment.analyse.lighting.solar_position import (
 )
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.hdr import luminance, max_channel, srgb_to_linear
-from aias_augment.core.rng import require_rng
+from aias_augment.core.rng import systematic_sample
 
 __all__ = [
     "enu_from_cam_from_metadata",
@@ -377,8 +377,6 @@ def sun_cue_from_image(
     exclusion_kappa: float = 40.0,
     exclusion_min_elevation_deg: float = 10.0,
     whiteness_weight: float = 0.0,
-    *,
-    rng: np.random.Generator,
 ) -> SunCue:
     """Score candidate sun directions from one image with a known camera.
 
@@ -401,7 +399,6 @@ def sun_cue_from_image(
     hazy horizon in front of the camera read as a low sun in view.
     """
     img = _checked_image(image_rgb_uint8, intrinsics)
-    rng = require_rng(rng, "sun_cue_from_image")
     cam_from_world = np.eye(3) if cam_from_world is None else rotation_of(cam_from_world)
     if up_in_world is None:
         up_in_world = cam_from_world.T @ np.array([0.0, -1.0, 0.0])  # level camera: up is -y
@@ -432,8 +429,7 @@ def sun_cue_from_image(
     idx = np.flatnonzero(sky.ravel())
     n_sky = int(idx.size)
     if n_sky >= 50:
-        if n_sky > max_sky_pixels:
-            idx = rng.choice(idx, max_sky_pixels, replace=False)
+        idx = idx[systematic_sample(n_sky, max_sky_pixels)]
         sky_loglik, sky_contrast, cue_agreement = _sky_pattern_loglik(
             rays.reshape(-1, 3)[idx],
             logY.ravel()[idx],

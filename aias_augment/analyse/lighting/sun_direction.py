@@ -23,7 +23,6 @@ from aias_augment.analyse.lighting.sun import (
 )
 from aias_augment.analyse.lighting.sun_side import sun_side_cue
 from aias_augment.core.geometry import Intrinsics
-from aias_augment.core.rng import require_rng
 
 __all__ = [
     "SunDirectionEstimate",
@@ -70,9 +69,7 @@ def sky_side_mixture(loglik: np.ndarray, half_turn: np.ndarray, p: float) -> np.
     return np.logaddexp(np.log(p) + ll, np.log1p(-p) + ll[np.asarray(half_turn)])
 
 
-def _sun_evidence(
-    ctx: FrameContext, grid_world: np.ndarray, azel: np.ndarray, config: LightingConfig, rng: np.random.Generator
-):
+def _sun_evidence(ctx: FrameContext, grid_world: np.ndarray, azel: np.ndarray, config: LightingConfig):
     """Log-likelihood of each world-grid sun direction from this frame: sky / sun-disc cue (tempered when no disc is
     visible), elevation from GPS + time when given without an orientation, cast-shadow axis on the ground, and the
     side cues (vertical surfaces, shadow ends). Returns (loglik, cue, axis_strength, side_loglik, side) where
@@ -85,7 +82,6 @@ def _sun_evidence(
         ctx.up_in_world,
         grid_world,
         whiteness_weight=config.sky_colour_weight,
-        rng=rng,
     )
     # The sky fit is sharp when it puts the sun inside the frame (the circumsolar sky is seen; 1.8 deg median on the HDR
     # crops) and unreliable on the side when it puts it outside: there it becomes a mixture of itself and its mirror
@@ -203,15 +199,13 @@ def _side_margin(side_loglik: np.ndarray, grid: np.ndarray, chosen_dir: np.ndarr
     return float(side_loglik[same].max() - side_loglik[~same].max())
 
 
-def image_cue_sun(
-    ctxs: list, up_in_world: np.ndarray, config: LightingConfig, rng: np.random.Generator
-) -> SunDirectionEstimate:
+def image_cue_sun(ctxs: list, up_in_world: np.ndarray, config: LightingConfig) -> SunDirectionEstimate:
     """Sum the frames' sun evidence on one world grid (frames as independent views of one distant sun), add the
     elevation prior once, take the best candidate; confidence = max(sky-cue confidence, 0.5 x axis strength x
     posterior concentration) x the side-agreement factor (``_side_agreement``)."""
     grid_up, azel = sun_direction_grid()
     grid_world = grid_up @ frame_from_up(up_in_world)
-    evidence = [_sun_evidence(c, grid_world, azel, config, rng) for c in ctxs]
+    evidence = [_sun_evidence(c, grid_world, azel, config) for c in ctxs]
     loglik = np.sum([e[0] for e in evidence], axis=0) + _elevation_prior(azel, config)
     d_world = grid_world[int(np.argmax(loglik))]
     _, concentration = posterior_summary(grid_world, loglik, up_in_world)
@@ -235,7 +229,6 @@ def estimate_sun_direction(
     cam_from_world: np.ndarray | None = None,
     meta: dict | None = None,
     *,
-    rng: np.random.Generator,
     config: LightingConfig = LightingConfig(),
 ) -> SunDirectionEstimate:
     """The image-cue sun direction of one frame (sky or sun disc, cast-shadow axis, walls, shadow ends), as
@@ -243,10 +236,9 @@ def estimate_sun_direction(
     that decide dominance themselves). ``meta``: 'up_in_world', 'ground_mask', 'lat'/'lon'/'utc' (elevation only)."""
     img = check_image(image_rgb_uint8)
     meta = dict(meta or {})
-    rng = require_rng(rng, "estimate_sun_direction")
     R_cw = np.eye(3) if cam_from_world is None else rotation_of(cam_from_world)
-    ctx = prepare_frame(img, intrinsics, R_cw, meta, config, rng)
-    return image_cue_sun([ctx], ctx.up_in_world, config, rng)
+    ctx = prepare_frame(img, intrinsics, R_cw, meta, config)
+    return image_cue_sun([ctx], ctx.up_in_world, config)
 
 
 def estimate_sun_direction_clip(
@@ -255,11 +247,9 @@ def estimate_sun_direction_clip(
     cams_from_world: Sequence[np.ndarray],
     metas: Sequence[dict] | dict | None = None,
     *,
-    rng: np.random.Generator,
     config: LightingConfig = LightingConfig(),
 ) -> SunDirectionEstimate:
     """The image-cue sun of a clip with known poses, fused in world coordinates as :func:`estimate_lighting_clip` does
     (the world's up: ``metas[0]['up_in_world']`` or the first camera's -y)."""
-    rng = require_rng(rng, "estimate_sun_direction_clip")
-    ctxs, up_in_world = prepare_clip(images, intrinsics, cams_from_world, metas, config, rng)
-    return image_cue_sun([c for c in ctxs if not c.indoor] or ctxs, up_in_world, config, rng)
+    ctxs, up_in_world = prepare_clip(images, intrinsics, cams_from_world, metas, config)
+    return image_cue_sun([c for c in ctxs if not c.indoor] or ctxs, up_in_world, config)

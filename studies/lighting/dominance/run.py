@@ -81,7 +81,7 @@ def main(argv=None) -> int:
                     sx, sy = width / K.width, h / K.height
                     Kw = Intrinsics(K.fx * sx, K.fy * sy, (K.cx + 0.5) * sx - 0.5, (K.cy + 0.5) * sy - 0.5, width, h)
             t = time.perf_counter()
-            e = estimate_lighting(im, Kw, rng=np.random.default_rng(0))
+            e = estimate_lighting(im, Kw)
             dt = time.perf_counter() - t
             rows.append(
                 {

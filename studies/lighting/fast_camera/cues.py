@@ -3,7 +3,7 @@ sun swapped one at a time between the two copies, on the development half of the
 
 For every development photo (``run.halves``), fast is analysed with the lighting on a 320 px copy and on the camera's
 640 px copy (``160,640,320`` and ``160,640,640``: for photos up to 640 px wide the latter is balanced's own lighting).
-The inputs ``estimate_lighting`` receives in each are kept (image, camera, ground mask, generator state) and the
+The inputs ``estimate_lighting`` receives in each are kept (image, camera, ground mask, config) and the
 frame is prepared from both; then the sun is taken (``image_cue_sun``) from a frame that mixes three groups, each from
 the 320 (``l``) or the 640 (``h``) preparation:
 
@@ -12,18 +12,17 @@ the 320 (``l``) or the 640 (``h``) preparation:
 - side: the image the side cues (walls, shadow ends) run on (320 or 640 px; ``side_analysis_width`` 800).
 
 ``lll`` is fast today, ``hhh`` the 640 px lighting; each code gives the agreement with balanced's recorded direction.
-The generator continues from the state the measurement's preparation left (as in ``estimate_lighting``).
+The lighting takes no random draws (its pixel samples are evenly spaced): only the camera's RANSAC draws.
 
-``--seeds``: instead, both lightings with other seeds of the analysis' generator (``ANALYSIS_SEED``: RANSAC, the sky
-pixels and the lit/shadow samples drawn) against balanced's recorded direction: how far balanced's own computation
-agrees with itself when only its random draws change.
+``--seeds``: instead, both lightings with other seeds of the analysis' generator (``ANALYSIS_SEED``: the camera's
+RANSAC draws) against balanced's recorded direction: how far balanced's own computation agrees with itself when only
+its random draws change.
 
     taskset -c 1 nice .venv/bin/python -m studies.lighting.fast_camera.cues              # result/cues.json
     taskset -c 1 nice .venv/bin/python -m studies.lighting.fast_camera.cues --seeds 1 2 3  # result/seeds.json
 """
 
 import argparse
-import copy
 import dataclasses
 import itertools
 import json
@@ -45,13 +44,13 @@ GROUPS = ("sky", "measure", "side")
 
 def lighting_inputs(img: np.ndarray, cfg) -> tuple:
     """What ``estimate_lighting`` receives inside ``analyse_scene(img, cfg)``: (image, camera, meta, a copy of the
-    generator as it was, config), and the analysis' sun direction (NaN where none)."""
+    config), and the analysis' sun direction (NaN where none)."""
     got = {}
     real = analysis.estimate_lighting
 
-    def keep(image, intrinsics, cam_from_world, meta, envmap=None, *, rng, config):
-        got["inputs"] = (image, intrinsics, dict(meta), copy.deepcopy(rng), config)
-        return real(image, intrinsics, cam_from_world, meta, envmap, rng=rng, config=config)
+    def keep(image, intrinsics, cam_from_world, meta, envmap=None, *, config):
+        got["inputs"] = (image, intrinsics, dict(meta), config)
+        return real(image, intrinsics, cam_from_world, meta, envmap, config=config)
 
     with mock.patch.object(analysis, "estimate_lighting", keep):
         est = analysis.analyse_scene(Frame(img, None), cfg).lighting
@@ -62,9 +61,8 @@ def lighting_inputs(img: np.ndarray, cfg) -> tuple:
 def mixed_suns(inputs: dict) -> dict[str, np.ndarray]:
     """The sun (camera frame; NaN at or below the horizon) of every mix of the groups, keyed ``sky measure side``."""
     prepared = {}
-    for k, (image, K, meta, rng, config) in inputs.items():
-        r = copy.deepcopy(rng)
-        prepared[k] = (prepare_frame(image, K, np.eye(3), meta, config, r), r, config)
+    for k, (image, K, meta, config) in inputs.items():
+        prepared[k] = (prepare_frame(image, K, np.eye(3), meta, config), config)
     real_side = sun_direction.sun_side_cue
     out = {}
     for code in itertools.product("lh", repeat=3):
@@ -77,9 +75,7 @@ def mixed_suns(inputs: dict) -> dict[str, np.ndarray]:
             return real_side(_side.img, _side.K, up, grid, **kw)
 
         with mock.patch.object(sun_direction, "sun_side_cue", side_cue):
-            est = sun_direction.image_cue_sun(
-                [ctx], ctx.up_in_world, prepared[code[1]][2], copy.deepcopy(prepared[code[1]][1])
-            )
+            est = sun_direction.image_cue_sun([ctx], ctx.up_in_world, prepared[code[1]][1])
         d = ctx.R_cw @ est.direction_in_world
         out["".join(code)] = d if float(d @ ctx.up_in_cam) > 0.0 else np.full(3, np.nan)
     return out

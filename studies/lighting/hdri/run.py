@@ -126,16 +126,14 @@ def crop_eval(
             img = expose_ldr(em.render_perspective(rad, K, R))
             t = time.perf_counter()
             kw = {} if whiteness_weight is None else {"whiteness_weight": whiteness_weight}
-            cue = sun.sun_cue_from_image(img, K, R, up, grid, rng=rng, **kw)
+            cue = sun.sun_cue_from_image(img, K, R, up, grid, **kw)
             dt = time.perf_counter() - t
             t = time.perf_counter()
             # The production path: every cue estimate_lighting uses (sky tempered out of view, cast-shadow axis of the
             # ground box, walls and shadow ends where the ground shows cast shadows or the sun is seen). A panorama's
             # camera height is unknown; it only scales ground distances (the default 1.65 m is used).
             # Its own generator: the crops' draws (yaw, pitch, fov) must stay those of the sky-only protocol.
-            est = estimate_sun_direction(
-                img, K, R, {"up_in_world": up}, rng=np.random.default_rng([seed, k]), config=config
-            )
+            est = estimate_sun_direction(img, K, R, {"up_in_world": up}, config=config)
             dt_side = time.perf_counter() - t
             side = est.side_cues[0]
             images.append(img)
@@ -183,9 +181,7 @@ def crop_eval(
                 }
             )
         f = sun.fuse_sun_cues(cues)
-        clip = estimate_sun_direction_clip(
-            images, Ks, Rs, {"up_in_world": up}, rng=np.random.default_rng([seed, 99]), config=config
-        )
+        clip = estimate_sun_direction_clip(images, Ks, Rs, {"up_in_world": up}, config=config)
         d_fc = clip.direction_in_world
         fused.append(
             {

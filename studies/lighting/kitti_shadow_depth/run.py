@@ -70,7 +70,7 @@ def road_mask(K: Intrinsics) -> np.ndarray:
 
 
 def real_shadow(img: np.ndarray, road: np.ndarray) -> ratio.LitShadowMeasurement:
-    m = ratio.measure_lit_shadow(hdr.srgb_to_linear(img), road, rng=np.random.default_rng(0))
+    m = ratio.measure_lit_shadow(hdr.srgb_to_linear(img), road)
     if m is None:
         raise RuntimeError("too few road pixels")
     return m
@@ -117,7 +117,7 @@ def inserted_shadow(
     out = {"shadow_pixels": int(shadow.sum()), "umbra_pixels": int(umbra.sum())}
     if umbra.sum() >= 100:  # fewer umbra pixels: a sliver of penumbra or contact shade, not a measurable shadow
         out["inserted_shadow_to_lit"] = float(np.median(q[umbra]))
-    m = ratio.measure_lit_shadow(hdr.srgb_to_linear(img_out), valid & lit_in, rng=np.random.default_rng(0))
+    m = ratio.measure_lit_shadow(hdr.srgb_to_linear(img_out), valid & lit_in)
     if m is not None and m.dominant_sun:
         inserted = m.shadow_mask & shadow  # the dark mode must be the inserted shadow, not lit-asphalt texture
         out["mixture_shadow_pixels"] = int(inserted.sum())
@@ -230,7 +230,7 @@ def main(argv=None) -> int:
         from aias_augment.plan.insertion import InsertionPlan, PlannedObject, plan_insertion
         from aias_augment.plan.placement import placement_at
 
-        lighting_road = estimate_lighting(img, K, meta={"ground_mask": road}, rng=np.random.default_rng(0))
+        lighting_road = estimate_lighting(img, K, meta={"ground_mask": road})
         # The road box's lighting in the frame's analysis: the steps after it (shading, shadow, composite) are the
         # pipeline's own, through its apply door.
         road_cfg = replace(pipeline.InsertionConfig(), harmonize=False, ssaa=2)

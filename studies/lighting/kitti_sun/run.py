@@ -33,7 +33,7 @@ def main(argv=None) -> int:
     for idx in args.frames:
         img = ek.load_frame(Path(args.data), idx)
         K = Intrinsics(*ek.KITTI_K, img.shape[1], img.shape[0])
-        est = estimate_lighting(img, K, meta={"ground_mask": ek.road_mask(K)}, rng=np.random.default_rng(0))
+        est = estimate_lighting(img, K, meta={"ground_mask": ek.road_mask(K)})
         d = est.sun_direction_in_cam
         if d is None:
             rows[idx] = {"sun": None, "confidence": est.confidence}

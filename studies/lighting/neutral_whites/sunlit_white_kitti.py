@@ -25,7 +25,7 @@ def sunlit_white_up(img: np.ndarray, sky_only_ambient: bool) -> tuple[np.ndarray
     if not sky_only_ambient:
         est_mod.sky_part_of_neutral = lambda sh, up, r: np.asarray(sh, np.float64)
     try:
-        e = est_mod.estimate_lighting(img, K, rng=np.random.default_rng(0))
+        e = est_mod.estimate_lighting(img, K)
     finally:
         est_mod.sky_part_of_neutral = keep
     up = e.up_in_cam

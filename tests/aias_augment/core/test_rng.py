@@ -5,18 +5,10 @@ import numpy as np
 import pytest
 import torch
 
-from aias_augment.analyse.lighting.estimate import (
-    estimate_lighting,
-    estimate_lighting_clip,
-    estimate_sun_direction,
-    estimate_sun_direction_clip,
-)
-from aias_augment.analyse.lighting.ratio import measure_lit_shadow
-from aias_augment.analyse.lighting.sun import sun_cue_from_image
 from aias_augment.apply.harmonize import harmonize, harmonize_clip
 from aias_augment.apply.harmonize.network import Critic, masked_gradient_penalty
 from aias_augment.core.geometry import Intrinsics
-from aias_augment.core.rng import require_rng
+from aias_augment.core.rng import require_rng, systematic_sample
 from aias_augment.evaluation.realism.distances import kid_from_features
 
 IMG = np.full((48, 64, 3), 128, np.uint8)
@@ -25,14 +17,6 @@ MASK = np.zeros((48, 64), np.float32)
 MASK[10:30, 20:40] = 1.0
 
 CALLS = {
-    "estimate_lighting": lambda **kw: estimate_lighting(IMG, K, **kw),
-    "estimate_sun_direction": lambda **kw: estimate_sun_direction(IMG, K, **kw),
-    "estimate_lighting_clip": lambda **kw: estimate_lighting_clip([IMG, IMG], K, [np.eye(4), np.eye(4)], **kw),
-    "estimate_sun_direction_clip": lambda **kw: estimate_sun_direction_clip(
-        [IMG, IMG], K, [np.eye(4), np.eye(4)], **kw
-    ),
-    "sun_cue_from_image": lambda **kw: sun_cue_from_image(IMG, K, **kw),
-    "measure_lit_shadow": lambda **kw: measure_lit_shadow(IMG / 255.0, MASK > 0, **kw),
     "kid_from_features": lambda **kw: kid_from_features(np.zeros((20, 4)), np.ones((30, 4)), subset_size=10, **kw),
     "harmonize": lambda **kw: harmonize(IMG, MASK, "camera", **kw),
     "harmonize_clip": lambda **kw: harmonize_clip([IMG, IMG], [MASK, MASK], "camera", **kw),
@@ -92,3 +76,19 @@ def test_gradient_penalty_needs_a_torch_generator():
     b = masked_gradient_penalty(critic, real, fake, mask, torch.Generator().manual_seed(3))
     assert float(a.detach()) == float(b.detach())
     assert torch.equal(torch.random.get_rng_state(), state)  # the process-wide torch state is not drawn from
+
+
+@pytest.mark.parametrize(("n", "k"), [(0, 5), (3, 5), (5, 5), (10, 3), (8001, 8000), (10**6, 8000)])
+def test_systematic_sample_is_evenly_spaced_and_complete(n, k):
+    idx = systematic_sample(n, k)
+    if n <= k:
+        np.testing.assert_array_equal(idx, np.arange(n))
+        return
+    assert len(idx) == k and len(np.unique(idx)) == k and idx[0] == 0 and idx[-1] == n - 1
+    gaps = np.diff(idx)
+    assert gaps.min() >= int((n - 1) / (k - 1)) and gaps.max() <= int((n - 1) / (k - 1)) + 1
+
+
+def test_systematic_sample_refuses_nonsense():
+    with pytest.raises(ValueError, match="systematic_sample"):
+        systematic_sample(10, 0)

@@ -57,7 +57,7 @@ def test_implied_ground_albedo_stays_in_range_at_any_exposure(exposure):
     img, R = render([], s, K, exposure=exposure, noise=0.0)
     # a narrower range than the default, the gain unbounded (its bound: the next test)
     anchored = LightingConfig(ground_albedo_range=(0.06, 0.15), ground_anchor_max_gain=1e6)
-    est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=anchored)
+    est = estimate_lighting(img, None, None, {}, config=anchored)
     e_up = float(luminance(sh_irradiance(est.ambient_sh, est.up_in_cam)))
     if est.dominant_sun:
         e_up += float(luminance(est.sun_irradiance_rgb)) * max(float(est.sun_direction_in_cam @ est.up_in_cam), 0)
@@ -77,7 +77,7 @@ def test_implied_ground_albedo_stays_in_range_at_any_exposure(exposure):
     )
     assert implied <= hi * 1.1 or peak == pytest.approx(0.95, rel=1e-6)
     # without the tempering the same frame implies an albedo outside the range (the fix is what keeps it inside)
-    off = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=OFF)
+    off = estimate_lighting(img, None, None, {}, config=OFF)
     e_off = float(luminance(sh_irradiance(off.ambient_sh, off.up_in_cam)))
     assert not lo <= np.pi * ground_linear / e_off <= hi
 
@@ -91,7 +91,7 @@ def test_the_anchor_changes_the_light_by_at_most_its_gain_bound(exposure):
     img, _ = render([], s, K, exposure=exposure, noise=0.0)
 
     def e_ground(cfg):
-        est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=cfg)
+        est = estimate_lighting(img, None, None, {}, config=cfg)
         e = float(luminance(sh_irradiance(est.ambient_sh, est.up_in_cam)))
         if est.dominant_sun:
             e += float(luminance(est.sun_irradiance_rgb)) * max(float(est.sun_direction_in_cam @ est.up_in_cam), 0)
@@ -119,7 +119,7 @@ def test_no_white_pixel_saturates_in_an_unclipped_sunny_scene():
     s = sun_direction(30.0, 25.0)
     img, R = render(boxes, s, K, exposure=0.7, noise=0.0)
     assert img.max() < 250  # the scene itself does not clip
-    est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0))
+    est = estimate_lighting(img, None, None, {})
     white = _white_sphere_uint8(est)
     assert white.max() < 255
     assert (
@@ -147,7 +147,7 @@ def test_saturation_check_on_real_road_photos(name):
     # Real empty roads (low-confidence suns with sun/sky ratios up to 10.9 among them): a white Lambertian surface in
     # any orientation saturates only where the photo itself clips (its 99.5th percentile of the brightest channel).
     img = tracon_train_photo(name, 640)
-    est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0))
+    est = estimate_lighting(img, None, None, {})
     scene_clips = np.percentile(img.max(-1), 99.5) >= 252
     if not scene_clips:
         assert _white_sphere_uint8(est).max() < 255
@@ -172,7 +172,7 @@ def test_white_balance_brings_the_light_colour_to_the_truth():
     )
 
     def blue_over_red(cfg):
-        est = estimate_lighting(img, None, None, {}, rng=np.random.default_rng(0), config=cfg)
+        est = estimate_lighting(img, None, None, {}, config=cfg)
         e = sh_irradiance(est.ambient_sh, est.up_in_cam)
         if est.dominant_sun:
             e = e + est.sun_irradiance_rgb * max(float(est.sun_direction_in_cam @ est.up_in_cam), 0.26)

@@ -21,25 +21,23 @@ def _ground(r_true, with_shadow=True, seed=0):
 @pytest.mark.parametrize("r_true", [1.5, 4.0, 8.0])
 def test_ratio_recovered_on_synthetic_ground(r_true):
     img = _ground(r_true)
-    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool), rng=np.random.default_rng(0))
+    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool))
     assert m.dominant_sun
     assert m.sun_sky_ratio == pytest.approx(r_true, rel=0.1)
 
 
 def test_overcast_ground_has_no_dominant_sun():
     img = _ground(0.0, with_shadow=False)
-    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool), rng=np.random.default_rng(0))
+    m = ratio.measure_lit_shadow(img, np.ones(img.shape[:2], bool))
     assert not m.dominant_sun
 
 
 def test_too_few_pixels_and_black():
     img = _ground(3.0)
-    assert ratio.measure_lit_shadow(img, np.zeros(img.shape[:2], bool), rng=np.random.default_rng(0)) is None
-    assert (
-        ratio.measure_lit_shadow(np.zeros_like(img), np.ones(img.shape[:2], bool), rng=np.random.default_rng(0)) is None
-    )
+    assert ratio.measure_lit_shadow(img, np.zeros(img.shape[:2], bool)) is None
+    assert ratio.measure_lit_shadow(np.zeros_like(img), np.ones(img.shape[:2], bool)) is None
     with pytest.raises(ValueError):
-        ratio.measure_lit_shadow(img, np.ones((3, 3), bool), rng=np.random.default_rng(0))
+        ratio.measure_lit_shadow(img, np.ones((3, 3), bool))
 
 
 def test_ground_region_is_below_horizon_and_in_front():
@@ -89,11 +87,10 @@ def test_sun_over_sky_colour_from_a_lit_and_shadowed_pair_and_a_non_physical_pai
         LightingConfig(max_sun_sky_chroma=0.9)
 
 
-def _lit_shadow_on_the_whole_image(img, region, erode_px=0, rng=None):
+def _lit_shadow_on_the_whole_image(img, region, erode_px=0):
     """measure_lit_shadow's statistics computed over every pixel of the image in float64, then read in the region:
     (usable, lit, shadow, lit/shadow medians, separation); None where it finds too few pixels."""
     from scipy import ndimage
-    from sklearn.mixture import GaussianMixture
 
     img = np.asarray(img, np.float64)
     Y = (img.astype(np.float32) @ np.array([0.2126, 0.7152, 0.0722], np.float32)).astype(np.float64)
@@ -108,18 +105,18 @@ def _lit_shadow_on_the_whole_image(img, region, erode_px=0, rng=None):
         return None
     logY = np.log(np.maximum(Y, 1e-6)).ravel()
     idx = np.flatnonzero(usable.ravel())
-    fit_idx = rng.choice(idx, 8000, replace=False) if idx.size > 8000 else idx
-    gm = GaussianMixture(2, random_state=int(rng.integers(2**31 - 1)), n_init=1).fit(logY[fit_idx, None])
-    mu, sd = gm.means_.ravel(), np.sqrt(gm.covariances_.ravel())
+    fit_idx = idx[np.linspace(0, idx.size - 1, 8000).round().astype(int)] if idx.size > 8000 else idx
+    gm = ratio.TwoGaussians.fit(logY[fit_idx])
+    mu, var = gm.means, gm.variances
     dark = int(np.argmin(mu))
     post = np.zeros(Y.size)
-    post[idx] = gm.predict_proba(logY[idx, None])[:, dark]
+    post[idx] = gm.posterior(logY[idx])[:, dark]
     post = post.reshape(Y.shape)
     shadow, lit = usable & (post >= 0.95), usable & (post <= 0.05)
     if erode_px:
         shadow = ndimage.binary_erosion(shadow, iterations=erode_px)
         lit = ndimage.binary_erosion(lit, iterations=erode_px)
-    separation = float(abs(mu.max() - mu.min()) / np.sqrt(0.5 * (sd[0] ** 2 + sd[1] ** 2)))
+    separation = float(abs(mu.max() - mu.min()) / np.sqrt(0.5 * (var[0] + var[1])))
     return usable, lit, shadow, np.median(img[lit], 0), np.median(img[shadow], 0), np.median(Y[lit]), separation
 
 
@@ -129,7 +126,7 @@ def _lit_shadow_on_the_whole_image(img, region, erode_px=0, rng=None):
 def test_region_pixels_only_give_the_whole_image_statistics(erode_px, big, dtype):
     """The measurement reads only the region's pixels: its masks, medians and mixture are those of the same
     statistics computed over the whole image (bit for bit), with lane paint (a chroma outlier), clipped and black
-    pixels in the region, more usable pixels than the mixture's sample (``big``: 8000 drawn), and float64 colours
+    pixels in the region, more usable pixels than the mixture's sample (``big``: 8000 evenly spaced), and float64 colours
     (whose channel sums depend on the order of the additions)."""
     img = _ground(4.0, seed=1).astype(dtype)
     if dtype == np.float64:
@@ -141,13 +138,50 @@ def test_region_pixels_only_give_the_whole_image_statistics(erode_px, big, dtype
     img[110:114, 100:140] = 0.0  # black
     region = np.zeros(img.shape[:2], bool)
     region[3:, 4:-7] = True
-    m = ratio.measure_lit_shadow(img, region, erode_px=erode_px, rng=np.random.default_rng(5))
-    usable, lit, shadow, lit_rgb, shadow_rgb, lit_y, separation = _lit_shadow_on_the_whole_image(
-        img, region, erode_px, np.random.default_rng(5)
-    )
+    m = ratio.measure_lit_shadow(img, region, erode_px=erode_px)
+    usable, lit, shadow, lit_rgb, shadow_rgb, lit_y, separation = _lit_shadow_on_the_whole_image(img, region, erode_px)
     assert m.dominant_sun and m.n_pixels == usable.sum()
     np.testing.assert_array_equal(m.lit_mask, lit)
     np.testing.assert_array_equal(m.shadow_mask, shadow)
     np.testing.assert_array_equal(m.lit_rgb, lit_rgb)
     np.testing.assert_array_equal(m.shadow_rgb, shadow_rgb)
     assert m.lit_luminance == lit_y and m.separation == separation
+
+
+@pytest.mark.parametrize("shadow_share", [0.03, 0.2, 0.5, 0.8])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_two_gaussians_match_sklearn_mixture(shadow_share, seed):
+    """The draw-free 1-D mixture finds what sklearn's GaussianMixture (k-means start, 20 restarts) finds on bimodal
+    log-luminance: means, standard deviations and weights, and posteriors on a grid."""
+    from sklearn.mixture import GaussianMixture
+
+    rng = np.random.default_rng(seed)
+    n = 8000
+    k = int(shadow_share * n)
+    x = np.concatenate([rng.normal(-2.3, 0.25, k), rng.normal(-0.9, 0.18, n - k)])
+    mine = ratio.TwoGaussians.fit(x, tol=1e-6)
+    ref = GaussianMixture(2, n_init=20, tol=1e-6, random_state=seed).fit(x[:, None])
+    order, ref_order = np.argsort(mine.means), np.argsort(ref.means_.ravel())
+    np.testing.assert_allclose(mine.means[order], ref.means_.ravel()[ref_order], atol=2e-3)
+    np.testing.assert_allclose(np.sqrt(mine.variances[order]), np.sqrt(ref.covariances_.ravel()[ref_order]), atol=2e-3)
+    np.testing.assert_allclose(mine.weights[order], ref.weights_[ref_order], atol=2e-3)
+    grid = np.linspace(-3.5, 0.0, 50)
+    np.testing.assert_allclose(
+        mine.posterior(grid)[:, order], ref.predict_proba(grid[:, None])[:, ref_order], atol=5e-3
+    )
+
+
+def test_two_gaussians_refuse_a_constant_sample():
+    with pytest.raises(ValueError, match="two or more distinct values"):
+        ratio.TwoGaussians.fit(np.full(100, 0.5))
+
+
+def test_lit_shadow_measurement_does_not_move_with_the_order_of_draws():
+    """No generator: the same image gives the same measurement, and a region larger than the mixture's sample (8000)
+    still splits a clean two-level ground exactly at its shadow edge."""
+    img = np.tile(_ground(4.0, seed=3), (2, 2, 1))
+    region = np.ones(img.shape[:2], bool)
+    a, b = ratio.measure_lit_shadow(img, region), ratio.measure_lit_shadow(img.copy(), region.copy())
+    assert a.n_pixels > 8000
+    np.testing.assert_array_equal(a.shadow_mask, b.shadow_mask)
+    assert a.sun_sky_ratio == b.sun_sky_ratio and a.dominant_sun
