@@ -17,7 +17,7 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, special
 
 from aias_augment.analyse.lighting.envmap import camera_ray_directions
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
@@ -58,33 +58,40 @@ class TwoGaussians:
             if k_next == k:
                 break
             k = k_next
-        model = cls(
-            np.array([k, n - k], dtype=np.float64) / n,
-            np.array([xs[:k].mean(), xs[k:].mean()]),
-            np.array([xs[:k].var(), xs[k:].var()]) + reg,
-        )
+        w = np.array([k, n - k], dtype=np.float64) / n
+        mu = np.array([xs[:k].mean(), xs[k:].mean()])
+        var = np.array([xs[:k].var(), xs[k:].var()]) + reg
         previous = -np.inf
         for _ in range(max_iter):
-            log_joint = model._log_joint(xs)
-            log_total = np.logaddexp(log_joint[:, 0], log_joint[:, 1])
-            resp = np.exp(log_joint - log_total[:, None])
-            nk = resp.sum(axis=0) + 10.0 * np.finfo(np.float64).eps
-            means = (resp * xs[:, None]).sum(axis=0) / nk
-            model = cls(nk / n, means, (resp * (xs[:, None] - means) ** 2).sum(axis=0) / nk + reg)
-            mean_ll = float(log_total.mean())
+            log_odds, log_second = _log_odds(xs, w, mu, var)
+            r0 = special.expit(log_odds)  # component 0's responsibility; component 1's is 1 - r0
+            r1 = 1.0 - r0
+            nk = np.array([r0.sum(), r1.sum()]) + 10.0 * np.finfo(np.float64).eps
+            mu = np.array([r0 @ xs, r1 @ xs]) / nk
+            var = np.array([r0 @ (xs - mu[0]) ** 2, r1 @ (xs - mu[1]) ** 2]) / nk + reg
+            w = nk / n
+            mean_ll = float(np.mean(log_second) + np.mean(np.logaddexp(log_odds, 0.0)))  # E[log p(x)], old model
             if abs(mean_ll - previous) < tol:
                 break
             previous = mean_ll
-        return model
+        return cls(w, mu, var)
 
-    def _log_joint(self, x: np.ndarray) -> np.ndarray:
-        d = x[:, None] - self.means
-        return -0.5 * (d * d / self.variances + np.log(2.0 * np.pi * self.variances)) + np.log(self.weights)
+    def log_odds(self, x: np.ndarray) -> np.ndarray:
+        """log p(component 0 | x) - log p(component 1 | x) for each value (the posterior's logit)."""
+        return _log_odds(np.asarray(x, dtype=np.float64).ravel(), self.weights, self.means, self.variances)[0]
 
     def posterior(self, x: np.ndarray) -> np.ndarray:
         """(N, 2) probability of each component given each value."""
-        log_joint = self._log_joint(np.asarray(x, dtype=np.float64).ravel())
-        return np.exp(log_joint - np.logaddexp(log_joint[:, 0], log_joint[:, 1])[:, None])
+        r0 = special.expit(self.log_odds(x))
+        return np.stack([r0, 1.0 - r0], axis=1)
+
+
+def _log_odds(x: np.ndarray, w: np.ndarray, mu: np.ndarray, var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """log p(x, component 0) - log p(x, component 1), and log p(x, component 1), for each value."""
+    c = np.log(w) - 0.5 * np.log(2.0 * np.pi * var)
+    t0, t1 = x - mu[0], x - mu[1]
+    second = c[1] - (0.5 / var[1]) * (t1 * t1)
+    return c[0] - (0.5 / var[0]) * (t0 * t0) - second, second
 
 
 @dataclass(frozen=True)
@@ -261,9 +268,10 @@ def measure_lit_shadow(
     mu, var = mixture.means, mixture.variances
     dark, bright = int(np.argmin(mu)), int(np.argmax(mu))
     separation = float(abs(mu[bright] - mu[dark]) / np.sqrt(0.5 * (var[0] + var[1])))
-    post = mixture.posterior(logY)[:, dark]
-    shadow = mask_at(idx[post >= min_posterior])
-    lit = mask_at(idx[post <= 1.0 - min_posterior])
+    dark_odds = mixture.log_odds(logY) * (1.0 if dark == 0 else -1.0)  # the shadow mode's posterior logit
+    confident = np.log(min_posterior / (1.0 - min_posterior))
+    shadow = mask_at(idx[dark_odds >= confident])
+    lit = mask_at(idx[dark_odds <= -confident])
     if erode_px > 0:
         shadow = ndimage.binary_erosion(shadow, iterations=erode_px)
         lit = ndimage.binary_erosion(lit, iterations=erode_px)

@@ -109,10 +109,10 @@ def _lit_shadow_on_the_whole_image(img, region, erode_px=0):
     gm = ratio.TwoGaussians.fit(logY[fit_idx])
     mu, var = gm.means, gm.variances
     dark = int(np.argmin(mu))
-    post = np.zeros(Y.size)
-    post[idx] = gm.posterior(logY[idx])[:, dark]
-    post = post.reshape(Y.shape)
-    shadow, lit = usable & (post >= 0.95), usable & (post <= 0.05)
+    odds = np.zeros(Y.size)
+    odds[idx] = gm.log_odds(logY[idx]) * (1.0 if dark == 0 else -1.0)
+    odds = odds.reshape(Y.shape)
+    shadow, lit = usable & (odds >= np.log(0.95 / 0.05)), usable & (odds <= -np.log(0.95 / 0.05))
     if erode_px:
         shadow = ndimage.binary_erosion(shadow, iterations=erode_px)
         lit = ndimage.binary_erosion(lit, iterations=erode_px)
