@@ -152,14 +152,27 @@ def match_blur(image_float: np.ndarray, fg: np.ndarray, surround: np.ndarray, pa
         kernels = [motion_kernel(n, angle) for n in range(2, int(4 * params.max_blur_sigma_px) + 1)]
     else:
         kernels = [s for s in np.linspace(0.3, params.max_blur_sigma_px, 12)]
-    best, best_err = image_float, abs(own - target)
+    # A trial blur is read on the foreground only (its pixels, and the 3x3 index filters on the inner part): it runs
+    # on the foreground's box grown by the largest kernel's reach plus the filters' pixel, the same values there as
+    # on the whole crop (the window's edges are the crop's, or farther from the foreground than any kernel reaches).
+    reach = 2 + max(int(np.ceil(4.0 * k)) + 1 if np.isscalar(k) else max(k.shape) // 2 for k in kernels)
+    rows, cols = np.flatnonzero(fg.any(axis=1)), np.flatnonzero(fg.any(axis=0))
+    win = (
+        slice(max(rows[0] - reach, 0), min(rows[-1] + 1 + reach, fg.shape[0])),
+        slice(max(cols[0] - reach, 0), min(cols[-1] + 1 + reach, fg.shape[1])),
+    )
+    sub, inner_w = image_float[win], inner[win]
+    best, best_err = None, abs(own - target)
     for k in kernels:
-        blurred = cv2.GaussianBlur(image_float, (0, 0), k) if np.isscalar(k) else cv2.filter2D(image_float, -1, k)
-        err = abs(sharpness_index(blurred @ LUMA_WEIGHTS, inner) - target)
+        blurred = cv2.GaussianBlur(sub, (0, 0), k) if np.isscalar(k) else cv2.filter2D(sub, -1, k)
+        err = abs(sharpness_index(blurred @ LUMA_WEIGHTS, inner_w) - target)
         if err < best_err:
             best, best_err = blurred, err
+    if best is None:
+        return image_float
     out = image_float.copy()
-    out[fg] = best[fg]
+    fg_w = fg[win]
+    out[win][fg_w] = best[fg_w]
     return out
 
 

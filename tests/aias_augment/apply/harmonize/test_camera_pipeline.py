@@ -108,6 +108,41 @@ def test_blur_is_matched_to_a_defocused_background(street_rgb):
     np.testing.assert_array_equal(out[~mask], comp[~mask])
 
 
+def _blur_on_the_whole_crop(img, fg, surround, params):
+    """match_blur's choice made by blurring the whole crop with every trial kernel (no window)."""
+    luma = np.array([0.2126, 0.7152, 0.0722], np.float32)
+    inner = cv2.erode(fg.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    target, own = sharpness_index(img @ luma, surround), sharpness_index(img @ luma, inner)
+    kernels = list(np.linspace(0.3, params.max_blur_sigma_px, 12))
+    best, best_err = img, abs(own - target)
+    for k in kernels:
+        blurred = cv2.GaussianBlur(img, (0, 0), k)
+        err = abs(sharpness_index(blurred @ luma, inner) - target)
+        if err < best_err:
+            best, best_err = blurred, err
+    out = img.copy()
+    out[fg] = best[fg]
+    return out
+
+
+@pytest.mark.parametrize("where", ["middle", "corner", "edge"])
+def test_blur_trials_on_the_foreground_window_match_the_whole_crop(street_rgb, where):
+    """The trial blurs run on the foreground's box grown by the kernels' reach: the same result (to float32 rounding)
+    as blurring the whole crop, with the object in the middle, in a corner and against an edge of the crop."""
+    srgb = street_rgb.astype(np.float32) / 255
+    blurred = cv2.GaussianBlur(srgb, (0, 0), 1.6)
+    h, w = srgb.shape[:2]
+    x0, y0 = {"middle": (w // 2 - 15, h // 2 - 15), "corner": (2, 2), "edge": (w - 32, h // 2)}[where]
+    mask = square_mask(h, w, x0, y0, 30)
+    comp = blurred.copy()
+    comp[mask] = srgb[mask]
+    params = CameraMatchParams(motion_coherence_threshold=1.1)
+    surround = ring(mask, 12)
+    got, want = match_blur(comp, mask, surround, params), _blur_on_the_whole_crop(comp, mask, surround, params)
+    assert not np.array_equal(got, comp)  # a blur was chosen
+    np.testing.assert_allclose(got, want, atol=3e-7, rtol=0)
+
+
 @pytest.mark.parametrize("quality", [50, 75, 90])
 def test_jpeg_quality_and_subsampling_are_estimated(street_rgb, quality):
     bgr = cv2.cvtColor(street_rgb, cv2.COLOR_RGB2BGR)
