@@ -166,11 +166,11 @@ def match_camera(
     x0, y0, x1, y1 = win
     comp_w, soft_w = composite_rgb_uint8[y0:y1, x0:x1], soft[y0:y1, x0:x1]
     p = replace(params, jpeg_quality=quality, match_jpeg=bool(params.match_jpeg and quality))
-    result = to_float(camera_match(comp_w, soft_w > 0.0, rng, p, chroma_420=chroma_420))
-    m = soft_w[..., None]
-    blended = to_uint8(to_float(comp_w) * (1.0 - m) + result * m)
+    fg = soft_w > 0.0
+    result = camera_match(comp_w, fg, rng, p, chroma_420=chroma_420)
+    m = soft_w[fg][:, None]  # the blend, on the pixels it changes (element-wise: the same bytes as on the window)
     out = composite_rgb_uint8.copy()
-    out[y0:y1, x0:x1] = np.where(m > 0, blended, comp_w)
+    out[y0:y1, x0:x1][fg] = to_uint8(to_float(comp_w[fg]) * (1.0 - m) + to_float(result[fg]) * m)
     return out, info
 
 

@@ -393,6 +393,8 @@ def camera_match(
     Each connected component is processed in its own context crop (4 x its box side): gains from its ring, blur and
     noise statistics from the crop's background, so the cost does not grow with the image size.
     """
+    if image_uint8.dtype != np.uint8:
+        raise ValueError(f"camera_match: expected a uint8 image, got {image_uint8.dtype}")
     srgb = image_uint8.astype(np.float32) / 255.0
     # JPEG parameters describe the source, so they are read before anything is changed.
     quality = (
@@ -422,7 +424,9 @@ def camera_match(
         if params.match_noise:
             crop = match_noise(crop, fg, rng, background=~fg & ~others, jpeg=through)
         out[y0:y1, x0:x1][fg] = crop[fg]
-    result = to_uint8(out)
+    # only the foreground changed: the rest of ``out`` is image_uint8 / 255, which rounds back to the same bytes
+    result = image_uint8.copy()
+    result[mask_bool] = to_uint8(out[mask_bool])
     if params.match_jpeg and quality:
         result = reapply_jpeg(result, mask_bool, quality, subsample)
     return result
