@@ -180,11 +180,20 @@ def match_blur(image_float: np.ndarray, fg: np.ndarray, surround: np.ndarray, pa
 IMMERKAER = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)  # L2 norm 6
 
 
-def noise_level_function(gray: np.ndarray, region: np.ndarray, bins: int = 6) -> tuple[float, float] | None:
-    """(a, b) with sigma^2(I) = a I + b (gray in [0, 1]) from the region's flattest half; None if too few pixels."""
-    resp = np.abs(cv2.filter2D(gray, cv2.CV_32F, IMMERKAER))
+def _noise_fields(gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`noise_level_function` filters ``gray`` into: Immerkaer's |response|, the smoothed grey level and
+    its gradient magnitude (per pixel; any region of the same image reads them)."""
     smooth = cv2.GaussianBlur(gray, (0, 0), 1.5)
     grad = np.hypot(cv2.Sobel(smooth, cv2.CV_32F, 1, 0), cv2.Sobel(smooth, cv2.CV_32F, 0, 1))
+    return np.abs(cv2.filter2D(gray, cv2.CV_32F, IMMERKAER)), smooth, grad
+
+
+def noise_level_function(
+    gray: np.ndarray, region: np.ndarray, bins: int = 6, *, fields: tuple | None = None
+) -> tuple[float, float] | None:
+    """(a, b) with sigma^2(I) = a I + b (gray in [0, 1]) from the region's flattest half; None if too few pixels.
+    ``fields``: ``_noise_fields(gray)`` when the caller already has them (two regions of one image)."""
+    resp, smooth, grad = _noise_fields(gray) if fields is None else fields
     inner = cv2.erode(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     inner &= (gray > 0.02) & (gray < CLIPPED)
     if inner.sum() < 64:
@@ -246,8 +255,9 @@ def match_noise(
     ``jpeg``: (quality, 4:2:0) of the re-encode that follows; the added noise is raised by :func:`jpeg_noise_gain`
     so that it measures the missing sigma after it."""
     gray = image_float @ LUMA_WEIGHTS
-    nlf_bg = noise_level_function(gray, ~fg if background is None else background)
-    nlf_fg = noise_level_function(gray, fg)
+    fields = _noise_fields(gray)
+    nlf_bg = noise_level_function(gray, ~fg if background is None else background, fields=fields)
+    nlf_fg = noise_level_function(gray, fg, fields=fields)
     if nlf_bg is None:
         return image_float
     nlf_fg = nlf_fg or (0.0, 0.0)
