@@ -1,10 +1,11 @@
 """Sun-to-sky ratio from lit versus shadowed ground of one material, and detection of scenes with no dominant sun.
 
-Method: inside a ground region (given, or the road-like area below the horizon), fit a two-component Gaussian mixture
-to log-luminance (:class:`TwoGaussians`, on an evenly spaced sample of the region's pixels: no draws). A sunny ground with cast shadows is bimodal: the dark mode is shadow (sky light only), the
-bright mode lit (sky + sun). Same material is enforced loosely by dropping pixels whose chromaticity is far from the
-region's median (lane paint, grass, cars). Pixels near the class boundary (penumbrae, texture) are dropped by keeping only
-confident posteriors and eroding each class. The ratio uses class medians of linear luminance.
+Method: inside a ground region (given, or the road-like area below the horizon), fit a two-component Gaussian mixture to
+log-luminance (:class:`TwoGaussians`, on an evenly spaced sample of the region's pixels: no draws). A sunny ground with
+cast shadows is bimodal: the dark mode is shadow (sky light only), the bright mode lit (sky + sun). Same material is
+enforced loosely by dropping pixels whose chromaticity is far from the region's median (lane paint, grass, cars). Pixels
+near the class boundary (penumbrae, texture) are dropped by keeping only confident posteriors and eroding each class.
+The ratio uses class medians of linear luminance.
 
 A scene has a dominant sun when the mixture is clearly bimodal (Ashman's D >= ``min_separation``), both modes hold at
 least ``min_fraction`` of the region, and lit / shadow >= ``min_lit_to_shadow``. Overcast and indoor ground is unimodal
@@ -25,6 +26,7 @@ from aias_augment.core.hdr import luminance, max_channel
 from aias_augment.core.rng import systematic_sample
 
 __all__ = [
+    "TwoGaussians",
     "LitShadowMeasurement",
     "measure_lit_shadow",
     "ground_region_mask",
