@@ -297,6 +297,9 @@ def ijg_table(quality: int) -> np.ndarray:
     return np.clip(np.floor((IJG_LUMA * scale + 50.0) / 100.0), 1, 255)
 
 
+_EIGHT = np.arange(8)
+
+
 def _block_dct(channel: np.ndarray) -> np.ndarray:
     h, w = (channel.shape[0] // 8) * 8, (channel.shape[1] // 8) * 8
     blocks = channel[:h, :w].reshape(h // 8, 8, w // 8, 8).transpose(0, 2, 1, 3)
@@ -317,12 +320,16 @@ def _lattice_step(coeffs: np.ndarray, max_step: int = 64, min_count: int = 30, s
 
 def estimate_jpeg_quality(image_uint8: np.ndarray) -> int | None:
     """IJG quality (1..100) that explains the luma DCT lattice on the 8x8 grid at (0, 0); None if no JPEG trace."""
-    rgb = image_uint8.astype(np.float64)
-    y = rgb @ np.array([0.299, 0.587, 0.114]) - 128.0
-    if min(y.shape) < 32:
+    h, w = image_uint8.shape[:2]
+    if min(h, w) < 32:
         return None
-    coef = _block_dct(y).reshape(-1, 8, 8)
-    coef = coef[:: max(1, len(coef) // 2000)]  # 2000 blocks are plenty and bound the cost
+    # every k-th 8x8 block in raster order, about 2000 (plenty, and a bounded cost): only those are converted to luma
+    # and transformed (per block, so the same coefficients as transforming every block and keeping those)
+    n_cols = w // 8
+    blocks = np.arange(0, (h // 8) * n_cols, max(1, (h // 8) * n_cols // 2000))
+    rows, cols = np.divmod(blocks, n_cols)
+    pixels = image_uint8[(8 * rows)[:, None, None] + _EIGHT[:, None], (8 * cols)[:, None, None] + _EIGHT[None, :]]
+    coef = dctn(pixels.astype(np.float64) @ np.array([0.299, 0.587, 0.114]) - 128.0, axes=(1, 2), norm="ortho")
     steps = [_lattice_step(coef[:, u, v]) for u, v in _PROBE_FREQS]
     found = [(f, s) for f, s in zip(_PROBE_FREQS, steps) if s is not None]
     if len(found) < 3:

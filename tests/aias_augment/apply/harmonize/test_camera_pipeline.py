@@ -143,6 +143,31 @@ def test_blur_trials_on_the_foreground_window_match_the_whole_crop(street_rgb, w
     np.testing.assert_allclose(got, want, atol=3e-7, rtol=0)
 
 
+@pytest.mark.parametrize("crop", [(0, 0), (3, 5)])
+@pytest.mark.parametrize("size", [(240, 320), (1080, 1920)])
+def test_jpeg_quality_reads_the_same_blocks_as_transforming_them_all(street_rgb, size, crop):
+    """The estimate transforms only the ~2000 blocks it reads: their coefficients are those of the whole image's block
+    DCT thinned to every k-th block (bit for bit), on a JPEG-compressed frame, its grid shifted by a crop, large and
+    small."""
+    from aias_augment.apply.harmonize import camera_pipeline as cp
+
+    big = cv2.resize(street_rgb, size[::-1], interpolation=cv2.INTER_LINEAR)
+    ok, buf = cv2.imencode(".jpg", cv2.cvtColor(big, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 80])
+    img = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)[crop[0] :, crop[1] :]
+    y = img.astype(np.float64) @ np.array([0.299, 0.587, 0.114]) - 128.0
+    every = cp._block_dct(y).reshape(-1, 8, 8)
+    every = every[:: max(1, len(every) // 2000)]
+    steps = [cp._lattice_step(every[:, u, v]) for u, v in cp._PROBE_FREQS]
+    found = [(f, s) for f, s in zip(cp._PROBE_FREQS, steps) if s is not None]
+    want = None
+    if len(found) >= 3:
+        err = [sum(abs(cp.ijg_table(q)[u, v] - s) / s for (u, v), s in found) for q in range(1, 101)]
+        want = int(np.argmin(err[::-1]) * -1 + 100)
+    assert estimate_jpeg_quality(img) == want
+    if crop == (0, 0):
+        assert want is not None and abs(want - 80) <= 5
+
+
 @pytest.mark.parametrize("quality", [50, 75, 90])
 def test_jpeg_quality_and_subsampling_are_estimated(street_rgb, quality):
     bgr = cv2.cvtColor(street_rgb, cv2.COLOR_RGB2BGR)
