@@ -201,14 +201,13 @@ class _Draft:
         if cfg.placement and pcfg.pitch_from_references and ref_kinds:
             kinds = [k for _, k in ref_kinds]
             kind = max(set(kinds), key=lambda k: (kinds.count(k), str(k)))  # the most labelled kind: one height
-            boxes = np.array([b for b, k in ref_kinds if k == kind])
+            boxes = _boxes_of(ref_kinds, kind)
             turned, mods["pitch"] = ground_from_references(ground, analysis.intrinsics, boxes, pcfg.max_pitch_turn_deg)
             ground = turned if turned is not None else ground
         draft = cls(analysis, cfg, rng, depth, ground, pcfg, ref_kinds, taken, scene_points, boxes_3d, mods)
         if cfg.placement and pcfg.sizes_from_rows:
             for kind in sorted({k for _, k in ref_kinds if k is not None}):
-                boxes = np.array([b for b, k in ref_kinds if k == kind])
-                line, why = row_heights(ground, analysis.intrinsics, boxes)
+                line, why = row_heights(ground, analysis.intrinsics, _boxes_of(ref_kinds, kind))
                 mods[f"row_sizes:{kind}"] = why
                 if line is not None:
                     draft.row_lines[kind] = line
@@ -414,6 +413,11 @@ def _kind_height(kind: str | None, base: Asset) -> float:
     (the first object drawn) for a kind without a known range."""
     hr = CATEGORY_HEIGHT_RANGE_M.get(kind) if kind is not None else None
     return float(np.mean(hr)) if hr is not None else float(base.reference_height_m)
+
+
+def _boxes_of(ref_kinds: list[tuple], kind) -> np.ndarray:
+    """(M, 4) xyxy: the image's labelled boxes of ``kind``."""
+    return np.array([b for b, k in ref_kinds if k == kind])
 
 
 def _heights_by_kind(ref_kinds: list[tuple], ground, intr: Intrinsics) -> dict:

@@ -36,8 +36,8 @@ import aias_augment.analyse.analysis as analysis
 import aias_augment.analyse.lighting.sun_direction as sun_direction
 from aias_augment.analyse.lighting.frame import prepare_frame
 from aias_augment.core.frame import Frame
-from studies.lighting.fast_camera.run import angle_deg, halves, variant
-from studies.lighting.sun_asymmetric.run import FORCED_THRESHOLD, OUT, load_photo, read_estimates
+from studies.lighting.fast_camera.run import angle_deg, halves, sunny_rows, variant
+from studies.lighting.sun_asymmetric.run import FORCED_THRESHOLD, load_photo
 
 GROUPS = ("sky", "measure", "side")
 
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="default: result/cues.json, with --seeds result/seeds.json")
     a = ap.parse_args(argv)
     out = a.out or Path("studies/lighting/fast_camera/result") / ("seeds.json" if a.seeds else "cues.json")
-    rows = [r for r in read_estimates(OUT / "estimates.csv") if r["direct_sun"] and not r["uncertain"]]
+    rows = sunny_rows()
     cfgs = {k: variant(w, sun_threshold=FORCED_THRESHOLD) for k, w in (("l", "160,640,320"), ("h", "160,640,640"))}
     ang: dict[str, dict[str, float]] = {}
     for k, r in enumerate(halves(rows)[a.half]):

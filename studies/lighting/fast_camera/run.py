@@ -41,6 +41,12 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip(a @ b, -1.0, 1.0))))
 
 
+def sunny_rows() -> list[dict]:
+    """The labelled photos with direct sun (the uncertain ones left out), as ``../sun_asymmetric``'s estimates list
+    them with each preset's direction."""
+    return [r for r in read_estimates(OUT / "estimates.csv") if r["direct_sun"] and not r["uncertain"]]
+
+
 def halves(rows: list[dict]) -> dict[str, list[dict]]:
     """The photos sorted by name and split by the parity of their place: "dev" (even) chooses a variant,
     "heldout" (odd) only reports the chosen one (and the default) once."""
@@ -154,7 +160,7 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--out", type=Path, default=Path("studies/lighting/fast_camera/result/report.json"))
     a = ap.parse_args(argv)
-    rows = [r for r in read_estimates(OUT / "estimates.csv") if r["direct_sun"] and not r["uncertain"]]
+    rows = sunny_rows()
     split = halves(rows)
     part = {r["photo"]: p for p, rs in split.items() for r in rs}
     rows = rows if a.half == "all" else split[a.half]

@@ -19,14 +19,14 @@ import numpy as np
 
 import aias_augment.analyse.analysis as analysis
 from studies.lighting.fast_camera.cues import lighting_inputs
-from studies.lighting.fast_camera.run import angle_deg, halves, variant
-from studies.lighting.sun_asymmetric.run import FORCED_THRESHOLD, OUT, load_photo, read_estimates
+from studies.lighting.fast_camera.run import angle_deg, halves, sunny_rows, variant
+from studies.lighting.sun_asymmetric.run import FORCED_THRESHOLD, load_photo
 
 SEEDS = (0, 1, 2, 3)
 
 
 def directions() -> dict:
-    rows = [r for r in read_estimates(OUT / "estimates.csv") if r["direct_sun"] and not r["uncertain"]]
+    rows = sunny_rows()
     cfg = variant("160,640,640", sun_threshold=FORCED_THRESHOLD)
     out = {}
     for half, part in halves(rows).items():
