@@ -37,7 +37,14 @@ from aias_augment.analyse.lighting.ambient import (
 )
 from aias_augment.analyse.lighting.config import LightingConfig
 from aias_augment.analyse.lighting.exposure import anchor_and_cap, temper_sun
-from aias_augment.analyse.lighting.frame import FrameContext, check_image, prepare_clip, prepare_frame, up_vectors
+from aias_augment.analyse.lighting.frame import (
+    FrameContext,
+    check_image,
+    measured,
+    prepare_clip,
+    prepare_frame,
+    up_vectors,
+)
 from aias_augment.analyse.lighting.sh import project_envmap_to_sh, sh_irradiance
 from aias_augment.analyse.lighting.sun import (
     remove_sun,
@@ -291,17 +298,21 @@ def estimate_lighting(
         return lighting_from_envmap(
             env, R_cw, up_in_world if "up_in_world" in meta else None, config, bool(meta.get("indoor", False))
         )
-    ctx = prepare_frame(img, intrinsics, R_cw, meta, config)
+    ctx = prepare_frame(img, intrinsics, R_cw, meta, config, measure=False)
     if ctx.indoor:
         return _finish(ctx, None, 0.0, "none", None, config)
     sun_dir = _metadata_sun(ctx, cam_from_world is not None)
     if sun_dir is not None:
-        return _finish(ctx, sun_dir, 0.95, "metadata", None, config)
+        return _finish(measured(ctx, config), sun_dir, 0.95, "metadata", None, config)
+    p_sun = direct_sun_probability(ctx.img) if config.sun_decision == "evidence" else None
+    if p_sun is not None and not decide_direct_sun(p_sun, config.sun_threshold):
+        # The evidence rules the sun out: neither its direction nor its strength would change the estimate.
+        return _finish(ctx, None, p_sun, "image_cues", None, config, p_sun)
+    ctx = measured(ctx, config)
     sun_est = image_cue_sun([ctx], ctx.up_in_world, config)
     sun_dir = ctx.R_cw @ sun_est.direction_in_world
     confidence = sun_est.confidence * (1.0 if ctx.known_camera else 0.5)
     cue = sun_est.sky_cues[0]
-    p_sun = direct_sun_probability(ctx.img) if config.sun_decision == "evidence" else None
     return _finish(ctx, sun_dir, confidence, "image_cues", cue, config, p_sun)
 
 
@@ -321,20 +332,31 @@ def estimate_lighting_clip(
     fused direction rotated into its camera. Metadata (GPS + UTC + orientation) on every frame overrides fusion. Sun
     strength and ambient stay per frame. The world's up is ``metas[0]['up_in_world']`` or the first camera's -y.
     """
-    ctxs, up_in_world = prepare_clip(images, intrinsics, cams_from_world, metas, config)
+    ctxs, up_in_world = prepare_clip(images, intrinsics, cams_from_world, metas, config, measure=False)
     meta_suns = [None if c.indoor else _metadata_sun(c, True) for c in ctxs]
     if all(s is not None for s in meta_suns):
-        return [_finish(c, s, 0.95, "metadata", None, config) for c, s in zip(ctxs, meta_suns)]
-    live = [c for c in ctxs if not c.indoor]
-    if not live:
+        return [_finish(measured(c, config), s, 0.95, "metadata", None, config) for c, s in zip(ctxs, meta_suns)]
+    if all(c.indoor for c in ctxs):
         return [_finish(c, None, 0.0, "none", None, config) for c in ctxs]
+    # one decision for the clip: the median of its frames' probabilities (one sun, one weather)
+    p_sun = (
+        float(np.median([direct_sun_probability(c.img) for c in ctxs if not c.indoor]))
+        if config.sun_decision == "evidence"
+        else None
+    )
+    if p_sun is not None and not decide_direct_sun(p_sun, config.sun_threshold):
+        # The evidence rules the sun out: neither its direction nor its strength would change the estimates.
+        return [
+            _finish(c, None, 0.0, "none", None, config)
+            if c.indoor
+            else _finish(c, None, p_sun, "image_cues_clip", None, config, p_sun)
+            for c in ctxs
+        ]
+    ctxs = [c if c.indoor else measured(c, config) for c in ctxs]
+    live = [c for c in ctxs if not c.indoor]
     sun_est = image_cue_sun(live, up_in_world, config)
     d_world, confidence = sun_est.direction_in_world, sun_est.confidence
     cues = iter(sun_est.sky_cues)
-    # one decision for the clip: the median of its frames' probabilities (one sun, one weather)
-    p_sun = (
-        float(np.median([direct_sun_probability(c.img) for c in live])) if config.sun_decision == "evidence" else None
-    )
     out = []
     for c in ctxs:
         if c.indoor:

@@ -4,7 +4,7 @@ where the region shows no cast shadows). A clip's frames share the first camera'
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -15,7 +15,15 @@ from aias_augment.analyse.lighting.solar_position import rotation_of
 from aias_augment.core.geometry import Intrinsics
 from aias_augment.core.hdr import InverseToneMapParams, inverse_tone_map, srgb_to_linear
 
-__all__ = ["FrameContext", "check_image", "fallback_measurement_ok", "prepare_clip", "prepare_frame", "up_vectors"]
+__all__ = [
+    "FrameContext",
+    "check_image",
+    "fallback_measurement_ok",
+    "measured",
+    "prepare_clip",
+    "prepare_frame",
+    "up_vectors",
+]
 
 
 @dataclass
@@ -79,7 +87,10 @@ def prepare_frame(
     R_cw: np.ndarray,
     meta: dict,
     config: LightingConfig,
+    measure: bool = True,
 ) -> FrameContext:
+    """The frame's context; with ``measure`` False without the lit/shadow measurement (see :func:`measured`), which
+    only a sun's strength and direction read."""
     h, w = img.shape[:2]
     up_in_world, up_in_cam = up_vectors(R_cw, meta)
     known_camera = intrinsics is not None
@@ -88,7 +99,6 @@ def prepare_frame(
         raise ValueError(f"estimate_lighting: intrinsics are for {K.width}x{K.height}, image is {w}x{h}")
     small, K_small = _downscale(img, K, config.analysis_width)
     linear_small = inverse_tone_map(small, InverseToneMapParams())
-    # Sun strength: lit vs shadowed ground, at full resolution (thin cast shadows matter).
     region = meta.get("ground_mask")
     if region is None:
         region = ground_region_mask(
@@ -97,18 +107,8 @@ def prepare_frame(
     region = np.asarray(region, bool)
     if region.shape != (h, w):
         raise ValueError(f"estimate_lighting: ground_mask must be {(h, w)}, got {region.shape}")
-    linear = srgb_to_linear(img)
-    measurement = measure_lit_shadow(linear, region)
-    measurement_region = region
-    if not (measurement is not None and measurement.dominant_sun):
-        for lateral, forward in config.fallback_ground_boxes_m:
-            box = ground_region_mask(K, up_in_cam, config.camera_height_m, tuple(lateral), tuple(forward))
-            m = measure_lit_shadow(linear, box)
-            if fallback_measurement_ok(m, config):
-                measurement, measurement_region = m, box
-                break
     n_above = int(np.sum(camera_ray_directions(K_small) @ up_in_cam > np.sin(np.deg2rad(2.0))))
-    return FrameContext(
+    ctx = FrameContext(
         img,
         meta,
         K,
@@ -121,10 +121,27 @@ def prepare_frame(
         K_small,
         linear_small,
         region,
-        measurement,
+        None,
         n_above,
-        measurement_region,
+        region,
     )
+    return measured(ctx, config) if measure else ctx
+
+
+def measured(ctx: FrameContext, config: LightingConfig) -> FrameContext:
+    """``ctx`` with the lit/shadow measurement for the sun's strength: on the ground region at full resolution (thin
+    cast shadows matter), or on the first fallback ground box that shows cast shadows where the region does not."""
+    linear = srgb_to_linear(ctx.img)
+    measurement = measure_lit_shadow(linear, ctx.region)
+    measurement_region = ctx.region
+    if not (measurement is not None and measurement.dominant_sun):
+        for lateral, forward in config.fallback_ground_boxes_m:
+            box = ground_region_mask(ctx.K, ctx.up_in_cam, config.camera_height_m, tuple(lateral), tuple(forward))
+            m = measure_lit_shadow(linear, box)
+            if fallback_measurement_ok(m, config):
+                measurement, measurement_region = m, box
+                break
+    return replace(ctx, measurement=measurement, measurement_region=measurement_region)
 
 
 def fallback_measurement_ok(m: LitShadowMeasurement | None, config: LightingConfig) -> bool:
@@ -139,8 +156,9 @@ def fallback_measurement_ok(m: LitShadowMeasurement | None, config: LightingConf
     )
 
 
-def prepare_clip(images, intrinsics, cams_from_world, metas, config: LightingConfig):
-    """Frame contexts of a clip and its world up (``metas[0]['up_in_world']`` or the first camera's -y)."""
+def prepare_clip(images, intrinsics, cams_from_world, metas, config: LightingConfig, measure: bool = True):
+    """Frame contexts of a clip and its world up (``metas[0]['up_in_world']`` or the first camera's -y); ``measure``
+    as in :func:`prepare_frame`."""
     n = len(images)
     if n == 0 or len(cams_from_world) != n:
         raise ValueError("estimate_lighting_clip: need one pose per image and at least one image")
@@ -153,7 +171,7 @@ def prepare_clip(images, intrinsics, cams_from_world, metas, config: LightingCon
     for m in ms:
         m.setdefault("up_in_world", up_in_world)
     ctxs = [
-        prepare_frame(check_image(img), K, rotation_of(T), m, config)
+        prepare_frame(check_image(img), K, rotation_of(T), m, config, measure)
         for img, K, T, m in zip(images, Ks, cams_from_world, ms)
     ]
     return ctxs, up_in_world

@@ -377,3 +377,44 @@ def test_from_dict_gives_back_the_estimate_bit_for_bit():
         assert back.to_dict() == e.to_dict()
     none = LightingEstimate(None, np.zeros(3), np.zeros((9, 3)), 0.0, False, 0.0, "none")
     assert LightingEstimate.from_dict(json.loads(json.dumps(none.to_dict()))).to_dict() == none.to_dict()
+
+
+def _searched_in_full(img, K, config):
+    """The estimate computed the long way: the lit/shadow measurement and the image-cue sun search always run."""
+    from aias_augment.analyse.lighting.estimate import _finish
+    from aias_augment.analyse.lighting.frame import prepare_frame
+    from aias_augment.analyse.lighting.sun_direction import image_cue_sun
+    from aias_augment.analyse.lighting.sun_evidence import direct_sun_probability
+
+    ctx = prepare_frame(img, K, np.eye(3), {}, config)
+    est = image_cue_sun([ctx], ctx.up_in_world, config)
+    conf = est.confidence * (1.0 if ctx.known_camera else 0.5)
+    p = direct_sun_probability(img)
+    return _finish(ctx, ctx.R_cw @ est.direction_in_world, conf, "image_cues", est.sky_cues[0], config, p), p
+
+
+@pytest.mark.skipif(not (KITTI / "kitti06-17-color.png").is_file(), reason="shared KITTI data not present")
+@pytest.mark.parametrize("threshold", [0.99, 0.05])
+def test_a_sun_the_evidence_rules_out_is_not_searched_and_changes_nothing(threshold, monkeypatch):
+    """Where the evidence decides there is no sun, the estimate skips the sun search and the lit/shadow measurement
+    and is bit for bit the one computed with both; where it decides a sun, the search runs."""
+    from PIL import Image
+
+    from aias_augment.analyse.lighting import estimate as est_mod
+
+    img = np.array(Image.open(KITTI / "kitti06-12-color.png").convert("RGB"))
+    K = Intrinsics(707.0912, 707.0912, 601.8873, 183.1104, img.shape[1], img.shape[0])
+    config = LightingConfig(sun_threshold=threshold)
+    full, p = _searched_in_full(img, K, config)
+    ruled_out = p < threshold
+    assert ruled_out == (threshold == 0.99) and full.dominant_sun == (not ruled_out)
+    calls = []
+    search = est_mod.image_cue_sun
+    monkeypatch.setattr(est_mod, "image_cue_sun", lambda *a, **k: calls.append(1) or search(*a, **k))
+    e = estimate_lighting(img, K, config=config)
+    assert e.to_dict() == full.to_dict()
+    assert len(calls) == (0 if ruled_out else 1)
+    clip = estimate_lighting_clip([img, img], K, [np.eye(4), np.eye(4)], config=config)
+    assert len(calls) == (0 if ruled_out else 2)
+    if ruled_out:
+        assert [c.to_dict() for c in clip] == [{**full.to_dict(), "source": "image_cues_clip"}] * 2
