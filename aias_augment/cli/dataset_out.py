@@ -57,7 +57,7 @@ class ImageOut:
     def write(self, path: Path, image_rgb: np.ndarray, temp_prefix: str = TEMP_TAG) -> None:
         """Write atomically (:func:`aias_augment.cli.manifest.write_file`); JPEG at ``jpeg_quality``."""
         params = [cv2.IMWRITE_JPEG_QUALITY, int(self.jpeg_quality)] if path.suffix == ".jpg" else []
-        ok, data = cv2.imencode(path.suffix, np.ascontiguousarray(image_rgb[..., ::-1]), params)
+        ok, data = cv2.imencode(path.suffix, cv2.cvtColor(np.ascontiguousarray(image_rgb), cv2.COLOR_RGB2BGR), params)
         if not ok:
             raise OSError(f"cannot encode {path.name}")
 

@@ -249,7 +249,7 @@ def read_image_with_notes(
         notes.append(f"PIL mode {mode} converted to {'grey' if grey else 'RGB'}")
     if min(img.shape[:2]) < 1:
         raise UnreadableImage(f"size {img.shape[1]}x{img.shape[0]}", path)
-    return upright(img if grey else img[..., ::-1], orientation), notes
+    return upright(img if grey or img.ndim != 3 else cv2.cvtColor(img, cv2.COLOR_BGR2RGB), orientation), notes
 
 
 def read_image(

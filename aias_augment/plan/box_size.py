@@ -147,7 +147,8 @@ class GroundCandidates:
                 horizon = None
             allowed = np.ones((h, w), bool)
             if horizon is not None:
-                uu, vv = np.meshgrid(np.arange(w), np.arange(h))
+                # broadcast rows and columns: the same sums, element by element, as on a full pixel grid
+                uu, vv = np.arange(w)[None, :], np.arange(h)[:, None]
                 allowed &= horizon[0] * uu + horizon[1] * vv + horizon[2] > margin
             if region_mask is not None:
                 allowed &= np.asarray(region_mask, bool)
