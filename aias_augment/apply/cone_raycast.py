@@ -138,17 +138,37 @@ def cone_shape(asset: Asset) -> ConeShape | None:
     return shape
 
 
-def _body_hits(o: np.ndarray, d: np.ndarray, shape: ConeShape) -> np.ndarray:
+@dataclass(frozen=True)
+class _Rays:
+    """Rays from one origin (the camera's centre in the object frame): its coordinates (scalars) and, per ray, the
+    direction (N, 3) and its two horizontal products that every upright test reads."""
+
+    ox: float
+    oy: float
+    oz: float
+    d: np.ndarray
+    dxy2: np.ndarray  # dx^2 + dy^2
+    odd: np.ndarray  # ox dx + oy dy
+
+    @classmethod
+    def of(cls, origin: np.ndarray, d: np.ndarray) -> "_Rays":
+        ox, oy, oz = (np.float64(v) for v in origin)
+        return cls(ox, oy, oz, d, d[:, 0] ** 2 + d[:, 1] ** 2, ox * d[:, 0] + oy * d[:, 1])
+
+    def subset(self, keep: np.ndarray) -> "_Rays":
+        return _Rays(self.ox, self.oy, self.oz, self.d[keep], self.dxy2[keep], self.odd[keep])
+
+
+def _body_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
     """Per ray the nearest t > 0 on the body (inf: none): each segment of the profile a truncated cone."""
-    best = np.full(len(o), np.inf)
-    dxy2 = d[:, 0] ** 2 + d[:, 1] ** 2
-    odd = o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]
-    oxy2 = o[:, 0] ** 2 + o[:, 1] ** 2
+    d = r.d
+    best = np.full(len(d), np.inf)
+    oxy2 = r.ox**2 + r.oy**2
     for za, ra, zc, rc in shape.segments:
         m = (rc - ra) / (zc - za)
-        A = ra + m * (o[:, 2] - za)  # the radius at the ray's z, linear in t: A + B t
+        A = ra + m * (r.oz - za)  # the radius at the ray's z, linear in t: A + B t
         B = m * d[:, 2]
-        qa, qb, qc = dxy2 - B * B, odd - A * B, oxy2 - A * A
+        qa, qb, qc = r.dxy2 - B * B, r.odd - A * B, oxy2 - A * A
         disc = qb * qb - qa * qc
         ok = disc >= 0
         sq = np.sqrt(np.where(ok, disc, 0.0))
@@ -157,29 +177,29 @@ def _body_hits(o: np.ndarray, d: np.ndarray, shape: ConeShape) -> np.ndarray:
             t1 = np.where(lin, -qc / (2 * qb), (-qb - sq) / qa)
             t2 = np.where(lin, np.inf, (-qb + sq) / qa)
         for t in (np.minimum(t1, t2), np.maximum(t1, t2)):
-            zt = o[:, 2] + t * d[:, 2]
+            zt = r.oz + t * d[:, 2]
             valid = ok & (t > 0) & (zt >= za) & (zt <= zc) & (A + B * t >= 0) & np.isfinite(t)
             best = np.where(valid & (t < best), t, best)
     return best
 
 
-def _base_side_hits(o: np.ndarray, d: np.ndarray, shape: ConeShape) -> np.ndarray:
+def _base_side_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
     """Per ray the t > 0 where it enters the base's superellipse prism |x/a|^n + |y/a|^n <= 1 through its side (inf:
     none). Along a ray f(t) = |x/a|^n + |y/a|^n - 1 is convex, and f >= 0 where the ray enters the square |x|, |y| <=
     a that holds the superellipse: Newton's steps from there rise monotonically to the first root (a ray that only
     grazes the square stops descending with f > 0: a miss)."""
-    a, n = shape.a, shape.n
-    ox, oy, dx, dy = o[:, 0] / a, o[:, 1] / a, d[:, 0] / a, d[:, 1] / a
+    a, n, d = shape.a, shape.n, r.d
+    ox, oy, dx, dy = r.ox / a, r.oy / a, d[:, 0] / a, d[:, 1] / a
     with np.errstate(divide="ignore", invalid="ignore"):
         tx0, tx1 = (-1.0 - ox) / dx, (1.0 - ox) / dx
         ty0, ty1 = (-1.0 - oy) / dy, (1.0 - oy) / dy
     tx0, tx1 = (
-        np.where(dx == 0, np.where(np.abs(ox) <= 1, -np.inf, np.inf), np.minimum(tx0, tx1)),
-        np.where(dx == 0, np.where(np.abs(ox) <= 1, np.inf, -np.inf), np.maximum(tx0, tx1)),
+        np.where(dx == 0, -np.inf if abs(ox) <= 1 else np.inf, np.minimum(tx0, tx1)),
+        np.where(dx == 0, np.inf if abs(ox) <= 1 else -np.inf, np.maximum(tx0, tx1)),
     )
     ty0, ty1 = (
-        np.where(dy == 0, np.where(np.abs(oy) <= 1, -np.inf, np.inf), np.minimum(ty0, ty1)),
-        np.where(dy == 0, np.where(np.abs(oy) <= 1, np.inf, -np.inf), np.maximum(ty0, ty1)),
+        np.where(dy == 0, -np.inf if abs(oy) <= 1 else np.inf, np.minimum(ty0, ty1)),
+        np.where(dy == 0, np.inf if abs(oy) <= 1 else -np.inf, np.maximum(ty0, ty1)),
     )
     t = np.maximum(tx0, ty0)
     live = (t <= np.minimum(tx1, ty1)) & (t > 0)
@@ -194,36 +214,36 @@ def _base_side_hits(o: np.ndarray, d: np.ndarray, shape: ConeShape) -> np.ndarra
             t = np.where(live, t - np.maximum(f, 0.0) / df, t)
     x, y = ox + t * dx, oy + t * dy
     close = np.abs(np.abs(x) ** n + np.abs(y) ** n - 1.0) <= 1e-4
-    zt = o[:, 2] + t * d[:, 2]
+    zt = r.oz + t * d[:, 2]
     return np.where(live & close & (zt >= 0) & (zt <= shape.zb), t, np.inf)
 
 
-def _base_top_hits(o: np.ndarray, d: np.ndarray, shape: ConeShape) -> np.ndarray:
+def _base_top_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
     """Per ray the t > 0 where it meets the base's flat top (inf: none)."""
+    d = r.d
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = (shape.zb - o[:, 2]) / d[:, 2]
-    x, y = o[:, 0] + t * d[:, 0], o[:, 1] + t * d[:, 1]
+        t = (shape.zb - r.oz) / d[:, 2]
+    x, y = r.ox + t * d[:, 0], r.oy + t * d[:, 1]
     inside = (np.abs(x) / shape.a_top) ** shape.n + (np.abs(y) / shape.a_top) ** shape.n <= 1.0
     return np.where((d[:, 2] < 0) & (t > 0) & inside, t, np.inf)
 
 
-def _meets_cylinder(o: np.ndarray, d: np.ndarray, radius: float, z0: float, z1: float) -> np.ndarray:
+def _meets_cylinder(r: _Rays, radius: float, z0: float, z1: float) -> np.ndarray:
     """Rays (t > 0) that pass through the upright cylinder of ``radius`` about the z axis between ``z0`` and ``z1``:
     a conservative test before the exact ones."""
     R = radius * (1 + 1e-6)
-    qa = d[:, 0] ** 2 + d[:, 1] ** 2
-    qb = o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]
-    qc = o[:, 0] ** 2 + o[:, 1] ** 2 - R * R
+    qa, qb, dz = r.dxy2, r.odd, r.d[:, 2]
+    qc = r.ox**2 + r.oy**2 - R * R
     disc = qb * qb - qa * qc
     with np.errstate(divide="ignore", invalid="ignore"):
         sq = np.sqrt(np.maximum(disc, 0.0))
-        c0 = np.where(qa > 0, (-qb - sq) / qa, np.where(qc <= 0, -np.inf, np.inf))
-        c1 = np.where(qa > 0, (-qb + sq) / qa, np.where(qc <= 0, np.inf, -np.inf))
-        ta, tb = (z0 - o[:, 2]) / d[:, 2], (z1 - o[:, 2]) / d[:, 2]
-    flat = d[:, 2] == 0
-    inside = (o[:, 2] >= z0) & (o[:, 2] <= z1)
-    s0 = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
-    s1 = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
+        c0 = np.where(qa > 0, (-qb - sq) / qa, -np.inf if qc <= 0 else np.inf)
+        c1 = np.where(qa > 0, (-qb + sq) / qa, np.inf if qc <= 0 else -np.inf)
+        ta, tb = (z0 - r.oz) / dz, (z1 - r.oz) / dz
+    flat = dz == 0
+    inside = z0 <= r.oz <= z1
+    s0 = np.where(flat, -np.inf if inside else np.inf, np.minimum(ta, tb))
+    s1 = np.where(flat, np.inf if inside else -np.inf, np.maximum(ta, tb))
     lo, hi = np.maximum(c0, s0), np.minimum(c1, s1)
     return (disc >= 0) & (lo <= hi) & (hi > 0)
 
@@ -322,17 +342,18 @@ def raycast_cone_window(
     tex = _texture_level(shape, body_px)
     base_radius = float(np.hypot(*shape.polygon.T).max())
     for c0 in range(0, h * w, CHUNK_RAYS):
-        idx = np.arange(c0, min(c0 + CHUNK_RAYS, h * w))
-        d = dirs[idx]
-        o = np.broadcast_to(origin, d.shape)
-        on_body = _meets_cylinder(o, d, float(shape.body_r.max()), shape.zb, shape.height)
-        on_base = _meets_cylinder(o, d, base_radius, 0.0, shape.zb)
+        rays = _Rays.of(origin, dirs[c0 : c0 + CHUNK_RAYS])
+        on_body = _meets_cylinder(rays, float(shape.body_r.max()), shape.zb, shape.height)
+        on_base = _meets_cylinder(rays, base_radius, 0.0, shape.zb)
         keep = on_body | on_base
-        idx, d, o, on_body, on_base = idx[keep], d[keep], o[keep], on_body[keep], on_base[keep]
+        idx = c0 + np.flatnonzero(keep)
+        rays, on_body, on_base = rays.subset(keep), on_body[keep], on_base[keep]
+        d = rays.d
         hits = np.full((len(d), 3), np.inf)
-        hits[on_body, 0] = _body_hits(o[on_body], d[on_body], shape)
-        hits[on_base, 1] = _base_side_hits(o[on_base], d[on_base], shape)
-        hits[on_base, 2] = _base_top_hits(o[on_base], d[on_base], shape)
+        hits[on_body, 0] = _body_hits(rays.subset(on_body), shape)
+        on_base_rays = rays.subset(on_base)
+        hits[on_base, 1] = _base_side_hits(on_base_rays, shape)
+        hits[on_base, 2] = _base_top_hits(on_base_rays, shape)
         kind = np.argmin(hits, axis=1)
         th = hits[np.arange(len(d)), kind]
         got = np.isfinite(th)
