@@ -159,16 +159,28 @@ class _Rays:
         return _Rays(self.ox, self.oy, self.oz, self.d[keep], self.dxy2[keep], self.odd[keep])
 
 
-def _body_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
-    """Per ray the nearest t > 0 on the body (inf: none): each segment of the profile a truncated cone."""
-    d = r.d
-    best = np.full(len(d), np.inf)
+def _body_hits(r: _Rays, shape: ConeShape, z_span: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Per ray the nearest t > 0 on the body (inf: none): each segment of the profile a truncated cone.
+
+    ``z_span``: per ray the lowest and highest z it reaches inside the body's bounding cylinder (see
+    :func:`_meets_cylinder`); a segment is then solved only for the rays whose span reaches its heights (a hit on it
+    lies inside that cylinder), with the same numbers as for all rays."""
+    best = np.full(len(r.d), np.inf)
     oxy2 = r.ox**2 + r.oy**2
+    tol = 1e-9 * max(float(shape.height), 1e-9)  # the span's own rounding, far above it
     for za, ra, zc, rc in shape.segments:
+        if z_span is None:
+            sel, rs, b = slice(None), r, best
+        else:
+            sel = np.flatnonzero((z_span[1] >= za - tol) & (z_span[0] <= zc + tol))
+            if len(sel) == 0:
+                continue
+            rs, b = r.subset(sel), best[sel]
+        d = rs.d
         m = (rc - ra) / (zc - za)
-        A = ra + m * (r.oz - za)  # the radius at the ray's z, linear in t: A + B t
+        A = ra + m * (rs.oz - za)  # the radius at the ray's z, linear in t: A + B t
         B = m * d[:, 2]
-        qa, qb, qc = r.dxy2 - B * B, r.odd - A * B, oxy2 - A * A
+        qa, qb, qc = rs.dxy2 - B * B, rs.odd - A * B, oxy2 - A * A
         disc = qb * qb - qa * qc
         ok = disc >= 0
         sq = np.sqrt(np.where(ok, disc, 0.0))
@@ -177,9 +189,10 @@ def _body_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
             t1 = np.where(lin, -qc / (2 * qb), (-qb - sq) / qa)
             t2 = np.where(lin, np.inf, (-qb + sq) / qa)
         for t in (np.minimum(t1, t2), np.maximum(t1, t2)):
-            zt = r.oz + t * d[:, 2]
+            zt = rs.oz + t * d[:, 2]
             valid = ok & (t > 0) & (zt >= za) & (zt <= zc) & (A + B * t >= 0) & np.isfinite(t)
-            best = np.where(valid & (t < best), t, best)
+            b = np.where(valid & (t < b), t, b)
+        best[sel] = b
     return best
 
 
@@ -228,9 +241,12 @@ def _base_top_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
     return np.where((d[:, 2] < 0) & (t > 0) & inside, t, np.inf)
 
 
-def _meets_cylinder(r: _Rays, radius: float, z0: float, z1: float) -> np.ndarray:
+def _meets_cylinder(
+    r: _Rays, radius: float, z0: float, z1: float, *, with_span: bool = False
+) -> np.ndarray | tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
     """Rays (t > 0) that pass through the upright cylinder of ``radius`` about the z axis between ``z0`` and ``z1``:
-    a conservative test before the exact ones."""
+    a conservative test before the exact ones. ``with_span``: also per ray the lowest and highest z of its path
+    inside the cylinder (t from 0 on)."""
     R = radius * (1 + 1e-6)
     qa, qb, dz = r.dxy2, r.odd, r.d[:, 2]
     qc = r.ox**2 + r.oy**2 - R * R
@@ -245,7 +261,12 @@ def _meets_cylinder(r: _Rays, radius: float, z0: float, z1: float) -> np.ndarray
     s0 = np.where(flat, -np.inf if inside else np.inf, np.minimum(ta, tb))
     s1 = np.where(flat, np.inf if inside else -np.inf, np.maximum(ta, tb))
     lo, hi = np.maximum(c0, s0), np.minimum(c1, s1)
-    return (disc >= 0) & (lo <= hi) & (hi > 0)
+    meets = (disc >= 0) & (lo <= hi) & (hi > 0)
+    if not with_span:
+        return meets
+    with np.errstate(invalid="ignore"):  # inf * 0 on rays that miss (their span is not read)
+        za, zb = r.oz + np.maximum(lo, 0.0) * dz, r.oz + hi * dz
+    return meets, (np.minimum(za, zb), np.maximum(za, zb))
 
 
 def _surface(p: np.ndarray, kind: np.ndarray, shape: ConeShape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -343,14 +364,14 @@ def raycast_cone_window(
     base_radius = float(np.hypot(*shape.polygon.T).max())
     for c0 in range(0, h * w, CHUNK_RAYS):
         rays = _Rays.of(origin, dirs[c0 : c0 + CHUNK_RAYS])
-        on_body = _meets_cylinder(rays, float(shape.body_r.max()), shape.zb, shape.height)
+        on_body, (z_lo, z_hi) = _meets_cylinder(rays, float(shape.body_r.max()), shape.zb, shape.height, with_span=True)
         on_base = _meets_cylinder(rays, base_radius, 0.0, shape.zb)
         keep = on_body | on_base
         idx = c0 + np.flatnonzero(keep)
-        rays, on_body, on_base = rays.subset(keep), on_body[keep], on_base[keep]
+        rays, on_body, on_base, z_lo, z_hi = rays.subset(keep), on_body[keep], on_base[keep], z_lo[keep], z_hi[keep]
         d = rays.d
         hits = np.full((len(d), 3), np.inf)
-        hits[on_body, 0] = _body_hits(rays.subset(on_body), shape)
+        hits[on_body, 0] = _body_hits(rays.subset(on_body), shape, (z_lo[on_body], z_hi[on_body]))
         on_base_rays = rays.subset(on_base)
         hits[on_base, 1] = _base_side_hits(on_base_rays, shape)
         hits[on_base, 2] = _base_top_hits(on_base_rays, shape)

@@ -154,3 +154,28 @@ def test_fast_preset_ray_casts_its_cones_and_replays():
     assert render.startswith("ray cast: 2 of 2"), render
     again = replay(res.record.to_dict(), Frame(img, None), cfg)
     np.testing.assert_array_equal(again.image, res.image)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_body_solved_per_segment_span_equals_every_segment_for_every_ray(seed):
+    """Solving a body segment only for the rays whose path inside the bounding cylinder reaches its heights gives
+    the hits of solving every segment for every ray, bit for bit: from above, below the top, level with the body,
+    inside its height range and looking straight down."""
+    from aias_augment.apply.cone_raycast import _body_hits, _meets_cylinder, _Rays
+
+    shape = cone_shape(procedural_asset_from_seed("traffic_cone", seed))
+    rng = np.random.default_rng(seed)
+    for origin in ([3.0, -1.0, 1.6], [0.5, 2.5, 0.3], [-4.0, 0.2, 0.5 * shape.height], [0.01, 0.0, 2.0]):
+        o = np.asarray(origin, float)
+        target = np.c_[rng.uniform(-0.3, 0.3, (20000, 2)), rng.uniform(-0.1, shape.height + 0.1, 20000)]
+        d = target - o
+        d[:50] = (0.0, 0.0, -1.0)  # vertical rays
+        d[50:100, 2] = 0.0  # level rays
+        rays = _Rays.of(o, d)
+        meets, span = _meets_cylinder(rays, float(shape.body_r.max()), shape.zb, shape.height, with_span=True)
+        sub = rays.subset(meets)
+        full = _body_hits(sub, shape)
+        culled = _body_hits(sub, shape, (span[0][meets], span[1][meets]))
+        assert np.isfinite(full).sum() > 1000
+        np.testing.assert_array_equal(culled, full)
+        assert np.isinf(_body_hits(rays.subset(~meets), shape)).all()  # the cylinder test misses no body hit
