@@ -2,6 +2,7 @@ import cv2
 import numpy as np
 import pytest
 
+from aias_augment.apply.harmonize import camera_pipeline as cp
 from aias_augment.apply.harmonize.camera_pipeline import (
     CameraMatchParams,
     apply_atmosphere,
@@ -15,6 +16,7 @@ from aias_augment.apply.harmonize.camera_pipeline import (
 )
 from aias_augment.apply.harmonize.color import linear_to_srgb, srgb_to_linear
 from aias_augment.apply.harmonize.regions import ring
+from aias_augment.core.config import data_root
 
 FULL = CameraMatchParams(
     exposure_strength=1.0, wb_strength=1.0, match_sharpness=False, match_noise=False, match_jpeg=False
@@ -143,19 +145,25 @@ def test_blur_trials_on_the_foreground_window_match_the_whole_crop(street_rgb, w
     np.testing.assert_allclose(got, want, atol=3e-7, rtol=0)
 
 
+def _every_block_dct(channel: np.ndarray) -> np.ndarray:
+    """The orthonormal DCT-II of every 8x8 block on the grid at (0, 0): (rows, cols, 8, 8)."""
+    from scipy.fft import dctn
+
+    h, w = (channel.shape[0] // 8) * 8, (channel.shape[1] // 8) * 8
+    return dctn(channel[:h, :w].reshape(h // 8, 8, w // 8, 8).transpose(0, 2, 1, 3), axes=(2, 3), norm="ortho")
+
+
 @pytest.mark.parametrize("crop", [(0, 0), (3, 5)])
 @pytest.mark.parametrize("size", [(240, 320), (1080, 1920)])
 def test_jpeg_quality_reads_the_same_blocks_as_transforming_them_all(street_rgb, size, crop):
     """The estimate transforms only the ~2000 blocks it reads: their coefficients are those of the whole image's block
     DCT thinned to every k-th block (bit for bit), on a JPEG-compressed frame, its grid shifted by a crop, large and
     small."""
-    from aias_augment.apply.harmonize import camera_pipeline as cp
-
     big = cv2.resize(street_rgb, size[::-1], interpolation=cv2.INTER_LINEAR)
     ok, buf = cv2.imencode(".jpg", cv2.cvtColor(big, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 80])
     img = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)[crop[0] :, crop[1] :]
     y = img.astype(np.float64) @ np.array([0.299, 0.587, 0.114]) - 128.0
-    every = cp._block_dct(y).reshape(-1, 8, 8)
+    every = _every_block_dct(y).reshape(-1, 8, 8)
     every = every[:: max(1, len(every) // 2000)]
     steps = [cp._lattice_step(every[:, u, v]) for u, v in cp._PROBE_FREQS]
     found = [(f, s) for f, s in zip(cp._PROBE_FREQS, steps) if s is not None]
@@ -178,6 +186,24 @@ def test_jpeg_quality_and_subsampling_are_estimated(street_rgb, quality):
         dec = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
         q = estimate_jpeg_quality(dec)
         assert q is not None and abs(q - quality) <= 5, (quality, q)
+        assert chroma_subsampled(dec) is expect
+
+
+@pytest.mark.parametrize("quality", [60, 90])
+def test_subsampling_is_decided_from_a_bounded_sample_of_blocks(quality):
+    """A lossless KITTI frame tiled to 2.4 MP (36 800 blocks, 7x the sample's bound) and encoded at 4:2:0 and 4:4:4:
+    the decision from every 8th block is the encoder's sampling factor."""
+    path = data_root() / "kitti06_color_snippet" / "kitti06-12-color.png"
+    if not path.exists():
+        pytest.skip(f"real data missing: {path}")
+    bgr = cv2.imread(str(path))
+    bgr = np.ascontiguousarray(np.tile(bgr, (3, 2, 1))[:1216, :1936])
+    assert (1216 // 8) * (1936 // 8) > 4 * cp.CHROMA_MAX_BLOCKS
+    samplings = ((cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420, True), (cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444, False))
+    for sampling, expect in samplings:
+        params = [cv2.IMWRITE_JPEG_QUALITY, quality, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, sampling]
+        ok, buf = cv2.imencode(".jpg", bgr, params)
+        dec = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
         assert chroma_subsampled(dec) is expect
 
 
