@@ -14,6 +14,8 @@ Sources, in order of preference: an environment map (``envmap``), GPS + UTC + ca
 image cues with a known camera: visible sun disc, sky gradient, cast-shadow axis on the ground, and for the side of
 that axis the lit versus shaded walls and the ends of cast shadows (``sun_side``). Sun strength always comes from the env map, or else
 from lit vs shadowed ground in the image (``ratio``); ``meta['indoor'] = True`` forces environment light only.
+Without metadata the evidence model (``sun_evidence``) decides first; where it rules a sun out, the image-cue search
+and the lit/shadow measurement are not run (neither would change an estimate without a dominant sun).
 
 This module decides whether the sun is dominant and assembles the estimate; its parts are modules of their own:
 ``config`` (:class:`LightingConfig`), ``frame`` (one frame made ready: up vector, analysis copy, lit/shadow ground),
