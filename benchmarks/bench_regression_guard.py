@@ -270,7 +270,7 @@ def run_guard(a) -> dict:
                     samples[s][kind].append(res)
             print(f"round {r + 1}/{a.rounds} done ({time.perf_counter() - t_start:.0f} s)", flush=True)
         return {
-            "command": "taskset -c 0 nice python -m benchmarks.bench_regression_guard "
+            "command": f"taskset -c {a.cpu} nice python -m benchmarks.bench_regression_guard "
             + " ".join(shlex.quote(x) for x in a.argv),
             "ref": sides["ref"].label,
             "tree": sides["tree"].label,
