@@ -177,6 +177,7 @@ def _loft(
     theta = np.linspace(0.0, 2 * np.pi, segments + 1)
     cos_t, sin_t, u = np.cos(theta[:-1]), np.sin(theta[:-1]), theta / (2 * np.pi)
     j = np.arange(segments)
+    shapes: dict[float, np.ndarray] = {}  # the superellipse's radius factors per exponent (rings share a few)
     verts, faces, normals, uvs = [], [], [], []
     base = 0
     for sec in sections:
@@ -188,11 +189,15 @@ def _loft(
                 uv.append(np.array([[0.5, v]]))
                 n += 1
             else:
-                rr = r * _superellipse(theta[:-1], sn)
-                ring = np.c_[rr * cos_t, rr * sin_t, np.full(segments, z)]
+                if sn not in shapes:
+                    shapes[sn] = _superellipse(theta[:-1], sn)
+                rr = r * shapes[sn]
+                ring = np.empty((segments + 1, 3))  # the seam column repeats column 0
+                ring[:-1, 0], ring[:-1, 1], ring[:-1, 2] = rr * cos_t, rr * sin_t, z
+                ring[-1] = ring[0]
                 ids.append(np.arange(n, n + segments + 1))
-                pos.append(np.r_[ring, ring[:1]])  # the seam column repeats column 0
-                uv.append(np.c_[u, np.full(segments + 1, v)])
+                pos.append(ring)
+                uv.append(np.column_stack([u, np.full(segments + 1, v)]))
                 n += segments + 1
         pos = np.concatenate(pos)
         sf = []
@@ -200,11 +205,13 @@ def _loft(
             if len(a) == 1 and len(b) == 1:
                 continue
             if len(a) == 1:  # bottom pole: fan, outward = down
-                sf.append(np.c_[np.full(segments, a[0]), b[j + 1], b[j]])
+                sf.append(np.column_stack([np.full(segments, a[0]), b[j + 1], b[j]]))
             elif len(b) == 1:  # top pole
-                sf.append(np.c_[a[j], a[j + 1], np.full(segments, b[0])])
+                sf.append(np.column_stack([a[j], a[j + 1], np.full(segments, b[0])]))
             else:  # per column j: (a_j, a_j+1, b_j+1) then (a_j, b_j+1, b_j)
-                quad = np.stack([np.c_[a[j], a[j + 1], b[j + 1]], np.c_[a[j], b[j + 1], b[j]]], axis=1)
+                quad = np.empty((segments, 2, 3), np.int64)
+                quad[:, 0, 0], quad[:, 0, 1], quad[:, 0, 2] = a[j], a[j + 1], b[j + 1]
+                quad[:, 1, 0], quad[:, 1, 1], quad[:, 1, 2] = a[j], b[j + 1], b[j]
                 sf.append(quad.reshape(-1, 3))
         sf = np.concatenate(sf).astype(np.int64)
         # smooth normals on the geometric vertices (seam column merged into column 0), area weighted
