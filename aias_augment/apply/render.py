@@ -127,9 +127,17 @@ def _camera_pose_gl(cam_from_world: np.ndarray) -> np.ndarray:
 
 
 def _downsample(x: np.ndarray, s: int) -> np.ndarray:
+    """The mean of each ``s`` x ``s`` block of ``x`` (H, W[, C]): ``x.reshape(h, s, w, s, ...).mean(axis=(1, 3))``.
+    For ``s`` 2 on a contiguous float array the four quarter-grids are summed in the order numpy's reduction adds
+    them (pairwise for one channel, in turn for several), the same numbers at a fraction of the cost (tested
+    against the reduction)."""
     if s == 1:
         return x
     h, w = x.shape[0] // s, x.shape[1] // s
+    if s == 2 and w > 1 and x.ndim in (2, 3) and x.flags.c_contiguous and x.dtype in (np.float32, np.float64):
+        a, b, c, d = x[0::2, 0::2], x[0::2, 1::2], x[1::2, 0::2], x[1::2, 1::2]
+        total = (a + b) + (c + d) if x.ndim == 2 or x.shape[2] == 1 else ((a + b) + c) + d
+        return total / 4
     return x.reshape(h, s, w, s, *x.shape[2:]).mean(axis=(1, 3))
 
 
