@@ -220,3 +220,13 @@ def test_atmosphere_limits():
     np.testing.assert_allclose(apply_atmosphere(img, 1e4, air, 0.01), np.broadcast_to(air, img.shape), atol=1e-6)
     with pytest.raises(ValueError):
         apply_atmosphere(img, np.full((4, 4), np.nan), air, 0.01)
+
+
+@pytest.mark.parametrize("shape", [(7, 7, 3), (8, 7, 3), (7, 400, 3), (9, 17, 3)])
+def test_subsampling_on_images_with_no_or_few_whole_blocks(shape):
+    """Under one whole 8x8 block there is no evidence (False); a few blocks are read without error."""
+    img = np.random.default_rng(0).integers(0, 256, shape, dtype=np.uint8)
+    got = chroma_subsampled(img)
+    assert isinstance(got, bool)
+    if shape[0] < 8 or shape[1] < 8:
+        assert got is False
