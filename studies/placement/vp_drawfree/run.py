@@ -34,7 +34,7 @@ import numpy as np
 import aias_augment.analyse.single_image as si
 from aias_augment.scenes.kitti import open_kitti_sequence
 from studies.placement.horizon.run import main as horizon_main
-from studies.placement.vp_drawfree.designs import fit_vp_top_k
+from studies.placement.vp_drawfree.designs import fit_vp_screened, fit_vp_top_k
 
 DATA = Path(os.environ.get("AIAS_DATA", "data"))
 DRAWN = si.fit_vanishing_point
@@ -47,9 +47,10 @@ DESIGNS: dict[str, Callable] = {
     "top40": partial(fit_vp_top_k, k=40),
     "top60": partial(fit_vp_top_k, k=60),
     "top80": partial(fit_vp_top_k, k=80),
-    "top29_ms5": partial(fit_vp_top_k, k=29, multistart=5),
     "top40_ms5": partial(fit_vp_top_k, k=40, multistart=5),
     "top60_ms5": partial(fit_vp_top_k, k=60, multistart=5),
+    "all_screen64": partial(fit_vp_screened, screen_segments=64),
+    "all_screen40": partial(fit_vp_screened, screen_segments=40),
 }
 
 
@@ -177,9 +178,7 @@ def main(argv: list[str] | None = None) -> int:
         k = r["kitti"]
         print(
             f"{name:12s} kitti centre med/p90/max "
-            + " | ".join(
-                "{median:.2f}/{p90:.1f}/{max:.0f}".format(**k[str(s)]["horizon_err_px_center"]) for s in SEEDS
-            )
+            + " | ".join("{median:.2f}/{p90:.1f}/{max:.0f}".format(**k[str(s)]["horizon_err_px_center"]) for s in SEEDS)
             + "  tracon edges med/p90 vs seeds "
             + " | ".join(
                 "{median:.2f}/{p90:.1f}".format(**r["tracon_vs_drawn_seed"][str(s)]["max_edges"]) for s in SEEDS
@@ -191,10 +190,17 @@ def main(argv: list[str] | None = None) -> int:
         f.unlink()
     tmp.rmdir()
     doc = {"tracon_stability": stability, "designs": results}
-    name = "vp_drawfree.json" if set(args.designs) == set(DESIGNS) else "vp_drawfree_" + "_".join(args.designs) + ".json"
+    name = (
+        "vp_drawfree.json" if set(args.designs) == set(DESIGNS) else "vp_drawfree_" + "_".join(args.designs) + ".json"
+    )
     (out / name).write_text(json.dumps(doc, indent=1))
     for k, v in stability["drawn_between_seeds"].items():
-        print("tracon drawn seeds", k, "edges med/p90 {median:.2f}/{p90:.1f}".format(**v["max_edges"]), v["moved_over_1px"])
+        print(
+            "tracon drawn seeds",
+            k,
+            "edges med/p90 {median:.2f}/{p90:.1f}".format(**v["max_edges"]),
+            v["moved_over_1px"],
+        )
     return 0
 
 
