@@ -9,7 +9,8 @@ has not seen (the scene analysis and the asset views run); then, in the same pro
 (the transform's analysis config, no cache) on each of those roads. Each round runs one process per side
 (``PYTHONPATH`` the side's root, one thread per library, on the core this command is pinned to), the side that goes
 first alternating. Prints the median CPU ms (``time.process_time``, all threads) of each side's first-sight calls
-and analyses, and the first-sight wall ms.
+and analyses, and the first-sight wall ms. ``--sun decided``: the first-sight roads are the next photos on which the
+evidence model decides a direct sun (they pay the sun search that the others skip).
 """
 
 from __future__ import annotations
@@ -25,17 +26,35 @@ import time
 from benchmarks.bench_regression_guard import REPO, ROTATION, SINGLE_THREAD, tracon_files
 
 
-def worker(warmup: int, first_sight: int) -> dict:
-    import albumentations as A
+def road_640(path):
+    """A TraCon photo as the bench sees it: RGB, area-resized to 640x480."""
     import cv2
+
+    return cv2.resize(cv2.cvtColor(cv2.imread(str(path)), cv2.COLOR_BGR2RGB), (640, 480), interpolation=cv2.INTER_AREA)
+
+
+def sun_decided_roads(n: int) -> list[str]:
+    """The first ``n`` TraCon training photos after the rotation's six (sorted by name) on which the evidence model
+    decides a direct sun at 640x480: first sights that pay the sun search."""
+    from aias_augment.analyse.lighting.sun_evidence import decide_direct_sun, direct_sun_probability
+
+    out: list[str] = []
+    for f in sorted(tracon_files(1)[0].parent.glob("*.jpg"))[ROTATION:]:  # tracon_files' order, all of them
+        if decide_direct_sun(direct_sun_probability(road_640(f))):
+            out.append(str(f))
+            if len(out) == n:
+                return out
+    raise SystemExit(f"bench_first_sight: only {len(out)} TraCon photos with a decided sun, {n} asked")
+
+
+def worker(warmup: int, first_sight: int, photos: list[str] | None = None) -> dict:
+    import albumentations as A
     import numpy as np
 
     from aias_augment import InsertObjects
 
-    images = [
-        cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), (640, 480), interpolation=cv2.INTER_AREA)
-        for f in tracon_files(ROTATION + first_sight)
-    ]
+    rotation = tracon_files(ROTATION + (0 if photos else first_sight))
+    images = [road_640(f) for f in (rotation[:ROTATION] + photos if photos else rotation)]
     tf = A.Compose(
         [InsertObjects(preset="fast", p=1.0)], bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=7
     )
@@ -65,6 +84,8 @@ def run_side(root: str, a) -> dict:
     env.setdefault("PYOPENGL_PLATFORM", "egl")
     # -P: the script's own folder is not put on sys.path, the side's root (PYTHONPATH) is what it imports
     cmd = [sys.executable, "-P", os.path.abspath(__file__), "--worker", str(a.warmup), str(a.first_sight)]
+    if a.photos:
+        cmd += ["--photos", *a.photos]
     out = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, check=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
@@ -76,11 +97,21 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--warmup", type=int, default=12, help="calls over the six rotation roads before timing")
     ap.add_argument("--first-sight", type=int, default=12, help="first-sight roads per process")
+    ap.add_argument(
+        "--sun",
+        choices=("any", "decided"),
+        default="any",
+        help="first-sight roads: the next photos by name (any), or the next on which the evidence decides a sun",
+    )
     ap.add_argument("--worker", nargs=2, type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--photos", nargs="+", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.worker:
-        print(json.dumps(worker(*a.worker)))
+        print(json.dumps(worker(*a.worker, a.photos)))
         return 0
+    if a.sun == "decided":
+        a.photos = sun_decided_roads(a.first_sight)
+        print(f"first-sight roads with a decided sun: {[os.path.basename(p) for p in a.photos]}", file=sys.stderr)
     for name, root in (("--ref-root", a.ref_root), ("--tree-root", a.tree_root)):
         if not root or not os.path.isdir(os.path.join(root, "aias_augment")):
             print(
