@@ -29,8 +29,11 @@ from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 __all__ = [
     "SingleImageCamera",
     "SingleImageConfig",
+    "consistency_deg",
     "detect_line_segments",
     "fit_vanishing_point",
+    "homogeneous_lines",
+    "vps_within",
     "estimate_camera_from_image",
     "horizon_row_error_px",
 ]
@@ -80,14 +83,15 @@ def detect_line_segments(grey: np.ndarray, min_length_px: float) -> np.ndarray:
     return seg[length >= min_length_px]
 
 
-def _homogeneous_lines(seg: np.ndarray) -> np.ndarray:
+def homogeneous_lines(seg: np.ndarray) -> np.ndarray:
+    """(N, 3) lines through the segments' end points (N, 4), scaled so that (a, b) is a unit normal."""
     p1 = np.column_stack([seg[:, :2], np.ones(len(seg))])
     p2 = np.column_stack([seg[:, 2:], np.ones(len(seg))])
     lines = np.cross(p1, p2)
     return lines / np.linalg.norm(lines[:, :2], axis=1, keepdims=True)
 
 
-def _consistency_deg(seg: np.ndarray, vps: np.ndarray) -> np.ndarray:
+def consistency_deg(seg: np.ndarray, vps: np.ndarray) -> np.ndarray:
     """Angle (deg) between each segment and the line from its midpoint to each VP: (N, 4), (K, 3) -> (K, N)."""
     mid = (seg[:, :2] + seg[:, 2:]) / 2
     direction = seg[:, 2:] - seg[:, :2]
@@ -153,7 +157,7 @@ def fit_vanishing_point(
     """
     if len(seg) < max(2, min_inliers):
         return None
-    lines = _homogeneous_lines(seg)
+    lines = homogeneous_lines(seg)
     length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
     prob = length / length.sum()
     pairs = weighted_pairs(rng, prob, iterations)
@@ -164,10 +168,10 @@ def fit_vanishing_point(
         return None
     vps = vps[ok] / norm[ok, None]
     if finite_within is not None:
-        vps = vps[_near(vps, *finite_within)]
+        vps = vps[vps_within(vps, *finite_within)]
         if len(vps) == 0:
             return None
-    inl = _consistency_deg(seg, vps) < inlier_angle_deg
+    inl = consistency_deg(seg, vps) < inlier_angle_deg
     score = inl @ length
     best = int(np.argmax(score))
     mask = inl[best]
@@ -177,13 +181,14 @@ def fit_vanishing_point(
         w = length[mask]
         M = (lines[mask] * w[:, None]).T @ lines[mask]
         vp = np.linalg.eigh(M)[1][:, 0]
-        mask = _consistency_deg(seg, vp[None])[0] < inlier_angle_deg
-        if mask.sum() < min_inliers or (finite_within is not None and not _near(vp[None], *finite_within)[0]):
+        mask = consistency_deg(seg, vp[None])[0] < inlier_angle_deg
+        if mask.sum() < min_inliers or (finite_within is not None and not vps_within(vp[None], *finite_within)[0]):
             return None
     return vp, mask
 
 
-def _near(vps: np.ndarray, centre_xy: np.ndarray, radius_px: float) -> np.ndarray:
+def vps_within(vps: np.ndarray, centre_xy: np.ndarray, radius_px: float) -> np.ndarray:
+    """(K,) bool: homogeneous VPs (K, 3) that are finite and within ``radius_px`` of ``centre_xy``."""
     w = vps[:, 2]
     finite = np.abs(w) > 1e-12
     xy = vps[:, :2] / np.where(finite, w, 1.0)[:, None]

@@ -1,7 +1,7 @@
 """Draw-free vanishing-point fits with the signature of ``fit_vanishing_point`` (``rng`` accepted, never used).
 
 All share today's scoring and refinement: a hypothesis VP's support is the length of the segments within
-``inlier_angle_deg`` of pointing at it (``_consistency_deg``, against all segments), and the winner is refined by
+``inlier_angle_deg`` of pointing at it (``consistency_deg``, against all segments), and the winner is refined by
 two rounds of length-weighted least squares on its inliers. They differ in where the hypotheses come from
 (every pair among the K longest segments, or a great-circle accumulator) and in how many of the best hypotheses
 are refined (``multistart``: the M best by support each refined, the best refined support kept -- locally
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aias_augment.analyse.single_image import _consistency_deg, _homogeneous_lines, _near
+from aias_augment.analyse.single_image import consistency_deg, homogeneous_lines, vps_within
 
 Fit = tuple[np.ndarray, np.ndarray] | None
 
@@ -31,14 +31,14 @@ def top_k_pairs(seg: np.ndarray, k: int) -> np.ndarray:
 
 
 def support_inliers(seg: np.ndarray, vps: np.ndarray, inlier_angle_deg: float) -> np.ndarray:
-    """``_consistency_deg(seg, vps) < inlier_angle_deg`` as two matrix products and a comparison, (K, N) bool.
+    """``consistency_deg(seg, vps) < inlier_angle_deg`` as two matrix products and a comparison, (K, N) bool.
 
     With the segment's unit line l (its midpoint m on it) and t = v_xy - w m, sin(angle) = |l . v| / |t|, and
     |t|^2 = |v_xy|^2 - 2 w v_xy . m + w^2 |m|^2: both are products of a per-VP and a per-segment factor, so no
     (K, N) arccos, square root or division (the same test up to rounding at the threshold; thousands of
     hypotheses for the cost of hundreds).
     """
-    lines = _homogeneous_lines(seg)
+    lines = homogeneous_lines(seg)
     mid = (seg[:, :2] + seg[:, 2:]) / 2
     num = vps @ lines.T
     vx, vy, w = vps[:, 0], vps[:, 1], vps[:, 2]
@@ -49,7 +49,7 @@ def support_inliers(seg: np.ndarray, vps: np.ndarray, inlier_angle_deg: float) -
     np.multiply(num, num, out=num)  # in place: these (K, N) passes are the cost
     t2 *= s2
     inl = np.less(num, t2)
-    inl &= t2 > s2 * 1e-18  # the VP on the midpoint: no direction, 90 deg in _consistency_deg
+    inl &= t2 > s2 * 1e-18  # the VP on the midpoint: no direction, 90 deg in consistency_deg
     return inl
 
 
@@ -59,8 +59,8 @@ def _refine(seg, lines, length, mask, inlier_angle_deg, min_inliers, finite_with
         w = length[mask]
         M = (lines[mask] * w[:, None]).T @ lines[mask]
         vp = np.linalg.eigh(M)[1][:, 0]
-        mask = _consistency_deg(seg, vp[None])[0] < inlier_angle_deg
-        if mask.sum() < min_inliers or (finite_within is not None and not _near(vp[None], *finite_within)[0]):
+        mask = consistency_deg(seg, vp[None])[0] < inlier_angle_deg
+        if mask.sum() < min_inliers or (finite_within is not None and not vps_within(vp[None], *finite_within)[0]):
             return None
     return vp, mask
 
@@ -77,7 +77,7 @@ def fit_from_hypotheses(
 ) -> Fit:
     """Score homogeneous hypothesis VPs (H, 3) against all segments; refine the ``multistart`` best (distinct
     inlier sets), keep the refined fit with the largest length-weighted support. ``multistart=1`` is today's rule."""
-    lines = _homogeneous_lines(seg)
+    lines = homogeneous_lines(seg)
     length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
     norm = np.linalg.norm(vps, axis=1)
     ok = norm > 1e-12
@@ -85,10 +85,10 @@ def fit_from_hypotheses(
         return None
     vps = vps[ok] / norm[ok, None]
     if finite_within is not None:
-        vps = vps[_near(vps, *finite_within)]
+        vps = vps[vps_within(vps, *finite_within)]
         if len(vps) == 0:
             return None
-    inl = support_inliers(seg, vps, inlier_angle_deg) if fast else _consistency_deg(seg, vps) < inlier_angle_deg
+    inl = support_inliers(seg, vps, inlier_angle_deg) if fast else consistency_deg(seg, vps) < inlier_angle_deg
     score = inl @ length
     order = np.argsort(-score, kind="stable")
     if multistart == 1:  # today's rule: refine the best hypothesis, give up when it has too few inliers
@@ -131,7 +131,7 @@ def fit_vp_top_k(
     if len(seg) < max(2, min_inliers):
         return None
     pairs = top_k_pairs(seg, k)
-    lines = _homogeneous_lines(seg)
+    lines = homogeneous_lines(seg)
     vps = np.cross(lines[pairs[:, 0]], lines[pairs[:, 1]])
     return fit_from_hypotheses(
         seg,
@@ -163,13 +163,13 @@ def fit_vp_screened(
     if len(seg) < max(2, min_inliers):
         return None
     pairs = top_k_pairs(seg, k)
-    lines = _homogeneous_lines(seg)
+    lines = homogeneous_lines(seg)
     vps = np.cross(lines[pairs[:, 0]], lines[pairs[:, 1]])
     norm = np.linalg.norm(vps, axis=1)
     ok = norm > 1e-12
     vps = vps[ok] / norm[ok, None]
     if finite_within is not None:
-        vps = vps[_near(vps, *finite_within)]
+        vps = vps[vps_within(vps, *finite_within)]
     if len(vps) > iterations:
         screen = longest_first(seg)[:screen_segments]
         length = np.hypot(seg[screen, 2] - seg[screen, 0], seg[screen, 3] - seg[screen, 1])

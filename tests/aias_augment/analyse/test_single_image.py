@@ -102,7 +102,7 @@ def test_weighted_pairs_are_numpys_pairs_and_leave_the_same_state(seed):
 def test_consistency_angles_are_the_reductions_over_xy_bit_for_bit():
     """The segment-to-VP angles, computed on (K, N) planes of x and y: the same numbers as norms and dot products
     reduced over a last axis of 2, for finite VPs, VPs at infinity (w = 0) and a VP on a segment's midpoint."""
-    from aias_augment.analyse.single_image import _consistency_deg
+    from aias_augment.analyse.single_image import consistency_deg
 
     rng = np.random.default_rng(7)
     seg = rng.uniform(0, 640, (120, 4))
@@ -116,4 +116,4 @@ def test_consistency_angles_are_the_reductions_over_xy_bit_for_bit():
     norm = np.linalg.norm(to_vp, axis=2)
     cos = np.abs(np.sum(to_vp / np.maximum(norm, 1e-12)[..., None] * direction[None], axis=2))
     want = np.where(norm > 1e-9, np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))), 90.0)
-    np.testing.assert_array_equal(_consistency_deg(seg, vps), want)
+    np.testing.assert_array_equal(consistency_deg(seg, vps), want)
