@@ -33,6 +33,8 @@ __all__ = [
     "detect_line_segments",
     "fit_vanishing_point",
     "homogeneous_lines",
+    "refine_vanishing_point",
+    "unit_hypotheses",
     "vps_within",
     "estimate_camera_from_image",
     "horizon_row_error_px",
@@ -161,23 +163,40 @@ def fit_vanishing_point(
     length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
     prob = length / length.sum()
     pairs = weighted_pairs(rng, prob, iterations)
-    vps = np.cross(lines[pairs[:, 0]], lines[pairs[:, 1]])
-    norm = np.linalg.norm(vps, axis=1)
-    ok = norm > 1e-12
-    if not ok.any():
+    vps = unit_hypotheses(np.cross(lines[pairs[:, 0]], lines[pairs[:, 1]]), finite_within)
+    if len(vps) == 0:
         return None
-    vps = vps[ok] / norm[ok, None]
-    if finite_within is not None:
-        vps = vps[vps_within(vps, *finite_within)]
-        if len(vps) == 0:
-            return None
     inl = consistency_deg(seg, vps) < inlier_angle_deg
     score = inl @ length
     best = int(np.argmax(score))
     mask = inl[best]
     if mask.sum() < min_inliers:
         return None
-    for _ in range(2):  # least squares: smallest eigenvector of sum w l l^T over inliers
+    return refine_vanishing_point(seg, lines, length, mask, inlier_angle_deg, min_inliers, finite_within)
+
+
+def unit_hypotheses(vps: np.ndarray, finite_within: tuple[np.ndarray, float] | None = None) -> np.ndarray:
+    """Hypothesis VPs (K, 3) scaled to unit length, those of parallel pairs (zero) dropped and, with
+    ``finite_within=(centre_xy, radius_px)``, only the finite ones within the radius kept; possibly empty."""
+    norm = np.linalg.norm(vps, axis=1)
+    ok = norm > 1e-12
+    vps = vps[ok] / norm[ok, None]
+    return vps if finite_within is None else vps[vps_within(vps, *finite_within)]
+
+
+def refine_vanishing_point(
+    seg: np.ndarray,
+    lines: np.ndarray,
+    length: np.ndarray,
+    mask: np.ndarray,
+    inlier_angle_deg: float,
+    min_inliers: int,
+    finite_within: tuple[np.ndarray, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Two rounds of least squares from the inliers ``mask`` of segments ``seg`` (their ``homogeneous_lines`` and
+    lengths given): the smallest eigenvector of sum w l l^T, then its inliers again. None when too few remain or
+    the VP leaves ``finite_within``."""
+    for _ in range(2):
         w = length[mask]
         M = (lines[mask] * w[:, None]).T @ lines[mask]
         vp = np.linalg.eigh(M)[1][:, 0]

@@ -12,7 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from aias_augment.analyse.single_image import consistency_deg, homogeneous_lines, vps_within
+from aias_augment.analyse.single_image import (
+    consistency_deg,
+    homogeneous_lines,
+    refine_vanishing_point,
+    unit_hypotheses,
+)
 
 Fit = tuple[np.ndarray, np.ndarray] | None
 
@@ -53,16 +58,11 @@ def support_inliers(seg: np.ndarray, vps: np.ndarray, inlier_angle_deg: float) -
     return inl
 
 
-def _refine(seg, lines, length, mask, inlier_angle_deg, min_inliers, finite_within) -> Fit:
-    """Today's refinement: two rounds of the smallest eigenvector of sum w l l^T over the inliers."""
-    for _ in range(2):
-        w = length[mask]
-        M = (lines[mask] * w[:, None]).T @ lines[mask]
-        vp = np.linalg.eigh(M)[1][:, 0]
-        mask = consistency_deg(seg, vp[None])[0] < inlier_angle_deg
-        if mask.sum() < min_inliers or (finite_within is not None and not vps_within(vp[None], *finite_within)[0]):
-            return None
-    return vp, mask
+def pair_hypotheses(seg: np.ndarray, k: int) -> np.ndarray:
+    """(P, 3) the VPs (line intersections) of every pair among the ``k`` longest segments, not normalised."""
+    pairs = top_k_pairs(seg, k)
+    lines = homogeneous_lines(seg)
+    return np.cross(lines[pairs[:, 0]], lines[pairs[:, 1]])
 
 
 def fit_from_hypotheses(
@@ -79,15 +79,9 @@ def fit_from_hypotheses(
     inlier sets), keep the refined fit with the largest length-weighted support. ``multistart=1`` is today's rule."""
     lines = homogeneous_lines(seg)
     length = np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
-    norm = np.linalg.norm(vps, axis=1)
-    ok = norm > 1e-12
-    if not ok.any():
+    vps = unit_hypotheses(vps, finite_within)
+    if len(vps) == 0:
         return None
-    vps = vps[ok] / norm[ok, None]
-    if finite_within is not None:
-        vps = vps[vps_within(vps, *finite_within)]
-        if len(vps) == 0:
-            return None
     inl = support_inliers(seg, vps, inlier_angle_deg) if fast else consistency_deg(seg, vps) < inlier_angle_deg
     score = inl @ length
     order = np.argsort(-score, kind="stable")
@@ -95,7 +89,7 @@ def fit_from_hypotheses(
         mask = inl[order[0]]
         if mask.sum() < min_inliers:
             return None
-        return _refine(seg, lines, length, mask, inlier_angle_deg, min_inliers, finite_within)
+        return refine_vanishing_point(seg, lines, length, mask, inlier_angle_deg, min_inliers, finite_within)
     best: Fit = None
     best_support = -1.0
     seen: set[bytes] = set()
@@ -109,7 +103,7 @@ def fit_from_hypotheses(
         seen.add(key)
         if mask.sum() < min_inliers:
             continue
-        fit = _refine(seg, lines, length, mask, inlier_angle_deg, min_inliers, finite_within)
+        fit = refine_vanishing_point(seg, lines, length, mask, inlier_angle_deg, min_inliers, finite_within)
         if fit is not None and (support := float(fit[1] @ length)) > best_support:
             best, best_support = fit, support
     return best
@@ -130,12 +124,9 @@ def fit_vp_top_k(
     """Hypotheses: every pair among the ``k`` longest segments (``iterations`` and ``rng`` unused)."""
     if len(seg) < max(2, min_inliers):
         return None
-    pairs = top_k_pairs(seg, k)
-    lines = homogeneous_lines(seg)
-    vps = np.cross(lines[pairs[:, 0]], lines[pairs[:, 1]])
     return fit_from_hypotheses(
         seg,
-        vps,
+        pair_hypotheses(seg, k),
         inlier_angle_deg=inlier_angle_deg,
         min_inliers=min_inliers,
         finite_within=finite_within,
@@ -162,14 +153,7 @@ def fit_vp_screened(
     against every segment costs several times the drawn 400; the long segments carry most of the support."""
     if len(seg) < max(2, min_inliers):
         return None
-    pairs = top_k_pairs(seg, k)
-    lines = homogeneous_lines(seg)
-    vps = np.cross(lines[pairs[:, 0]], lines[pairs[:, 1]])
-    norm = np.linalg.norm(vps, axis=1)
-    ok = norm > 1e-12
-    vps = vps[ok] / norm[ok, None]
-    if finite_within is not None:
-        vps = vps[vps_within(vps, *finite_within)]
+    vps = unit_hypotheses(pair_hypotheses(seg, k), finite_within)
     if len(vps) > iterations:
         screen = longest_first(seg)[:screen_segments]
         length = np.hypot(seg[screen, 2] - seg[screen, 0], seg[screen, 3] - seg[screen, 1])
