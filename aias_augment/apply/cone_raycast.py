@@ -104,12 +104,13 @@ def cone_shape(asset: Asset) -> ConeShape | None:
     got = root.__dict__.get("_cone_shape")
     if got is not None:
         return got
-    from aias_augment.assets.bank.procedural import cone_sections  # trimesh: only where a procedural cone is drawn
+    from aias_augment.assets.bank.procedural import ConeMeshes, cone_sections  # trimesh: only for a procedural cone
 
     try:
         h = float(meta["height_m"])
         sections = cone_sections(meta, h)
-        image = root.meshes[0].visual.material.image
+        # a cone made by the family draws its texture without its mesh; one loaded otherwise carries it on the mesh
+        image = root.meshes.texture() if isinstance(root.meshes, ConeMeshes) else root.meshes[0].visual.material.image
     except (KeyError, TypeError, AttributeError, IndexError):
         return None
     base_side, base_top, body = sections[1], sections[2], np.array(sections[3], float)

@@ -199,8 +199,12 @@ class Asset:
         after it is made; trimesh re-hashes the vertices at each ``bounds``, ~0.2 ms per call)."""
         b = self.__dict__.get("_bounds_m")
         if b is None:
-            bb = np.array([m.bounds for m in self.meshes])
-            b = np.stack([bb[:, 0].min(0), bb[:, 1].max(0)])
+            known = getattr(self.meshes, "bounds_m", None)  # meshes made on first read know their bounds
+            if known is not None:
+                b = known()
+            else:
+                bb = np.array([m.bounds for m in self.meshes])
+                b = np.stack([bb[:, 0].min(0), bb[:, 1].max(0)])
             self.__dict__["_bounds_m"] = b  # a memo, not a field: the dataclass stays frozen and compares the same
         return b.copy()
 

@@ -13,6 +13,7 @@ Each generator draws its size from the category's real range and all randomness 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -28,6 +29,7 @@ __all__ = [
     "CATEGORY_SPECS",
     "ProceduralSpec",
     "ConeLook",
+    "ConeMeshes",
     "generate",
     "procedural_asset",
     "procedural_asset_from_seed",
@@ -167,6 +169,29 @@ def _superellipse(theta: np.ndarray, n: float) -> np.ndarray:
     return (c**n + s**n) ** (-1.0 / n)
 
 
+def _rings(sections: list[list[tuple[float, float, float, float]]], segments: int):
+    """The rings of :func:`_loft`'s sections: per section, a list of (z, r, v, positions) with positions the ring's
+    (segments, 3) vertices without the seam column, or None for a pole (r == 0, one vertex on the axis)."""
+    theta = np.linspace(0.0, 2 * np.pi, segments + 1)
+    cos_t, sin_t = np.cos(theta[:-1]), np.sin(theta[:-1])
+    shapes: dict[float, np.ndarray] = {}  # the superellipse's radius factors per exponent (rings share a few)
+    out = []
+    for sec in sections:
+        rings = []
+        for z, r, sn, v in sec:
+            if r <= 0:
+                rings.append((z, r, v, None))
+                continue
+            if sn not in shapes:
+                shapes[sn] = _superellipse(theta[:-1], sn)
+            rr = r * shapes[sn]
+            ring = np.empty((segments, 3))
+            ring[:, 0], ring[:, 1], ring[:, 2] = rr * cos_t, rr * sin_t, z
+            rings.append((z, r, v, ring))
+        out.append(rings)
+    return out
+
+
 def _loft(
     sections: list[list[tuple[float, float, float, float]]], segments: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -174,26 +199,21 @@ def _loft(
     going up; consecutive sections share their end/start ring position but not vertices, so the normals break
     there (creases). A ring with r == 0 is a pole (one vertex). Returns vertices, faces (outward, CCW), vertex
     normals (smooth within a section, seamless across the UV seam) and UVs (u = angle, v as given)."""
-    theta = np.linspace(0.0, 2 * np.pi, segments + 1)
-    cos_t, sin_t, u = np.cos(theta[:-1]), np.sin(theta[:-1]), theta / (2 * np.pi)
+    u = np.linspace(0.0, 2 * np.pi, segments + 1) / (2 * np.pi)
     j = np.arange(segments)
-    shapes: dict[float, np.ndarray] = {}  # the superellipse's radius factors per exponent (rings share a few)
     verts, faces, normals, uvs = [], [], [], []
     base = 0
-    for sec in sections:
+    for sec in _rings(sections, segments):
         ids, pos, uv, n = [], [], [], 0
-        for z, r, sn, v in sec:
-            if r <= 0:
+        for z, r, v, xyz in sec:
+            if xyz is None:
                 ids.append(np.array([n]))
                 pos.append(np.array([[0.0, 0.0, z]]))
                 uv.append(np.array([[0.5, v]]))
                 n += 1
             else:
-                if sn not in shapes:
-                    shapes[sn] = _superellipse(theta[:-1], sn)
-                rr = r * shapes[sn]
                 ring = np.empty((segments + 1, 3))  # the seam column repeats column 0
-                ring[:-1, 0], ring[:-1, 1], ring[:-1, 2] = rr * cos_t, rr * sin_t, z
+                ring[:-1] = xyz
                 ring[-1] = ring[0]
                 ids.append(np.arange(n, n + segments + 1))
                 pos.append(ring)
@@ -420,6 +440,27 @@ def cone_sections(p: dict, h: float) -> list[list[tuple[float, float, float, flo
     return base + [body]
 
 
+def _cone_record(p: dict, h: float, segments: int) -> dict:
+    """What a cone's ``meta`` records besides its draws ``p``: height, segments, the parts and their materials."""
+    parts = [{"name": "base", "z_m": [0.0, p["base_height_m"]], "material": "matte_rubber"}]
+    parts += [{"name": "sleeve", "z_m": list(b), "material": "retroreflective"} for b in p["bands_z_m"]]
+    return {
+        **p,
+        "height_m": h,
+        "segments": int(segments),
+        "parts": parts,
+        "material": "glossy_plastic",  # the body: everything no part names
+    }
+
+
+def _cone_mesh(p: dict, h: float, image: Image.Image, segments: int) -> trimesh.Trimesh:
+    verts, faces, normals, uv = _loft(cone_sections(p, h), segments)
+    mat = trimesh.visual.material.SimpleMaterial(image=image, diffuse=np.array([255, 255, 255, 255], np.uint8))
+    return trimesh.Trimesh(
+        verts, faces, vertex_normals=normals, process=False, visual=trimesh.visual.TextureVisuals(uv=uv, material=mat)
+    )
+
+
 def make_traffic_cone(
     rng: np.random.Generator,
     height_m: float,
@@ -434,23 +475,59 @@ def make_traffic_cone(
     (:class:`ConeLook`)."""
     h = float(height_m)
     p = cone_params(rng, h, look)
-    zb = p["base_height_m"]
-    verts, faces, normals, uv = _loft(cone_sections(p, h), segments)
-    img = _cone_texture(p, h, texture)
-    mat = trimesh.visual.material.SimpleMaterial(image=img, diffuse=np.array([255, 255, 255, 255], np.uint8))
-    m = trimesh.Trimesh(
-        verts, faces, vertex_normals=normals, process=False, visual=trimesh.visual.TextureVisuals(uv=uv, material=mat)
-    )
-    parts = [{"name": "base", "z_m": [0.0, zb], "material": "matte_rubber"}]
-    parts += [{"name": "sleeve", "z_m": list(b), "material": "retroreflective"} for b in p["bands_z_m"]]
-    m.metadata["procedural_params"] = {
-        **p,
-        "height_m": h,
-        "segments": int(segments),
-        "parts": parts,
-        "material": "glossy_plastic",  # the body: everything no part names
-    }
+    m = _cone_mesh(p, h, _cone_texture(p, h, texture), segments)
+    m.metadata["procedural_params"] = _cone_record(p, h, segments)
     return m
+
+
+class ConeMeshes(Sequence):
+    """The meshes of a procedural cone (one, in the canonical frame, as :func:`generate` normalises them), made on
+    first read from its draws ``p``. The ray-cast render needs only the texture (:meth:`texture`) and the bounds
+    (:meth:`bounds_m`, exact: the mesh's own), so a fast call that ray-casts a new cone never builds its mesh
+    (~3 ms). Pickles as its recipe."""
+
+    __slots__ = ("params", "height", "photo", "segments", "_texture", "_built")
+
+    def __init__(self, params: dict, height: float, photo: Image.Image | None, segments: int = 64):
+        self.params, self.height, self.photo, self.segments = params, float(height), photo, int(segments)
+        self._texture, self._built = None, None
+
+    def texture(self) -> Image.Image:
+        """The cone's texture image (:func:`_cone_texture`), made once."""
+        if self._texture is None:
+            self._texture = _cone_texture(self.params, self.height, self.photo)
+        return self._texture
+
+    def bounds_m(self) -> np.ndarray:
+        """(2, 3) the built mesh's bounds, from its rings alone: min/max over the ring vertices, then the shift that
+        :func:`normalise_meshes` applies (a sum, which keeps the order of floats, so min/max commute with it)."""
+        pos = [
+            np.array([[0.0, 0.0, z]]) if xyz is None else xyz
+            for sec in _rings(cone_sections(self.params, self.height), self.segments)
+            for z, _, _, xyz in sec
+        ]
+        pos = np.concatenate(pos)
+        lo, hi = pos.min(0), pos.max(0)
+        shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+        return np.stack([lo + shift, hi + shift])
+
+    def _meshes(self) -> tuple:
+        if self._built is None:
+            mesh = _cone_mesh(self.params, self.height, self.texture(), self.segments)
+            self._built = normalise_meshes([mesh], crease_deg=None)  # analytic normals (smooth within a section)
+        return self._built
+
+    def __len__(self) -> int:
+        return 1
+
+    def __getitem__(self, i):
+        return self._meshes()[i]
+
+    def __iter__(self):
+        return iter(self._meshes())
+
+    def __reduce__(self):
+        return (ConeMeshes, (self.params, self.height, self.photo, self.segments))
 
 
 GENERATORS = {
@@ -481,10 +558,13 @@ def generate(
         raise ValueError(f"a ConeLook applies to traffic cones only, not to {spec.generator!r}")
     lo, hi = spec.height_range_m
     height = float(rng.uniform(lo, hi))
-    extra = {} if look is None else {"look": look}
-    mesh = GENERATORS[spec.generator](rng, height, texture, **extra)
-    params = mesh.metadata.pop("procedural_params", {})  # generators that record their draws (traffic_cone)
-    parts = normalise_meshes([mesh], crease_deg=None)  # analytic normals (smooth within a section) kept
+    if spec.generator == "traffic_cone":  # its mesh made on first read (ConeMeshes), its draws recorded
+        p = cone_params(rng, height, look)
+        parts = ConeMeshes(p, height, texture)
+        params = _cone_record(p, height, parts.segments)
+    else:
+        parts = normalise_meshes([GENERATORS[spec.generator](rng, height, texture)], crease_deg=None)
+        params = {}
     return Asset(
         name or f"procedural {spec.generator}",
         spec.category,
