@@ -18,7 +18,9 @@ the exact circle (the mesh's is a 64-gon: 0.1 % of the radius), the 4 mm bevel o
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -46,7 +48,8 @@ CHUNK_RAYS = 1 << 17
 class ConeShape:
     """The rings of one procedural cone (unscaled root, metres): the body's profile (z, r, texture v) going up, its
     per-ring smooth normals in the (radial, up) plane, the base (half-width ``a``, superellipse ``n``, top ``zb``,
-    texture row ``v_base``) and the base's 64-gon, plus the cone's texture (H, W, 3) uint8 sRGB."""
+    texture row ``v_base``) and the base's 64-gon, plus the cone's texture: ``texture_size`` (W, H) of its full
+    image and ``texture_at`` (W, H) -> that mipmap level, float32 sRGB in [0, 1] (see :func:`_texture_level`)."""
 
     body_z: np.ndarray
     body_r: np.ndarray
@@ -59,8 +62,10 @@ class ConeShape:
     zb: float
     v_base: float
     polygon: np.ndarray  # (BASE_SIDES, 2) CCW
-    texture: np.ndarray
+    texture_size: tuple[int, int]
+    texture_at: Callable[[tuple[int, int]], np.ndarray]
     height: float
+    levels: dict = field(default_factory=dict, compare=False, repr=False)  # the levels drawn so far, by size
 
 
 def _ring_normals(z: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -104,13 +109,16 @@ def cone_shape(asset: Asset) -> ConeShape | None:
     got = root.__dict__.get("_cone_shape")
     if got is not None:
         return got
-    from aias_augment.assets.bank.procedural import ConeMeshes, cone_sections  # trimesh: only for a procedural cone
+    from aias_augment.assets.bank.procedural import CONE_TEXTURE_SIZE, ConeMeshes, cone_sections  # trimesh: cones only
 
     try:
         h = float(meta["height_m"])
         sections = cone_sections(meta, h)
-        # a cone made by the family draws its texture without its mesh; one loaded otherwise carries it on the mesh
-        image = root.meshes.texture() if isinstance(root.meshes, ConeMeshes) else root.meshes[0].visual.material.image
+        if isinstance(root.meshes, ConeMeshes):  # a cone of the family: each level drawn at its size
+            texture_size, texture_at = CONE_TEXTURE_SIZE, root.meshes.texture_level
+        else:  # a cone loaded with its mesh: its image, area-averaged
+            image = root.meshes[0].visual.material.image.convert("RGB")
+            texture_size, texture_at = image.size, functools.partial(_image_level, np.asarray(image, np.uint8))
     except (KeyError, TypeError, AttributeError, IndexError):
         return None
     base_side, base_top, body = sections[1], sections[2], np.array(sections[3], float)
@@ -132,7 +140,8 @@ def cone_shape(asset: Asset) -> ConeShape | None:
         zb=zb,
         v_base=float(base_side[0][3]),
         polygon=np.c_[rr * np.cos(theta), rr * np.sin(theta)],
-        texture=np.ascontiguousarray(np.asarray(image.convert("RGB"), np.uint8)),
+        texture_size=tuple(texture_size),
+        texture_at=texture_at,
         height=h,
     )
     root.__dict__["_cone_shape"] = shape  # a memo, as the asset's bounds: its meshes never change
@@ -292,16 +301,25 @@ def _surface(p: np.ndarray, kind: np.ndarray, shape: ConeShape) -> tuple[np.ndar
     return nrm, u, v
 
 
+def _image_level(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """A uint8 sRGB texture image as float32 in [0, 1] at ``size`` (W, H): area-averaged, as a mipmap level."""
+    tex = image.astype(np.float32) / 255.0
+    return tex if size == (image.shape[1], image.shape[0]) else cv2.resize(tex, size, interpolation=cv2.INTER_AREA)
+
+
 def _texture_level(shape: ConeShape, body_px: float) -> np.ndarray:
-    """The texture (float32 sRGB in [0, 1]) shrunk to about one texel per sample over the body's height (as a
-    mipmap level would be), never enlarged."""
-    th, tw = shape.texture.shape[:2]
+    """The texture (float32 sRGB in [0, 1]) at the mipmap level for ``body_px`` samples over the body's height: the
+    smallest power-of-two reduction that keeps at least one texel per sample (never enlarged, never under 4 texels
+    a side). Levels are made once per cone, so a cone seen at many sizes (a clip) reuses each level's texels."""
+    tw, th = shape.texture_size
     rows = th * (shape.body_v[-1] - shape.body_v[0])
-    f = min(1.0, max(body_px, 1.0) / rows)
-    tex = shape.texture.astype(np.float32) / 255.0
-    if f < 0.999:
-        tex = cv2.resize(tex, (max(int(round(tw * f)), 4), max(int(round(th * f)), 4)), interpolation=cv2.INTER_AREA)
-    return tex
+    k = int(np.floor(np.log2(rows / max(body_px, 1.0)))) if body_px < rows else 0
+    k = max(0, min(k, int(np.log2(max(min(tw, th) // 4, 1)))))
+    size = (tw >> k, th >> k)
+    got = shape.levels.get(size)
+    if got is None:
+        got = shape.levels[size] = shape.texture_at(size)
+    return got
 
 
 def _sample(tex: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ Each generator draws its size from the category's real range and all randomness 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -30,6 +31,7 @@ __all__ = [
     "ProceduralSpec",
     "ConeLook",
     "ConeMeshes",
+    "cone_texture",
     "generate",
     "procedural_asset",
     "procedural_asset_from_seed",
@@ -329,18 +331,50 @@ def cone_params(rng: np.random.Generator, h: float, look: ConeLook | None = None
     return p if look is None else _apply_look(p, look, h)
 
 
-#: Texture rows per pass of :func:`_cone_texture`'s per-texel arithmetic: a block's colours stay in the CPU cache
-#: through all of its steps (each texel goes through the same operations as in whole-image passes).
+#: Texture rows per pass of :func:`cone_texture`'s per-texel arithmetic: a block's colours stay in the CPU cache
+#: through all of its steps.
 _TEXTURE_BLOCK_ROWS = 64
 
 
-def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image:
-    """The cone's texture image: base colour patch at the bottom rows, the body above it with v linear in height,
-    bands where ``p['bands_z_m']`` says, slight colour noise, dirt (darker, desaturated blotches, more near the
-    ground) and scuffs; ``texture`` (a photo), when given, modulates the grime."""
-    rng = np.random.default_rng(p["wear_seed"])
+@functools.lru_cache(maxsize=64)
+def _prism_cells(size: tuple[int, int]) -> np.ndarray:
+    """The retroreflective sheeting's prism cells as a brightness factor over the texture ((h, w) at ``size`` =
+    (w, h)): a fine diamond lattice, its period (8 texels of the full texture) dividing the width so that it closes
+    round the seam and keeps the cone's 4-fold symmetry; area-averaged at a smaller size, as a mipmap level."""
     tw, th = CONE_TEXTURE_SIZE
-    v = 1.0 - (np.arange(th) + 0.5) / th  # row -> v (image row 0 is v = 1)
+    i, c = np.arange(th)[:, None], np.arange(tw)[None, :]
+    cell = (np.abs((i + c) % 8 - 3.5) + np.abs((i - c) % 8 - 3.5)) / 7.0  # 0 at a cell's centre
+    f = 1 + 0.06 * (0.5 - cell)
+    if size != (tw, th):
+        f = cv2.resize(f, size, interpolation=cv2.INTER_AREA)
+    f.setflags(write=False)
+    return f
+
+
+def _area_rows(x: np.ndarray, rows: int) -> np.ndarray:
+    """Per-row values (n, C) area-averaged to ``rows`` rows (as a mipmap level averages texels)."""
+    return x if rows == len(x) else cv2.resize(x, (x.shape[1], rows), interpolation=cv2.INTER_AREA)
+
+
+def cone_texture(
+    p: dict, h: float, photo: Image.Image | None = None, size: tuple[int, int] = CONE_TEXTURE_SIZE
+) -> np.ndarray:
+    """The cone's texture (float64 sRGB in [0, 1], (rows, cols, 3)) at ``size`` = (cols, rows), at most
+    :data:`CONE_TEXTURE_SIZE`: base colour at the bottom rows, the body above it with v linear in height, bands
+    where ``p['bands_z_m']`` says (retroreflective: a sparkle grain and prism cells), slight colour noise, dirt
+    (darker, desaturated blotches, more near the ground) and scuffs; ``photo``, when given, modulates the grime.
+
+    A smaller ``size`` is the full texture's mipmap level drawn directly: the same cone (its rows' colours, the
+    low-frequency noise, the blotches and scuffs are the same fields, area-averaged), its texel-scale grain drawn at
+    the level with the spread an area average of the full grain has. So a far cone costs what its pixels need."""
+    tw, th = CONE_TEXTURE_SIZE
+    sw, sh = int(size[0]), int(size[1])
+    if not (1 <= sw <= tw and 1 <= sh <= th):
+        raise ValueError(f"texture size {size} outside 1..{CONE_TEXTURE_SIZE}")
+    shrink = np.sqrt(tw * th / (sw * sh))  # 1 / the spread of an area average of unit white noise
+    rng = np.random.default_rng(p["wear_seed"])  # the fields that make this cone (the same at every size)
+    noise = np.random.default_rng([p["wear_seed"], 1])  # the texel grain (drawn at the size asked)
+    v = 1.0 - (np.arange(th) + 0.5) / th  # full row -> v (image row 0 is v = 1)
     zb = p["base_height_m"]
     z = zb + (v - _V_BODY[0]) / (_V_BODY[1] - _V_BODY[0]) * (h - zb)  # row -> height on the body
     body = np.asarray(p["colour_rgb"], float) / 255.0
@@ -356,56 +390,65 @@ def _cone_texture(p: dict, h: float, texture: Image.Image | None) -> Image.Image
     row_rgb[:] = body
     row_rgb[band] = white
     row_rgb[v < (_V_BASE[1] + _V_BODY[0]) / 2] = base_rgb
-    # the random fields, drawn in a fixed order: slight colour noise, smooth low-frequency plus fine grain
-    # (retroreflective bands get a sparkle grain), then the dirt's blotches
+    ground = np.clip(1.2 - (z - zb) / (0.5 * (h - zb)), 0.2, 1.0)  # dirtier near the ground
+    rows = _area_rows(np.column_stack([row_rgb, band, ground]), sh)
+    row_rgb, band_f, ground = rows[:, :3], rows[:, 3], rows[:, 4:5]
+    # the cone's fields: smooth low-frequency colour noise, then the dirt's blotches and scuffs
     low = _wrapped_blur(rng.normal(0, 1, (th // 8, tw // 8)), 2.0)
-    low = cv2.resize(low / max(low.std(), 1e-9), (tw, th))  # eps: flat noise
-    grain = rng.normal(0, 1, (th, tw))
-    sparkle = rng.normal(0, 1, (int(band.sum()), tw))
-    sparkle_row = np.cumsum(band) - 1  # a band row's index into ``sparkle``
-    cols = np.arange(tw)[None, :]
+    low = cv2.resize(low / max(low.std(), 1e-9), (sw, sh))  # eps: flat noise
     dirt = p["dirt"] > 0
     if dirt:
         blot = _wrapped_blur(rng.normal(0, 1, (th // 4, tw // 4)), 3.0)  # patchy, periodic around the cone
-        blot = cv2.resize(np.clip(blot / max(blot.std(), 1e-9) * 0.6 + 0.1, 0, 1), (tw, th))  # eps: flat noise
-        ground = np.clip(1.2 - (z - zb) / (0.5 * (h - zb)), 0.2, 1.0)[:, None]  # dirtier near the ground
-        if texture is not None:
-            photo = np.asarray(texture.convert("L").resize((tw, th)), float) / 255.0
-            blot = blot * (0.5 + photo)
+        blot = cv2.resize(np.clip(blot / max(blot.std(), 1e-9) * 0.6 + 0.1, 0, 1), (sw, sh))  # eps: flat noise
+        if photo is not None:
+            blot = blot * (0.5 + np.asarray(photo.convert("L").resize((sw, sh)), float) / 255.0)
         grime = np.array([0.28, 0.24, 0.2])  # brownish road dirt
-    img = np.empty((th, tw, 3))
-    for r0 in range(0, th, _TEXTURE_BLOCK_ROWS):
-        rows = slice(r0, min(th, r0 + _TEXTURE_BLOCK_ROWS))
-        blk = img[rows]
-        np.multiply((1 + 0.04 * low[rows] + 0.015 * grain[rows])[..., None], row_rgb[rows, None, :], out=blk)
-        in_band = band[rows]
-        if in_band.any():
-            blk[in_band] *= (1 + 0.03 * sparkle[sparkle_row[rows][in_band]])[..., None]
-            # the sheeting's prism cells: a fine diamond lattice, its period (8 texels) dividing the width so that it
-            # closes round the seam and keeps the cone's 4-fold symmetry
-            i = np.flatnonzero(in_band)[:, None] + r0
-            cell = (np.abs((i + cols) % 8 - 3.5) + np.abs((i - cols) % 8 - 3.5)) / 7.0  # 0 at a cell's centre
-            blk[in_band] *= (1 + 0.06 * (0.5 - cell))[..., None]
+        scuffs = []  # short dark horizontal streaks: (rows, cols, factor) on the full texture
+        for _ in range(int(p["dirt"] * 40)):
+            r0, c0 = rng.integers(th), rng.integers(tw)
+            ln, wd = rng.integers(4, 30), rng.integers(1, 3)
+            scuffs.append((slice(r0, r0 + wd), slice(c0, c0 + ln), rng.uniform(0.55, 0.85)))
+    # the texel grain: fine colour noise, and the bands' sparkle (rows partly in a band get part of it)
+    grain = noise.normal(0, 1 / shrink, (sh, sw))
+    band_rows = np.flatnonzero(band_f > 0)
+    sparkle = noise.normal(0, 1, (len(band_rows), sw)) * (np.sqrt(band_f[band_rows]) / shrink)[:, None]
+    cells = _prism_cells((sw, sh))
+    img = np.empty((sh, sw, 3))
+    for r0 in range(0, sh, _TEXTURE_BLOCK_ROWS):
+        r = slice(r0, min(sh, r0 + _TEXTURE_BLOCK_ROWS))
+        blk = img[r]
+        np.multiply((1 + 0.04 * low[r] + 0.015 * grain[r])[..., None], row_rgb[r, None, :], out=blk)
+        k = (band_rows >= r.start) & (band_rows < r.stop)
+        if k.any():
+            i = band_rows[k]
+            bf = band_f[i, None]
+            img[i] *= ((1 + 0.03 * sparkle[k]) * (1 + bf * (cells[i] - 1)))[..., None]
         if dirt:
-            d = np.clip(p["dirt"] * blot[rows] * ground[rows], 0, 0.85)[..., None]
-            grey = ((blk[..., 0] + blk[..., 1]) + blk[..., 2])[..., None] / 3  # blk.mean(-1), in numpy's order
+            d = np.clip(p["dirt"] * blot[r] * ground[r], 0, 0.85)[..., None]
+            grey = ((blk[..., 0] + blk[..., 1]) + blk[..., 2])[..., None] / 3
             # desaturate, darken: (img (1 - d/2) + grey d/2) (1 - 0.45 d) + 0.15 grime d
             blk *= 1 - 0.5 * d
             blk += grey * 0.5 * d
             blk *= 1 - 0.45 * d
             blk += grime * 0.15 * d
-    if dirt:
-        for _ in range(int(p["dirt"] * 40)):  # scuffs: short dark horizontal streaks
-            r0, c0 = rng.integers(th), rng.integers(tw)
-            ln, wd = rng.integers(4, 30), rng.integers(1, 3)
-            img[r0 : r0 + wd, c0 : c0 + ln] *= rng.uniform(0.55, 0.85)
-    out = np.empty((th, tw, 3), np.uint8)
-    for r0 in range(0, th, _TEXTURE_BLOCK_ROWS):
-        blk = img[r0 : r0 + _TEXTURE_BLOCK_ROWS]
-        blk *= 255
-        blk += 0.5
-        out[r0 : r0 + _TEXTURE_BLOCK_ROWS] = np.clip(blk, 0, 255, out=blk)
-    return Image.fromarray(out)
+    if dirt and scuffs:
+        if (sw, sh) == (tw, th):
+            for rows_, cols_, f in scuffs:
+                img[rows_, cols_] *= f
+        else:  # their area-average at the level
+            field = np.ones((th, tw))
+            for rows_, cols_, f in scuffs:
+                field[rows_, cols_] *= f
+            img *= cv2.resize(field, (sw, sh), interpolation=cv2.INTER_AREA)[..., None]
+    return np.clip(img, 0.0, 1.0, out=img)
+
+
+def _cone_texture(p: dict, h: float, photo: Image.Image | None) -> Image.Image:
+    """The full texture image (:func:`cone_texture` at :data:`CONE_TEXTURE_SIZE`, 8-bit), the mesh's material."""
+    img = cone_texture(p, h, photo)
+    img *= 255
+    img += 0.5
+    return Image.fromarray(img.astype(np.uint8))
 
 
 def cone_sections(p: dict, h: float) -> list[list[tuple[float, float, float, float]]]:
@@ -497,6 +540,13 @@ class ConeMeshes(Sequence):
         if self._texture is None:
             self._texture = _cone_texture(self.params, self.height, self.photo)
         return self._texture
+
+    def texture_level(self, size: tuple[int, int]) -> np.ndarray:
+        """The texture at ``size`` (W, H) as float32 sRGB in [0, 1]: the full image's own texels at full size, else
+        that mipmap level drawn directly (:func:`cone_texture`)."""
+        if tuple(size) == CONE_TEXTURE_SIZE:
+            return np.asarray(self.texture(), np.float32) / np.float32(255.0)
+        return cone_texture(self.params, self.height, self.photo, size).astype(np.float32)
 
     def bounds_m(self) -> np.ndarray:
         """(2, 3) the built mesh's bounds, from its rings alone: min/max over the ring vertices, then the shift that

@@ -207,3 +207,58 @@ def test_raycast_cone_does_not_build_the_mesh():
     T[:3, 3] = [0.0, 0.5, 6.0]
     assert raycast_cone(s, T, Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)) is not None
     assert a.meshes._built is None
+
+
+@pytest.mark.parametrize("seed", [1, 2, 5, 8])
+def test_cone_texture_level_is_the_full_textures_mipmap(seed):
+    """A level drawn directly is the full texture area-averaged (what a mipmap holds): the same cone (rows' colours,
+    bands, blotches, scuffs), texel by texel close to the average, its grain with the average's spread; a
+    different cone is far from it."""
+    import cv2
+
+    from aias_augment.assets.bank.procedural import CONE_TEXTURE_SIZE, cone_texture, procedural_asset_from_seed
+
+    tw, th = CONE_TEXTURE_SIZE
+    m = procedural_asset_from_seed("traffic_cone", seed).meshes
+    other = procedural_asset_from_seed("traffic_cone", seed + 100).meshes
+    full = cone_texture(m.params, m.height)
+    for k in (1, 2, 3, 5):
+        size = (tw >> k, th >> k)
+        level = cone_texture(m.params, m.height, None, size)
+        mip = cv2.resize(full, size, interpolation=cv2.INTER_AREA)
+        assert level.shape == (th >> k, tw >> k, 3) and level.min() >= 0 and level.max() <= 1
+        diff = level - mip
+        assert np.abs(diff).mean() < 0.01
+        assert np.abs(level.mean(1) - mip.mean(1)).max() < 0.03  # every row's colour (bands, base, dirt)
+        # what is left is grain (about the average's spread: 0.015 / 2^k of the colour, two draws) and, at the
+        # coarsest levels, band edges averaged before the clip to [0, 1] instead of after
+        assert diff.std() < 0.015 * 2.0 / 2**k + 0.01
+        far = cv2.resize(cone_texture(other.params, other.height), size, interpolation=cv2.INTER_AREA)
+        assert np.abs(level - far).mean() > 3 * np.abs(diff).mean()
+    with pytest.raises(ValueError, match="texture size"):
+        cone_texture(m.params, m.height, None, (tw * 2, th))
+
+
+def test_raycast_cone_texture_levels_are_powers_of_two_made_once():
+    """The ray cast reads the smallest power-of-two level with a texel per sample; a cone seen again at a nearby
+    size reads the same level (no new grain: a clip does not flicker)."""
+    from aias_augment.apply.cone_raycast import _texture_level, cone_shape
+    from aias_augment.assets.bank.procedural import CONE_TEXTURE_SIZE, procedural_asset_from_seed
+
+    tw, th = CONE_TEXTURE_SIZE
+    shape = cone_shape(procedural_asset_from_seed("traffic_cone", 4))
+    rows = th * (shape.body_v[-1] - shape.body_v[0])
+    for body_px, k in [
+        (2 * rows, 0),
+        (rows, 0),
+        (0.99 * rows, 0),
+        (rows / 2, 1),
+        (rows / 2.1, 1),
+        (rows / 4.5, 2),
+        (0.5, 6),
+    ]:
+        tex = _texture_level(shape, body_px)
+        assert tex.shape[:2] == (th >> k, tw >> k), body_px
+        assert tex.dtype == np.float32
+    a = _texture_level(shape, rows / 3.0)
+    assert _texture_level(shape, rows / 3.5) is a
