@@ -6,8 +6,10 @@ top) and a body whose radius is piecewise linear in height. Each pixel's rays (`
 intersected exactly with that shape in the object frame: the body as truncated cones (a quadratic per segment), the
 base's side as its superellipse (Newton's steps along the ray), its top as a plane. The nearest hit gives the
 layers :func:`aias_augment.apply.render.render_object_window` gives: linear albedo (the cone's texture sampled at the
-hit's (u, v), filtered to the footprint as mipmapping does), coverage, z-depth and normals (the mesh's smooth normals:
-interpolated along the profile between rings, the superellipse's gradient on the base's side).
+hit's (u, v) on the power-of-two mipmap level with a texel per sample; a family cone draws that level directly,
+:func:`~aias_augment.assets.bank.procedural.cone_texture`, never its full texture or mesh), coverage, z-depth and
+normals (the mesh's smooth normals: interpolated along the profile between rings, the superellipse's gradient on the
+base's side).
 
 Every object is drawn at its own pose, so there is no view bin and no warp: a new cone per object costs what a cached
 view costs, without the render its first view needs. The ray count is the object's window times ``ssaa``^2, so the
