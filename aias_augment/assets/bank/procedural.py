@@ -155,7 +155,9 @@ _V_BODY = (0.14, 1.0)  # texture rows of the body: v linear in height from the b
 def _wrapped_blur(x: np.ndarray, sigma: float) -> np.ndarray:
     """Gaussian blur, periodic along x (columns wrap around the surface of revolution's seam)."""
     pad = int(3 * sigma) + 1
-    y = cv2.GaussianBlur(np.pad(x, ((0, 0), (pad, pad)), mode="wrap"), (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    y = cv2.GaussianBlur(
+        cv2.copyMakeBorder(x, 0, 0, pad, pad, cv2.BORDER_WRAP), (0, 0), sigma, borderType=cv2.BORDER_REFLECT
+    )
     return y[:, pad:-pad]
 
 
