@@ -31,7 +31,12 @@ def shadow_triangles(asset: Asset, sun_in_object: np.ndarray) -> np.ndarray:
     root, scale = (asset.render_root, float(asset.render_scale)) if asset.render_root is not None else (asset, 1.0)
     if len(root.meshes) != len(asset.meshes):
         root, scale = asset, 1.0
-    for m in root.meshes:
+    from aias_augment.assets.bank.procedural import ConeMeshes  # trimesh: loaded with the meshes anyway
+
+    meshes = root.meshes
+    if isinstance(meshes, ConeMeshes):  # a family cone: its geometry, without drawing its texture
+        meshes = meshes.geometry()
+    for m in meshes:
         tri = np.asarray(m.triangles, np.float64)
         if len(tri) == 0:
             continue

@@ -531,11 +531,11 @@ class ConeMeshes(Sequence):
     (:meth:`bounds_m`, exact: the mesh's own), so a fast call that ray-casts a new cone never builds its mesh
     (~3 ms). Pickles as its recipe."""
 
-    __slots__ = ("params", "height", "photo", "segments", "_texture", "_built")
+    __slots__ = ("params", "height", "photo", "segments", "_texture", "_built", "_geometry")
 
     def __init__(self, params: dict, height: float, photo: Image.Image | None, segments: int = 64):
         self.params, self.height, self.photo, self.segments = params, float(height), photo, int(segments)
-        self._texture, self._built = None, None
+        self._texture, self._built, self._geometry = None, None, None
 
     def texture(self) -> Image.Image:
         """The cone's texture image (:func:`_cone_texture`), made once."""
@@ -562,6 +562,17 @@ class ConeMeshes(Sequence):
         lo, hi = pos.min(0), pos.max(0)
         shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
         return np.stack([lo + shift, hi + shift])
+
+    def geometry(self) -> tuple:
+        """The meshes' geometry alone (the same vertices, faces and normals, no texture), made once: what a shadow
+        projected from the triangles reads, without drawing the full texture."""
+        if self._built is not None:
+            return self._built
+        if self._geometry is None:
+            verts, faces, normals, _ = _loft(cone_sections(self.params, self.height), self.segments)
+            mesh = trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)
+            self._geometry = normalise_meshes([mesh], crease_deg=None)
+        return self._geometry
 
     def _meshes(self) -> tuple:
         if self._built is None:

@@ -113,3 +113,22 @@ def test_ground_points_are_the_pixels_rays_on_the_ground_plane():
     po = (pc - T[:3, 3]) @ T[:3, :3]
     np.testing.assert_allclose(po[:, 2], 0.0, atol=1e-5)  # float32 depth: ~1e-7 relative
     np.testing.assert_allclose(xy, po[:, :2], atol=1e-5)
+
+
+def test_family_cone_shadow_reads_its_geometry_not_its_texture():
+    """A family cone's projected shadow comes from its geometry alone: the same triangles as its built, textured
+    mesh gives, bit for bit, and its full texture is never drawn."""
+    from aias_augment.apply.projected_shadow import shadow_triangles
+    from aias_augment.assets.bank.procedural import procedural_asset_from_seed
+
+    sun = np.array([0.3, -0.5, 0.81])
+    sun /= np.linalg.norm(sun)
+    for seed in (3, 8):
+        a = procedural_asset_from_seed("traffic_cone", seed)
+        s = a.scaled(1.2)
+        tri = shadow_triangles(s, sun)
+        assert a.meshes._texture is None and a.meshes._built is None
+        built = procedural_asset_from_seed("traffic_cone", seed)
+        built.meshes[0]  # the textured mesh
+        np.testing.assert_array_equal(tri, shadow_triangles(built.scaled(1.2), sun))
+        assert len(tri) > 100
