@@ -30,7 +30,7 @@ import numpy as np
 from aias_augment.apply.render import RenderLayers, crop_intrinsics, supersampled_layers, window_roi
 from aias_augment.apply.view_cache import WarpedView
 from aias_augment.assets.asset import Asset
-from aias_augment.core.geometry import Intrinsics
+from aias_augment.core.geometry import Intrinsics, project_points
 from aias_augment.core.srgb import srgb_to_linear
 
 __all__ = ["ConeShape", "cone_shape", "raycast_cone", "raycast_cone_window", "RAYCAST_SSAA"]
@@ -44,6 +44,10 @@ BASE_SIDES = 64
 NEWTON_STEPS = 8
 #: Rays per chunk: bounds the temporaries of a large window (a near cone at 4K) to a few hundred MB.
 CHUNK_RAYS = 1 << 17
+#: Window pixels from which only the outline is supersampled (see :func:`raycast_cone_window`): below it one pass of
+#: ``ssaa``^2 rays per pixel costs less than two passes (a pass's fixed cost is ~0.6 ms of NumPy calls; measured
+#: crossover near 2000 px, 45x40).
+ADAPTIVE_MIN_PIXELS = 2048
 
 
 @dataclass(frozen=True)
@@ -115,7 +119,7 @@ def cone_shape(asset: Asset) -> ConeShape | None:
 
     try:
         h = float(meta["height_m"])
-        sections = cone_sections(meta, h)
+        sections = root.meshes.sections() if isinstance(root.meshes, ConeMeshes) else cone_sections(meta, h)
         if isinstance(root.meshes, ConeMeshes):  # a cone of the family: each level drawn at its size
             texture_size, texture_at = CONE_TEXTURE_SIZE, root.meshes.texture_level
         else:  # a cone loaded with its mesh: its image, area-averaged
@@ -172,39 +176,49 @@ class _Rays:
 
 
 def _body_hits(r: _Rays, shape: ConeShape, z_span: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """Per ray the nearest t > 0 on the body (inf: none): each segment of the profile a truncated cone.
+    """Per ray the nearest t > 0 on the body (inf: none): each segment of the profile a truncated cone, solved for
+    every (ray, segment) pair at once.
 
     ``z_span``: per ray the lowest and highest z it reaches inside the body's bounding cylinder (see
-    :func:`_meets_cylinder`); a segment is then solved only for the rays whose span reaches its heights (a hit on it
-    lies inside that cylinder), with the same numbers as for all rays."""
-    best = np.full(len(r.d), np.inf)
-    oxy2 = r.ox**2 + r.oy**2
-    tol = 1e-9 * max(float(shape.height), 1e-9)  # the span's own rounding, far above it
-    for za, ra, zc, rc in shape.segments:
-        if z_span is None:
-            sel, rs, b = slice(None), r, best
-        else:
-            sel = np.flatnonzero((z_span[1] >= za - tol) & (z_span[0] <= zc + tol))
-            if len(sel) == 0:
-                continue
-            rs, b = r.subset(sel), best[sel]
-        d = rs.d
-        m = (rc - ra) / (zc - za)
-        A = ra + m * (rs.oz - za)  # the radius at the ray's z, linear in t: A + B t
-        B = m * d[:, 2]
-        qa, qb, qc = rs.dxy2 - B * B, rs.odd - A * B, oxy2 - A * A
-        disc = qb * qb - qa * qc
-        ok = disc >= 0
-        sq = np.sqrt(np.where(ok, disc, 0.0))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lin = np.abs(qa) < 1e-12
-            t1 = np.where(lin, -qc / (2 * qb), (-qb - sq) / qa)
-            t2 = np.where(lin, np.inf, (-qb + sq) / qa)
-        for t in (np.minimum(t1, t2), np.maximum(t1, t2)):
-            zt = rs.oz + t * d[:, 2]
-            valid = ok & (t > 0) & (zt >= za) & (zt <= zc) & (A + B * t >= 0) & np.isfinite(t)
-            b = np.where(valid & (t < b), t, b)
-        best[sel] = b
+    :func:`_meets_cylinder`); a ray is then paired only with the segments its span reaches (a hit on a segment lies
+    inside that cylinder): a contiguous run of the profile, one to three segments for most rays."""
+    n_rays, segs = len(r.d), shape.segments
+    best = np.full(n_rays, np.inf)
+    if n_rays == 0:
+        return best
+    if z_span is None:
+        lo, count = np.zeros(n_rays, np.intp), np.full(n_rays, len(segs))
+    else:
+        tol = 1e-9 * max(float(shape.height), 1e-9)  # the span's own rounding, far above it
+        lo = np.searchsorted(segs[:, 2] + tol, z_span[0], side="left")  # first segment with zc + tol >= z_lo
+        hi = np.searchsorted(segs[:, 0] - tol, z_span[1], side="right")  # past the last with za - tol <= z_hi
+        count = np.where(np.isnan(z_span[0]) | np.isnan(z_span[1]), 0, np.maximum(hi - lo, 0))
+    rays = np.flatnonzero(count)
+    if len(rays) == 0:
+        return best
+    count = count[rays]
+    start = np.cumsum(count) - count  # each ray's first pair
+    ray = np.repeat(rays, count)
+    seg = np.repeat(lo[rays] - start, count) + np.arange(len(ray))
+    za, ra, zc, rc = segs[seg].T
+    dz = r.d[ray, 2]
+    m = (rc - ra) / (zc - za)
+    A = ra + m * (r.oz - za)  # the radius at the ray's z, linear in t: A + B t
+    B = m * dz
+    qa, qb, qc = r.dxy2[ray] - B * B, r.odd[ray] - A * B, (r.ox**2 + r.oy**2) - A * A
+    disc = qb * qb - qa * qc
+    ok = disc >= 0
+    sq = np.sqrt(np.where(ok, disc, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lin = np.abs(qa) < 1e-12
+        t1 = np.where(lin, -qc / (2 * qb), (-qb - sq) / qa)
+        t2 = np.where(lin, np.inf, (-qb + sq) / qa)
+    pair = np.full(len(ray), np.inf)
+    for t in (np.minimum(t1, t2), np.maximum(t1, t2)):
+        zt = r.oz + t * dz
+        valid = ok & (t > 0) & (zt >= za) & (zt <= zc) & (A + B * t >= 0) & np.isfinite(t)
+        pair = np.where(valid & (t < pair), t, pair)
+    best[rays] = np.minimum.reduceat(pair, start)
     return best
 
 
@@ -340,6 +354,70 @@ def _sample(tex: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return out.reshape(-1, 3)[:n]
 
 
+def _cast(
+    shape: ConeShape, origin: np.ndarray, dirs: np.ndarray, tex: np.ndarray, R: np.ndarray, t: np.ndarray, s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The rays ``dirs`` (object frame, from ``origin``) against the cone: (index of each ray that hits, its surface
+    kind (0 body, 1 base side, 2 base top), linear albedo, camera-frame normal, z-depth), chunk by chunk."""
+    base_radius = float(np.hypot(*shape.polygon.T).max())
+    got = []
+    for c0 in range(0, len(dirs), CHUNK_RAYS):
+        rays = _Rays.of(origin, dirs[c0 : c0 + CHUNK_RAYS])
+        on_body, (z_lo, z_hi) = _meets_cylinder(rays, float(shape.body_r.max()), shape.zb, shape.height, with_span=True)
+        on_base = _meets_cylinder(rays, base_radius, 0.0, shape.zb)
+        keep = on_body | on_base
+        idx = c0 + np.flatnonzero(keep)
+        rays, on_body, on_base, z_lo, z_hi = rays.subset(keep), on_body[keep], on_base[keep], z_lo[keep], z_hi[keep]
+        d = rays.d
+        hits = np.full((len(d), 3), np.inf)
+        hits[on_body, 0] = _body_hits(rays.subset(on_body), shape, (z_lo[on_body], z_hi[on_body]))
+        on_base_rays = rays.subset(on_base)
+        hits[on_base, 1] = _base_side_hits(on_base_rays, shape)
+        hits[on_base, 2] = _base_top_hits(on_base_rays, shape)
+        kind = np.argmin(hits, axis=1)
+        th = hits[np.arange(len(d)), kind]
+        hit = np.isfinite(th)
+        idx, d, kind, th = idx[hit], d[hit], kind[hit], th[hit]
+        p = origin + th[:, None] * d
+        n_obj, u, v = _surface(p, kind, shape)
+        got.append((idx, kind, srgb_to_linear(_sample(tex, u, v)), n_obj @ R.T, s * (p @ R[2] + t[2])))
+    return tuple(np.concatenate(parts) for parts in zip(*got))
+
+
+def _ray_dirs(K: Intrinsics, R: np.ndarray, us: np.ndarray, vs: np.ndarray, *, grid: bool = False) -> np.ndarray:
+    """Object-frame directions (R^T d, row-wise) of the rays through window points (``us``, ``vs``), OpenCV
+    coordinates of the window's camera ``K``; ``grid``: through every (v, u) of the two axes, row by row."""
+    if grid:
+        us, vs = us[None, :], vs[:, None]
+    y = (vs - K.cy) / K.fy
+    a = (us - K.cx) / K.fx - (K.K[0, 1] / K.fx) * y
+    if grid:
+        a, y = a.ravel(), np.broadcast_to(y, a.shape).ravel()
+    return np.stack([a, y, np.ones(len(a))], axis=1) @ R
+
+
+def _layers_of(n: int, got: tuple, ssaa: int, shape: tuple[int, int]) -> RenderLayers:
+    """The pixel layers of ``n`` samples laid out as a grid of ``shape`` (rows, cols of samples) with ``ssaa`` x
+    ``ssaa`` samples per pixel, from :func:`_cast`'s hits."""
+    idx, _, albedo_hit, normal_hit, depth_hit = got
+    covered = np.zeros(n, np.float32)
+    albedo = np.zeros((n, 3), np.float32)
+    normals = np.zeros((n, 3), np.float32)
+    depth = np.zeros(n, np.float32)
+    covered[idx] = 1.0
+    albedo[idx] = albedo_hit
+    normals[idx] = normal_hit
+    depth[idx] = depth_hit
+    rows, cols = shape
+    return supersampled_layers(
+        covered.reshape(rows, cols),
+        albedo.reshape(rows, cols, 3),
+        normals.reshape(rows, cols, 3),
+        depth.reshape(rows, cols),
+        ssaa,
+    )
+
+
 def raycast_cone_window(
     asset: Asset,
     cam_from_object: np.ndarray,
@@ -347,10 +425,20 @@ def raycast_cone_window(
     *,
     ssaa: int = 2,
     znear: float = 0.05,
+    everywhere: bool = False,
 ) -> tuple[tuple[int, int, int, int], RenderLayers] | None:
     """(roi, layers) as :func:`aias_augment.apply.render.render_object_window` returns them, ray-cast; None when
     ``asset`` is not a procedural cone (:func:`cone_shape`) or a bounding-box corner is not in front of the camera
-    (the caller renders the mesh)."""
+    (the caller renders the mesh).
+
+    Windows of :data:`ADAPTIVE_MIN_PIXELS` or more are supersampled where it changes a pixel: one ray through each
+    pixel's centre first; the pixels whose 3x3 neighbourhood is not all one surface (the silhouette, the base's
+    edges) and those inside the base's outline that their centre ray misses (its rim can be thinner than a pixel)
+    then get ``ssaa`` x ``ssaa`` rays; the others keep their centre sample, on the mipmap level with a texel per
+    pixel (which averages what their sub-samples would read). The ray count then follows the object's area plus
+    ``ssaa``^2 times its outline's. Smaller windows, and every window with ``everywhere``, get ``ssaa`` x ``ssaa``
+    rays in every pixel, on the level with a texel per sub-sample (the reference the outline-only pass
+    approximates: the same coverage, tested)."""
     shape = cone_shape(asset)
     if shape is None:
         return None
@@ -367,52 +455,48 @@ def raycast_cone_window(
         z = np.zeros((0, 0), np.float32)
         return (0, 0, 0, 0), RenderLayers(np.zeros((0, 0, 3), np.float32), z, z.copy(), np.zeros((0, 0, 3), np.float32))
     K = crop_intrinsics(intrinsics, roi)
-    h, w = (y1 - y0) * ssaa, (x1 - x0) * ssaa
-    # sub-sample centres in the window's OpenCV coordinates, as the GL path's supersampled camera puts them
-    us = (np.arange(w) + 0.5) / ssaa - 0.5
-    vs = (np.arange(h) + 0.5) / ssaa - 0.5
-    a = (us - K.cx) / K.fx - (K.K[0, 1] / K.fx) * ((vs[:, None] - K.cy) / K.fy)
-    b = np.broadcast_to(((vs - K.cy) / K.fy)[:, None], (h, w))
-    rays_cam = np.stack([np.broadcast_to(a, (h, w)).ravel(), b.ravel(), np.ones(h * w)], axis=1)
     origin = -R.T @ t
-    dirs = rays_cam @ R  # object-frame directions (R^T d, row-wise)
-    covered = np.zeros(h * w, bool)
-    albedo = np.zeros((h * w, 3), np.float32)
-    normals = np.zeros((h * w, 3), np.float32)
-    depth = np.zeros(h * w, np.float32)
-    body_px = (shape.body_z[-1] - shape.body_z[0]) / max(float(np.mean(zc)) / s, 1e-9) * K.fy * ssaa
+    h0, w0 = y1 - y0, x1 - x0
+    everywhere = everywhere or ssaa == 1 or h0 * w0 < ADAPTIVE_MIN_PIXELS
+    per_pixel = ssaa if everywhere else 1  # samples per pixel side that the texture level serves
+    body_px = (shape.body_z[-1] - shape.body_z[0]) / max(float(np.mean(zc)) / s, 1e-9) * K.fy * per_pixel
     tex = _texture_level(shape, body_px)
-    base_radius = float(np.hypot(*shape.polygon.T).max())
-    for c0 in range(0, h * w, CHUNK_RAYS):
-        rays = _Rays.of(origin, dirs[c0 : c0 + CHUNK_RAYS])
-        on_body, (z_lo, z_hi) = _meets_cylinder(rays, float(shape.body_r.max()), shape.zb, shape.height, with_span=True)
-        on_base = _meets_cylinder(rays, base_radius, 0.0, shape.zb)
-        keep = on_body | on_base
-        idx = c0 + np.flatnonzero(keep)
-        rays, on_body, on_base, z_lo, z_hi = rays.subset(keep), on_body[keep], on_base[keep], z_lo[keep], z_hi[keep]
-        d = rays.d
-        hits = np.full((len(d), 3), np.inf)
-        hits[on_body, 0] = _body_hits(rays.subset(on_body), shape, (z_lo[on_body], z_hi[on_body]))
-        on_base_rays = rays.subset(on_base)
-        hits[on_base, 1] = _base_side_hits(on_base_rays, shape)
-        hits[on_base, 2] = _base_top_hits(on_base_rays, shape)
-        kind = np.argmin(hits, axis=1)
-        th = hits[np.arange(len(d)), kind]
-        got = np.isfinite(th)
-        idx, d, kind, th = idx[got], d[got], kind[got], th[got]
-        p = origin + th[:, None] * d
-        n_obj, u, v = _surface(p, kind, shape)
-        covered[idx] = True
-        albedo[idx] = srgb_to_linear(_sample(tex, u, v))
-        normals[idx] = n_obj @ R.T
-        depth[idx] = s * (p @ R[2] + t[2])
-    layers = supersampled_layers(
-        covered.reshape(h, w).astype(np.float32),
-        albedo.reshape(h, w, 3),
-        normals.reshape(h, w, 3),
-        depth.reshape(h, w),
-        ssaa,
+    # sub-sample centres in the window's OpenCV coordinates, as the GL path's supersampled camera puts them
+    us = (np.arange(w0 * ssaa) + 0.5) / ssaa - 0.5
+    vs = (np.arange(h0 * ssaa) + 0.5) / ssaa - 0.5
+    if everywhere:
+        got = _cast(shape, origin, _ray_dirs(K, R, us, vs, grid=True), tex, R, t, s)
+        return roi, _layers_of(len(us) * len(vs), got, ssaa, (h0 * ssaa, w0 * ssaa))
+    got = _cast(
+        shape, origin, _ray_dirs(K, R, np.arange(w0, dtype=float), np.arange(h0, dtype=float), grid=True), tex, R, t, s
     )
+    layers = _layers_of(h0 * w0, got, 1, (h0, w0))
+    surface = np.zeros(h0 * w0, np.uint8)  # 0 none, 1 + the surface's kind
+    surface[got[0]] = got[1] + 1
+    surface = surface.reshape(h0, w0)
+    box = np.ones((3, 3), np.uint8)
+    # outside the window counts as no surface: an object cut by the image's edge is supersampled along the cut
+    edges = cv2.dilate(surface, box) != cv2.erode(surface, box, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    # the base's rim can be a strip thinner than a pixel between two rows of centres (a far cone seen level), wider
+    # than the body: every centre that misses inside its square prism's outline (a pixel wider) is supersampled too
+    a = shape.a
+    prism = np.array([[x, y, z] for x in (-a, a) for y in (-a, a) for z in (0.0, shape.zb)]) @ R.T + t
+    outline = cv2.convexHull(np.round(project_points(prism, K.K)[0] * 16).astype(np.int32))
+    near_base = np.zeros((h0, w0), np.uint8)
+    cv2.fillConvexPoly(near_base, outline, 1, lineType=cv2.LINE_8, shift=4)
+    edges |= (cv2.dilate(near_base, box) > 0) & (surface == 0)
+    py, px = np.nonzero(edges)
+    if len(py):
+        # the edge pixels as one strip of ssaa x ssaa blocks: row i of a block is sub-row i, its column j sub-column j
+        sub_v = np.repeat(vs[py[None, :] * ssaa + np.arange(ssaa)[:, None]], ssaa, axis=1)  # (ssaa, n ssaa)
+        sub_u = np.tile(us[(px[:, None] * ssaa + np.arange(ssaa)[None, :]).ravel()], (ssaa, 1))  # (ssaa, n ssaa)
+        got = _cast(shape, origin, _ray_dirs(K, R, sub_u.ravel(), sub_v.ravel()), tex, R, t, s)
+        edge = _layers_of(sub_u.size, got, ssaa, sub_u.shape)
+        for full, part in zip(
+            (layers.albedo_linear, layers.alpha, layers.depth, layers.normals_in_cam),
+            (edge.albedo_linear, edge.alpha, edge.depth, edge.normals_in_cam),
+        ):
+            full[py, px] = part[0]
     return roi, layers
 
 

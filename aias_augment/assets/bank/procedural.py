@@ -531,11 +531,11 @@ class ConeMeshes(Sequence):
     (:meth:`bounds_m`, exact: the mesh's own), so a fast call that ray-casts a new cone never builds its mesh
     (~3 ms). Pickles as its recipe."""
 
-    __slots__ = ("params", "height", "photo", "segments", "_texture", "_built", "_geometry")
+    __slots__ = ("params", "height", "photo", "segments", "_sections", "_texture", "_built", "_geometry")
 
     def __init__(self, params: dict, height: float, photo: Image.Image | None, segments: int = 64):
         self.params, self.height, self.photo, self.segments = params, float(height), photo, int(segments)
-        self._texture, self._built, self._geometry = None, None, None
+        self._sections, self._texture, self._built, self._geometry = None, None, None, None
 
     def texture(self) -> Image.Image:
         """The cone's texture image (:func:`_cone_texture`), made once."""
@@ -550,16 +550,26 @@ class ConeMeshes(Sequence):
             return np.asarray(self.texture(), np.float32) / np.float32(255.0)
         return cone_texture(self.params, self.height, self.photo, size).astype(np.float32)
 
+    def sections(self) -> list:
+        """The cone's rings (:func:`cone_sections`), made once."""
+        if self._sections is None:
+            self._sections = cone_sections(self.params, self.height)
+        return self._sections
+
     def bounds_m(self) -> np.ndarray:
-        """(2, 3) the built mesh's bounds, from its rings alone: min/max over the ring vertices, then the shift that
-        :func:`normalise_meshes` applies (a sum, which keeps the order of floats, so min/max commute with it)."""
-        pos = [
-            np.array([[0.0, 0.0, z]]) if xyz is None else xyz
-            for sec in _rings(cone_sections(self.params, self.height), self.segments)
-            for z, _, _, xyz in sec
-        ]
-        pos = np.concatenate(pos)
-        lo, hi = pos.min(0), pos.max(0)
+        """(2, 3) the built mesh's bounds, from its rings alone: min/max over the ring vertices (each the product
+        :func:`_rings` forms, all rings at once), then the shift that :func:`normalise_meshes` applies (a sum, which
+        keeps the order of floats, so min/max commute with it)."""
+        rings = [ring for sec in self.sections() for ring in sec]
+        z = np.array([ring[0] for ring in rings])
+        solid = [(r, sn) for _, r, sn, _ in rings if r > 0]
+        theta = np.linspace(0.0, 2 * np.pi, self.segments + 1)[:-1]
+        shapes = {sn: _superellipse(theta, sn) for sn in {sn for _, sn in solid}}
+        rr = np.array([r for r, _ in solid])[:, None] * np.stack([shapes[sn] for _, sn in solid])
+        x, y = rr * np.cos(theta), rr * np.sin(theta)
+        pole = len(solid) < len(rings)  # a pole's vertex is on the axis
+        lo = np.array([min(x.min(), 0.0) if pole else x.min(), min(y.min(), 0.0) if pole else y.min(), z.min()])
+        hi = np.array([max(x.max(), 0.0) if pole else x.max(), max(y.max(), 0.0) if pole else y.max(), z.max()])
         shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
         return np.stack([lo + shift, hi + shift])
 
@@ -569,7 +579,7 @@ class ConeMeshes(Sequence):
         if self._built is not None:
             return self._built
         if self._geometry is None:
-            verts, faces, normals, _ = _loft(cone_sections(self.params, self.height), self.segments)
+            verts, faces, normals, _ = _loft(self.sections(), self.segments)
             mesh = trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)
             self._geometry = normalise_meshes([mesh], crease_deg=None)
         return self._geometry
