@@ -2,18 +2,19 @@
 
 A procedural cone (:func:`aias_augment.assets.bank.procedural.make_traffic_cone`) is the rings of
 :func:`~aias_augment.assets.bank.procedural.cone_sections`: a base (a superellipse prism, square or round, with a flat
-top) and a body whose radius is piecewise linear in height. Each pixel's rays (``ssaa`` x ``ssaa`` per pixel) are
-intersected exactly with that shape in the object frame: the body as truncated cones (a quadratic per segment), the
-base's side as its superellipse (Newton's steps along the ray), its top as a plane. The nearest hit gives the
-layers :func:`aias_augment.apply.render.render_object_window` gives: linear albedo (the cone's texture sampled at the
-hit's (u, v) on the power-of-two mipmap level with a texel per sample; a family cone draws that level directly,
+top) and a body whose radius is piecewise linear in height. Rays are intersected exactly with that shape in the object
+frame: the body as truncated cones (a quadratic per segment), the base's side as its superellipse (Newton's steps
+along the ray), its top as a plane. The nearest hit gives the layers
+:func:`aias_augment.apply.render.render_object_window` gives: linear albedo (the cone's texture sampled at the hit's
+(u, v) on the power-of-two mipmap level with a texel per sample; a family cone draws that level directly,
 :func:`~aias_augment.assets.bank.procedural.cone_texture`, never its full texture or mesh), coverage, z-depth and
 normals (the mesh's smooth normals: interpolated along the profile between rings, the superellipse's gradient on the
 base's side).
 
 Every object is drawn at its own pose, so there is no view bin and no warp: a new cone per object costs what a cached
-view costs, without the render its first view needs. The ray count is the object's window times ``ssaa``^2, so the
-cost follows the object's size on screen. Differences to the GL render of the same mesh: the body's cross-section is
+view costs, without the render its first view needs. A small window gets ``ssaa`` x ``ssaa`` rays in every pixel; a
+larger one one ray per pixel and ``ssaa`` x ``ssaa`` only along its outline (the same coverage), so a near cone costs
+its area plus its outline's sub-samples. Differences to the GL render of the same mesh: the body's cross-section is
 the exact circle (the mesh's is a 64-gon: 0.1 % of the radius), the 4 mm bevel of the base's top edge is left out
 (under a pixel for cones below ~150 px) and normals are not quantised to 8 bits.
 """
