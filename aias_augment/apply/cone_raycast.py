@@ -435,11 +435,11 @@ def raycast_cone_window(
     Windows of :data:`ADAPTIVE_MIN_PIXELS` or more are supersampled where it changes a pixel: one ray through each
     pixel's centre first; the pixels whose 3x3 neighbourhood is not all one surface (the silhouette, the base's
     edges) and those inside the base's outline that their centre ray misses (its rim can be thinner than a pixel)
-    then get ``ssaa`` x ``ssaa`` rays; the others keep their centre sample, on the mipmap level with a texel per
-    pixel (which averages what their sub-samples would read). The ray count then follows the object's area plus
-    ``ssaa``^2 times its outline's. Smaller windows, and every window with ``everywhere``, get ``ssaa`` x ``ssaa``
-    rays in every pixel, on the level with a texel per sub-sample (the reference the outline-only pass
-    approximates: the same coverage, tested)."""
+    then get ``ssaa`` x ``ssaa`` rays; the others keep their centre sample. Both read the mipmap level with a texel
+    per sub-sample, where a pixel's centre falls between the texels its sub-samples read, so a centre sample is
+    their bilinear mean. The ray count then follows the object's area plus ``ssaa``^2 times its outline's. Smaller
+    windows, and every window with ``everywhere``, get ``ssaa`` x ``ssaa`` rays in every pixel (the reference the
+    outline pass approximates: the same coverage, tested)."""
     shape = cone_shape(asset)
     if shape is None:
         return None
@@ -459,8 +459,9 @@ def raycast_cone_window(
     origin = -R.T @ t
     h0, w0 = y1 - y0, x1 - x0
     everywhere = everywhere or ssaa == 1 or h0 * w0 < ADAPTIVE_MIN_PIXELS
-    per_pixel = ssaa if everywhere else 1  # samples per pixel side that the texture level serves
-    body_px = (shape.body_z[-1] - shape.body_z[0]) / max(float(np.mean(zc)) / s, 1e-9) * K.fy * per_pixel
+    # the level with a texel per sub-sample in both passes: a centre sample there reads the texels its sub-samples
+    # would (bilinear at the centre of their 2x2 block), so the two passes share the texels and the grain
+    body_px = (shape.body_z[-1] - shape.body_z[0]) / max(float(np.mean(zc)) / s, 1e-9) * K.fy * ssaa
     tex = _texture_level(shape, body_px)
     # sub-sample centres in the window's OpenCV coordinates, as the GL path's supersampled camera puts them
     us = (np.arange(w0 * ssaa) + 0.5) / ssaa - 0.5

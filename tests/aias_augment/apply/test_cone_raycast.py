@@ -186,9 +186,10 @@ def test_outline_supersampling_keeps_the_coverage_of_supersampling_everywhere(se
     """Supersampling only the outline (forced on every window, far small cones included) gives each pixel the
     coverage that ``ssaa`` x ``ssaa`` rays in every pixel give, exactly: near cones cut by the image's edge, far
     cones seen level (the base's rim a strip under a pixel tall), steep views. Where both cover a pixel fully, on
-    the windows that take the outline pass by default, the centre sample on the coarser mipmap level reads what
-    the four sub-samples average: per cone within 3 sRGB levels on average (each level draws its own texel grain),
-    its mean within 2 levels (averaging in sRGB before decoding darkens slightly), depth within 1 mm (median)."""
+    the windows that take the outline pass by default, the centre sample reads what the four sub-samples average
+    (the same texels): per cone within 3 sRGB levels on average (one bilinear sample of the grain against the mean
+    of four), its mean within 2 levels (interpolating in sRGB before decoding darkens slightly), depth within 1 mm
+    (median)."""
     from aias_augment.apply import cone_raycast
 
     default_min = cone_raycast.ADAPTIVE_MIN_PIXELS
