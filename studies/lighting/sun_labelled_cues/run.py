@@ -476,5 +476,3 @@ def main(argv=None) -> int:
     (a.out / f"{a.part}_report.json").write_text(json.dumps(rep, indent=1))
     print(json.dumps(rep, indent=1))
     return 0
-
-
