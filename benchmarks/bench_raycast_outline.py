@@ -32,21 +32,12 @@ DISTANCES = (30.0, 18.0, 12.0, 8.0, 5.0, 3.0)
 FOCAL = 700.0
 
 
-def _look_at(centre, target=(0.0, 0.0, 0.35)) -> np.ndarray:
-    from aias_augment.core.geometry import make_rigid
-
-    c = np.asarray(centre, float)
-    f = np.asarray(target, float) - c
-    f /= np.linalg.norm(f)
-    r = np.cross(f, [0.0, 0.0, 1.0])
-    r /= np.linalg.norm(r)
-    R = np.stack([r, np.cross(f, r), f])
-    return make_rigid(R, -R @ c)
-
-
 def _view(dist: float, elev_deg: float, az_deg: float) -> np.ndarray:
+    from aias_augment.assets.bank.thumbnails import look_at_cam_from_object
+
     e, a = np.radians(elev_deg), np.radians(az_deg)
-    return _look_at([dist * np.cos(e) * np.cos(a), dist * np.cos(e) * np.sin(a), dist * np.sin(e)])
+    eye = [dist * np.cos(e) * np.cos(a), dist * np.cos(e) * np.sin(a), dist * np.sin(e)]
+    return look_at_cam_from_object(np.array(eye), np.array([0.0, 0.0, 0.35]))
 
 
 def _srgb255(x: np.ndarray) -> np.ndarray:
