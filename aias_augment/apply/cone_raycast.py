@@ -120,10 +120,10 @@ def cone_shape(asset: Asset) -> ConeShape | None:
 
     try:
         h = float(meta["height_m"])
-        sections = root.meshes.sections() if isinstance(root.meshes, ConeMeshes) else cone_sections(meta, h)
-        if isinstance(root.meshes, ConeMeshes):  # a cone of the family: each level drawn at its size
-            texture_size, texture_at = CONE_TEXTURE_SIZE, root.meshes.texture_level
+        if isinstance(root.meshes, ConeMeshes):  # a cone of the family: its rings made once, each level at its size
+            sections, texture_size, texture_at = root.meshes.sections(), CONE_TEXTURE_SIZE, root.meshes.texture_level
         else:  # a cone loaded with its mesh: its image, area-averaged
+            sections = cone_sections(meta, h)
             image = root.meshes[0].visual.material.image.convert("RGB")
             texture_size, texture_at = image.size, functools.partial(_image_level, np.asarray(image, np.uint8))
     except (KeyError, TypeError, AttributeError, IndexError):

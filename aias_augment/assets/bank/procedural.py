@@ -173,25 +173,30 @@ def _superellipse(theta: np.ndarray, n: float) -> np.ndarray:
     return (c**n + s**n) ** (-1.0 / n)
 
 
+def _ring_xy(solid: list[tuple[float, float]], segments: int) -> tuple[np.ndarray, np.ndarray]:
+    """(x, y), each (K, segments): the vertices of K rings of radius r and superellipse exponent n (``solid``: (r, n)
+    per ring, r > 0) at the ``segments`` angles of a loft's ring (the seam column left out)."""
+    theta = np.linspace(0.0, 2 * np.pi, segments + 1)[:-1]
+    shapes = {n: _superellipse(theta, n) for n in {n for _, n in solid}}  # rings share a few exponents
+    rr = np.array([r for r, _ in solid]).reshape(-1, 1) * np.stack([shapes[n] for _, n in solid] or [theta])
+    return rr * np.cos(theta), rr * np.sin(theta)
+
+
 def _rings(sections: list[list[tuple[float, float, float, float]]], segments: int):
     """The rings of :func:`_loft`'s sections: per section, a list of (z, r, v, positions) with positions the ring's
     (segments, 3) vertices without the seam column, or None for a pole (r == 0, one vertex on the axis)."""
-    theta = np.linspace(0.0, 2 * np.pi, segments + 1)
-    cos_t, sin_t = np.cos(theta[:-1]), np.sin(theta[:-1])
-    shapes: dict[float, np.ndarray] = {}  # the superellipse's radius factors per exponent (rings share a few)
-    out = []
+    x, y = _ring_xy([(r, sn) for sec in sections for _, r, sn, _ in sec if r > 0], segments)
+    out, k = [], 0
     for sec in sections:
         rings = []
-        for z, r, sn, v in sec:
+        for z, r, _, v in sec:
             if r <= 0:
                 rings.append((z, r, v, None))
                 continue
-            if sn not in shapes:
-                shapes[sn] = _superellipse(theta[:-1], sn)
-            rr = r * shapes[sn]
             ring = np.empty((segments, 3))
-            ring[:, 0], ring[:, 1], ring[:, 2] = rr * cos_t, rr * sin_t, z
+            ring[:, 0], ring[:, 1], ring[:, 2] = x[k], y[k], z
             rings.append((z, r, v, ring))
+            k += 1
         out.append(rings)
     return out
 
@@ -558,18 +563,14 @@ class ConeMeshes(Sequence):
 
     def bounds_m(self) -> np.ndarray:
         """(2, 3) the built mesh's bounds, from its rings alone: min/max over the ring vertices (each the product
-        :func:`_rings` forms, all rings at once), then the shift that :func:`normalise_meshes` applies (a sum, which
+        :func:`_ring_xy` gives the mesh), then the shift that :func:`normalise_meshes` applies (a sum, which
         keeps the order of floats, so min/max commute with it)."""
         rings = [ring for sec in self.sections() for ring in sec]
         z = np.array([ring[0] for ring in rings])
-        solid = [(r, sn) for _, r, sn, _ in rings if r > 0]
-        theta = np.linspace(0.0, 2 * np.pi, self.segments + 1)[:-1]
-        shapes = {sn: _superellipse(theta, sn) for sn in {sn for _, sn in solid}}
-        rr = np.array([r for r, _ in solid])[:, None] * np.stack([shapes[sn] for _, sn in solid])
-        x, y = rr * np.cos(theta), rr * np.sin(theta)
-        pole = len(solid) < len(rings)  # a pole's vertex is on the axis
-        lo = np.array([min(x.min(), 0.0) if pole else x.min(), min(y.min(), 0.0) if pole else y.min(), z.min()])
-        hi = np.array([max(x.max(), 0.0) if pole else x.max(), max(y.max(), 0.0) if pole else y.max(), z.max()])
+        x, y = _ring_xy([(r, sn) for _, r, sn, _ in rings if r > 0], self.segments)
+        if any(r <= 0 for _, r, _, _ in rings):  # a pole's vertex is on the axis
+            x, y = np.append(x, 0.0), np.append(y, 0.0)
+        lo, hi = np.array([x.min(), y.min(), z.min()]), np.array([x.max(), y.max(), z.max()])
         shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
         return np.stack([lo + shift, hi + shift])
 
