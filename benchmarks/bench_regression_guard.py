@@ -15,6 +15,9 @@ the same machine. Measurements:
   ``--warmup`` calls over six roads in rotation, ``--calls`` timed calls over the same six (a fresh insertion on an
   image seen before: a training loop's steady state, ``fresh``), then ``--first-sight`` calls each on a road never
   seen by the process (``first_sight``: the scene analysis and the asset views run).
+* ``transform_sun``: the same fresh calls with six TraCon roads on which the evidence model decides a direct sun
+  (``bench_first_sight.sun_decided_roads``, chosen once by the tree's code) as the rotation: the objects cast
+  projected sun shadows, which the six default roads (no decided sun) never pay for.
 * ``cli_fast`` / ``cli_balanced``: ``aias-augment --images DIR --preset P`` on the first ``--images`` TraCon training
   photos at their own resolution (2 objects each, seed 0), a new output folder per run: the process's wall seconds,
   its CPU seconds and the run's own median seconds per image (``summary.json``).
@@ -64,8 +67,9 @@ def tracon_files(n: int) -> list[Path]:
 # ---------------------------------------------------------------- worker: runs inside the side's PYTHONPATH
 
 
-def transform_worker(warmup: int, calls: int, first_sight: int, root: str) -> dict:
-    """Per-call wall and CPU ms of the fast transform (see the module docstring); run in a subprocess."""
+def transform_worker(warmup: int, calls: int, first_sight: int, root: str, photos: list[str] | None = None) -> dict:
+    """Per-call wall and CPU ms of the fast transform (see the module docstring); run in a subprocess. ``photos``:
+    the rotation's roads instead of the first six TraCon ones (then no first sight)."""
     os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
     import albumentations as A
     import cv2
@@ -76,7 +80,7 @@ def transform_worker(warmup: int, calls: int, first_sight: int, root: str) -> di
 
     if not Path(aias_augment.__file__).resolve().is_relative_to(Path(root).resolve()):
         raise GuardError(f"imported aias_augment from {aias_augment.__file__}, not from {root}")
-    files = tracon_files(ROTATION + first_sight)
+    files = [Path(f) for f in photos] if photos else tracon_files(ROTATION + first_sight)
     images = [
         cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), (640, 480), interpolation=cv2.INTER_AREA)
         for f in files
@@ -94,7 +98,7 @@ def transform_worker(warmup: int, calls: int, first_sight: int, root: str) -> di
     for i in range(warmup):
         tf(image=images[i % ROTATION], bboxes=no_boxes, labels=[])
     fresh = [timed(images[i % ROTATION]) for i in range(calls)]
-    first = [timed(images[ROTATION + i]) for i in range(first_sight)]
+    first = [timed(images[ROTATION + i]) for i in range(0 if photos else first_sight)]
     return {
         "fresh_ms": [w for w, _ in fresh],
         "fresh_cpu_ms": [c for _, c in fresh],
@@ -169,9 +173,11 @@ def _run_child(
     return r, wall, cpu_s
 
 
-def measure_transform(side: Side, a, cpu: int) -> dict:
+def measure_transform(side: Side, a, cpu: int, photos: list[str] | None = None) -> dict:
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "--root", str(side.root)]
     cmd += ["--warmup", str(a.warmup), "--calls", str(a.calls), "--first-sight", str(a.first_sight)]
+    if photos:
+        cmd += ["--photos", *photos]
     r, _, _ = _run_child(side, cmd, cpu, timeout=900)
     return json.loads(r.stdout.strip().splitlines()[-1])
 
@@ -202,6 +208,8 @@ METRICS = (
     ("transform fresh call (CPU)", "ms", "transform", "fresh_cpu_ms"),
     ("transform first sight", "ms", "transform", "first_sight_ms"),
     ("transform first sight (CPU)", "ms", "transform", "first_sight_cpu_ms"),
+    ("transform fresh call, decided sun", "ms", "transform_sun", "fresh_ms"),
+    ("transform fresh call, decided sun (CPU)", "ms", "transform_sun", "fresh_cpu_ms"),
     ("cli fast: run", "s", "cli_fast", "wall_s"),
     ("cli fast: run (CPU)", "s", "cli_fast", "cpu_s"),
     ("cli fast: per image", "s", "cli_fast", "median_s_per_image"),
@@ -255,7 +263,10 @@ def run_guard(a) -> dict:
         images.mkdir()
         for f in tracon_files(a.images):
             shutil.copy(f, images / f.name)
-        kinds = ("transform", "cli_fast", "cli_balanced")
+        from benchmarks.bench_first_sight import sun_decided_roads
+
+        sunny = sun_decided_roads(ROTATION)
+        kinds = ("transform", "transform_sun", "cli_fast", "cli_balanced")
         samples = {s: {k: [] for k in kinds} for s in sides}
         load_before = os.getloadavg()
         t_start = time.perf_counter()
@@ -263,8 +274,8 @@ def run_guard(a) -> dict:
             order = ("ref", "tree") if r % 2 == 0 else ("tree", "ref")
             for kind in kinds:
                 for s in order:
-                    if kind == "transform":
-                        res = measure_transform(sides[s], a, a.cpu)
+                    if kind.startswith("transform"):
+                        res = measure_transform(sides[s], a, a.cpu, sunny if kind == "transform_sun" else None)
                     else:
                         res = measure_cli(sides[s], kind.split("_")[1], images, tmp, a.cpu)
                     samples[s][kind].append(res)
@@ -307,6 +318,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     ap.add_argument("--out", default=str(REPO / "results" / "bench" / "regression_guard.json"))
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--root", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--photos", nargs="+", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     defaults = {"rounds": (3, 2), "warmup": (120, 40), "calls": (60, 24), "first_sight": (6, 3), "images": (4, 2)}
     for k, (full, quick) in defaults.items():
@@ -322,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
     a = parse_args(list(sys.argv[1:] if argv is None else argv))
     try:
         if a.worker:
-            print(json.dumps(transform_worker(a.warmup, a.calls, a.first_sight, a.root)))
+            print(json.dumps(transform_worker(a.warmup, a.calls, a.first_sight, a.root, a.photos)))
             return 0
         if shutil.which("taskset") is None:
             raise GuardError("taskset not found (util-linux): the guard pins every run to one core")

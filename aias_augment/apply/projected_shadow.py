@@ -34,15 +34,16 @@ def shadow_triangles(asset: Asset, sun_in_object: np.ndarray) -> np.ndarray:
     from aias_augment.assets.bank.procedural import ConeMeshes  # trimesh: loaded with the meshes anyway
 
     meshes = root.meshes
-    if isinstance(meshes, ConeMeshes):  # a family cone: its geometry, without drawing its texture
-        meshes = meshes.geometry()
-    for m in meshes:
-        tri = np.asarray(m.triangles, np.float64)
+    if isinstance(meshes, ConeMeshes):  # a family cone: its mesh's triangles, without building it (never watertight)
+        parts = [(meshes.triangles(), False)]
+    else:
+        parts = [(np.asarray(m.triangles, np.float64), m.is_watertight) for m in meshes]
+    for tri, watertight in parts:
         if len(tri) == 0:
             continue
         if scale != 1.0:
             tri = tri * scale
-        if m.is_watertight:  # a closed surface's shadow is the shadow of its sun-facing half
+        if watertight:  # a closed surface's shadow is the shadow of its sun-facing half
             n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
             tri = tri[n @ sun_in_object > 0]
         t = np.minimum(np.clip(tri[..., 2:3], 0.0, None) / sun_in_object[2], MAX_SHADOW_REACH_M)
@@ -109,6 +110,7 @@ def projected_ground(
         mask = np.zeros((h * ss, w * ss), np.uint8)
         for p in pts:
             cv2.fillConvexPoly(mask, p, 1, lineType=cv2.LINE_8, shift=4)
-        cover = mask.reshape(h, ss, w, ss).mean(axis=(1, 3), dtype=np.float32)
+        # each pixel's share of its ss x ss block (an area resize: exact sums of 0 and 1 times 1 / ss^2)
+        cover = cv2.resize(mask.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
         vis = np.where(on_patch, 1.0 - cover, 1.0).astype(np.float32)
     return ShadowLayers(vis, on_patch, depth, roi), np.stack([px[on_patch], py[on_patch]], -1)

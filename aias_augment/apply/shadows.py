@@ -27,6 +27,8 @@ __all__ = [
 
 #: Half the sun's apparent diameter (0.53 deg).
 SUN_ANGULAR_RADIUS_RAD = float(np.deg2rad(0.265))
+#: Footprints of up to this many distinct points are searched by brute force (a k-d tree only pays off above it).
+_BRUTE_FORCE_POINTS = 32
 
 #: Below this sun confidence no sun shadow is darker than :data:`UNCERTAIN_SUN_DARKEST` of the lit ground: a false
 #: sun's black hard shadow costs far more than a missed sun's faint one (the bound is 0.5 below 0.8; 0.55 leaves
@@ -145,8 +147,9 @@ def soften_shadow(
     # Only the levels some pixel interpolates between are blurred (the same values: the others have weight 0).
     first, last = int(lo.min()), int(lo.max()) + 1
     stack = np.stack([ndimage.gaussian_filter(s, sg, mode="nearest") for sg in levels[first : last + 1]], axis=0)
-    rows, cols = np.indices(s.shape)
-    out = stack[lo - first, rows, cols] * (1 - frac) + stack[lo + 1 - first, rows, cols] * frac
+    below = np.take_along_axis(stack, (lo - first)[None], axis=0)[0]
+    above = np.take_along_axis(stack, (lo + 1 - first)[None], axis=0)[0]
+    out = below * (1 - frac) + above * frac
     return np.clip(out, s.min(), s.max()).astype(np.float32)
 
 
@@ -163,7 +166,17 @@ def occluder_distance_from_footprint(
     f = np.asarray(footprint_xy, dtype=np.float64).reshape(-1, 2)
     if f.size == 0:
         raise ValueError("footprint_xy is empty")
-    rho, _ = spatial.cKDTree(f).query(g.reshape(-1, 2))
+    f = np.unique(f, axis=0)
+    if len(f) > _BRUTE_FORCE_POINTS:
+        rho, _ = spatial.cKDTree(f).query(g.reshape(-1, 2))
+    else:  # a box's corners: the nearest by brute force, the same sums and root as the tree's
+        x, y = g.reshape(-1, 2).T
+        d2 = None
+        for fx, fy in f:
+            dx, dy = x - fx, y - fy
+            s = dx * dx + dy * dy
+            d2 = s if d2 is None else np.minimum(d2, s)
+        rho = np.sqrt(d2)
     return (rho / max(np.cos(float(sun_elevation_rad)), min_cos)).reshape(g.shape[:-1])
 
 

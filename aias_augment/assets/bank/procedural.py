@@ -201,17 +201,11 @@ def _rings(sections: list[list[tuple[float, float, float, float]]], segments: in
     return out
 
 
-def _loft(
-    sections: list[list[tuple[float, float, float, float]]], segments: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A closed surface of revolution from smooth ``sections``, each a list of rings (z, r, superellipse n, v)
-    going up; consecutive sections share their end/start ring position but not vertices, so the normals break
-    there (creases). A ring with r == 0 is a pole (one vertex). Returns vertices, faces (outward, CCW), vertex
-    normals (smooth within a section, seamless across the UV seam) and UVs (u = angle, v as given)."""
+def _loft_sections(sections: list[list[tuple[float, float, float, float]]], segments: int):
+    """Per section of :func:`_loft`'s surface: its vertex positions, faces (outward, CCW; indices into the
+    section's own vertices), the vertex ids of each ring (a pole's one vertex) and the UVs."""
     u = np.linspace(0.0, 2 * np.pi, segments + 1) / (2 * np.pi)
     j = np.arange(segments)
-    verts, faces, normals, uvs = [], [], [], []
-    base = 0
     for sec in _rings(sections, segments):
         ids, pos, uv, n = [], [], [], 0
         for z, r, v, xyz in sec:
@@ -228,7 +222,6 @@ def _loft(
                 pos.append(ring)
                 uv.append(np.column_stack([u, np.full(segments + 1, v)]))
                 n += segments + 1
-        pos = np.concatenate(pos)
         sf = []
         for a, b in zip(ids[:-1], ids[1:]):
             if len(a) == 1 and len(b) == 1:
@@ -242,7 +235,19 @@ def _loft(
                 quad[:, 0, 0], quad[:, 0, 1], quad[:, 0, 2] = a[j], a[j + 1], b[j + 1]
                 quad[:, 1, 0], quad[:, 1, 1], quad[:, 1, 2] = a[j], b[j + 1], b[j]
                 sf.append(quad.reshape(-1, 3))
-        sf = np.concatenate(sf).astype(np.int64)
+        yield np.concatenate(pos), np.concatenate(sf).astype(np.int64), ids, np.concatenate(uv)
+
+
+def _loft(
+    sections: list[list[tuple[float, float, float, float]]], segments: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A closed surface of revolution from smooth ``sections``, each a list of rings (z, r, superellipse n, v)
+    going up; consecutive sections share their end/start ring position but not vertices, so the normals break
+    there (creases). A ring with r == 0 is a pole (one vertex). Returns vertices, faces (outward, CCW), vertex
+    normals (smooth within a section, seamless across the UV seam) and UVs (u = angle, v as given)."""
+    verts, faces, normals, uvs = [], [], [], []
+    base = 0
+    for pos, sf, ids, uv in _loft_sections(sections, segments):
         # smooth normals on the geometric vertices (seam column merged into column 0), area weighted
         geo = np.arange(len(pos))
         for ring in ids:
@@ -258,9 +263,15 @@ def _loft(
         verts.append(pos)
         faces.append(sf + base)
         normals.append(nrm)
-        uvs.append(np.concatenate(uv))
+        uvs.append(uv)
         base += len(pos)
     return np.concatenate(verts), np.concatenate(faces), np.concatenate(normals), np.concatenate(uvs)
+
+
+def loft_triangles(sections: list[list[tuple[float, float, float, float]]], segments: int) -> np.ndarray:
+    """(F, 3, 3) the triangles of :func:`_loft`'s surface (the same vertices, faces in the same order), without
+    its normals and UVs."""
+    return np.concatenate([pos[sf] for pos, sf, _, _ in _loft_sections(sections, segments)])
 
 
 def _apply_look(p: dict, look: ConeLook, h: float) -> dict:
@@ -536,11 +547,11 @@ class ConeMeshes(Sequence):
     (:meth:`bounds_m`, exact: the mesh's own), so a fast call that ray-casts a new cone never builds its mesh
     (~3 ms). Pickles as its recipe."""
 
-    __slots__ = ("params", "height", "photo", "segments", "_sections", "_texture", "_built", "_geometry")
+    __slots__ = ("params", "height", "photo", "segments", "_sections", "_texture", "_built")
 
     def __init__(self, params: dict, height: float, photo: Image.Image | None, segments: int = 64):
         self.params, self.height, self.photo, self.segments = params, float(height), photo, int(segments)
-        self._sections, self._texture, self._built, self._geometry = None, None, None, None
+        self._sections, self._texture, self._built = None, None, None
 
     def texture(self) -> Image.Image:
         """The cone's texture image (:func:`_cone_texture`), made once."""
@@ -574,16 +585,15 @@ class ConeMeshes(Sequence):
         shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
         return np.stack([lo + shift, hi + shift])
 
-    def geometry(self) -> tuple:
-        """The meshes' geometry alone (the same vertices, faces and normals, no texture), made once: what a shadow
-        projected from the triangles reads, without drawing the full texture."""
-        if self._built is not None:
-            return self._built
-        if self._geometry is None:
-            verts, faces, normals, _ = _loft(self.sections(), self.segments)
-            mesh = trimesh.Trimesh(verts, faces, vertex_normals=normals, process=False)
-            self._geometry = normalise_meshes([mesh], crease_deg=None)
-        return self._geometry
+    def triangles(self) -> np.ndarray:
+        """(F, 3, 3) the built mesh's triangles (its faces in order; after :func:`normalise_meshes`' shift, the
+        same sums), made without the mesh: what a shadow projected from the triangles reads. The mesh is never
+        watertight (its sections and its UV seam do not share vertices), so a shadow reads every triangle."""
+        tri = loft_triangles(self.sections(), self.segments)
+        lo, hi = tri.min(axis=(0, 1)), tri.max(axis=(0, 1))  # every vertex is in a face
+        shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+        tri += shift
+        return tri
 
     def _meshes(self) -> tuple:
         if self._built is None:

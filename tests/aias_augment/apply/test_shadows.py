@@ -55,6 +55,20 @@ def test_soften_finite_and_in_range(dist, alpha, ppm):
     assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
 
 
+def test_occluder_distance_by_brute_force_is_the_trees(monkeypatch):
+    """A box's corners are searched by brute force: the same distances, bit for bit, as the k-d tree gives (the
+    path of larger footprints), and the nearest corner's Euclidean distance over cos(elevation)."""
+    rng = np.random.default_rng(0)
+    g = rng.normal(0.0, 2.0, (5000, 2))
+    box = np.array([[x, y] for x in (-0.21, 0.19) for y in (-0.2, 0.23) for _ in range(2)])  # 8 corners, 4 distinct
+    el = np.deg2rad(35.0)
+    brute = shadows.occluder_distance_from_footprint(g, box, el)
+    monkeypatch.setattr(shadows, "_BRUTE_FORCE_POINTS", 0)
+    np.testing.assert_array_equal(brute, shadows.occluder_distance_from_footprint(g, box, el))
+    nearest = np.min(np.hypot(g[:, None, 0] - box[None, :, 0], g[:, None, 1] - box[None, :, 1]), axis=1)
+    np.testing.assert_allclose(brute, nearest / np.cos(el), rtol=1e-12)
+
+
 def test_occluder_distance_and_contact():
     g = np.array([[1.0, 0.0], [0.0, 0.0]])
     d = shadows.occluder_distance_from_footprint(g, np.array([[0.0, 0.0]]), np.deg2rad(60.0))
