@@ -45,6 +45,10 @@ BASE_SIDES = 64
 NEWTON_STEPS = 8
 #: Rays per chunk: bounds the temporaries of a large window (a near cone at 4K) to a few hundred MB.
 CHUNK_RAYS = 1 << 17
+#: Sides of the polygons circumscribing the body's rings in the hull that bounds which rays are cast.
+HULL_SIDES = 16
+#: Grids of fewer rays are cast whole: their misses cost less than rasterising the hull.
+HULL_MIN_RAYS = 4096
 #: Window pixels from which only the outline is supersampled (see :func:`raycast_cone_window`): below it one pass of
 #: ``ssaa``^2 rays per pixel costs less than two passes (a pass's fixed cost is ~0.6 ms of NumPy calls; measured
 #: crossover near 2000 px, 45x40).
@@ -73,6 +77,23 @@ class ConeShape:
     texture_at: Callable[[tuple[int, int]], np.ndarray]
     height: float
     levels: dict = field(default_factory=dict, compare=False, repr=False)  # the levels drawn so far, by size
+
+    @functools.cached_property
+    def hulls(self) -> tuple[np.ndarray, np.ndarray]:
+        """Point sets whose convex hulls together hold the cone (:func:`_hulls`)."""
+        return _hulls(self.body_z, self.body_r, self.a, self.zb)
+
+
+def _hulls(body_z: np.ndarray, body_r: np.ndarray, a: float, zb: float) -> tuple[np.ndarray, np.ndarray]:
+    """Two point sets (object frame) whose convex hulls together hold the cone: the base's square prism (the
+    superellipse inside it), and per body ring a polygon circumscribing its circle (the body between two rings is
+    inside the hull of their circles). Apart, the wide flat base does not widen the body's hull."""
+    m = HULL_SIDES
+    phi = (np.arange(m) + 0.5) * (2 * np.pi / m)
+    ring = np.c_[np.cos(phi), np.sin(phi)] / np.cos(np.pi / m)  # its edges touch the unit circle
+    body = [np.c_[ring * r, np.full(m, z)] if r > 0 else np.array([[0.0, 0.0, z]]) for z, r in zip(body_z, body_r)]
+    base = np.array([[x, y, z] for x in (-a, a) for y in (-a, a) for z in (0.0, zb)])
+    return base, np.concatenate(body)
 
 
 def _ring_normals(z: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -244,18 +265,39 @@ def _base_side_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
     t = np.maximum(tx0, ty0)
     live = (t <= np.minimum(tx1, ty1)) & (t > 0)
     t = np.where(live, t, 0.0)
+    i = np.flatnonzero(live)  # the rays still descending, their own copies of the step's inputs
+    ti, oxi, oyi, dxi, dyi = t[i], ox, oy, dx[i], dy[i]
     for _ in range(NEWTON_STEPS):
-        x, y = ox + t * dx, oy + t * dy
-        ax, ay = np.abs(x), np.abs(y)
-        f = ax**n + ay**n - 1.0
-        df = n * (np.sign(x) * ax ** (n - 1) * dx + np.sign(y) * ay ** (n - 1) * dy)
-        live &= df < 0  # still descending toward the root
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.where(live, t - np.maximum(f, 0.0) / df, t)
+        x, y = oxi + ti * dxi, oyi + ti * dyi
+        (fx, gx), (fy, gy) = _power_and_slope(x, n), _power_and_slope(y, n)
+        f = fx + fy - 1.0
+        df = n * (gx * dxi + gy * dyi)
+        down = df < 0  # still descending toward the root
+        if not down.all():
+            live[i[~down]] = False
+            t[i] = ti  # the stopped rays keep where they stopped
+            i, ti, f, df, dxi, dyi = i[down], ti[down], f[down], df[down], dxi[down], dyi[down]
+        ti = ti - np.maximum(f, 0.0) / df
+    t[i] = ti
     x, y = ox + t * dx, oy + t * dy
-    close = np.abs(np.abs(x) ** n + np.abs(y) ** n - 1.0) <= 1e-4
+    close = np.abs(_power_and_slope(x, n)[0] + _power_and_slope(y, n)[0] - 1.0) <= 1e-4
     zt = r.oz + t * d[:, 2]
     return np.where(live & close & (zt >= 0) & (zt <= shape.zb), t, np.inf)
+
+
+def _power_and_slope(x: np.ndarray, n: float) -> tuple[np.ndarray, np.ndarray]:
+    """(|x|^n, sign(x) |x|^(n-1)): by products where ``n`` is an even integer up to 16 (the square base's 8; a few
+    ulp from ``pow``, several times faster), else by powers."""
+    if n == int(n) and int(n) % 2 == 0 and 2 <= n <= 16:
+        x2 = x * x
+        if n == 2:
+            return x2, x
+        even = x2  # x^(n-2) = (x^2)^(n/2-1)
+        for _ in range(int(n) // 2 - 2):
+            even = even * x2
+        return even * x2, x * even
+    ax = np.abs(x)
+    return ax**n, np.sign(x) * ax ** (n - 1)
 
 
 def _base_top_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
@@ -264,7 +306,7 @@ def _base_top_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (shape.zb - r.oz) / d[:, 2]
     x, y = r.ox + t * d[:, 0], r.oy + t * d[:, 1]
-    inside = (np.abs(x) / shape.a_top) ** shape.n + (np.abs(y) / shape.a_top) ** shape.n <= 1.0
+    inside = _power_and_slope(x / shape.a_top, shape.n)[0] + _power_and_slope(y / shape.a_top, shape.n)[0] <= 1.0
     return np.where((d[:, 2] < 0) & (t > 0) & inside, t, np.inf)
 
 
@@ -307,8 +349,7 @@ def _surface(p: np.ndarray, kind: np.ndarray, shape: ConeShape) -> tuple[np.ndar
     nrm = np.stack([nr * cx, nr * sy, nz], axis=1)
     side = kind == 1
     if side.any():  # the superellipse's gradient, horizontal
-        gx = np.sign(x[side]) * np.abs(x[side]) ** (shape.n - 1)
-        gy = np.sign(y[side]) * np.abs(y[side]) ** (shape.n - 1)
+        gx, gy = _power_and_slope(x[side], shape.n)[1], _power_and_slope(y[side], shape.n)[1]
         g = np.stack([gx, gy, np.zeros_like(gx)], axis=1)
         nrm[side] = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
     nrm[kind == 2] = (0.0, 0.0, 1.0)
@@ -397,6 +438,37 @@ def _ray_dirs(K: Intrinsics, R: np.ndarray, us: np.ndarray, vs: np.ndarray, *, g
     return np.stack([a, y, np.ones(len(a))], axis=1) @ R
 
 
+def _cast_grid(shape: ConeShape, origin, K: Intrinsics, R, t, s, us, vs, tex) -> tuple:
+    """:func:`_cast` of the rays through every (v, u) of the window axes ``us``, ``vs`` (row by row), the hits'
+    indices into that grid: only the grid points inside the projected hulls of the cone (:attr:`ConeShape.hulls`,
+    one grid step wider) are cast, the others cannot meet it."""
+    mask = _hull_mask(shape, R, t, K, us, vs) if len(us) * len(vs) >= HULL_MIN_RAYS else None
+    if mask is None:
+        return _cast(shape, origin, _ray_dirs(K, R, us, vs, grid=True), tex, R, t, s)
+    iv, ju = np.nonzero(mask)
+    got = _cast(shape, origin, _ray_dirs(K, R, us[ju], vs[iv]), tex, R, t, s)
+    return ((iv * len(us) + ju)[got[0]], *got[1:])
+
+
+def _hull_mask(shape: ConeShape, R, t, K: Intrinsics, us, vs) -> np.ndarray | None:
+    """(len(vs), len(us)) bool: the grid points (window coordinates ``us``, ``vs``, evenly spaced) that the cone's
+    projected hulls (:attr:`ConeShape.hulls`) cover, grown by one grid step (rasterisation's and rounding's margin);
+    None where a hull is not all in front of the camera or projects too far out to rasterise (cast every point)."""
+    if len(us) < 2 or len(vs) < 2:
+        return None
+    mask = np.zeros((len(vs), len(us)), np.uint8)
+    step = np.array([us[1] - us[0], vs[1] - vs[0]])
+    for pts in shape.hulls:
+        pts = pts @ R.T + t
+        if (pts[:, 2] <= 1e-6).any():
+            return None
+        g = (project_points(pts, K.K)[0] - (us[0], vs[0])) / step
+        if not np.isfinite(g).all() or np.abs(g).max() > 8 * max(len(us), len(vs)) + 64:
+            return None
+        cv2.fillConvexPoly(mask, cv2.convexHull(np.round(g * 16).astype(np.int32)), 1, lineType=cv2.LINE_8, shift=4)
+    return cv2.dilate(mask, np.ones((3, 3), np.uint8)) > 0
+
+
 def _layers_of(n: int, got: tuple, ssaa: int, shape: tuple[int, int]) -> RenderLayers:
     """The pixel layers of ``n`` samples laid out as a grid of ``shape`` (rows, cols of samples) with ``ssaa`` x
     ``ssaa`` samples per pixel, from :func:`_cast`'s hits."""
@@ -467,11 +539,9 @@ def raycast_cone_window(
     us = (np.arange(w0 * ssaa) + 0.5) / ssaa - 0.5
     vs = (np.arange(h0 * ssaa) + 0.5) / ssaa - 0.5
     if everywhere:
-        got = _cast(shape, origin, _ray_dirs(K, R, us, vs, grid=True), tex, R, t, s)
+        got = _cast_grid(shape, origin, K, R, t, s, us, vs, tex)
         return roi, _layers_of(len(us) * len(vs), got, ssaa, (h0 * ssaa, w0 * ssaa))
-    got = _cast(
-        shape, origin, _ray_dirs(K, R, np.arange(w0, dtype=float), np.arange(h0, dtype=float), grid=True), tex, R, t, s
-    )
+    got = _cast_grid(shape, origin, K, R, t, s, np.arange(w0, dtype=float), np.arange(h0, dtype=float), tex)
     layers = _layers_of(h0 * w0, got, 1, (h0, w0))
     surface = np.zeros(h0 * w0, np.uint8)  # 0 none, 1 + the surface's kind
     surface[got[0]] = got[1] + 1

@@ -216,3 +216,37 @@ def test_outline_supersampling_keeps_the_coverage_of_supersampling_everywhere(se
         assert np.median(np.abs(got.depth[full] - ref.depth[full])) <= 1e-3
         checked += 1
     assert checked >= 10
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_projected_hulls_hold_every_ray_that_meets_the_cone(seed, monkeypatch):
+    """Only the grid points inside the cone's projected hulls are cast; casting the whole grid finds no hit outside
+    them (near and far, below and far above the base, cut by the image's edge), and the layers are the same,
+    bit for bit, as casting every point."""
+    from aias_augment.apply import cone_raycast
+
+    rng = np.random.default_rng(seed)
+    cast_in_mask = 0
+    for i in range(30):
+        a = procedural_asset_from_seed("traffic_cone", 300 + 30 * seed + i)
+        dist = float(np.exp(rng.uniform(np.log(1.0), np.log(40.0))))
+        T = _view(dist, float(rng.uniform(-3.0, 85.0)), float(rng.uniform(0.0, 360.0)))
+        shape, R, s = cone_shape(a), T[:3, :3], 1.0
+        roi = raycast_cone_window(a, T, K)[0]
+        Kw = cone_raycast.crop_intrinsics(K, roi)
+        us, vs = np.arange(roi[2] - roi[0], dtype=float), np.arange(roi[3] - roi[1], dtype=float)
+        mask = cone_raycast._hull_mask(shape, R, T[:3, 3] / s, Kw, us, vs)
+        if mask is None:
+            continue
+        origin = -R.T @ T[:3, 3]
+        tex = cone_raycast._texture_level(shape, 100.0)
+        hits = cone_raycast._cast(shape, origin, cone_raycast._ray_dirs(Kw, R, us, vs, grid=True), tex, R, T[:3, 3], s)
+        assert mask.ravel()[hits[0]].all()
+        cast_in_mask += len(hits[0])
+        monkeypatch.setattr(cone_raycast, "HULL_MIN_RAYS", 0)
+        culled = raycast_cone_window(a, T, K)[1]
+        monkeypatch.setattr(cone_raycast, "HULL_MIN_RAYS", 1 << 62)
+        whole = raycast_cone_window(a, T, K)[1]
+        for f in ("alpha", "albedo_linear", "normals_in_cam", "depth"):
+            np.testing.assert_array_equal(getattr(culled, f), getattr(whole, f))
+    assert cast_in_mask > 10000
