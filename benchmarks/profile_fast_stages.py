@@ -1,11 +1,13 @@
 """Where the fast preset's time goes, by stage: a fresh call on a seen image, and the first sight of an image.
 
     taskset -c 0 nice python -m benchmarks.profile_fast_stages --out results/bench/profile_fast.md
+    taskset -c 0 nice python -m benchmarks.profile_fast_stages --sun decided --out results/bench/profile_fast_sun.md
 
 ``InsertObjects(preset="fast", p=1)`` in a ``Compose`` on 640x480 TraCon training roads (the regression guard's
 transform, ``benchmarks/bench_regression_guard.py``): ``--warmup`` calls over six roads in rotation, then ``--calls``
 fresh calls over the same six (an image seen before: scene-cache hit, a new insertion), then ``--first-sight`` calls
-each on a road the process has not seen (the scene analysis and the asset views run). The process runs under py-spy
+each on a road the process has not seen (the scene analysis and the asset views run); ``--sun decided``: every road
+one on which the evidence model decides a direct sun (the objects cast sun shadows). The process runs under py-spy
 (a sampling profiler: ``--rate`` stacks per second, native calls counted in the Python frame that made them, waits
 included so that a frame waiting on the GL rasteriser's threads carries the render's cost); each sample goes to the
 phase whose function is on its stack and to the pipeline step and stage of its innermost ``aias_augment`` frame (the
@@ -29,6 +31,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from benchmarks.bench_first_sight import sun_decided_roads
 from benchmarks.bench_regression_guard import REPO, ROTATION, SINGLE_THREAD, tracon_files
 
 PHASES = {"_phase_fresh": "fresh call (seen image)", "_phase_first_sight": "first sight of an image"}
@@ -68,7 +71,11 @@ def worker(a) -> dict:
 
     images = [
         cv2.resize(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), (640, 480), interpolation=cv2.INTER_AREA)
-        for f in tracon_files(ROTATION + a.first_sight)
+        for f in (
+            sun_decided_roads(ROTATION + a.first_sight)
+            if a.sun == "decided"
+            else tracon_files(ROTATION + a.first_sight)
+        )
     ]
     tf = A.Compose(
         [InsertObjects(preset="fast", p=1.0)], bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=7
@@ -133,7 +140,13 @@ def markdown(command: str, a, counts: dict, timings: dict, load: tuple, code: st
         f"Code: {code}.",
         "",
         f"py-spy {a.rate} samples/s; {a.warmup} warm-up calls, {a.calls} fresh calls over {ROTATION} roads, "
-        f'{a.first_sight} first-sight roads (640x480 TraCon, `InsertObjects(preset="fast", p=1)`). One core '
+        f"{a.first_sight} first-sight roads"
+        + (
+            " (all of them photos on which the evidence decides a sun: the objects cast sun shadows)"
+            if a.sun == "decided"
+            else ""
+        )
+        + f' (640x480 TraCon, `InsertObjects(preset="fast", p=1)`). One core '
         f"(taskset), a shared machine (load average {load[0]:.1f} before, {load[1]:.1f} after): ms are CPU ms "
         "(the phase's median CPU per call times the stage's share of samples, waits on the GL threads included), "
         "the shares are what to read.",
@@ -176,6 +189,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--first-sight", type=int, default=12)
     ap.add_argument("--rate", type=int, default=250, help="py-spy samples per second")
     ap.add_argument("--top", type=int, default=15, help="functions listed per phase")
+    ap.add_argument(
+        "--sun",
+        choices=("any", "decided"),
+        default="any",
+        help="the roads: the first TraCon photos by name (any), or the first on which the evidence decides a sun",
+    )
     ap.add_argument("--out", default="results/bench/profile_fast.md")
     ap.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
