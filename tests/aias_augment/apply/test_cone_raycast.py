@@ -29,6 +29,16 @@ def _view(dist, elev_deg, az_deg):
     return _look_at([dist * np.cos(e) * np.cos(a), dist * np.cos(e) * np.sin(a), dist * np.sin(e)])
 
 
+def _random_views(seed, n, *, first, dist_m, max_elev_deg):
+    """``n`` (family cone, cam_from_object) pairs: cones ``first``, ``first + 1``, ... at log-uniform distances in
+    ``dist_m``, from 3 deg below the base up to ``max_elev_deg``, all round."""
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        dist = float(np.exp(rng.uniform(np.log(dist_m[0]), np.log(dist_m[1]))))
+        T = _view(dist, float(rng.uniform(-3.0, max_elev_deg)), float(rng.uniform(0.0, 360.0)))
+        yield procedural_asset_from_seed("traffic_cone", first + i), T
+
+
 def _radius_at(shape, z):
     return float(np.interp(z, shape.body_z, shape.body_r))
 
@@ -198,12 +208,8 @@ def test_outline_supersampling_keeps_the_coverage_of_supersampling_everywhere(se
     def srgb(x):
         return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.clip(x, 0, None) ** (1 / 2.4) - 0.055) * 255
 
-    rng = np.random.default_rng(seed)
     checked = 0
-    for i in range(40):
-        a = procedural_asset_from_seed("traffic_cone", 200 + 40 * seed + i)
-        dist = float(np.exp(rng.uniform(np.log(1.2), np.log(70.0))))
-        T = _view(dist, float(rng.uniform(-3.0, 80.0)), float(rng.uniform(0.0, 360.0)))
+    for a, T in _random_views(seed, 40, first=200 + 40 * seed, dist_m=(1.2, 70.0), max_elev_deg=80.0):
         (roi, ref), (roi_got, got) = raycast_cone_window(a, T, K, everywhere=True), raycast_cone_window(a, T, K)
         assert roi == roi_got
         np.testing.assert_array_equal(got.alpha, ref.alpha)
@@ -225,12 +231,8 @@ def test_the_projected_hulls_hold_every_ray_that_meets_the_cone(seed, monkeypatc
     bit for bit, as casting every point."""
     from aias_augment.apply import cone_raycast
 
-    rng = np.random.default_rng(seed)
     cast_in_mask = 0
-    for i in range(30):
-        a = procedural_asset_from_seed("traffic_cone", 300 + 30 * seed + i)
-        dist = float(np.exp(rng.uniform(np.log(1.0), np.log(40.0))))
-        T = _view(dist, float(rng.uniform(-3.0, 85.0)), float(rng.uniform(0.0, 360.0)))
+    for a, T in _random_views(seed, 30, first=300 + 30 * seed, dist_m=(1.0, 40.0), max_elev_deg=85.0):
         shape, R, s = cone_shape(a), T[:3, :3], 1.0
         roi = raycast_cone_window(a, T, K)[0]
         Kw = cone_raycast.crop_intrinsics(K, roi)
