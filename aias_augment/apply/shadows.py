@@ -128,16 +128,19 @@ def soften_shadow(
         raise ValueError(f"sun_angular_radius_rad must be in [0, pi/4), got {alpha}")
     if n_levels < 2 or not 0 < min_sigma_px < max_sigma_px:
         raise ValueError("need n_levels >= 2 and 0 < min_sigma_px < max_sigma_px")
+    ppm = np.broadcast_to(np.asarray(pixels_per_metre, dtype=np.float64), s.shape)
+    ppm = np.where(np.isfinite(ppm) & (ppm > 0), ppm, 0.0)
     if occluder_distance_m is None:
         d = np.full(s.shape, float(default_distance_m))
     else:
         d = np.broadcast_to(np.asarray(occluder_distance_m, dtype=np.float64), s.shape)
         known = np.isfinite(d) & (d > 0)
-        d = fill_nearest(np.where(known, d, 0.0), known) if not known.all() else np.array(d)
         if not known.any():
             d = np.full(s.shape, float(default_distance_m))
-    ppm = np.broadcast_to(np.asarray(pixels_per_metre, dtype=np.float64), s.shape)
-    ppm = np.where(np.isfinite(ppm) & (ppm > 0), ppm, 0.0)
+        elif (~known & (ppm > 0)).any():
+            d = fill_nearest(np.where(known, d, 0.0), known)
+        else:  # the unknown pixels have no scale (off the ground): their sigma is the least whatever their distance
+            d = np.where(known, d, 0.0)
     sigma = np.clip(d * np.tan(alpha) * ppm, min_sigma_px, max_sigma_px)
     levels = np.geomspace(min_sigma_px, max_sigma_px, n_levels)
     # Per-pixel linear interpolation in log-sigma between the two enclosing levels.

@@ -46,6 +46,29 @@ def test_soften_keeps_constant_and_unknown_distance_is_filled():
     assert np.allclose(shadows.soften_shadow(s, None, 0.01, 50.0), 0.4)
 
 
+def test_soften_off_the_ground_needs_no_distance():
+    """Pixels without a scale (ppm 0: off the ground patch) take the least blur whatever their occluder distance:
+    leaving their unknown distances unfilled gives, bit for bit, what filling them from the nearest known pixel
+    gives; an unknown distance where the scale is known is filled."""
+    rng = np.random.default_rng(0)
+    s = np.where(rng.random((40, 60)) < 0.3, 0.3, 1.0)
+    ground = np.zeros((40, 60), bool)
+    ground[8:35, 5:50] = True
+    d = np.where(ground, rng.uniform(0.05, 3.0, (40, 60)), np.nan)
+    ppm = np.where(ground, rng.uniform(20.0, 300.0, (40, 60)), 0.0)
+    filled = shadows.fill_nearest(np.where(ground, d, 0.0), ground)
+    out = shadows.soften_shadow(s, d, 0.05, ppm, min_sigma_px=0.7)
+    np.testing.assert_array_equal(out, shadows.soften_shadow(s, filled, 0.05, ppm, min_sigma_px=0.7))
+    d[20, 20] = np.nan  # on the ground: its distance is its nearest known neighbour's
+    out = shadows.soften_shadow(s, d, 0.05, ppm, min_sigma_px=0.7)
+    np.testing.assert_array_equal(
+        out,
+        shadows.soften_shadow(
+            s, shadows.fill_nearest(np.where(np.isfinite(d), d, 0.0), np.isfinite(d)), 0.05, ppm, min_sigma_px=0.7
+        ),
+    )
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.floats(0, 1e5), st.floats(0.0, 0.5), st.floats(0, 1e3))
 def test_soften_finite_and_in_range(dist, alpha, ppm):
