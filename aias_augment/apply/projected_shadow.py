@@ -131,10 +131,11 @@ def projected_ground(
 
         pieces = shadow_pieces(asset, sun)
         if pieces is not None:
-            for piece in pieces:
-                pts, front = sub_pixels(piece)
-                if front.all():  # a piece reaching behind the camera is skipped (the window is ahead)
-                    cv2.fillConvexPoly(mask, cv2.convexHull(pts), 1, lineType=cv2.LINE_8, shift=4)
+            pts, front = sub_pixels(np.concatenate(pieces))
+            ends = np.cumsum([len(p) for p in pieces])[:-1]
+            for p, f in zip(np.split(pts, ends), np.split(front, ends)):
+                if f.all():  # a piece reaching behind the camera is skipped (the window is ahead)
+                    cv2.fillConvexPoly(mask, cv2.convexHull(p), 1, lineType=cv2.LINE_8, shift=4)
         else:
             pts, front = sub_pixels(shadow_triangles(asset, sun))
             for p in pts[np.all(front, axis=1)]:  # a triangle reaching behind the camera is skipped

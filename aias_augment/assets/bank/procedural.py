@@ -272,11 +272,11 @@ def loft_pieces(sections: list[list[tuple[float, float, float, float]]], segment
     """:func:`_loft`'s solid as convex pieces, each the vertices (K, 3) of two consecutive rings of a section (a
     pole is a ring of one): the solid between two parallel rings of one shape (a prism, a frustum, a disc) is the
     convex hull of their vertices, and the pieces together are the solid the surface closes."""
-    return [
-        pos[np.concatenate([a, b])]
-        for pos, _, ids, _ in _loft_sections(sections, segments)
-        for a, b in zip(ids, ids[1:])
-    ]
+    out = []
+    for sec in _rings(sections, segments):
+        rings = [np.array([[0.0, 0.0, z]]) if ring is None else ring for z, _, _, ring in sec]
+        out += [np.concatenate([a, b]) for a, b in zip(rings, rings[1:])]
+    return out
 
 
 def _apply_look(p: dict, look: ConeLook, h: float) -> dict:
