@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from aias_augment.core.errors import AiasError, InputError
+from aias_augment.core.frame import changed_pixels
 from aias_augment.core.image_io import DEFAULT_MAX_PIXELS, ImageReadError, image_size, read_image_with_notes
 
 IMAGE_SKIP_KINDS = (
@@ -337,7 +338,7 @@ def image_for_insertion(image) -> tuple[np.ndarray, "callable", str | None]:
         if c == 3 and img.dtype == np.uint8:
             # uint8 RGB: the output is already in the input's form (an unchanged pixel is the input's own bytes)
             return np.ascontiguousarray(out_rgb)
-        changed = np.any(out_rgb != rgb, axis=2)
+        changed = changed_pixels(out_rgb, rgb)
         result = img.copy()
         if changed.any():
             px = out_rgb[changed]  # (N, 3) uint8

@@ -37,6 +37,7 @@ import xxhash
 from aias_augment.analyse.analysis import hash_value
 from aias_augment.apply.view_cache import write_atomic
 from aias_augment.core.envmap import EnvironmentMap
+from aias_augment.core.frame import changed_pixels
 
 log = logging.getLogger(__name__)
 
@@ -172,7 +173,7 @@ class Variant:
     @classmethod
     def from_result(cls, image: np.ndarray, result) -> "Variant":
         """The variant of an :class:`~aias_augment.pipeline.image.InsertionResult` made from ``image``."""
-        changed = np.any(result.image != image, axis=2)
+        changed = changed_pixels(result.image, image)
         rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
         if len(rows) == 0:
             window = (0, 0, 0, 0)

@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 from aias_augment.apply import composite as comp
+from aias_augment.core.frame import changed_pixels
 from aias_augment.core.report import skipped
 from aias_augment.core.stages import apply_frame_stages
 from aias_augment.plan.insertion import InsertionPlan
@@ -78,7 +79,7 @@ def keep_chromaticity(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """uint8 sRGB: each pixel of ``before`` scaled in linear light to the luminance of ``after`` (chromaticity of
     ``before``, brightness of ``after``); pixels ``after`` left unchanged stay byte-identical. A channel the scaling
     would push past white is clipped there."""
-    changed = np.any(before != after, axis=-1)
+    changed = changed_pixels(before, after)
     out = after.copy()
     if not changed.any():
         return out

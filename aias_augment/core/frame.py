@@ -58,3 +58,13 @@ class Frame:
         if self.depth is None:
             return None
         return np.isfinite(self.depth) & (self.depth > 0)
+
+
+def changed_pixels(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the pixels where two (H, W, C) images differ in any channel (channel planes OR-ed: a
+    reduction over a short last axis loops per pixel, ~10x slower)."""
+    d = np.asarray(a) != np.asarray(b)
+    out = d[..., 0].copy()
+    for c in range(1, d.shape[-1]):
+        out |= d[..., c]
+    return out
