@@ -31,7 +31,7 @@ import numpy as np
 from aias_augment.apply.render import RenderLayers, crop_intrinsics, supersampled_layers, window_roi
 from aias_augment.apply.view_cache import WarpedView
 from aias_augment.assets.asset import Asset
-from aias_augment.core.geometry import Intrinsics, project_points
+from aias_augment.core.geometry import Intrinsics, norm3, project_points
 from aias_augment.core.srgb import srgb_to_linear
 
 __all__ = ["ConeShape", "cone_shape", "raycast_cone", "raycast_cone_window", "RAYCAST_SSAA"]
@@ -351,9 +351,9 @@ def _surface(p: np.ndarray, kind: np.ndarray, shape: ConeShape) -> tuple[np.ndar
     if side.any():  # the superellipse's gradient, horizontal
         gx, gy = _power_and_slope(x[side], shape.n)[1], _power_and_slope(y[side], shape.n)[1]
         g = np.stack([gx, gy, np.zeros_like(gx)], axis=1)
-        nrm[side] = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
+        nrm[side] = g / np.maximum(norm3(g, keepdims=True), 1e-30)
     nrm[kind == 2] = (0.0, 0.0, 1.0)
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+    nrm /= np.maximum(norm3(nrm, keepdims=True), 1e-12)
     u = np.mod(np.arctan2(y, x), 2 * np.pi) / (2 * np.pi)
     v = np.where(kind == 0, np.interp(z, shape.body_z, shape.body_v), shape.v_base)
     return nrm, u, v

@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # imported by the functions that render (see above)
     import pyrender
 
 from aias_augment.assets.asset import Asset  # noqa: E402
-from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, opengl_from_opencv  # noqa: E402
+from aias_augment.core.geometry import Intrinsics, check_rigid, invert_rigid, norm3, opengl_from_opencv  # noqa: E402
 from aias_augment.core.srgb import linear_to_srgb, srgb_to_linear  # noqa: E402
 
 __all__ = [
@@ -370,7 +370,7 @@ def supersampled_layers(
     w = np.maximum(alpha, 1e-6)[..., None]  # eps: avoid 0/0 where nothing is covered (result forced to 0 below)
     albedo = _downsample(albedo, ssaa) / w
     n_cam = _downsample(n_cam * covered[..., None], ssaa)
-    n_len = np.linalg.norm(n_cam, axis=-1, keepdims=True)
+    n_len = norm3(n_cam, keepdims=True)
     n_cam = np.where(n_len > 1e-6, n_cam / np.maximum(n_len, 1e-6), 0.0)
     depth_sum = _downsample(depth, ssaa)
     d = np.where(alpha > 0, depth_sum / np.maximum(alpha, 1e-6), 0.0)

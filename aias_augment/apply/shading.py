@@ -37,6 +37,7 @@ import numpy as np
 
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.analyse.lighting.sh import sh_irradiance
+from aias_augment.core.geometry import norm3
 from aias_augment.core.srgb import linear_to_srgb
 
 __all__ = [
@@ -180,7 +181,7 @@ def view_directions(roi: tuple[int, int, int, int], intrinsics) -> np.ndarray:
     x0, y0, x1, y1 = roi
     u, v = np.meshgrid(np.arange(x0, x1) + 0.5, np.arange(y0, y1) + 0.5)
     ray = np.stack([(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones_like(u)], -1)
-    return -ray / np.linalg.norm(ray, axis=-1, keepdims=True)
+    return -ray / norm3(ray, keepdims=True)
 
 
 def _coating_radiance(n, view, lighting: LightingEstimate, sun_visibility, coating: Coating | PixelCoating):
@@ -196,7 +197,7 @@ def _coating_radiance(n, view, lighting: LightingEstimate, sun_visibility, coati
         sun = np.asarray(lighting.sun_direction_in_cam, dtype=np.float64)
         ndl = np.einsum("ij,j->i", n, sun)
         half = sun + v
-        half /= np.maximum(np.linalg.norm(half, axis=1, keepdims=True), 1e-9)
+        half /= np.maximum(norm3(half, keepdims=True), 1e-9)
         ndh = np.clip(np.einsum("ij,ij->i", n, half), 0.0, 1.0)
         vdh = np.clip(np.einsum("ij,ij->i", v, half), 0.0, 1.0)
         a2 = coating.roughness**4

@@ -91,6 +91,15 @@ def check_rigid(T: np.ndarray, name: str = "pose", atol: float = 1e-4) -> np.nda
     return T
 
 
+def norm3(x: np.ndarray, keepdims: bool = False) -> np.ndarray:
+    """The Euclidean norm over a last axis of length 3: ``np.linalg.norm(x, axis=-1)``, the same numbers (squares
+    summed in numpy's order, then the root) from the three planes, several times faster (a reduction over a short
+    last axis loops per element)."""
+    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
+    out = np.sqrt((x0 * x0 + x1 * x1) + x2 * x2)
+    return out[..., None] if keepdims else out
+
+
 def make_rigid(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3] = R

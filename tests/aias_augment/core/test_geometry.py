@@ -73,3 +73,18 @@ def test_intrinsics_validation_and_scaling():
     s = K.scaled(0.5)
     # Pixel-centre aligned resize: the image centre stays the image centre.
     assert np.isclose(s.cx, (K.cx + 0.5) * 0.5 - 0.5) and s.width == 320
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_norm3_is_numpys_norm_bit_for_bit(dtype):
+    """The norm over a last axis of length 3 from the planes equals np.linalg.norm's, bit for bit, from tiny to huge
+    vectors, with and without the kept axis."""
+    from aias_augment.core.geometry import norm3
+
+    rng = np.random.default_rng(3)
+    x = (rng.normal(0.0, 1.0, (50, 70, 3)) * 10.0 ** rng.uniform(-20, 20, (50, 70, 1))).astype(dtype)
+    np.testing.assert_array_equal(norm3(x), np.linalg.norm(x, axis=-1))
+    np.testing.assert_array_equal(
+        norm3(x.reshape(-1, 3), keepdims=True), np.linalg.norm(x.reshape(-1, 3), axis=1, keepdims=True)
+    )
+    assert norm3(x).dtype == dtype
