@@ -22,30 +22,23 @@ MAX_SHADOW_REACH_M = 60.0
 SUPERSAMPLE = 4
 
 
-def _along_sun(points: np.ndarray, sun_in_object: np.ndarray) -> np.ndarray:
-    """``points`` (..., 3) moved along the unit sun onto z = 0 (a point below z = 0 stays; at most
-    :data:`MAX_SHADOW_REACH_M` along the ray)."""
-    t = np.minimum(np.clip(points[..., 2:3], 0.0, None) / sun_in_object[2], MAX_SHADOW_REACH_M)
-    return points - t * sun_in_object
-
-
-def _root_and_scale(asset: Asset) -> tuple[Asset, float]:
-    """The asset whose geometry a shadow reads and the scale to apply to it: a scaled asset's root (its meshes keep
-    trimesh's caches; a per-sample scaled copy would recompute them) times its scale (the same products as its own
-    vertices)."""
-    root, scale = (asset.render_root, float(asset.render_scale)) if asset.render_root is not None else (asset, 1.0)
-    if len(root.meshes) != len(asset.meshes):
-        root, scale = asset, 1.0
-    return root, scale
-
-
 def shadow_triangles(asset: Asset, sun_in_object: np.ndarray) -> np.ndarray:
     """(F, 3, 3) the asset's sun-facing triangles (all of them for an open mesh's two sides: a triangle facing away
     is skipped only when the mesh is watertight) projected along the unit sun onto z = 0, in the object frame."""
     out = []
-    root, scale = _root_and_scale(asset)
-    for m in root.meshes:
-        tri, watertight = np.asarray(m.triangles, np.float64), m.is_watertight
+    # A scaled asset's triangles are its root's times the scale (the same products as its own vertices): the root's
+    # meshes keep trimesh's caches (triangles, watertightness), a per-sample scaled copy would recompute them.
+    root, scale = (asset.render_root, float(asset.render_scale)) if asset.render_root is not None else (asset, 1.0)
+    if len(root.meshes) != len(asset.meshes):
+        root, scale = asset, 1.0
+    from aias_augment.assets.bank.procedural import ConeMeshes  # trimesh: loaded with the meshes anyway
+
+    meshes = root.meshes
+    if isinstance(meshes, ConeMeshes):  # a family cone: its mesh's triangles, without building it (never watertight)
+        parts = [(meshes.triangles(), False)]
+    else:
+        parts = [(np.asarray(m.triangles, np.float64), m.is_watertight) for m in meshes]
+    for tri, watertight in parts:
         if len(tri) == 0:
             continue
         if scale != 1.0:
@@ -53,20 +46,9 @@ def shadow_triangles(asset: Asset, sun_in_object: np.ndarray) -> np.ndarray:
         if watertight:  # a closed surface's shadow is the shadow of its sun-facing half
             n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
             tri = tri[n @ sun_in_object > 0]
-        out.append(_along_sun(tri, sun_in_object))
+        t = np.minimum(np.clip(tri[..., 2:3], 0.0, None) / sun_in_object[2], MAX_SHADOW_REACH_M)
+        out.append(tri - t * sun_in_object)
     return np.concatenate(out) if out else np.zeros((0, 3, 3))
-
-
-def shadow_pieces(asset: Asset, sun_in_object: np.ndarray) -> list[np.ndarray] | None:
-    """A family cone's convex pieces (``ConeMeshes.convex_pieces``) projected along the unit sun onto z = 0, in the
-    object frame: its shadow is the union of their convex hulls (a convex solid's shadow is the hull of its
-    vertices' shadows), two dozen fills instead of its mesh's ~2800 triangles. None for any other asset."""
-    root, scale = _root_and_scale(asset)
-    from aias_augment.assets.bank.procedural import ConeMeshes  # trimesh: loaded with the meshes anyway
-
-    if not isinstance(root.meshes, ConeMeshes):
-        return None
-    return [_along_sun(p * scale if scale != 1.0 else p, sun_in_object) for p in root.meshes.convex_pieces()]
 
 
 def projected_ground_shadow(
@@ -117,29 +99,17 @@ def projected_ground(
     depth = np.where(on_patch, lam, 0.0).astype(np.float32)
     vis = np.ones(on_patch.shape, np.float32)
     if sun[2] > 0.02 and on_patch.any():
+        tri = shadow_triangles(asset, sun).reshape(-1, 3) @ R.T + t  # on the ground, in the camera
+        z = tri[:, 2].reshape(-1, 3)
+        front = np.all(z > znear, axis=1)  # a triangle reaching behind the camera is skipped (the window is ahead)
+        uv = (tri[:, :2] / np.maximum(tri[:, 2:3], znear) * [K.fx, K.fy] + [K.cx - x0, K.cy - y0]).reshape(-1, 3, 2)
         # Filled at SUPERSAMPLE x the resolution, then averaged: the coverage of each pixel (a soft, unbiased edge).
         ss = SUPERSAMPLE
+        pts = np.round((ss * (uv[front] + 0.5) - 0.5) * 16).astype(np.int32)
         h, w = on_patch.shape
         mask = np.zeros((h * ss, w * ss), np.uint8)
-
-        def sub_pixels(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            """Ground points (..., 3) of the object frame as fixed-point sub-pixels of the mask (..., 2), and
-            whether each is in front of the camera."""
-            cam = (points.reshape(-1, 3) @ R.T + t).reshape(points.shape)
-            uv = cam[..., :2] / np.maximum(cam[..., 2:3], znear) * [K.fx, K.fy] + [K.cx - x0, K.cy - y0]
-            return np.round((ss * (uv + 0.5) - 0.5) * 16).astype(np.int32), cam[..., 2] > znear
-
-        pieces = shadow_pieces(asset, sun)
-        if pieces is not None:
-            pts, front = sub_pixels(np.concatenate(pieces))
-            ends = np.cumsum([len(p) for p in pieces])[:-1]
-            for p, f in zip(np.split(pts, ends), np.split(front, ends)):
-                if f.all():  # a piece reaching behind the camera is skipped (the window is ahead)
-                    cv2.fillConvexPoly(mask, cv2.convexHull(p), 1, lineType=cv2.LINE_8, shift=4)
-        else:
-            pts, front = sub_pixels(shadow_triangles(asset, sun))
-            for p in pts[np.all(front, axis=1)]:  # a triangle reaching behind the camera is skipped
-                cv2.fillConvexPoly(mask, p, 1, lineType=cv2.LINE_8, shift=4)
+        for p in pts:
+            cv2.fillConvexPoly(mask, p, 1, lineType=cv2.LINE_8, shift=4)
         # each pixel's share of its ss x ss block (an area resize: exact sums of 0 and 1 times 1 / ss^2)
         cover = cv2.resize(mask.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
         vis = np.where(on_patch, 1.0 - cover, 1.0).astype(np.float32)

@@ -268,15 +268,10 @@ def _loft(
     return np.concatenate(verts), np.concatenate(faces), np.concatenate(normals), np.concatenate(uvs)
 
 
-def loft_pieces(sections: list[list[tuple[float, float, float, float]]], segments: int) -> list[np.ndarray]:
-    """:func:`_loft`'s solid as convex pieces, each the vertices (K, 3) of two consecutive rings of a section (a
-    pole is a ring of one): the solid between two parallel rings of one shape (a prism, a frustum, a disc) is the
-    convex hull of their vertices, and the pieces together are the solid the surface closes."""
-    out = []
-    for sec in _rings(sections, segments):
-        rings = [np.array([[0.0, 0.0, z]]) if ring is None else ring for z, _, _, ring in sec]
-        out += [np.concatenate([a, b]) for a, b in zip(rings, rings[1:])]
-    return out
+def loft_triangles(sections: list[list[tuple[float, float, float, float]]], segments: int) -> np.ndarray:
+    """(F, 3, 3) the triangles of :func:`_loft`'s surface (the same vertices, faces in the same order), without
+    its normals and UVs."""
+    return np.concatenate([pos[sf] for pos, sf, _, _ in _loft_sections(sections, segments)])
 
 
 def _apply_look(p: dict, look: ConeLook, h: float) -> dict:
@@ -590,15 +585,15 @@ class ConeMeshes(Sequence):
         shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
         return np.stack([lo + shift, hi + shift])
 
-    def convex_pieces(self) -> list[np.ndarray]:
-        """The built mesh's solid as convex pieces (:func:`loft_pieces`), its vertices shifted as
-        :func:`normalise_meshes` shifts the mesh's, made without the mesh: a shadow is the union of the pieces'
-        projections, each the hull of its points."""
-        pieces = loft_pieces(self.sections(), self.segments)
-        every = np.concatenate(pieces)  # every vertex is in a piece
-        lo, hi = every.min(axis=0), every.max(axis=0)
+    def triangles(self) -> np.ndarray:
+        """(F, 3, 3) the built mesh's triangles (its faces in order; after :func:`normalise_meshes`' shift, the
+        same sums), made without the mesh: what a shadow projected from the triangles reads. The mesh is never
+        watertight (its sections and its UV seam do not share vertices), so a shadow reads every triangle."""
+        tri = loft_triangles(self.sections(), self.segments)
+        lo, hi = tri.min(axis=(0, 1)), tri.max(axis=(0, 1))  # every vertex is in a face
         shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-        return [p + shift for p in pieces]
+        tri += shift
+        return tri
 
     def _meshes(self) -> tuple:
         if self._built is None:
