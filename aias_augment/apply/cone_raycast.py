@@ -551,8 +551,7 @@ def raycast_cone_window(
     edges = cv2.dilate(surface, box) != cv2.erode(surface, box, borderType=cv2.BORDER_CONSTANT, borderValue=0)
     # the base's rim can be a strip thinner than a pixel between two rows of centres (a far cone seen level), wider
     # than the body: every centre that misses inside its square prism's outline (a pixel wider) is supersampled too
-    a = shape.a
-    prism = np.array([[x, y, z] for x in (-a, a) for y in (-a, a) for z in (0.0, shape.zb)]) @ R.T + t
+    prism = shape.hulls[0] @ R.T + t  # the base's square prism
     outline = cv2.convexHull(np.round(project_points(prism, K.K)[0] * 16).astype(np.int32))
     near_base = np.zeros((h0, w0), np.uint8)
     cv2.fillConvexPoly(near_base, outline, 1, lineType=cv2.LINE_8, shift=4)

@@ -576,23 +576,26 @@ class ConeMeshes(Sequence):
         """(2, 3) the built mesh's bounds, from its rings alone: min/max over the ring vertices (each the product
         :func:`_ring_xy` gives the mesh), then the shift that :func:`normalise_meshes` applies (a sum, which
         keeps the order of floats, so min/max commute with it)."""
+        lo, hi, shift = self._extent()
+        return np.stack([lo + shift, hi + shift])
+
+    def _extent(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(lo, hi, shift): the loft's vertex bounds from its rings alone (min/max over the ring vertices, each the
+        product :func:`_ring_xy` gives the mesh) and the translation :func:`normalise_meshes` applies to them."""
         rings = [ring for sec in self.sections() for ring in sec]
         z = np.array([ring[0] for ring in rings])
         x, y = _ring_xy([(r, sn) for _, r, sn, _ in rings if r > 0], self.segments)
         if any(r <= 0 for _, r, _, _ in rings):  # a pole's vertex is on the axis
             x, y = np.append(x, 0.0), np.append(y, 0.0)
         lo, hi = np.array([x.min(), y.min(), z.min()]), np.array([x.max(), y.max(), z.max()])
-        shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-        return np.stack([lo + shift, hi + shift])
+        return lo, hi, -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
 
     def triangles(self) -> np.ndarray:
         """(F, 3, 3) the built mesh's triangles (its faces in order; after :func:`normalise_meshes`' shift, the
         same sums), made without the mesh: what a shadow projected from the triangles reads. The mesh is never
         watertight (its sections and its UV seam do not share vertices), so a shadow reads every triangle."""
         tri = loft_triangles(self.sections(), self.segments)
-        lo, hi = tri.min(axis=(0, 1)), tri.max(axis=(0, 1))  # every vertex is in a face
-        shift = -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-        tri += shift
+        tri += self._extent()[2]  # the rings' vertices are the faces' (every vertex is in a face)
         return tri
 
     def _meshes(self) -> tuple:
