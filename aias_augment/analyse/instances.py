@@ -9,7 +9,10 @@ base. Along that column (the middle 10 % of the box's width, where the body fill
 - **sleeves**: runs of rows where most pixels are white (S < 0.3 and V at least 0.8 of the body's V), at least 3 % of
   the box's height long, counted and measured (width as a fraction of the body's height);
 - **base**: the median of the band at 90-97 % of the box's height over its central 60 %: ``"black"`` when darker than
-  0.13 of the body's V (the texture's black is 0.07 of white, its grey 0.22), ``"body"`` when saturated and within 25 deg of the body's hue, else ``"grey"``.
+  0.13 of the body's V (the texture's black is 0.07 of white, its grey 0.22), ``"body"`` when saturated and within 25 deg of the body's hue, else ``"grey"``;
+  and its brightness, that V over the body's (``base_value``): the base and the body stand in the same light, so the
+  ratio is the cone's own, whatever the photo's exposure, and an inserted cone drawn with it has the base's
+  brightness beside its body that the photo's cones have.
 
 A box cut by the frame, shorter than 24 px, or whose column holds too few saturated pixels (a cone seen from above,
 a wrong label) gives no look; the caller counts those.
@@ -20,11 +23,12 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from aias_augment.assets.cone_look import ConeLook
+from aias_augment.assets.cone_look import BASE_VALUE_MAX, ConeLook
 
 __all__ = ["fit_cone_looks", "fit_cone_look"]
 
 MIN_BOX_PX = 24  # below this a sleeve is a pixel or two: nothing to measure
+MIN_BASE_VALUE = 0.01  # a base read as pure black (V 0) is drawn as the darkest plausible paint, not as no light
 BODY_MAX = 245.0  # the brightest channel of a fitted body colour: the family's fluorescent bodies reach 210-255
 
 
@@ -86,7 +90,8 @@ def fit_cone_look(image_rgb: np.ndarray, box_xyxy) -> ConeLook | None:
     else:
         base = "grey"
     albedo = body_rgb * (BODY_MAX / max(float(body_rgb.max()), 1.0))  # 1.0: a black column never passes `sat`
-    return ConeLook(tuple(float(c) for c in albedo), base, bands, width if bands else 0.0)
+    base_value = float(np.clip(bv / body_v, MIN_BASE_VALUE, BASE_VALUE_MAX))  # body_v >= 0.2: `sat` pixels only
+    return ConeLook(tuple(float(c) for c in albedo), base, bands, width if bands else 0.0, base_value)
 
 
 def fit_cone_looks(image_rgb: np.ndarray, boxes_xyxy) -> list[ConeLook]:

@@ -174,6 +174,17 @@ class _ScaledMeshes(Sequence):
         return (tuple, (self._meshes(),))
 
 
+def hull_vertices(points: np.ndarray) -> np.ndarray:
+    """The vertices of the convex hull of ``points`` (N, 3); all of them when the hull is flat (a plane, a line)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    pts = np.asarray(points, float).reshape(-1, 3)
+    try:
+        return pts[ConvexHull(pts).vertices]
+    except (QhullError, ValueError):  # fewer than 4 points, or all in a plane
+        return pts
+
+
 @dataclass(frozen=True, eq=False)
 class Asset:
     """A renderable object in the canonical frame (metres, z up, on z = 0).
@@ -232,6 +243,24 @@ class Asset:
             c.setflags(write=False)
             self.__dict__["_corners_m"] = c
         return c
+
+    def outline_m(self) -> np.ndarray:
+        """(N, 3) points in the object frame whose projection bounds the projected object in any view from in front
+        of it: the vertices of its meshes' convex hull (a perspective projection's extremes over a convex solid lie
+        at its vertices), so their projected box is the object's mask-tight box, where :meth:`corners_m` gives the
+        bounding box's (a cone's tip is a point, its box's top face is as wide as its base). Read-only; made once
+        per asset, a scaled copy's from its root's."""
+        o = self.__dict__.get("_outline_m")
+        if o is None:
+            if self.render_root is not None:
+                o = self.render_root.outline_m() * self.render_scale
+            else:
+                known = getattr(self.meshes, "outline_m", None)  # meshes made on first read know their outline
+                o = known() if known is not None else hull_vertices(np.concatenate([m.vertices for m in self.meshes]))
+            o = np.array(o, float)
+            o.setflags(write=False)
+            self.__dict__["_outline_m"] = o
+        return o
 
     def scaled(self, factor: float) -> "Asset":
         """Uniformly scaled copy about the contact point (origin); stays on z = 0."""

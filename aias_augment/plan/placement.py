@@ -251,8 +251,8 @@ ROW_RESCALE_LIMIT = 10.0
 
 def _projected_at_scale(asset, scale, cam_from_object, intrinsics, row_heights: RowHeights | None):
     """(scale, corners projected (8, 2), their depths) of ``asset`` at ``cam_from_object``, or (None, reason). With
-    ``row_heights`` the object is rescaled about its contact point until its box is the line's height on the box's
-    own bottom row (fixed-point steps: the bottom row moves a little with the scale); without, ``scale`` is kept."""
+    ``row_heights`` the object is rescaled about its contact point until its mask-tight box (its outline's,
+    :meth:`~aias_augment.assets.asset.Asset.outline_m`) is the line's height on the box's own bottom row (fixed-point steps: the bottom row moves a little with the scale); without, ``scale`` is kept."""
     start = scale
     for step in range(4):
         corners = transform_points(cam_from_object, asset.corners_m() * scale)
@@ -261,7 +261,10 @@ def _projected_at_scale(asset, scale, cam_from_object, intrinsics, row_heights: 
             return None, "object crosses the camera plane"
         if row_heights is None:
             break
-        box = box_of_points(uvc)
+        # the mask-tight box, as labelled boxes are: the outline's, not the bounding box's (a cone's is ~7 % taller)
+        box = box_of_points(
+            project_points(transform_points(cam_from_object, asset.outline_m() * scale), intrinsics.K)[0]
+        )
         target, bh = float(row_heights.at(box[3])), float(box[3] - box[1])
         if not (target > 0 and bh > 0):
             return None, "the labelled objects' size line gives no height on this row"

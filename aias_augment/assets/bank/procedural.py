@@ -275,7 +275,7 @@ def loft_triangles(sections: list[list[tuple[float, float, float, float]]], segm
 
 
 def _apply_look(p: dict, look: ConeLook, h: float) -> dict:
-    """``p`` with the body colour, base colour and sleeves of ``look``; the sleeves evenly spaced on the body's upper
+    """``p`` with the body colour, base colour (and its brightness, when measured) and sleeves of ``look``; the sleeves evenly spaced on the body's upper
     part (real cones carry them there), shape, base shape, dirt and wear as drawn."""
     lo, hi = (0.18, 0.88) if p["shape"] == "cone" else (0.45, 0.95)
     zb = p["base_height_m"]
@@ -292,6 +292,7 @@ def _apply_look(p: dict, look: ConeLook, h: float) -> dict:
         "colour": "fitted",
         "colour_rgb": [float(c) for c in look.colour_rgb],
         "base_colour": look.base_colour,
+        **({} if look.base_value is None else {"base_value": float(look.base_value)}),
         "bands_z_m": bands,
         "band_colour": "white",
     }
@@ -404,6 +405,8 @@ def cone_texture(
     base_rgb = {"black": np.array([0.07, 0.07, 0.07]), "grey": np.array([0.22, 0.22, 0.23]), "body": body * 0.85}[
         p["base_colour"]
     ]
+    if p.get("base_value") is not None:  # measured on a photo's cone: the class colour at that V beside the body's
+        base_rgb = np.minimum(base_rgb * (p["base_value"] * body.max() / base_rgb.max()), 1.0)
     row_rgb = np.empty((th, 3))  # each row's colour before the noise: body, band or base
     row_rgb[:] = body
     row_rgb[band] = white
@@ -589,6 +592,19 @@ class ConeMeshes(Sequence):
             x, y = np.append(x, 0.0), np.append(y, 0.0)
         lo, hi = np.array([x.min(), y.min(), z.min()]), np.array([x.max(), y.max(), z.max()])
         return lo, hi, -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+
+    def outline_m(self) -> np.ndarray:
+        """(N, 3) the built mesh's vertices that its silhouette can reach: every ring vertex and the poles on the
+        axis (the loft's hull is theirs), after :func:`normalise_meshes`' shift; made without the mesh."""
+        rings = [ring for sec in self.sections() for ring in sec]
+        solid = [(z, r, sn) for z, r, sn, _ in rings if r > 0]
+        x, y = _ring_xy([(r, sn) for _, r, sn in solid], self.segments)
+        z = np.repeat([zz for zz, _, _ in solid], self.segments).reshape(x.shape)
+        pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+        poles = [[0.0, 0.0, zz] for zz, r, _, _ in rings if r <= 0]
+        if poles:
+            pts = np.concatenate([pts, np.array(poles)])
+        return pts + self._extent()[2]
 
     def triangles(self) -> np.ndarray:
         """(F, 3, 3) the built mesh's triangles (its faces in order; after :func:`normalise_meshes`' shift, the

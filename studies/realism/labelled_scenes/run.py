@@ -57,7 +57,12 @@ def render(a) -> None:
         res = insert_into_image(
             img, xywh, ["cone"] * len(boxes), cfg=cfg, rng=np.random.default_rng([53, i]), n_objects=3
         )
-        inserted = [list(map(float, p.amodal_box_xyxy)) for p in res.record.placements if not p.decoy]
+        inserted = [  # mask-tight, occluded parts included: the box a labeller draws round the whole cone
+            [x, y, x + w, y + h]
+            for p, ann in zip(res.record.placements, res.record.annotations)
+            if not p.decoy
+            for x, y, w, h in [map(float, ann.amodal_box_xywh)]
+        ]
         cv2.imwrite(str(a.tmp / f"{a.tag}_{i}.png"), cv2.cvtColor(res.image, cv2.COLOR_RGB2BGR))
         rows.append({"photo": stem, "real": boxes.tolist(), "inserted": inserted})
         print(f"{a.tag} {i} {stem}: {len(inserted)} inserted", flush=True)

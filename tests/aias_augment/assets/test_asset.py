@@ -1,8 +1,11 @@
 import numpy as np
 import pytest
+import trimesh
 
-from aias_augment.assets.asset import AssetError, PathAssets, default_asset, load_asset, read_collada_unit
+from aias_augment.assets.asset import Asset, AssetError, PathAssets, default_asset, load_asset, read_collada_unit
+from aias_augment.assets.bank.procedural import procedural_asset_from_seed
 from aias_augment.core.config import data_root
+from aias_augment.core.geometry import project_points, transform_points
 
 GAZEBO = data_root() / "meshes" / "gazebo_models"
 needs_data = pytest.mark.skipif(not GAZEBO.exists(), reason="shared data not present")
@@ -259,3 +262,54 @@ def test_path_assets_refuse_unreadable_or_unsizeable_files_at_construction(tmp_p
     trimesh.creation.box(extents=(1, 1e7, 1)).export(tmp_path / "tower.obj")
     with pytest.raises(InputError, match="traffic_cone"):
         PathAssets({"traffic_cone": [str(tmp_path / "tower.obj")]})
+
+
+def _views(rng, n):
+    """``n`` camera-from-object poses looking at the object's middle from 1.5-20 m, 0-80 deg above its base."""
+    out = []
+    for _ in range(n):
+        d, elev, az = rng.uniform(1.5, 20.0), np.radians(rng.uniform(0.0, 80.0)), rng.uniform(0.0, 2 * np.pi)
+        eye = d * np.array([np.cos(elev) * np.cos(az), np.cos(elev) * np.sin(az), np.sin(elev)]) + [0, 0, 0.3]
+        fwd = np.array([0.0, 0.0, 0.3]) - eye
+        fwd /= np.linalg.norm(fwd)
+        right = np.cross(fwd, [0.0, 0.0, 1.0])
+        right = right / np.linalg.norm(right) if np.linalg.norm(right) > 1e-9 else np.array([1.0, 0.0, 0.0])
+        down = np.cross(fwd, right)
+        R = np.stack([right, down, fwd])  # rows: the camera's x (right), y (down), z (forward) in the object frame
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, -R @ eye
+        out.append(T)
+    return out
+
+
+def _projected_box(points, cam_from_object):
+    K = np.array([[700.0, 0, 320], [0, 700.0, 240], [0, 0, 1]])
+    uv, _ = project_points(transform_points(cam_from_object, points), K)
+    return np.r_[uv.min(0), uv.max(0)]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 7, 42])
+def test_the_outline_gives_the_mask_tight_box_of_the_built_mesh(seed):
+    """A procedural cone's outline (made from its rings, without the mesh) projects to the box of every vertex of its
+    built mesh, in views from 1.5-20 m and 0-80 deg up; its bounding box's corners give a larger box."""
+    cone = procedural_asset_from_seed("traffic_cone", seed)
+    built = np.concatenate([np.asarray(m.vertices) for m in cone.meshes])
+    views = _views(np.random.default_rng(seed), 40)
+    for T in views:
+        np.testing.assert_allclose(_projected_box(cone.outline_m(), T), _projected_box(built, T), atol=1e-6)
+    taller = [np.ptp(_projected_box(cone.corners_m(), T)[1::2]) / np.ptp(_projected_box(built, T)[1::2]) for T in views]
+    assert np.median(taller) > 1.02, np.median(taller)
+    half = cone.scaled(0.5)
+    np.testing.assert_allclose(half.outline_m(), cone.outline_m() * 0.5)
+
+
+def test_the_outline_of_a_loaded_mesh_is_its_hull():
+    """A mesh asset's outline is its convex hull's vertices: the same projected box as all its vertices."""
+    rng = np.random.default_rng(3)
+    pts = rng.normal(size=(500, 3)) * [0.3, 0.2, 0.4] + [0, 0, 0.5]
+    mesh = trimesh.convex.convex_hull(pts)
+    asset = Asset("blob", "other", (trimesh.Trimesh(pts, np.zeros((0, 3), int), process=False), mesh), "test")
+    assert len(asset.outline_m()) < len(pts)
+    everything = np.concatenate([pts, mesh.vertices])
+    for T in _views(rng, 20):
+        np.testing.assert_allclose(_projected_box(asset.outline_m(), T), _projected_box(everything, T), atol=1e-9)
