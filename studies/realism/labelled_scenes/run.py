@@ -12,12 +12,14 @@ cones (none of it reads the code's records except the inserted boxes):
   is nearest, counted when the rows are within 5 % of the image height; the real cones' own ratio against their
   nearest other real cone is its floor;
 - **base brightness**: the median HSV value of a box's base band (rows 88-98 % of its height, the central 60 % of its
-  width), an inserted cone's over the median of the photo's real cones';
+  width), an inserted cone's over the median of the photo's real cones'; each real cone's over the median of the
+  others (leave one out) is its floor;
 - **look agreement**: :func:`aias_augment.analyse.instances.fit_cone_look` on each inserted box against the photo's
   labelled cones: the base class and the sleeve count of at least one of them, body hue within 15 deg of it.
 
 Commands (``before``: rendered from a checkout of the previous code, its own ``render``; the development split is
-TraCon train, val is reported once)::
+TraCon train, val is reported once; every box is mask-tight, as labels are: an inserted cone's is its annotation's
+``amodal_box_xywh``, the box of its whole rendered mask)::
 
   python -m studies.realism.labelled_scenes render --split train --tag after --tmp T
   (cd OLD && python -m studies.realism.labelled_scenes render --split train --tag before --tmp T)
@@ -85,7 +87,7 @@ def _agrees(look, real_looks) -> bool:
 def measure_tag(rows: list, images: list) -> dict:
     from aias_augment.analyse.instances import fit_cone_look  # here: ``render`` also runs on older checkouts
 
-    ratios, base, floor, agree, looked = [], [], [], 0, 0
+    ratios, base, floor, base_floor, agree, looked = [], [], [], [], 0, 0
     near, near_floor = [], []
     for row, img in zip(rows, images):
         whole = whole_boxes(np.array(row["real"]), img.shape[0])
@@ -100,7 +102,9 @@ def measure_tag(rows: list, images: list) -> dict:
             if d.min() <= gap:
                 near_floor.append((whole[j, 3] - whole[j, 1]) / (whole[d.argmin(), 3] - whole[d.argmin(), 1]))
         c, c0 = np.polyfit(whole[:, 3], whole[:, 3] - whole[:, 1], 1)
-        real_v = np.median([base_v(img, b) for b in whole])
+        vs = np.array([base_v(img, b) for b in whole])
+        real_v = np.median(vs)
+        base_floor += [vs[j] / max(np.median(np.delete(vs, j)), 1.0) for j in range(len(vs))]
         real_looks = [x for x in (fit_cone_look(img, b) for b in whole) if x is not None]
         for box in row["inserted"]:
             ratios.append((box[3] - box[1]) / (c * box[3] + c0))
@@ -129,6 +133,8 @@ def measure_tag(rows: list, images: list) -> dict:
         "base_v_ratio_median": float(np.median(b)) if len(b) else None,
         "base_v_within_10pct": within(b, 0.9, 1.1),
         "base_v_within_25pct": within(b, 0.75, 1.25),
+        "real_base_v_within_10pct": within(np.array(base_floor), 0.9, 1.1),
+        "real_base_v_within_25pct": within(np.array(base_floor), 0.75, 1.25),
         "look_agrees": agree,
         "look_measured": looked,
     }
