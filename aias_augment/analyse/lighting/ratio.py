@@ -196,16 +196,21 @@ def shadow_axis_on_ground(
     shadow = np.asarray(shadow_mask, bool) & region_mask
     if shadow.sum() < min_pixels or region_mask.sum() < min_pixels:
         return 0.0, 0.0
-    ps, pr = ground_xy[shadow], ground_xy[region_mask]
+    pr = ground_xy[region_mask]
+    in_shadow = shadow[region_mask]  # the shadow points among the region's, in the region's order
+    n_shadow = int(in_shadow.sum())
     thetas = np.deg2rad(np.arange(0.0, 180.0, step_deg))
     rel = np.empty(len(thetas))
     for k, th in enumerate(thetas):
         normal = np.array([-np.sin(th), np.cos(th)])
-        a, b = ps @ normal, pr @ normal
+        b = pr @ normal
         edges = np.arange(b.min(), b.max() + 2 * bin_m, bin_m)
-        hs = np.histogram(a, edges)[0].astype(np.float64)
-        hr = np.histogram(b, edges)[0].astype(np.float64)
-        rel[k] = (np.sum(hs**2) / len(a) ** 2) / max(np.sum(hr**2) / len(b) ** 2, 1e-12)
+        # np.histogram's bins ([e_i, e_i+1); every point is below the last edge) found once for the region's
+        # points; the shadow's counts are those of its points' bins: no sort per histogram
+        bins = np.searchsorted(edges, b, side="right") - 1
+        hr = np.bincount(bins, minlength=len(edges) - 1).astype(np.float64)
+        hs = np.bincount(bins[in_shadow], minlength=len(edges) - 1).astype(np.float64)
+        rel[k] = (np.sum(hs**2) / n_shadow**2) / max(np.sum(hr**2) / len(b) ** 2, 1e-12)
     rel = ndimage.uniform_filter1d(rel, 3, mode="wrap")
     best = int(np.argmax(rel))
     return float(thetas[best]), float(np.clip(1.0 - np.median(rel) / max(rel[best], 1e-12), 0.0, 1.0))

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aias_augment.analyse.lighting.envmap import camera_ray_directions
+from aias_augment.analyse.single_image import lsd_segments
 from aias_augment.core.geometry import CAMERA_HEIGHT_PRIOR_M, Intrinsics
 from aias_augment.core.hdr import luminance, max_channel, srgb_to_linear
 
@@ -76,18 +77,15 @@ class LineSegments:
 
 
 def detect_line_segments(image_rgb_uint8: np.ndarray, min_length_px: float) -> np.ndarray:
-    """Straight segments by OpenCV's LSD (a-contrario line segment detector, no tuned thresholds): (S, 2, 2) (x, y)
-    end points, only those at least ``min_length_px`` long."""
+    """Straight segments by OpenCV's LSD (a-contrario line segment detector, no tuned thresholds, standard
+    refinement: :func:`~aias_augment.analyse.single_image.lsd_segments`): (S, 2, 2) (x, y) end points, only those at
+    least ``min_length_px`` long."""
     import cv2
 
     img = np.asarray(image_rgb_uint8)
     if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
         raise ValueError(f"detect_line_segments: expected (H, W, 3) uint8, got {img.shape} {img.dtype}")
-    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
-    lines = cv2.createLineSegmentDetector().detect(gray)[0]
-    if lines is None:
-        return np.zeros((0, 2, 2))
-    seg = lines.reshape(-1, 2, 2).astype(np.float64)
+    seg = lsd_segments(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)).reshape(-1, 2, 2)  # the camera estimate's, when shared
     length = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)
     return seg[length >= min_length_px]
 

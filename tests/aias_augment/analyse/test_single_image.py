@@ -117,3 +117,27 @@ def test_consistency_angles_are_the_reductions_over_xy_bit_for_bit():
     cos = np.abs(np.sum(to_vp / np.maximum(norm, 1e-12)[..., None] * direction[None], axis=2))
     want = np.where(norm > 1e-9, np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))), 90.0)
     np.testing.assert_array_equal(consistency_deg(seg, vps), want)
+
+
+def test_lsd_segments_are_opencvs_and_shared_between_readers_of_one_image():
+    """The camera estimate and the sun's side read one grey copy: the second read is the first's array (by content,
+    not identity), the segments are OpenCV's LSD's with its default (standard) refinement, and nobody can change
+    them; the sun's side's (S, 2, 2) end points are the same segments."""
+    from aias_augment.analyse.lighting.sun_side import detect_line_segments as sun_side_segments
+    from aias_augment.analyse.single_image import detect_line_segments, lsd_segments
+
+    rng = np.random.default_rng(4)
+    rgb = _synthetic_street(np.radians(8.0), np.radians(2.0), rng)[0]
+    rgb = np.ascontiguousarray(rgb if rgb.ndim == 3 else np.repeat(rgb[..., None], 3, -1))
+    grey = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+    first = lsd_segments(grey)
+    direct = cv2.createLineSegmentDetector().detect(grey)[0].reshape(-1, 4).astype(np.float64)
+    np.testing.assert_array_equal(first, direct)
+    assert lsd_segments(grey.copy()) is first
+    assert not first.flags.writeable
+    other = grey.copy()
+    other[:10] = 255 - other[:10]
+    assert lsd_segments(other) is not first
+    long_ones = detect_line_segments(grey, 20.0)
+    np.testing.assert_array_equal(sun_side_segments(rgb, 20.0).reshape(-1, 4), long_ones)
+    assert len(long_ones) and long_ones.flags.writeable

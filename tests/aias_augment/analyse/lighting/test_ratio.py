@@ -65,6 +65,46 @@ def test_shadow_axis_of_pole_shadow_bands():
     assert ratio.shadow_axis_on_ground(np.zeros_like(shadow), region, ground) == (0.0, 0.0)
 
 
+def _axis_by_histograms(shadow, region, ground, bin_m, step_deg):
+    """The projection-profile axis as its docstring defines it, with np.histogram's bins for both point sets."""
+    from scipy import ndimage
+
+    shadow = shadow & region
+    if shadow.sum() < 50 or region.sum() < 50:  # the documented minimum
+        return 0.0, 0.0
+    ps, pr = ground[shadow], ground[region]
+    thetas = np.deg2rad(np.arange(0.0, 180.0, step_deg))
+    rel = np.empty(len(thetas))
+    for k, th in enumerate(thetas):
+        normal = np.array([-np.sin(th), np.cos(th)])
+        a, b = ps @ normal, pr @ normal
+        edges = np.arange(b.min(), b.max() + 2 * bin_m, bin_m)
+        hs, hr = np.histogram(a, edges)[0].astype(float), np.histogram(b, edges)[0].astype(float)
+        rel[k] = (np.sum(hs**2) / len(a) ** 2) / max(np.sum(hr**2) / len(b) ** 2, 1e-12)
+    rel = ndimage.uniform_filter1d(rel, 3, mode="wrap")
+    best = int(np.argmax(rel))
+    return float(thetas[best]), float(np.clip(1.0 - np.median(rel) / max(rel[best], 1e-12), 0.0, 1.0))
+
+
+def test_shadow_axis_counts_the_bins_np_histogram_counts():
+    """Ground coordinates on grids whose points fall exactly on bin edges (and the last edge), random masks: the axis
+    and its strength equal those of np.histogram's profiles, bit for bit."""
+    rng = np.random.default_rng(0)
+    for t in range(60):
+        h, w = rng.integers(20, 90, 2)
+        xs, ys = np.meshgrid(
+            np.arange(w) * rng.choice([0.1, 0.05, 0.005, 1 / 30]), np.arange(h) * rng.choice([0.1, 0.2])
+        )
+        ground = np.stack([xs, ys], axis=-1) + rng.choice([0.0, 0.05, -3.0])
+        if t % 3 == 0:
+            ground = ground + rng.normal(0, 0.3, ground.shape)
+        region, shadow = rng.random((h, w)) < rng.uniform(0.3, 1), rng.random((h, w)) < rng.uniform(0.05, 0.6)
+        kw = dict(bin_m=float(rng.choice([0.1, 0.05, 0.3])), step_deg=float(rng.choice([2.0, 5.0, 45.0, 90.0])))
+        assert ratio.shadow_axis_on_ground(shadow, region, ground, **kw) == _axis_by_histograms(
+            shadow, region, ground, **kw
+        ), (t, kw)
+
+
 def test_sun_over_sky_colour_from_a_lit_and_shadowed_pair_and_a_non_physical_pair_made_grey():
     from aias_augment.analyse.lighting.ambient import sun_over_sky_rgb
     from aias_augment.analyse.lighting.config import LightingConfig
