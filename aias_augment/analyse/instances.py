@@ -12,7 +12,9 @@ base. Along that column (the middle 10 % of the box's width, where the body fill
   0.13 of the body's V (the texture's black is 0.07 of white, its grey 0.22), ``"body"`` when saturated and within 25 deg of the body's hue, else ``"grey"``;
   and its brightness, that V over the body's (``base_value``): the base and the body stand in the same light, so the
   ratio is the cone's own, whatever the photo's exposure, and an inserted cone drawn with it has the base's
-  brightness beside its body that the photo's cones have.
+  brightness beside its body that the photo's cones have;
+- **body brightness** (``body_value``): the body's V itself, the cone's brightness in this photo's light and
+  exposure, which an inserted cone drawn like it is scaled to (``cone_brightness: labels``).
 
 A box cut by the frame, shorter than 24 px, or whose column holds too few saturated pixels (a cone seen from above,
 a wrong label) gives no look; the caller counts those.
@@ -25,7 +27,7 @@ import numpy as np
 
 from aias_augment.assets.cone_look import BASE_VALUE_MAX, ConeLook
 
-__all__ = ["fit_cone_looks", "fit_cone_look"]
+__all__ = ["body_value", "fit_cone_looks", "fit_cone_look"]
 
 MIN_BOX_PX = 24  # below this a sleeve is a pixel or two: nothing to measure
 MIN_BASE_VALUE = 0.01  # a base read as pure black (V 0) is drawn as the darkest plausible paint, not as no light
@@ -44,6 +46,33 @@ def _hue_gap(a: float, b: float) -> float:
     return min(d, 360.0 - d)
 
 
+def _body(image_rgb: np.ndarray, box_xyxy):
+    """(median RGB, hue, value, the column's HSV) of the body along the box's central column (see the module's
+    docstring), or None when too few of its pixels are saturated."""
+    x0, y0, x1, y1 = box_xyxy
+    h, w = y1 - y0, x1 - x0
+    cx0, cx1 = int(round(x0 + 0.45 * w)), max(int(round(x0 + 0.55 * w)), int(round(x0 + 0.45 * w)) + 1)
+    r0, r1 = int(round(y0 + 0.15 * h)), int(round(y0 + 0.88 * h))
+    col = image_rgb[r0:r1, cx0:cx1]
+    if col.size == 0:
+        return None
+    hsv = _hsv(col)
+    sat = (hsv[..., 1] >= 0.45) & (hsv[..., 2] >= 0.2)
+    if sat.mean() < 0.25:
+        return None
+    body_rgb = np.median(col[sat].astype(float), axis=0)
+    body_hsv = _hsv(np.clip(body_rgb, 0, 255).astype(np.uint8)[None])[0]
+    return body_rgb, float(body_hsv[0]), float(body_hsv[2]), hsv
+
+
+def body_value(image_rgb: np.ndarray, box_xyxy) -> float | None:
+    """The body's brightness in ``image_rgb`` (H, W, 3) uint8 as :func:`fit_cone_look` measures it (HSV value of the
+    median saturated colour of the box's central column, 0-1), or None when the column has too few saturated
+    pixels; no test of the box against the frame (an object's own render window)."""
+    body = _body(image_rgb, tuple(float(v) for v in box_xyxy))
+    return None if body is None else body[2]
+
+
 def fit_cone_look(image_rgb: np.ndarray, box_xyxy) -> ConeLook | None:
     """The :class:`ConeLook` of the cone in ``box_xyxy`` (pixels, x0 y0 x1 y1) of ``image_rgb`` (H, W, 3) uint8, or None
     when the box cannot be measured (see the module's docstring)."""
@@ -54,16 +83,10 @@ def fit_cone_look(image_rgb: np.ndarray, box_xyxy) -> ConeLook | None:
     h, w = y1 - y0, x1 - x0
     if h < MIN_BOX_PX:
         return None
-    cx0, cx1 = int(round(x0 + 0.45 * w)), max(int(round(x0 + 0.55 * w)), int(round(x0 + 0.45 * w)) + 1)
-    r0, r1 = int(round(y0 + 0.15 * h)), int(round(y0 + 0.88 * h))
-    col = image_rgb[r0:r1, cx0:cx1]
-    hsv = _hsv(col)
-    sat = (hsv[..., 1] >= 0.45) & (hsv[..., 2] >= 0.2)
-    if sat.mean() < 0.25:
+    body = _body(image_rgb, (x0, y0, x1, y1))
+    if body is None:
         return None
-    body_rgb = np.median(col[sat].astype(float), axis=0)
-    body_hsv = _hsv(np.clip(body_rgb, 0, 255).astype(np.uint8)[None])[0]
-    body_h, body_v = float(body_hsv[0]), float(body_hsv[2])
+    body_rgb, body_h, body_v, hsv = body
     white = (hsv[..., 1] < 0.3) & (hsv[..., 2] >= 0.8 * body_v)
     rows = white.mean(axis=1) > 0.5
     min_run = max(2, int(round(0.03 * h)))
@@ -91,7 +114,7 @@ def fit_cone_look(image_rgb: np.ndarray, box_xyxy) -> ConeLook | None:
         base = "grey"
     albedo = body_rgb * (BODY_MAX / max(float(body_rgb.max()), 1.0))  # 1.0: a black column never passes `sat`
     base_value = float(np.clip(bv / body_v, MIN_BASE_VALUE, BASE_VALUE_MAX))  # body_v >= 0.2: `sat` pixels only
-    return ConeLook(tuple(float(c) for c in albedo), base, bands, width if bands else 0.0, base_value)
+    return ConeLook(tuple(float(c) for c in albedo), base, bands, width if bands else 0.0, base_value, body_v)
 
 
 def fit_cone_looks(image_rgb: np.ndarray, boxes_xyxy) -> list[ConeLook]:

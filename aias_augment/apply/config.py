@@ -49,6 +49,7 @@ class ApplyConfig:
     contact_shadow_strength: float = 0.15
     contact_shadow_radius: float = 0.25
     render_method: Literal["full", "view_cache", "raycast"] = "full"
+    cone_brightness: Literal["labels", "lighting"] = "labels"
 
 
 def apply_config(cfg) -> ApplyConfig:

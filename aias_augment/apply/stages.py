@@ -7,11 +7,12 @@ plan give the same bytes.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from aias_augment.analyse.analysis import SceneAnalysis
+from aias_augment.analyse.instances import body_value
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
 from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window
@@ -35,6 +36,7 @@ from aias_augment.assets.asset import Asset
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import Intrinsics, invert_rigid, transform_points, unproject_points
 from aias_augment.core.report import skipped
+from aias_augment.core.srgb import srgb_to_linear
 from aias_augment.core.stages import ObjectLayer, apply_layer_stages
 from aias_augment.plan.insertion import InsertionPlan
 from aias_augment.plan.placement import Placement
@@ -210,7 +212,7 @@ def _render_objects(
     intr = analysis.intrinsics
     # the glossy coating reflects the estimated light: not in a render without lighting (ablation, naive paste)
     coating = Coating(cfg.coating_f0, cfg.coating_roughness) if cfg.lighting else Coating()
-    rendered, dropped = [], []
+    rendered, dropped, gains = [], [], []
     n_cached = n_cast = 0
     for k, obj in enumerate(plan.objects):
         warped = None
@@ -224,6 +226,10 @@ def _render_objects(
         if layer is None:
             dropped.append({"rejected": {"renders to no pixel": 1}})
             continue
+        if cfg.cone_brightness == "labels" and cfg.lighting:
+            layer, gain = _as_bright_as_its_look(layer, obj.asset.meta.get("look"))
+            if gain is not None:
+                gains.append(gain)
         params = plan.layer_params[k] if k < len(plan.layer_params) else {}
         if params:
             layer = apply_layer_stages(layer, params, shape, None if motions_px is None else motions_px[k])
@@ -238,7 +244,37 @@ def _render_objects(
             f"view cache: {n_cached} of {len(plan.objects)} objects warped from their view bin's "
             "render and relit (the others rendered in full: too near or too large for the cache)"
         )
+    if gains:
+        mods["brightness"] = (
+            f"{len(gains)} of {len(plan.objects)} objects scaled to their labelled cone's body brightness (gain "
+            f"{min(gains):.2f}-{max(gains):.2f})"
+        )
     return rendered, dropped
+
+
+#: The most a labelled cone's brightness scales a shaded one by (either way): beyond it the measurement (a few
+#: pixels, a clipped body) is the likelier error than the light.
+MAX_BRIGHTNESS_GAIN = 4.0
+
+
+def _as_bright_as_its_look(layer: ObjectLayer, look: dict | None) -> tuple[ObjectLayer, float | None]:
+    """``layer`` scaled so that its body's brightness (:func:`~aias_augment.analyse.instances.body_value` on what the
+    layer shows, its covered pixels in sRGB) is ``look['body_value']``, the labelled cone's in the photo: the photo's
+    own light and exposure on the same paint. Unchanged (gain None) without that value or a measurable body."""
+    target = None if not look else look.get("body_value")
+    if target is None:
+        return layer, None
+    covered = layer.alpha > 0.5
+    rows, cols = np.flatnonzero(covered.any(1)), np.flatnonzero(covered.any(0))
+    if len(rows) < 8:
+        return layer, None
+    shown = comp.to_uint8(np.where(covered[..., None], layer.rgb, 0.0))
+    now = body_value(shown, (cols[0], rows[0], cols[-1] + 1, rows[-1] + 1))
+    if now is None:
+        return layer, None
+    ratio = float(srgb_to_linear(float(target), np.float64)) / float(srgb_to_linear(now, np.float64))
+    gain = float(np.clip(ratio, 1 / MAX_BRIGHTNESS_GAIN, MAX_BRIGHTNESS_GAIN))
+    return replace(layer, rgb=(layer.rgb * np.float32(gain)).astype(layer.rgb.dtype, copy=False)), gain
 
 
 def _shaded_layer(obj, warped, intr: Intrinsics, lighting: LightingEstimate, cfg, coating: Coating):

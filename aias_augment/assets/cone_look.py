@@ -17,7 +17,8 @@ class ConeLook:
     fraction of the body's height and, when measured, the base's brightness as a fraction of the body's
     (``base_value``: HSV value over HSV value, both lit by the same light, so the photo's exposure cancels). Measured
     on labelled crops by :func:`aias_augment.analyse.instances.fit_cone_looks`; without ``base_value`` the base class
-    gives the base's colour.
+    gives the base's colour. ``body_value``, when measured: the body's HSV value in its photo (0-1), the brightness
+    an inserted cone drawn like it is given there (not a property of the cone: of the cone in that light).
     """
 
     colour_rgb: tuple[float, float, float]
@@ -25,6 +26,7 @@ class ConeLook:
     bands: int
     band_width_frac: float
     base_value: float | None = None
+    body_value: float | None = None
 
     def __post_init__(self) -> None:
         if self.base_colour not in ("black", "grey", "body"):
@@ -35,6 +37,8 @@ class ConeLook:
             raise ValueError(f"ConeLook.colour_rgb must be 3 values in 0-255, got {self.colour_rgb}")
         if self.bands and not 0.02 <= float(self.band_width_frac) <= 0.4:
             raise ValueError(f"ConeLook.band_width_frac must be in 0.02-0.4 with sleeves, got {self.band_width_frac}")
+        if self.body_value is not None and not 0.0 < float(self.body_value) <= 1.0:
+            raise ValueError(f"ConeLook.body_value must be in (0, 1], got {self.body_value}")
         if self.base_value is not None and not 0.0 < float(self.base_value) <= BASE_VALUE_MAX:
             raise ValueError(f"ConeLook.base_value must be in (0, {BASE_VALUE_MAX}], got {self.base_value}")
 
@@ -45,8 +49,9 @@ class ConeLook:
             "bands": int(self.bands),
             "band_width_frac": float(self.band_width_frac),
         }
-        if self.base_value is not None:
-            d["base_value"] = float(self.base_value)
+        for k in ("base_value", "body_value"):
+            if getattr(self, k) is not None:
+                d[k] = float(getattr(self, k))
         return d
 
     @classmethod
@@ -57,4 +62,5 @@ class ConeLook:
             int(d["bands"]),
             float(d["band_width_frac"]),
             None if d.get("base_value") is None else float(d["base_value"]),
+            None if d.get("body_value") is None else float(d["body_value"]),
         )

@@ -84,6 +84,10 @@ class InsertionConfig:
     # colour, base, white sleeves measured on their crops: aias_augment/plan/looks.py); "variety": the family's own
     # colours, bases and sleeves everywhere. Images without labelled cones draw the family either way.
     cone_look: Literal["labels", "variety"] = "labels"
+    # "labels": a cone drawn like a labelled one (above) is also made as bright as it: its shaded body scaled so
+    # that its brightness (as analyse/instances.py measures a body) is the labelled cone's in the photo, the photo's
+    # own light and exposure on the same material (apply/stages.py); "lighting": the estimated light alone.
+    cone_brightness: Literal["labels", "lighting"] = "labels"
     # Share of objects inserted as a seeded physical variant of their asset (aias_augment/assets/deform.py: dented,
     # crushed, bent, knocked over; kinds and ranges in ``deform_cfg``), drawn in the plan and recorded in the
     # placement's ``asset_meta["deformation"]``, so a replay rebuilds the same variant. 0: off.

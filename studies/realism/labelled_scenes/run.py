@@ -14,6 +14,8 @@ cones (none of it reads the code's records except the inserted boxes):
 - **base brightness**: the median HSV value of a box's base band (rows 88-98 % of its height, the central 60 % of its
   width), an inserted cone's over the median of the photo's real cones'; each real cone's over the median of the
   others (leave one out) is its floor;
+- **body brightness**: :func:`aias_augment.analyse.instances.fit_cone_look`'s body value of an inserted cone over
+  the median of the photo's real cones' (leave one out among the real cones: the floor);
 - **look agreement**: :func:`aias_augment.analyse.instances.fit_cone_look` on each inserted box against the photo's
   labelled cones: the base class and the sleeve count of at least one of them, body hue within 15 deg of it.
 
@@ -87,7 +89,7 @@ def _agrees(look, real_looks) -> bool:
 def measure_tag(rows: list, images: list) -> dict:
     from aias_augment.analyse.instances import fit_cone_look  # here: ``render`` also runs on older checkouts
 
-    ratios, base, floor, base_floor, agree, looked = [], [], [], [], 0, 0
+    ratios, base, floor, base_floor, body, body_floor, agree, looked = [], [], [], [], [], [], 0, 0
     near, near_floor = [], []
     for row, img in zip(rows, images):
         whole = whole_boxes(np.array(row["real"]), img.shape[0])
@@ -106,13 +108,17 @@ def measure_tag(rows: list, images: list) -> dict:
         real_v = np.median(vs)
         base_floor += [vs[j] / max(np.median(np.delete(vs, j)), 1.0) for j in range(len(vs))]
         real_looks = [x for x in (fit_cone_look(img, b) for b in whole) if x is not None]
+        real_body = [x.body_value for x in real_looks]
         for box in row["inserted"]:
             ratios.append((box[3] - box[1]) / (c * box[3] + c0))
             base.append(base_v(img, box) / max(real_v, 1.0))
             look = fit_cone_look(img, box)
+            if look is not None and real_body:
+                body.append(look.body_value / np.median(real_body))
             if look is not None and real_looks:
                 looked += 1
                 agree += _agrees(look, real_looks)
+        body_floor += [v / np.median(np.delete(real_body, j)) for j, v in enumerate(real_body) if len(real_body) >= 2]
         for j in range(len(whole)) if len(whole) >= 3 else ():
             o = np.delete(whole, j, 0)
             cj, c0j = np.polyfit(o[:, 3], o[:, 3] - o[:, 1], 1)
@@ -133,6 +139,9 @@ def measure_tag(rows: list, images: list) -> dict:
         "base_v_ratio_median": float(np.median(b)) if len(b) else None,
         "base_v_within_10pct": within(b, 0.9, 1.1),
         "base_v_within_25pct": within(b, 0.75, 1.25),
+        "body_v_ratio_median": float(np.median(body)) if body else None,
+        "body_v_within_10pct": within(np.array(body), 0.9, 1.1),
+        "real_body_v_within_10pct": within(np.array(body_floor), 0.9, 1.1),
         "real_base_v_within_10pct": within(np.array(base_floor), 0.9, 1.1),
         "real_base_v_within_25pct": within(np.array(base_floor), 0.75, 1.25),
         "look_agrees": agree,
@@ -140,29 +149,59 @@ def measure_tag(rows: list, images: list) -> dict:
     }
 
 
+CROP_PX = 72  # crop height on the sheet
+
+
+def _crops(img: np.ndarray, boxes, colour, n: int) -> list[np.ndarray]:
+    """Up to ``n`` boxes of ``img`` (RGB) cut out with 15 % context, CROP_PX high, framed in ``colour`` (BGR)."""
+    out = []
+    for x0, y0, x1, y1 in list(boxes)[:n]:
+        m = 0.15 * (y1 - y0)
+        cut = img[max(0, int(y0 - m)) : int(np.ceil(y1 + m)), max(0, int(x0 - m)) : int(np.ceil(x1 + m))]
+        if not cut.size:
+            continue
+        w = max(8, int(round(CROP_PX * cut.shape[1] / cut.shape[0])))
+        tile = cv2.resize(cv2.cvtColor(cut, cv2.COLOR_RGB2BGR), (w, CROP_PX), interpolation=cv2.INTER_AREA)
+        out.append(cv2.copyMakeBorder(tile, 2, 2, 2, 2, cv2.BORDER_CONSTANT, value=colour))
+    return out
+
+
+def crop_sheet(tags: list[str], rows: dict, imgs: dict, n_photos: int) -> np.ndarray:
+    """Per photo one row: its labelled cones (green), then each tag's inserted cones (red), the tags apart by a
+    grey bar; a header names the groups. The plans of two tags differ, so their cones are other draws."""
+    lines = []
+    for i in range(min(n_photos, *(len(rows[t]) for t in tags))):
+        img = imgs[tags[0]][i]
+        groups = [_crops(img, whole_boxes(np.array(rows[tags[0]][i]["real"]), img.shape[0]), (0, 200, 0), 3)]
+        groups += [_crops(imgs[t][i], rows[t][i]["inserted"], (0, 0, 230), 3) for t in tags]
+        if not any(groups[1:]):
+            continue
+        gap = np.full((CROP_PX + 4, 10, 3), 128, np.uint8)
+        parts = []
+        for g in groups:
+            parts += (g or [np.full((CROP_PX + 4, 40, 3), 255, np.uint8)]) + [gap]
+        lines.append(np.hstack(parts[:-1]))
+    if not lines:
+        return np.zeros((1, 1, 3), np.uint8)
+    width = max(x.shape[1] for x in lines)
+    header = np.full((26, width, 3), 255, np.uint8)
+    cv2.putText(header, "labelled | " + " | ".join(tags), (4, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1)
+    return np.vstack(
+        [header] + [np.pad(x, ((0, 2), (0, width - x.shape[1]), (0, 0)), constant_values=255) for x in lines]
+    )
+
+
 def measure(a) -> None:
-    out, tiles = {}, {}
+    out, rows, imgs = {}, {}, {}
     for tag in a.tags:
-        rows = json.loads((a.tmp / f"{tag}.json").read_text())
-        imgs = [cv2.cvtColor(cv2.imread(str(a.tmp / f"{tag}_{i}.png")), cv2.COLOR_BGR2RGB) for i in range(len(rows))]
-        out[tag] = measure_tag(rows, imgs)
-        tiles[tag] = []
-        for row, img in zip(rows[: a.sheet], imgs):
-            bgr = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
-            for b in row["real"]:
-                cv2.rectangle(bgr, tuple(map(int, b[:2])), tuple(map(int, b[2:])), (0, 255, 0), 1)
-            for b in row["inserted"]:
-                cv2.rectangle(bgr, tuple(map(int, b[:2])), tuple(map(int, b[2:])), (0, 0, 255), 1)
-            cv2.putText(bgr, tag, (8, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (255, 255, 255), 2)
-            tiles[tag].append(cv2.resize(bgr, (400, int(400 * bgr.shape[0] / bgr.shape[1]))))
+        rows[tag] = json.loads((a.tmp / f"{tag}.json").read_text())
+        imgs[tag] = [
+            cv2.cvtColor(cv2.imread(str(a.tmp / f"{tag}_{i}.png")), cv2.COLOR_BGR2RGB) for i in range(len(rows[tag]))
+        ]
+        out[tag] = measure_tag(rows[tag], imgs[tag])
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / f"{a.name}.json").write_text(json.dumps(out, indent=1) + "\n")
-    rows_img = []
-    for group in zip(*tiles.values()):
-        h = max(t.shape[0] for t in group)
-        rows_img.append(np.hstack([np.pad(t, ((0, h - t.shape[0]), (0, 0), (0, 0))) for t in group]))
-    if rows_img:
-        write_jpeg(a.out / f"{a.name}_sheet.jpg", np.vstack(rows_img))
+    write_jpeg(a.out / f"{a.name}_sheet.jpg", crop_sheet(a.tags, rows, imgs, a.sheet))
     print(json.dumps(out, indent=1))
 
 
@@ -182,7 +221,7 @@ def main() -> int:
     m.add_argument("--tmp", type=Path, required=True)
     m.add_argument("--tags", nargs="+", required=True)
     m.add_argument("--name", default="train")
-    m.add_argument("--sheet", type=int, default=8, help="photos per tag on the contact sheet")
+    m.add_argument("--sheet", type=int, default=14, help="photos on the crop sheet")
     m.add_argument("--out", type=Path, default=Path(__file__).parent / "result")
     a = ap.parse_args()
     render(a) if a.step == "render" else measure(a)

@@ -69,6 +69,20 @@ def test_the_fit_gives_back_the_drawn_look(look):
     assert min(gap, 360 - gap) <= 12.0, (fit.colour_rgb, look.colour_rgb)
 
 
+@pytest.mark.parametrize("base_value", [0.3, 0.6])
+def test_the_fit_reads_the_base_and_body_brightness_it_was_drawn_with(base_value):
+    """A base drawn at 0.3 or 0.6 of the body's brightness is read back within 25 % (the light on the base's faces
+    and the body's slope is not the same), and the two ordered; the body's brightness is its measured HSV value."""
+    image, box = _render(ConeLook((255.0, 72.0, 18.0), "grey", 1, 0.12, base_value))
+    fit = fit_cone_look(image, box)
+    assert abs(np.log(fit.base_value / base_value)) <= np.log(1.25), (fit.base_value, base_value)
+    x0, y0, x1, y1 = box
+    col = image[
+        int(round(y0 + 0.15 * (y1 - y0))) : int(round(y0 + 0.88 * (y1 - y0))), int(round(x0 + 0.45 * (x1 - x0)))
+    ]
+    assert abs(fit.body_value - np.median(col.max(-1)) / 255.0) <= 0.05  # the body fills the column's middle
+
+
 def test_boxes_that_cannot_be_measured_give_no_look():
     image, box = _render(LOOKS[0])
     cut = box.copy()
@@ -102,6 +116,8 @@ def test_a_drawn_look_changes_colours_and_sleeves_only_and_rebuilds_from_its_rec
         {"colour_rgb": (255.0, 72.0, 18.0), "base_colour": "black", "bands": 5, "band_width_frac": 0.1},
         {"colour_rgb": (300.0, 72.0, 18.0), "base_colour": "black", "bands": 1, "band_width_frac": 0.1},
         {"colour_rgb": (255.0, 72.0, 18.0), "base_colour": "black", "bands": 1, "band_width_frac": 0.9},
+        {"colour_rgb": (255.0, 72.0, 18.0), "base_colour": "grey", "bands": 0, "band_width_frac": 0, "base_value": 0},
+        {"colour_rgb": (255.0, 72.0, 18.0), "base_colour": "grey", "bands": 0, "band_width_frac": 0, "body_value": 1.5},
     ],
 )
 def test_a_look_out_of_range_is_refused_at_construction(kwargs):
