@@ -45,6 +45,7 @@ import numpy as np
 from aias_augment.evaluation.realism.appearance import box_colour_stats
 from aias_augment.evaluation.realism.bootstrap import kid_photo_bootstrap
 from aias_augment.evaluation.realism.crops import CropConfig, context_window, object_crops
+from studies._shared.pictures import write_jpeg
 from studies.realism.arms.run import (
     CropSet,
     cached_features,
@@ -134,6 +135,8 @@ def cmd_generate(args) -> None:
     for arm in args.arms:
         out = _arm_dir(args.cache_dir, arm)
         ins_cfg = insertion_config_for_arm(cfg, arm, train)  # the study's insertion config for this arm
+        if args.arrangement:
+            ins_cfg = dataclasses.replace(ins_cfg, arrangement=args.arrangement)
         params = json.loads(
             json.dumps(
                 {
@@ -193,6 +196,36 @@ def cmd_generate(args) -> None:
                 if n_new % 20 == 0:
                     log.info("%s: %d new, %.1f s/image", arm, n_new, (time.perf_counter() - t0) / n_new)
         log.info("%s: %d new copies in %.0f s", arm, n_new, time.perf_counter() - t0)
+
+
+def separable_sheet(arm, arm_f, ref, ref_f, n: int, path: Path, seed: int) -> None:
+    """Four rows of ``n`` crops by the out-of-fold score of the study's classifier (the logistic regression of
+    ``logistic_two_sample``: standardised Lite0 features, L2, folds grouped by photo): the inserted crops it finds
+    most and least inserted-looking, then the real crops it finds least and most real-looking. What the classifier
+    keys on, for the eye."""
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    from aias_augment.evaluation.realism.two_sample import grouped_folds
+
+    X = np.concatenate([arm_f, ref_f]).astype(np.float64)
+    y = np.r_[np.zeros(len(arm_f), bool), np.ones(len(ref_f), bool)]
+    g = np.r_[[f"a:{x}" for x in arm.groups], [f"r:{x}" for x in ref.groups]]
+    folds = grouped_folds(g, 5, np.random.default_rng([seed, 6]), y)
+    score = np.zeros(len(y))
+    for k in range(5):
+        clf = make_pipeline(StandardScaler(), LogisticRegression(C=0.1, max_iter=2000, class_weight="balanced"))
+        clf.fit(X[folds != k], y[folds != k])
+        score[folds == k] = clf.decision_function(X[folds == k])
+    a, r = np.argsort(score[: len(arm_f)]), np.argsort(score[len(arm_f) :])
+
+    def strip(crops, idx):
+        return np.concatenate([cv2.resize(crops[i], (96, 96), interpolation=cv2.INTER_NEAREST) for i in idx], 1)
+
+    rows = [strip(arm.crops, a[:n]), strip(arm.crops, a[-n:]), strip(ref.crops, r[:n]), strip(ref.crops, r[-n:])]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_jpeg(path, cv2.cvtColor(np.concatenate(rows, 0), cv2.COLOR_RGB2BGR))
 
 
 def _arm_entries(cache_dir: str, arm: str) -> dict:
@@ -397,6 +430,9 @@ def cmd_report(args) -> None:
     )
     for name, r in reps.items():
         results[name]["kid_boot_ci95"] = [float(np.nanpercentile(r, 2.5)), float(np.nanpercentile(r, 97.5))]
+    if args.separable and "inserted" in feats:
+        inserted = next(c for c in all_sets if c.name == "inserted")
+        separable_sheet(inserted, feats["inserted"], ref, ref_f, args.separable, Path(args.out) / "separable.jpg", seed)
     paired = {}
     names = [s.name for s in all_sets]
     for i, a in enumerate(names):
@@ -662,6 +698,11 @@ def main(argv=None) -> None:
     g.add_argument("--cache-dir", default="out/realism/matched")
     g.add_argument("--copies", type=int, default=1, help="insertion draws per B photo (different seeds)")
     g.add_argument("--swap", action="store_true", help="halves exchanged (insert into A, reference B)")
+    g.add_argument(
+        "--arrangement",
+        choices=("independent", "line", "cluster", "mixed"),
+        help="how one photo's inserted cones stand together (InsertionConfig.arrangement), instead of the config's",
+    )
     r = sub.add_parser("report")
     r.add_argument("--n", type=int, default=100)
     r.add_argument("--arms", nargs="+", default=list(ARMS))
@@ -687,6 +728,13 @@ def main(argv=None) -> None:
         help="only boxes at least this tall (px, in the 640 px photo), in every set",
     )
     r.add_argument("--out", default="studies/realism/matched/result")
+    r.add_argument(
+        "--separable",
+        type=int,
+        default=0,
+        help="write separable.jpg: this many crops per row, the inserted and the real ones the classifier finds most "
+        "and least alike the other set",
+    )
     m = sub.add_parser("render", help="rewrite report.md from report.json")
     m.add_argument("--out", default="studies/realism/matched/result")
     m.add_argument("--epochs", type=int, default=8)
