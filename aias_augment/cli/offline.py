@@ -393,11 +393,10 @@ def _coco_and_sheet(records: list[dict], out: Path, output: DatasetOutput, out_c
                     "visibility": a["visibility"],
                 }
             coco.add_box(image_id, output.label(lab, ins), box, inserted=ins, **extra)
-        if len(sheet) < sheet_size:
+        if len(sheet) < sheet_size:  # named as written (an inserted category under the user's class)
+            names = [output.label(lab, ins) for lab, ins in zip(rec["labels"], rec["inserted"])]
             sheet.append(
-                draw_boxes(
-                    read_rgb(str(out / "images" / rec["file_name"])), rec["boxes"], rec["labels"], rec["inserted"]
-                )
+                draw_boxes(read_rgb(str(out / "images" / rec["file_name"])), rec["boxes"], names, rec["inserted"])
             )
     return coco, sheet
 

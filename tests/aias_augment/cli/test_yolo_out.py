@@ -190,6 +190,19 @@ def test_coco_in_yolo_out_with_a_synonym_category(tmp_path):
     assert json.loads((out / "report.json").read_text())["output"]["labels"] == {
         "traffic_cone": {"as": "cone", "why": "--categories"}
     }
+    # the contact sheet names boxes as they are written: the inserted ones under the user's class
+    from aias_augment.core.viz import contact_sheet, draw_boxes
+
+    def sheet(names_of):
+        tiles = []
+        for r in records:
+            img = cv2.cvtColor(cv2.imread(str(out / "images" / r["file_name"])), cv2.COLOR_BGR2RGB)
+            tiles.append(draw_boxes(img, r["boxes"], names_of(r), r["inserted"]))
+        return contact_sheet(tiles)
+
+    written = cv2.cvtColor(cv2.imread(str(out / "contact_sheet.png")), cv2.COLOR_BGR2RGB)
+    assert np.array_equal(written, sheet(lambda r: ["cone" if i else x for x, i in zip(r["labels"], r["inserted"])]))
+    assert not np.array_equal(written, sheet(lambda r: r["labels"]))
     for r in records:
         assert r["file_name"].endswith(".png")
         got = cv2.imread(str(out / "images" / r["file_name"]))
