@@ -15,7 +15,7 @@ from aias_augment.analyse.analysis import SceneAnalysis
 from aias_augment.analyse.instances import body_value
 from aias_augment.analyse.lighting.estimate import LightingEstimate
 from aias_augment.apply import composite as comp
-from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window
+from aias_augment.apply.annotate import ObjectAnnotation, annotate_in_window, mask_box_xywh
 from aias_augment.apply.cone_raycast import raycast_cone
 from aias_augment.apply.config import ApplyConfig, apply_config
 from aias_augment.apply.frame_steps import frame_steps, frame_without_objects, paste_window
@@ -265,11 +265,12 @@ def _as_bright_as_its_look(layer: ObjectLayer, look: dict | None) -> tuple[Objec
     if target is None:
         return layer, None
     covered = layer.alpha > 0.5
-    rows, cols = np.flatnonzero(covered.any(1)), np.flatnonzero(covered.any(0))
-    if len(rows) < 8:
+    box = mask_box_xywh(covered)
+    if box is None or box[3] < 8:
         return layer, None
+    x, y, w, h = box
     shown = comp.to_uint8(np.where(covered[..., None], layer.rgb, 0.0))
-    now = body_value(shown, (cols[0], rows[0], cols[-1] + 1, rows[-1] + 1))
+    now = body_value(shown, (x, y, x + w, y + h))
     if now is None:
         return layer, None
     ratio = float(srgb_to_linear(float(target), np.float64)) / float(srgb_to_linear(now, np.float64))

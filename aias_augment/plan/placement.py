@@ -252,7 +252,8 @@ ROW_RESCALE_LIMIT = 10.0
 def _projected_at_scale(asset, scale, cam_from_object, intrinsics, row_heights: RowHeights | None):
     """(scale, corners projected (8, 2), their depths) of ``asset`` at ``cam_from_object``, or (None, reason). With
     ``row_heights`` the object is rescaled about its contact point until its mask-tight box (its outline's,
-    :meth:`~aias_augment.assets.asset.Asset.outline_m`) is the line's height on the box's own bottom row (fixed-point steps: the bottom row moves a little with the scale); without, ``scale`` is kept."""
+    :meth:`~aias_augment.assets.asset.Asset.outline_m`) is the line's height on the box's own bottom row
+    (fixed-point steps: the bottom row moves a little with the scale); without, ``scale`` is kept."""
     start = scale
     for step in range(4):
         corners = transform_points(cam_from_object, asset.corners_m() * scale)

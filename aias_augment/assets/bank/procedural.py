@@ -275,8 +275,9 @@ def loft_triangles(sections: list[list[tuple[float, float, float, float]]], segm
 
 
 def _apply_look(p: dict, look: ConeLook, h: float) -> dict:
-    """``p`` with the body colour, base colour (and its brightness, when measured) and sleeves of ``look``; the sleeves evenly spaced on the body's upper
-    part (real cones carry them there), shape, base shape, dirt and wear as drawn."""
+    """``p`` with the body colour, base colour (and its brightness, when measured) and sleeves of ``look``; the
+    sleeves evenly spaced on the body's upper part (real cones carry them there), shape, base shape, dirt and wear
+    as drawn."""
     lo, hi = (0.18, 0.88) if p["shape"] == "cone" else (0.45, 0.95)
     zb = p["base_height_m"]
     body_h = h - zb
@@ -583,28 +584,27 @@ class ConeMeshes(Sequence):
         return np.stack([lo + shift, hi + shift])
 
     def _extent(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(lo, hi, shift): the loft's vertex bounds from its rings alone (min/max over the ring vertices, each the
-        product :func:`_ring_xy` gives the mesh) and the translation :func:`normalise_meshes` applies to them."""
-        rings = [ring for sec in self.sections() for ring in sec]
-        z = np.array([ring[0] for ring in rings])
-        x, y = _ring_xy([(r, sn) for _, r, sn, _ in rings if r > 0], self.segments)
-        if any(r <= 0 for _, r, _, _ in rings):  # a pole's vertex is on the axis
-            x, y = np.append(x, 0.0), np.append(y, 0.0)
-        lo, hi = np.array([x.min(), y.min(), z.min()]), np.array([x.max(), y.max(), z.max()])
+        """(lo, hi, shift): the loft's vertex bounds (min/max over :meth:`_vertices`) and the translation
+        :func:`normalise_meshes` applies to them."""
+        v = self._vertices()
+        lo, hi = v.min(axis=0), v.max(axis=0)
         return lo, hi, -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
 
-    def outline_m(self) -> np.ndarray:
-        """(N, 3) the built mesh's vertices that its silhouette can reach: every ring vertex and the poles on the
-        axis (the loft's hull is theirs), after :func:`normalise_meshes`' shift; made without the mesh."""
+    def _vertices(self) -> np.ndarray:
+        """(N, 3) the loft's vertices from its rings alone, before the shift: every ring vertex (each the product
+        :func:`_ring_xy` gives the mesh) and the poles on the axis. The loft's hull is theirs."""
         rings = [ring for sec in self.sections() for ring in sec]
         solid = [(z, r, sn) for z, r, sn, _ in rings if r > 0]
         x, y = _ring_xy([(r, sn) for _, r, sn in solid], self.segments)
         z = np.repeat([zz for zz, _, _ in solid], self.segments).reshape(x.shape)
         pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
         poles = [[0.0, 0.0, zz] for zz, r, _, _ in rings if r <= 0]
-        if poles:
-            pts = np.concatenate([pts, np.array(poles)])
-        return pts + self._extent()[2]
+        return np.concatenate([pts, np.array(poles)]) if poles else pts
+
+    def outline_m(self) -> np.ndarray:
+        """(N, 3) the built mesh's vertices that its silhouette can reach (:meth:`_vertices`), after
+        :func:`normalise_meshes`' shift; made without the mesh."""
+        return self._vertices() + self._extent()[2]
 
     def triangles(self) -> np.ndarray:
         """(F, 3, 3) the built mesh's triangles (its faces in order; after :func:`normalise_meshes`' shift, the
