@@ -114,6 +114,8 @@ def plan_insertion(
         if arrangement == "mixed":
             arrangement = ("independent", "line", "cluster")[int(rng.integers(3))]
         line = draw_arrangement(arrangement, rng, cfg)
+    lead_category = None
+    members = [0, []]  # [how many stood on their own for want of ground at their place, the joined objects' indices]
     for i in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
         base = choose_asset(category, rng, cfg, bank, cone_looks)
@@ -122,8 +124,9 @@ def plan_insertion(
         if cfg.placement and targets is not None and i == 0:
             object_cfgs = draft.scale_scene(category, base, targets)
         near = None
-        if arrangement != "independent" and i > 0 and draft.objects and cfg.placement:
-            # the leader's ground (its local refit when there was one): the arrangement lies on it
+        if arrangement != "independent" and draft.objects and category == lead_category:
+            # the leader's ground (its local refit when there was one): the arrangement lies on it. Only objects
+            # of the leader's kind join it: cones line a lane, a barrel among them stands on its own.
             near = arrangement_pixels(
                 draft.objects[0].placement, i, arrangement, line, analysis.intrinsics, cfg, analysis.image_shape
             )
@@ -136,7 +139,18 @@ def plan_insertion(
             )
         else:
             object_cfg = object_cfgs[i]
+        placed = len(draft.objects)
         draft.place(category, base, object_cfg, decoy=False, near=near)
+        if not placed:
+            lead_category = category
+        if near is not None:
+            if len(draft.objects) > placed:
+                members[1].append(placed)
+            else:  # no free ground at its place in the arrangement: it stands where it can on its own
+                draft.place(category, base, object_cfgs[i], decoy=False)
+                members[0] += 1
+    if line is not None:
+        draft.mods["arrangement"] = _arrangement_note(arrangement, line, members)
     # Decoys: other categories through the same stages, never annotated. Drawn after the labelled objects, so these
     # draw as they would without decoys; their box heights come from the same targets as the labelled objects'.
     n_decoys = int(rng.integers(cfg.decoys[0], cfg.decoys[1] + 1)) if cfg.decoys[1] > 0 else 0
@@ -318,6 +332,18 @@ def draw_arrangement(kind: str, rng: np.random.Generator, cfg: PlanConfig) -> di
     return None
 
 
+def _arrangement_note(kind: str, params: dict, members: list) -> str:
+    """The record's line for an arrangement: its draws, which objects (indices in the plan) joined the first, and
+    how many stood on their own because their place in it had no free ground."""
+    if kind == "line":
+        way = "across the road" if abs(np.sin(params["angle_rad"])) > 0.5 else "along the road"
+        what = f"line {params['spacing_m']:.2f} m apart {way}"
+    else:
+        what = f"cluster within {max(params['radii_m']):.2f} m"
+    joined = ", ".join(str(i) for i in members[1]) or "none"
+    return f"{what}: objects [{joined}] joined object 0, {members[0]} placed on their own (no free ground there)"
+
+
 def arrangement_pixels(
     leader: Placement, i: int, kind: str, params: dict, intr: Intrinsics, cfg: PlanConfig, shape
 ) -> np.ndarray:
@@ -354,9 +380,9 @@ def arrangement_pixels(
     uu, vv = np.meshgrid(np.arange(x0, x1, dtype=float), np.arange(y0, y1, dtype=float))
     rays = np.stack([(uu - intr.cx) / intr.fx, (vv - intr.cy) / intr.fy, np.ones_like(uu)], -1)
     denom = rays @ n
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):  # rays along the plane meet it nowhere: set aside below
         t = -d_plane / denom
-    dist = np.linalg.norm(rays * t[..., None] - p, axis=-1)
+        dist = np.linalg.norm(rays * t[..., None] - p, axis=-1)
     dist[~(t > 0)] = np.inf
     near = dist <= tol
     if not near.any():

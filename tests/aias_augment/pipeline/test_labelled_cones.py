@@ -32,6 +32,7 @@ CFG = InsertionConfig(
     ssaa=1,
     min_objects=3,
     max_objects=3,
+    arrangement="independent",  # the looks and brightness under test, not where a row puts the cones
 )
 
 

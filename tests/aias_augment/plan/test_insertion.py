@@ -57,6 +57,7 @@ def test_sizes_from_existing_boxes_make_objects_the_scene_objects_size():
             box_height_jitter=0.0,
             scene_scale_from_sizes=False,
         ),
+        arrangement="independent",  # a row's members take the size perspective gives them, not a flat target
     )
     heights = []
     for s in range(6):
@@ -158,7 +159,8 @@ def test_a_line_stands_on_the_ground_at_its_spacing_along_one_direction():
     placed = 0
     for seed in range(6):
         an, p = _arranged("line", seed, arrangement_spacing_m=(2.0, 2.0))
-        pts = np.array([o.placement.contact_point_in_cam for o in p.objects])
+        joined = _joined(p)
+        pts = np.array([o.placement.contact_point_in_cam for o in p.objects])[[0, *joined]]
         if len(pts) < 3:
             continue
         placed += 1
@@ -172,11 +174,17 @@ def test_a_line_stands_on_the_ground_at_its_spacing_along_one_direction():
     assert placed >= 2
 
 
+def _joined(plan) -> list[int]:
+    """The indices of the objects the record says joined the first one's arrangement."""
+    inside = plan.modules["arrangement"].split("[", 1)[1].split("]", 1)[0]
+    return [] if inside == "none" else [int(i) for i in inside.split(", ")]
+
+
 def test_a_cluster_stays_within_its_radius_of_the_first():
     placed = 0
     for seed in range(6):
         _, p = _arranged("cluster", seed, arrangement_cluster_radius_m=1.0)
-        pts = np.array([o.placement.contact_point_in_cam for o in p.objects])
+        pts = np.array([o.placement.contact_point_in_cam for o in p.objects])[[0, *_joined(p)]]
         if len(pts) < 2:
             continue
         placed += 1
@@ -184,15 +192,20 @@ def test_a_cluster_stays_within_its_radius_of_the_first():
     assert placed >= 2
 
 
-def test_independent_arrangement_draws_as_before_mixed_records_the_same_per_seed():
-    a = _arranged("independent", 3)[1]
-    b = plan_insertion(
-        analyse_scene(Frame(road_image(), K), CFG),
-        replace(CFG, min_objects=4, max_objects=4),
-        np.random.default_rng(3),
-        bank=OneAsset(box_asset(extents=(0.3, 0.3, 0.7))),
-    )
-    assert json.dumps(a.to_dict()) == json.dumps(b.to_dict())
+def test_one_object_draws_no_arrangement_mixed_records_the_same_per_seed():
+    """A single object has no arrangement to stand in: every kind gives the independent plan, draw for draw."""
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    one = [
+        plan_insertion(
+            an,
+            replace(CFG, arrangement=kind, min_objects=1, max_objects=1),
+            np.random.default_rng(3),
+            bank=OneAsset(box_asset(extents=(0.3, 0.3, 0.7))),
+        )
+        for kind in ("independent", "line", "cluster", "mixed")
+    ]
+    assert len(one[0].objects) == 1 and "arrangement" not in one[0].modules
+    assert len({json.dumps(p.to_dict()) for p in one}) == 1
     m1, m2 = _arranged("mixed", 5)[1], _arranged("mixed", 5)[1]
     assert json.dumps(m1.to_dict()) == json.dumps(m2.to_dict())
 
@@ -265,3 +278,49 @@ def test_objects_of_the_inserted_kind_set_the_scene_scale_and_others_do_not():
                 existing_labels=labels,
             )
             assert "sizes" not in q.modules and "reference boxes" not in q.modules.get("scene_scale", "")
+
+
+def test_a_line_keeps_the_count_members_without_ground_placed_on_their_own():
+    """A 60 m spacing puts every member's place beyond the road's visible ground: none can join the line, so each
+    is placed on its own and the plan holds as many objects as an independent one (the record says so)."""
+    for seed in range(3):
+        _, far = _arranged("line", seed, arrangement_spacing_m=(60.0, 60.0))
+        _, alone = _arranged("independent", seed)
+        assert len(far.objects) == len(alone.objects) >= 3
+        assert _joined(far) == [] and f"{len(far.objects) - 1} placed on their own" in far.modules["arrangement"]
+
+
+def test_only_the_leaders_category_joins_its_line():
+    """Cones and barrels (the same 0.7 m box under two names) in a 2 m line: only objects of the first object's
+    category join it, each a whole number of steps from the first."""
+
+    class TwoKinds:
+        def sample(self, category, rng):
+            return box_asset(extents=(0.3, 0.3, 0.7), category=category)
+
+    on_line, off_line = 0, 0
+    for seed in range(8):
+        cfg = replace(
+            CFG,
+            arrangement="line",
+            arrangement_spacing_m=(2.0, 2.0),
+            min_objects=4,
+            max_objects=4,
+            categories=("traffic_cone", "barrel"),
+        )
+        an = analyse_scene(Frame(road_image(), K), cfg)
+        p = plan_insertion(an, cfg, np.random.default_rng(seed), bank=TwoKinds())
+        lead = p.objects[0].placement
+        joined = _joined(p)
+        kinds = [o.placement.category for o in p.objects]
+        assert all(kinds[i] == lead.category for i in joined)
+        on_line += len(joined)
+        off_line += sum(c != lead.category for c in kinds[1:])
+        p0 = np.asarray(lead.contact_point_in_cam)
+        for i in joined:  # each a whole number of 2 m steps from the first (the search's pixel is the box's
+            # front edge, the contact its centre: half a scaled 0.3 m depth more)
+            o = p.objects[i].placement
+            d = float(np.linalg.norm(np.asarray(o.contact_point_in_cam) - p0))
+            steps = max(round(d / 2.0), 1)
+            assert abs(d - 2.0 * steps) <= 0.2 * steps + 0.05 + 0.15 * max(o.scale, lead.scale)
+    assert on_line >= 6 and off_line >= 3

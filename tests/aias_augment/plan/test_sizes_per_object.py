@@ -117,14 +117,14 @@ def test_scene_scale_comes_from_the_labelled_kind_not_the_first_object():
     assert firsts == {"barrel", "traffic_cone"}
 
 
-def _row_ratios(an, truth, boxes, real, pcfg) -> np.ndarray:
+def _row_ratios(an, truth, boxes, real, pcfg, arrangement="independent") -> np.ndarray:
     """Inserted cones' box heights over the real cone's on the true ground with its box's bottom on the same row
     (its contact pixel found by bisection along the box's centre column)."""
     ratios = []
     for s in range(12):
         plan = plan_insertion(
             an,
-            replace(CFG, categories=("traffic_cone",), placement_cfg=pcfg),
+            replace(CFG, categories=("traffic_cone",), placement_cfg=pcfg, arrangement=arrangement),
             np.random.default_rng(s),
             bank=ConesAndBarrels(),
             n_objects=3,
@@ -155,6 +155,10 @@ def test_cones_take_their_row_size_when_the_camera_estimate_is_far_off():
     rows = _row_ratios(an, truth, boxes, real, pcfg)
     assert len(rows) >= 15
     assert np.all((rows >= 0.8) & (rows <= 1.25)), np.round(np.sort(rows), 2)
+    # cones standing in rows (their sites from the first cone's ground) take the same row sizes
+    lined = _row_ratios(an, truth, boxes, real, pcfg, arrangement="line")
+    assert len(lined) >= 15 and np.mean((lined >= 0.8) & (lined <= 1.25)) >= 0.9, np.round(np.sort(lined), 2)
+    assert abs(np.log(np.median(lined))) < 0.1, np.round(np.sort(lined), 2)
     off = _row_ratios(an, truth, boxes, real, replace(pcfg, sizes_from_rows=False))
     # the row sizes leave only the drawn jitter (0.06 in log); the ground estimate alone spreads them far wider
     assert np.std(np.log(off)) > 2 * np.std(np.log(rows)), (np.round(np.sort(rows), 2), np.round(np.sort(off), 2))
