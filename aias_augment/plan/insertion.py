@@ -251,7 +251,7 @@ class _Draft:
 
     def place(self, category: str, base: Asset, object_cfg, decoy: bool, near=None) -> None:
         """Place ``base`` (or paste it, without placement) and append it to the plan; a failed search is reported.
-        ``near``: (H, W) bool, the ground pixels an arranged object may stand on (with the scene's region)."""
+        ``near``: the flat indices of the pixels an arranged object may stand on (with the scene's region)."""
         cfg, intr = self.cfg, self.analysis.intrinsics
         if cfg.placement:
             placement = self._search(category, base, object_cfg, near)
@@ -296,7 +296,8 @@ class _Draft:
             existing_boxes_xyxy=np.array(self.taken),
             depth=self.depth,
             cfg=object_cfg,
-            region_mask=region.mask if near is None else near & region.mask,
+            region_mask=region.mask,
+            within_pixels=near,
             height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
             points_in_cam=self.scene_points,
             existing_objects=self.boxes_3d if "collision" in self.mods else None,
@@ -347,10 +348,11 @@ def _arrangement_note(kind: str, params: dict, members: list) -> str:
 def arrangement_pixels(
     leader: Placement, i: int, kind: str, params: dict, intr: Intrinsics, cfg: PlanConfig, shape
 ) -> np.ndarray:
-    """(H, W) bool: the pixels whose rays meet the leader's ground plane within a tenth of the spacing (0.1 m in a
-    cluster) of where the ``i``-th object of the arrangement stands (the nearest pixel when none is that close;
-    empty when the point is out of view). Tested on the ground, not in the image: a pixel covers metres of a road
-    seen at a grazing angle."""
+    """The flat indices (ascending, ``v * W + u``) of the pixels whose rays meet the leader's ground plane within a
+    tenth of the spacing (0.1 m in a cluster) of where the ``i``-th object of the arrangement stands (the nearest
+    pixel when none is that close; none when the point is out of view). Tested on the ground, not in the image: a
+    pixel covers metres of a road seen at a grazing angle. Indices, not a mask: the window is a few hundred pixels
+    of a frame the placement search has already indexed."""
     n = np.asarray(leader.ground_normal_in_cam, float)
     d_plane = float(leader.ground_d)
     p0 = np.asarray(leader.contact_point_in_cam, float)
@@ -367,16 +369,16 @@ def arrangement_pixels(
         tol = 0.1
     p = p0 + step * (np.cos(a) * forward + np.sin(a) * side)
     h, w = shape
-    mask = np.zeros((h, w), bool)
+    none = np.zeros(0, np.int64)
     if p[2] <= 0.1:
-        return mask
+        return none
     uv, _ = project_points(p[None], intr.K)
     u, v = uv[0]
     # the window holding every pixel within tol of p: tol's image size, stretched by the grazing angle
     r = int(np.ceil(2.0 + tol * intr.fy / p[2] * max(1.0, p[2] / max(abs(d_plane), 1e-6))))  # eps: camera on plane
     x0, x1, y0, y1 = max(0, int(u) - r), min(w, int(u) + r + 1), max(0, int(v) - r), min(h, int(v) + r + 1)
     if x0 >= x1 or y0 >= y1:
-        return mask
+        return none
     uu, vv = np.meshgrid(np.arange(x0, x1, dtype=float), np.arange(y0, y1, dtype=float))
     rays = np.stack([(uu - intr.cx) / intr.fx, (vv - intr.cy) / intr.fy, np.ones_like(uu)], -1)
     denom = rays @ n
@@ -387,10 +389,10 @@ def arrangement_pixels(
     near = dist <= tol
     if not near.any():
         if not np.isfinite(dist.min()):
-            return mask
+            return none
         near = dist == dist.min()
-    mask[y0:y1, x0:x1] = near
-    return mask
+    ys, xs = np.nonzero(near)  # row-major: the flat indices come out ascending
+    return (ys + y0).astype(np.int64) * w + (xs + x0)
 
 
 def size_references(boxes_xyxy: list, labels: list | None, categories, pcfg) -> list:

@@ -210,13 +210,16 @@ def _child_generator(rng: np.random.Generator) -> np.random.Generator:
         return np.random.default_rng(rng.integers(2**63))
 
 
-def _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_height_m, row_heights, report):
+def _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_height_m, row_heights, report, within):
     """(flat candidate pixel indices, a note on the size target, the object's height when drawn once) for
     :func:`sample_placement`, or None (counted in ``report``) when no ground pixel is in view. With a size target
     the object's height is drawn once and the candidates are the pixels where it has that size (its size on each row
     from ``row_heights`` when given; rows where that is under ``cfg.min_box_height_px`` are no candidates)."""
     entry = GROUND_CANDIDATES.get(ground, intrinsics, region_mask, cfg.horizon_margin_px)
     cand = entry["cand"]
+    if within is not None:  # both ascending: the candidates among them, as a mask of them would give
+        at = np.minimum(np.searchsorted(cand, within), max(len(cand) - 1, 0))
+        cand = within[cand[at] == within] if len(cand) else cand
     rows_pred = None
     if row_heights is not None and len(cand):
         rows_pred = row_heights.at(cand // intrinsics.width)
@@ -238,7 +241,9 @@ def _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_heig
             ground,
             intrinsics,
             cfg.box_height_tolerance,
-            pred=GROUND_CANDIDATES.predicted(entry, fixed_h, ground, intrinsics) if rows_pred is None else rows_pred,
+            pred=rows_pred
+            if rows_pred is not None or within is not None
+            else GROUND_CANDIDATES.predicted(entry, fixed_h, ground, intrinsics),
         )
         report.target_box_height_px = target_frac * intrinsics.height
     return cand, size_note, fixed_h
@@ -424,6 +429,7 @@ def sample_placement(
     object_height_m: float | None = None,
     thin_segments: np.ndarray | None = None,
     row_heights: RowHeights | None = None,
+    within_pixels: np.ndarray | None = None,
 ) -> tuple[Placement | None, PlacementReport]:
     """Choose a ground point, scale and yaw for ``asset``; ``None`` (with reasons) when no candidate passes.
 
@@ -442,6 +448,8 @@ def sample_placement(
     with a box-height target it is drawn once, before the candidates are chosen for it. ``row_heights``: the box
     height the object must have on each bottom row (the image's labelled objects of its kind): the object is
     rescaled about its contact point to it before the checks, and its height is what that scale gives.
+    ``within_pixels``: ascending flat pixel indices (``v * W + u``) the candidates must also be among (a site an
+    arrangement gives), the same candidates as a region mask of those pixels alone.
     """
     w, h = intrinsics.width, intrinsics.height
     K = _intrinsics_tuple(intrinsics)
@@ -452,7 +460,9 @@ def sample_placement(
         asset.category, (asset.reference_height_m, asset.reference_height_m)
     )
     report = PlacementReport()
-    chosen = _candidate_pixels(ground, intrinsics, rng, region_mask, hr, cfg, object_height_m, row_heights, report)
+    chosen = _candidate_pixels(
+        ground, intrinsics, rng, region_mask, hr, cfg, object_height_m, row_heights, report, within_pixels
+    )
     if chosen is None:
         return None, report
     cand, size_note, fixed_h = chosen

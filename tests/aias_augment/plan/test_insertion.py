@@ -324,3 +324,27 @@ def test_only_the_leaders_category_joins_its_line():
             steps = max(round(d / 2.0), 1)
             assert abs(d - 2.0 * steps) <= 0.2 * steps + 0.05 + 0.15 * max(o.scale, lead.scale)
     assert on_line >= 6 and off_line >= 3
+
+
+def test_within_pixels_draws_as_a_region_mask_of_them_would():
+    """A placement search limited to a few pixels by their flat indices gives the same placement and report as the
+    same search with those pixels cut out of the region mask (the candidates are the same, in the same order)."""
+    from aias_augment.plan.placement import sample_placement
+
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    asset = box_asset(extents=(0.3, 0.3, 0.7))
+    region = an.region.mask
+    h, w = region.shape
+    placed = 0
+    for seed in range(6):
+        pick = np.random.default_rng(seed)
+        y0, x0 = int(pick.integers(h // 2, h - 40)), int(pick.integers(0, w - 40))
+        window = np.zeros((h, w), bool)
+        window[y0 : y0 + 30, x0 : x0 + 30] = pick.uniform(size=(30, 30)) < 0.5
+        runs = []
+        for kw in ({"region_mask": region & window}, {"region_mask": region, "within_pixels": np.flatnonzero(window)}):
+            p, report = sample_placement(asset, an.ground, K, np.random.default_rng(seed), **kw)
+            runs.append((None if p is None else repr(p), report.to_dict()))
+        assert runs[0] == runs[1]
+        placed += runs[0][0] is not None
+    assert placed >= 3
