@@ -109,8 +109,11 @@ def plan_insertion(
         targets = [draw_box_height_target(draft.pcfg, rng) for _ in range(k)]
         targets = None if targets[0] is None else targets
     arrangement, line = "independent", None
-    if cfg.arrangement != "independent" and cfg.placement and k > 1:
-        arrangement = cfg.arrangement
+    wanted = cfg.arrangement
+    if wanted == "auto":  # objects stand together where the scene's own objects of an inserted kind do
+        wanted = "mixed" if sum(kind is not None for _, kind in draft.ref_kinds) >= 2 else "independent"
+    if wanted != "independent" and cfg.placement and k > 1:
+        arrangement = wanted
         if arrangement == "mixed":
             arrangement = ("independent", "line", "cluster")[int(rng.integers(3))]
         line = draw_arrangement(arrangement, rng, cfg)
