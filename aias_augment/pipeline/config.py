@@ -100,13 +100,14 @@ class InsertionConfig:
     decoys: tuple[int, int] = (0, 0)
     # How the labelled objects of one image stand together: "independent" (each placed on its own), "line" (a row at
     # ``arrangement_spacing_m`` along the road or across it, as cones line a lane or close it), "cluster" (within
-    # ``arrangement_cluster_radius_m`` of the first), "mixed" (one of the three per image). The first object is
-    # placed as usual; the others of its category stand where the arrangement puts them, at the size perspective
-    # gives them (one whose place has no free ground, or of another category, is placed on its own). "auto":
-    # "mixed" on an image with two or more labelled objects of an inserted kind (the scene shows such objects
-    # standing together: rows of cones look real beside real rows), "independent" on others (on empty roads, rows
-    # cost the detector: studies/detection/guard).
-    arrangement: Literal["auto", "independent", "line", "cluster", "mixed"] = "auto"
+    # ``arrangement_cluster_radius_m`` of the first), "mixed" (one of the three per image), "row" (the row the
+    # image's own labelled objects of the kind stand in, continued: a spacing beyond either end or in a gap, at the
+    # spacing they show). In "line" and "cluster" the first object is placed as usual and the others of its
+    # category stand where the arrangement puts them; an object whose place has no free ground, or of another
+    # category (of a kind with no labelled row), is placed on its own. "auto": "row" on an image with two or more
+    # labelled objects of an inserted kind (rows beside real rows read more real), "independent" on others (on
+    # empty roads, rows cost the detector: studies/detection/guard).
+    arrangement: Literal["auto", "independent", "line", "cluster", "mixed", "row"] = "auto"
     arrangement_spacing_m: tuple[float, float] = (1.0, 3.0)
     arrangement_cluster_radius_m: float = 1.2
     # How the output boxes sit around the objects: per side (left, top, right, bottom), how far a label lies outside

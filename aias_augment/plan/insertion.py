@@ -111,8 +111,10 @@ def plan_insertion(
     arrangement, line = "independent", None
     wanted = cfg.arrangement
     if wanted == "auto":  # objects stand together where the scene's own objects of an inserted kind do
-        wanted = "mixed" if sum(kind is not None for _, kind in draft.ref_kinds) >= 2 else "independent"
-    if wanted != "independent" and cfg.placement and k > 1:
+        wanted = "row" if sum(kind is not None for _, kind in draft.ref_kinds) >= 2 else "independent"
+    if wanted == "row" and cfg.placement:
+        arrangement, line = "row", {"rows": {}, "used": {}}
+    elif wanted != "independent" and cfg.placement and k > 1:
         arrangement = wanted
         if arrangement == "mixed":
             arrangement = ("independent", "line", "cluster")[int(rng.integers(3))]
@@ -127,12 +129,16 @@ def plan_insertion(
         if cfg.placement and targets is not None and i == 0:
             object_cfgs = draft.scale_scene(category, base, targets)
         near = None
-        if arrangement != "independent" and draft.objects and category == lead_category:
+        if arrangement == "row":  # the image's own row of this kind, continued (none: the object stands alone)
+            near = draft.row_site_pixels(category, line, rng)
+        elif arrangement != "independent" and draft.objects and category == lead_category:
             # the leader's ground (its local refit when there was one): the arrangement lies on it. Only objects
             # of the leader's kind join it: cones line a lane, a barrel among them stands on its own.
             near = arrangement_pixels(
                 draft.objects[0].placement, i, arrangement, line, analysis.intrinsics, cfg, analysis.image_shape
             )
+        object_cfg = object_cfgs[i]
+        if near is not None:
             # size from perspective; a row seen along its length hides part of its members behind each other
             object_cfg = replace(
                 draft.pcfg,
@@ -140,8 +146,6 @@ def plan_insertion(
                 box_height_frac_range=None,
                 max_overlap_existing=max(draft.pcfg.max_overlap_existing, 0.6),
             )
-        else:
-            object_cfg = object_cfgs[i]
         placed = len(draft.objects)
         draft.place(category, base, object_cfg, decoy=False, near=near)
         if not placed:
@@ -279,6 +283,30 @@ class _Draft:
                 OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m), category)
             )
 
+    def row_site_pixels(self, category: str, state: dict, rng: np.random.Generator) -> np.ndarray | None:
+        """The pixels of a free site on the image's row of labelled ``category`` objects, continued: one of the
+        sites a spacing beyond either end of the row, or in a gap of it (one draw of ``rng``), as flat indices; None
+        when the image has no such row (fewer than two labelled objects whose feet are seen) or every site is
+        taken. ``state``: the plan's rows, fitted once per category, and the sites already used."""
+        if category not in state["rows"]:
+            state["rows"][category] = labelled_row(
+                _boxes_of(self.ref_kinds, category), self.ground, self.analysis.intrinsics, self.cfg
+            )
+        row = state["rows"][category]
+        if row is None:
+            return None
+        used = state["used"].setdefault(category, set())
+        free = [j for j in range(len(row["sites"])) if j not in used]
+        if not free:
+            return None
+        j = free[int(rng.integers(len(free)))]
+        used.add(j)
+        n = np.asarray(self.ground.normal, float)
+        tol = max(0.1, 0.15 * row["spacing_m"])
+        return ground_window_pixels(
+            row["sites"][j], n, float(self.ground.d), tol, self.analysis.intrinsics, self.analysis.image_shape
+        )
+
     def _search(self, category: str, base: Asset, object_cfg, near) -> Placement | None:
         """The placement search for one object (its report kept), at the height of the image's labelled objects of
         its kind when there are some."""
@@ -339,6 +367,11 @@ def draw_arrangement(kind: str, rng: np.random.Generator, cfg: PlanConfig) -> di
 def _arrangement_note(kind: str, params: dict, members: list) -> str:
     """The record's line for an arrangement: its draws, which objects (indices in the plan) joined the first, and
     how many stood on their own because their place in it had no free ground."""
+    if kind == "row":
+        rows = [f"{c}: {r['n']} labelled, {r['spacing_m']:.2f} m apart" for c, r in params["rows"].items() if r]
+        what = "the labelled row continued (" + ("; ".join(rows) or "no labelled row") + ")"
+        joined = ", ".join(str(i) for i in members[1]) or "none"
+        return f"{what}: objects [{joined}] joined it, {members[0]} placed on their own (no free ground there)"
     if kind == "line":
         way = "across the road" if abs(np.sin(params["angle_rad"])) > 0.5 else "along the road"
         what = f"line {params['spacing_m']:.2f} m apart {way}"
@@ -371,6 +404,15 @@ def arrangement_pixels(
         step = params["radii_m"][i % len(params["radii_m"])]
         tol = 0.1
     p = p0 + step * (np.cos(a) * forward + np.sin(a) * side)
+    return ground_window_pixels(p, n, d_plane, tol, intr, shape)
+
+
+def ground_window_pixels(
+    p: np.ndarray, n: np.ndarray, d_plane: float, tol: float, intr: Intrinsics, shape
+) -> np.ndarray:
+    """The flat indices (ascending, ``v * W + u``) of the pixels whose rays meet the plane ``n . x + d_plane = 0``
+    within ``tol`` metres of its point ``p`` (the nearest pixel when none is that close; none when ``p`` is out of
+    view)."""
     h, w = shape
     none = np.zeros(0, np.int64)
     if p[2] <= 0.1:
@@ -444,6 +486,44 @@ def _kind_height(kind: str | None, base: Asset) -> float:
     (the first object drawn) for a kind without a known range."""
     hr = CATEGORY_HEIGHT_RANGE_M.get(kind) if kind is not None else None
     return float(np.mean(hr)) if hr is not None else float(base.reference_height_m)
+
+
+def labelled_row(boxes_xyxy: np.ndarray, ground, intr: Intrinsics, cfg: PlanConfig, ends: int = 3) -> dict | None:
+    """The row the labelled objects ``boxes_xyxy`` (M, 4) stand in, on ``ground``: their feet (the boxes' bottom
+    centres on the plane, moved half the box's width away from the camera; boxes cut by the image's bottom edge
+    left out), the line through them (their principal
+    direction on the plane), the spacing (the smallest gap between neighbours along it, within
+    ``cfg.arrangement_spacing_m`` widened to 0.5-4 m) and the sites that continue it: ``ends`` spacings beyond each
+    end, and the middle of every gap over 1.6 spacings. None with fewer than two feet on the ground."""
+    boxes = np.asarray(boxes_xyxy, float).reshape(-1, 4)
+    boxes = boxes[boxes[:, 3] < intr.height - 2]
+    if len(boxes) < 2:
+        return None
+    n = np.asarray(ground.normal, float)
+    near_edge = ground.intersect_pixels(np.c_[(boxes[:, 0] + boxes[:, 2]) / 2, boxes[:, 3]], intr)
+    ok = np.all(np.isfinite(near_edge), axis=1) & (near_edge[:, 2] > 0.5)
+    if ok.sum() < 2:
+        return None
+    # a box's bottom is its object's nearest edge: the foot lies half its width (in metres there) farther away
+    near_edge, boxes = near_edge[ok], boxes[ok]
+    away = near_edge + float(ground.d) * n  # from the camera's foot on the plane
+    away /= np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-9)  # eps: a box right below the camera
+    half_m = (boxes[:, 2] - boxes[:, 0]) / 2 * near_edge[:, 2] / intr.fx
+    feet = near_edge + half_m[:, None] * away
+    centre = feet.mean(axis=0)
+    flat = (feet - centre) - np.outer((feet - centre) @ n, n)  # on the plane
+    u = np.linalg.svd(flat, full_matrices=False)[2][0]
+    u = u - (u @ n) * n
+    u /= max(float(np.linalg.norm(u)), 1e-9)  # eps: feet on one point have no direction (svd gives some unit)
+    t = np.sort(flat @ u)
+    gaps = np.diff(t)
+    lo, hi = min(0.5, cfg.arrangement_spacing_m[0]), max(4.0, cfg.arrangement_spacing_m[1])
+    spacing = float(np.clip(gaps.min(), lo, hi))  # the closest pair: a gap in the row is a missing object
+    along = [t[-1] + j * spacing for j in range(1, ends + 1)] + [t[0] - j * spacing for j in range(1, ends + 1)]
+    along += [(a + b) / 2 for a, b in zip(t[:-1], t[1:]) if b - a > 1.6 * spacing]
+    sites = [centre + a * u for a in along]
+    sites = [p for p in sites if p[2] > 0.5]  # in front of the camera
+    return {"n": len(feet), "spacing_m": spacing, "sites": sites} if sites else None
 
 
 def _boxes_of(ref_kinds: list[tuple], kind) -> np.ndarray:

@@ -162,3 +162,68 @@ def test_cones_take_their_row_size_when_the_camera_estimate_is_far_off():
     off = _row_ratios(an, truth, boxes, real, replace(pcfg, sizes_from_rows=False))
     # the row sizes leave only the drawn jitter (0.06 in log); the ground estimate alone spreads them far wider
     assert np.std(np.log(off)) > 2 * np.std(np.log(rows)), (np.round(np.sort(rows), 2), np.round(np.sort(off), 2))
+
+
+def test_row_continues_the_labelled_cones_row():
+    """Three labelled cones stand 2 m apart on a straight row across the ground (placed in 3D on the image's own
+    ground, their boxes projected): with ``arrangement: row`` every inserted cone that joins stands on that row's
+    line (within 0.5 m: the plan's ground is the one the labelled boxes' sizes scale) and over 0.75 m from every
+    labelled cone (beyond the ends or in the gap); the record names the row's spacing as measured from the
+    boxes (2.00 +- 0.3 m)."""
+    an = analyse_scene(Frame(road_image(), K), CFG)
+    g = an.ground
+    real = _real_cone()
+    n = np.asarray(g.normal)
+    start = g.intersect_pixels(np.array([[250.0, 330.0]]), K)[0]
+    forward = np.array([0.0, 0.0, 1.0]) - n[2] * n
+    forward /= np.linalg.norm(forward)
+    side = np.cross(n, forward)
+    u = np.cos(0.5) * forward + np.sin(0.5) * side  # the row's direction on the ground
+    feet = [start + s * u for s in (0.0, 2.0, 6.0)]  # a gap of two steps between the 2nd and 3rd
+    from aias_augment.core.geometry import project_points as proj
+
+    boxes = []  # mask-tight, as labels are: the box of the cone's outline standing at its foot
+    for f in feet:
+        uv, _ = proj(transform_points(object_pose_on_ground(f, g, 0.3), real.outline_m()), K.K)
+        boxes.append(np.r_[uv.min(0), uv.max(0)])
+    boxes = np.array(boxes)
+    joined_total = 0
+    for s in range(8):
+        plan = plan_insertion(
+            an,
+            replace(CFG, categories=("traffic_cone",), arrangement="row"),
+            np.random.default_rng(s),
+            bank=ConesAndBarrels(),
+            n_objects=3,
+            existing_boxes_xyxy=boxes,
+            existing_labels=["traffic_cone"] * 3,
+        )
+        note = plan.modules["arrangement"]
+        spacing = float(note.split("labelled, ")[1].split(" m apart")[0])
+        assert abs(spacing - 2.0) < 0.3, note
+        inside = note.split("[", 1)[1].split("]", 1)[0]
+        joined = [] if inside == "none" else [int(i) for i in inside.split(", ")]
+        joined_total += len(joined)
+        for i in joined:
+            c = np.asarray(plan.objects[i].placement.contact_point_in_cam)
+            rel = c - start
+            t = float(rel @ u)
+            off_line = np.linalg.norm(rel - t * u - (rel @ n) * n)
+            assert off_line < 0.5, (s, i, off_line)
+            assert min(abs(t - f) for f in (0.0, 2.0, 6.0)) > 0.75, (s, i, t)  # on no labelled cone's place
+    assert joined_total >= 12
+    # one labelled cone is no row: every object stands on its own, draw for draw as "independent" places it
+    alone = [
+        plan_insertion(
+            an,
+            replace(CFG, categories=("traffic_cone",), arrangement=kind),
+            np.random.default_rng(5),
+            bank=ConesAndBarrels(),
+            n_objects=3,
+            existing_boxes_xyxy=boxes[:1],
+            existing_labels=["traffic_cone"],
+        )
+        for kind in ("row", "independent")
+    ]
+    assert len(alone[0].objects) == 3
+    assert [repr(o.placement) for o in alone[0].objects] == [repr(o.placement) for o in alone[1].objects]
