@@ -191,6 +191,40 @@ def crop_sheet(tags: list[str], rows: dict, imgs: dict, n_photos: int) -> np.nda
     )
 
 
+def frame_sheet(tags: list[str], rows: dict, imgs: dict, n_photos: int, width: int = 300) -> np.ndarray:
+    """Per photo the whole output of each tag side by side (``width`` px wide), two photos a line, its labelled
+    cones framed green and its inserted cones red, so that where the new cones stand beside the photo's own can be
+    seen."""
+    lines = []
+    for i in range(min(len(rows[t]) for t in tags)):
+        if len(lines) == n_photos:
+            break
+        if not any(len(rows[t][i]["inserted"]) for t in tags):
+            continue
+        tiles = []
+        for t in tags:
+            img = cv2.cvtColor(imgs[t][i], cv2.COLOR_RGB2BGR)
+            k = width / img.shape[1]
+            tile = cv2.resize(img, (width, int(round(img.shape[0] * k))), interpolation=cv2.INTER_AREA)
+            for boxes, colour in ((rows[t][i]["real"], (0, 200, 0)), (rows[t][i]["inserted"], (0, 0, 230))):
+                for x0, y0, x1, y1 in np.asarray(boxes, float).reshape(-1, 4) * k:
+                    cv2.rectangle(tile, (int(x0), int(y0)), (int(x1), int(y1)), colour, 2)
+            cv2.putText(tile, t, (6, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (255, 255, 255), 2)
+            tiles.append(tile)
+        height = max(x.shape[0] for x in tiles)
+        lines.append(np.hstack([np.pad(x, ((0, height - x.shape[0] + 4), (0, 4), (0, 0))) for x in tiles]))
+    if not lines:
+        return np.zeros((1, 1, 3), np.uint8)
+    lines += [np.zeros_like(lines[0][:1])] * (len(lines) % 2)  # two photos a line: the sheet stays legible
+    pairs = []
+    for left, right in zip(lines[::2], lines[1::2]):
+        h = max(left.shape[0], right.shape[0])
+        pad = [np.pad(x, ((0, h - x.shape[0]), (0, 0), (0, 0)), constant_values=255) for x in (left, right)]
+        pairs.append(np.hstack([pad[0], np.full((h, 16, 3), 255, np.uint8), pad[1]]))
+    width = max(x.shape[1] for x in pairs)
+    return np.vstack([np.pad(x, ((0, 0), (0, width - x.shape[1]), (0, 0)), constant_values=255) for x in pairs])
+
+
 def measure(a) -> None:
     out, rows, imgs = {}, {}, {}
     for tag in a.tags:
@@ -202,6 +236,7 @@ def measure(a) -> None:
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / f"{a.name}.json").write_text(json.dumps(out, indent=1) + "\n")
     write_jpeg(a.out / f"{a.name}_sheet.jpg", crop_sheet(a.tags, rows, imgs, a.sheet))
+    write_jpeg(a.out / f"{a.name}_frames.jpg", frame_sheet(a.tags, rows, imgs, a.frames))
     print(json.dumps(out, indent=1))
 
 
@@ -222,6 +257,7 @@ def main() -> int:
     m.add_argument("--tags", nargs="+", required=True)
     m.add_argument("--name", default="train")
     m.add_argument("--sheet", type=int, default=14, help="photos on the crop sheet")
+    m.add_argument("--frames", type=int, default=8, help="photos on the whole-frame sheet")
     m.add_argument("--out", type=Path, default=Path(__file__).parent / "result")
     a = ap.parse_args()
     render(a) if a.step == "render" else measure(a)
