@@ -104,10 +104,9 @@ class InsertionConfig:
     # image's own labelled objects of the kind stand in, continued: a spacing beyond either end or in a gap, at the
     # spacing they show). In "line" and "cluster" the first object is placed as usual and the others of its
     # category stand where the arrangement puts them; an object whose place has no free ground, or of another
-    # category (of a kind with no labelled row), is placed on its own. "auto": "row" on an image with two or more
-    # labelled objects of an inserted kind (rows beside real rows read more real), "independent" on others (on
-    # empty roads, rows cost the detector: studies/detection/guard).
-    arrangement: Literal["auto", "independent", "line", "cluster", "mixed", "row"] = "auto"
+    # category (of a kind with no labelled row), is placed on its own, and the record says which joined. On
+    # TraCon's cone photos few find free ground at their place (studies/realism/matched/result/arrangement).
+    arrangement: Literal["independent", "line", "cluster", "mixed", "row"] = "independent"
     arrangement_spacing_m: tuple[float, float] = (1.0, 3.0)
     arrangement_cluster_radius_m: float = 1.2
     # How the output boxes sit around the objects: per side (left, top, right, bottom), how far a label lies outside

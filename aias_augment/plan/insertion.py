@@ -110,8 +110,6 @@ def plan_insertion(
         targets = None if targets[0] is None else targets
     arrangement, line = "independent", None
     wanted = cfg.arrangement
-    if wanted == "auto":  # objects stand together where the scene's own objects of an inserted kind do
-        wanted = "row" if sum(kind is not None for _, kind in draft.ref_kinds) >= 2 else "independent"
     if wanted == "row" and cfg.placement:
         arrangement, line = "row", {"rows": {}, "used": {}}
     elif wanted != "independent" and cfg.placement and k > 1:

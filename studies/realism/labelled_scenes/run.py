@@ -54,6 +54,8 @@ def render(a) -> None:
         cfg = replace(cfg, placement_cfg=replace(cfg.placement_cfg, pitch_from_references=False))
     if a.no_rows:
         cfg = replace(cfg, placement_cfg=replace(cfg.placement_cfg, sizes_from_rows=False))
+    if a.arrangement:
+        cfg = replace(cfg, arrangement=a.arrangement)
     a.tmp.mkdir(parents=True, exist_ok=True)
     rows = []
     for i, (stem, img, boxes) in enumerate(photos(a.split, a.n)):
@@ -68,7 +70,8 @@ def render(a) -> None:
             for x, y, w, h in [map(float, ann.amodal_box_xywh)]
         ]
         cv2.imwrite(str(a.tmp / f"{a.tag}_{i}.png"), cv2.cvtColor(res.image, cv2.COLOR_RGB2BGR))
-        rows.append({"photo": stem, "real": boxes.tolist(), "inserted": inserted})
+        arranged = res.record.modules.get("arrangement")  # which objects stood with the others (the record's note)
+        rows.append({"photo": stem, "real": boxes.tolist(), "inserted": inserted, "arrangement": arranged})
         print(f"{a.tag} {i} {stem}: {len(inserted)} inserted", flush=True)
     (a.tmp / f"{a.tag}.json").write_text(json.dumps(rows))
 
@@ -146,6 +149,21 @@ def measure_tag(rows: list, images: list) -> dict:
         "real_base_v_within_25pct": within(np.array(base_floor), 0.75, 1.25),
         "look_agrees": agree,
         "look_measured": looked,
+        **_arrangement_counts(rows),
+    }
+
+
+def _arrangement_counts(rows: list) -> dict:
+    """How many inserted objects joined an arrangement and how many stood on their own for want of ground at their
+    place in it (the records' notes; none for a render without them)."""
+    notes = [row.get("arrangement") for row in rows if row.get("arrangement")]
+    if not notes:
+        return {}
+    joined = [n.split("[", 1)[1].split("]", 1)[0] for n in notes]
+    return {
+        "arranged_photos": len(notes),
+        "arrangement_joined": sum(0 if j == "none" else len(j.split(", ")) for j in joined),
+        "arrangement_alone": sum(int(n.split(" placed on their own")[0].rsplit(" ", 1)[1]) for n in notes),
     }
 
 
@@ -252,6 +270,7 @@ def main() -> int:
     r.add_argument("--variety", action="store_true", help="cone_look: variety")
     r.add_argument("--no-pitch", action="store_true", help="placement_cfg.pitch_from_references: false")
     r.add_argument("--no-rows", action="store_true", help="placement_cfg.sizes_from_rows: false")
+    r.add_argument("--arrangement", default=None, help="InsertionConfig.arrangement instead of the preset's")
     m = sub.add_parser("measure")
     m.add_argument("--tmp", type=Path, required=True)
     m.add_argument("--tags", nargs="+", required=True)

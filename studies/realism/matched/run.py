@@ -700,7 +700,7 @@ def main(argv=None) -> None:
     g.add_argument("--swap", action="store_true", help="halves exchanged (insert into A, reference B)")
     g.add_argument(
         "--arrangement",
-        choices=("auto", "independent", "line", "cluster", "mixed", "row"),
+        choices=("independent", "line", "cluster", "mixed", "row"),
         help="how one photo's inserted cones stand together (InsertionConfig.arrangement), instead of the config's",
     )
     r = sub.add_parser("report")

@@ -348,31 +348,3 @@ def test_within_pixels_draws_as_a_region_mask_of_them_would():
         assert runs[0] == runs[1]
         placed += runs[0][0] is not None
     assert placed >= 3
-
-
-def test_auto_arranges_only_where_the_scene_has_labelled_objects_of_the_kind():
-    """ "auto" plans as "row" (the labelled row continued) on an image with two labelled boxes of the inserted
-    kind and as "independent" with one or none, draw for draw."""
-    an = analyse_scene(Frame(road_image(), K), CFG)
-    boxes = np.array([[600.0, 300.0, 630.0, 380.0], [10.0, 320.0, 40.0, 400.0]])
-
-    def plan(kind, n_labelled, seed):
-        cfg = replace(CFG, arrangement=kind, min_objects=3, max_objects=3)
-        return json.dumps(
-            plan_insertion(
-                an,
-                cfg,
-                np.random.default_rng(seed),
-                bank=OneAsset(box_asset(extents=(0.3, 0.3, 0.7))),
-                existing_boxes_xyxy=boxes[:n_labelled],
-                existing_labels=["box"] * n_labelled,
-            ).to_dict()
-        )
-
-    arranged = 0
-    for seed in range(4):
-        assert plan("auto", 2, seed) == plan("row", 2, seed)
-        assert plan("auto", 1, seed) == plan("independent", 1, seed)
-        assert plan("auto", 0, seed) == plan("independent", 0, seed)
-        arranged += plan("row", 2, seed) != plan("independent", 2, seed)
-    assert arranged >= 2
