@@ -145,6 +145,7 @@ def cmd_generate(args) -> None:
                     "flags": ARM_FLAGS[arm],
                     "split_seed": SPLIT_SEED,
                     **({"swap": True} if args.swap else {}),
+                    **({"first_draw": args.first_draw} if args.first_draw else {}),
                 }
             )
         )
@@ -163,7 +164,8 @@ def cmd_generate(args) -> None:
                 done[e["copy"]] = e
         t0, n_new = time.perf_counter(), 0
         with progress.open("a") as plog:
-            for k, j in ((k, j) for k in range(args.copies) for j in range(len(photos))):
+            draws = range(args.first_draw, args.first_draw + args.copies)
+            for k, j in ((k, j) for k in draws for j in range(len(photos))):
                 ph, copy = photos[j], j + COPY_STRIDE * k
                 if copy in done:
                     continue
@@ -697,6 +699,12 @@ def main(argv=None) -> None:
     g.add_argument("--arms", nargs="+", default=list(ARMS))
     g.add_argument("--cache-dir", default="out/realism/matched")
     g.add_argument("--copies", type=int, default=1, help="insertion draws per B photo (different seeds)")
+    g.add_argument(
+        "--first-draw",
+        type=int,
+        default=0,
+        help="the first draw's index: --first-draw 3 --copies 3 makes draws 3-5 (other seeds, the same policy)",
+    )
     g.add_argument("--swap", action="store_true", help="halves exchanged (insert into A, reference B)")
     g.add_argument(
         "--arrangement",
