@@ -209,7 +209,7 @@ def crop_sheet(tags: list[str], rows: dict, imgs: dict, n_photos: int) -> np.nda
     )
 
 
-def frame_sheet(tags: list[str], rows: dict, imgs: dict, n_photos: int, width: int = 300) -> np.ndarray:
+def frame_sheet(tags: list[str], rows: dict, imgs: dict, n_photos: int, width: int = 240) -> np.ndarray:
     """Per photo the whole output of each tag side by side (``width`` px wide), two photos a line, its labelled
     cones framed green and its inserted cones red, so that where the new cones stand beside the photo's own can be
     seen."""
@@ -254,7 +254,8 @@ def measure(a) -> None:
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / f"{a.name}.json").write_text(json.dumps(out, indent=1) + "\n")
     write_jpeg(a.out / f"{a.name}_sheet.jpg", crop_sheet(a.tags, rows, imgs, a.sheet))
-    write_jpeg(a.out / f"{a.name}_frames.jpg", frame_sheet(a.tags, rows, imgs, a.frames))
+    if a.frames:
+        write_jpeg(a.out / f"{a.name}_frames.jpg", frame_sheet(a.tags, rows, imgs, a.frames))
     print(json.dumps(out, indent=1))
 
 
@@ -276,7 +277,7 @@ def main() -> int:
     m.add_argument("--tags", nargs="+", required=True)
     m.add_argument("--name", default="train")
     m.add_argument("--sheet", type=int, default=14, help="photos on the crop sheet")
-    m.add_argument("--frames", type=int, default=8, help="photos on the whole-frame sheet")
+    m.add_argument("--frames", type=int, default=0, help="photos on a whole-frame sheet (0: none; it is large)")
     m.add_argument("--out", type=Path, default=Path(__file__).parent / "result")
     a = ap.parse_args()
     render(a) if a.step == "render" else measure(a)
