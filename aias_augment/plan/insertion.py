@@ -365,18 +365,16 @@ def draw_arrangement(kind: str, rng: np.random.Generator, cfg: PlanConfig) -> di
 def _arrangement_note(kind: str, params: dict, members: list) -> str:
     """The record's line for an arrangement: its draws, which objects (indices in the plan) joined the first, and
     how many stood on their own because their place in it had no free ground."""
+    joined = ", ".join(str(i) for i in members[1]) or "none"
     if kind == "row":
         rows = [f"{c}: {r['n']} labelled, {r['spacing_m']:.2f} m apart" for c, r in params["rows"].items() if r]
-        what = "the labelled row continued (" + ("; ".join(rows) or "no labelled row") + ")"
-        joined = ", ".join(str(i) for i in members[1]) or "none"
-        return f"{what}: objects [{joined}] joined it, {members[0]} placed on their own (no free ground there)"
-    if kind == "line":
+        what, whom = "the labelled row continued (" + ("; ".join(rows) or "no labelled row") + ")", "it"
+    elif kind == "line":
         way = "across the road" if abs(np.sin(params["angle_rad"])) > 0.5 else "along the road"
-        what = f"line {params['spacing_m']:.2f} m apart {way}"
+        what, whom = f"line {params['spacing_m']:.2f} m apart {way}", "object 0"
     else:
-        what = f"cluster within {max(params['radii_m']):.2f} m"
-    joined = ", ".join(str(i) for i in members[1]) or "none"
-    return f"{what}: objects [{joined}] joined object 0, {members[0]} placed on their own (no free ground there)"
+        what, whom = f"cluster within {max(params['radii_m']):.2f} m", "object 0"
+    return f"{what}: objects [{joined}] joined {whom}, {members[0]} placed on their own (no free ground there)"
 
 
 def arrangement_pixels(
@@ -489,10 +487,10 @@ def _kind_height(kind: str | None, base: Asset) -> float:
 def labelled_row(boxes_xyxy: np.ndarray, ground, intr: Intrinsics, cfg: PlanConfig, ends: int = 3) -> dict | None:
     """The row the labelled objects ``boxes_xyxy`` (M, 4) stand in, on ``ground``: their feet (the boxes' bottom
     centres on the plane, moved half the box's width away from the camera; boxes cut by the image's bottom edge
-    left out), the line through them (their principal
-    direction on the plane), the spacing (the smallest gap between neighbours along it, within
-    ``cfg.arrangement_spacing_m`` widened to 0.5-4 m) and the sites that continue it: ``ends`` spacings beyond each
-    end, and the middle of every gap over 1.6 spacings. None with fewer than two feet on the ground."""
+    left out), the line through them (their principal direction on the plane), the spacing (the smallest gap
+    between neighbours along it, within ``cfg.arrangement_spacing_m`` widened to 0.5-4 m) and the sites that
+    continue it: ``ends`` spacings beyond each end, and the middle of every gap over 1.6 spacings. None with fewer
+    than two feet on the ground."""
     boxes = np.asarray(boxes_xyxy, float).reshape(-1, 4)
     boxes = boxes[boxes[:, 3] < intr.height - 2]
     if len(boxes) < 2:
