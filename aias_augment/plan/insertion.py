@@ -133,7 +133,7 @@ def plan_insertion(
             # the leader's ground (its local refit when there was one): the arrangement lies on it. Only objects
             # of the leader's kind join it: cones line a lane, a barrel among them stands on its own.
             near = arrangement_pixels(
-                draft.objects[0].placement, i, arrangement, line, analysis.intrinsics, cfg, analysis.image_shape
+                draft.objects[0].placement, i, arrangement, line, analysis.intrinsics, analysis.image_shape
             )
         object_cfg = object_cfgs[i]
         if near is not None:
@@ -377,9 +377,7 @@ def _arrangement_note(kind: str, params: dict, members: list) -> str:
     return f"{what}: objects [{joined}] joined {whom}, {members[0]} placed on their own (no free ground there)"
 
 
-def arrangement_pixels(
-    leader: Placement, i: int, kind: str, params: dict, intr: Intrinsics, cfg: PlanConfig, shape
-) -> np.ndarray:
+def arrangement_pixels(leader: Placement, i: int, kind: str, params: dict, intr: Intrinsics, shape) -> np.ndarray:
     """The flat indices (ascending, ``v * W + u``) of the pixels whose rays meet the leader's ground plane within a
     tenth of the spacing (0.1 m in a cluster) of where the ``i``-th object of the arrangement stands (the nearest
     pixel when none is that close; none when the point is out of view). Tested on the ground, not in the image: a

@@ -19,6 +19,7 @@ from aias_augment.plan.insertion import plan_insertion
 from aias_augment.plan.placement import object_pose_on_ground, scaled_ground
 from tests.aias_augment.analyse.test_analysis import CFG, K, road_image
 from tests.aias_augment.fixtures import box_asset
+from tests.aias_augment.plan.test_insertion import _joined
 
 REAL_CONE_M = 0.7
 REAL_PIXELS = [[110.0, 300.0], [330.0, 340.0], [520.0, 390.0], [220.0, 440.0]]
@@ -180,11 +181,9 @@ def test_row_continues_the_labelled_cones_row():
     side = np.cross(n, forward)
     u = np.cos(0.5) * forward + np.sin(0.5) * side  # the row's direction on the ground
     feet = [start + s * u for s in (0.0, 2.0, 6.0)]  # a gap of two steps between the 2nd and 3rd
-    from aias_augment.core.geometry import project_points as proj
-
     boxes = []  # mask-tight, as labels are: the box of the cone's outline standing at its foot
     for f in feet:
-        uv, _ = proj(transform_points(object_pose_on_ground(f, g, 0.3), real.outline_m()), K.K)
+        uv, _ = project_points(transform_points(object_pose_on_ground(f, g, 0.3), real.outline_m()), K.K)
         boxes.append(np.r_[uv.min(0), uv.max(0)])
     boxes = np.array(boxes)
     joined_total = 0
@@ -201,8 +200,7 @@ def test_row_continues_the_labelled_cones_row():
         note = plan.modules["arrangement"]
         spacing = float(note.split("labelled, ")[1].split(" m apart")[0])
         assert abs(spacing - 2.0) < 0.3, note
-        inside = note.split("[", 1)[1].split("]", 1)[0]
-        joined = [] if inside == "none" else [int(i) for i in inside.split(", ")]
+        joined = _joined(plan)
         joined_total += len(joined)
         for i in joined:
             c = np.asarray(plan.objects[i].placement.contact_point_in_cam)
