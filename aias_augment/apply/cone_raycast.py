@@ -268,6 +268,8 @@ def _base_side_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
     i = np.flatnonzero(live)  # the rays still descending, their own copies of the step's inputs
     ti, oxi, oyi, dxi, dyi = t[i], ox, oy, dx[i], dy[i]
     for _ in range(NEWTON_STEPS):
+        if len(i) == 0:
+            break
         x, y = oxi + ti * dxi, oyi + ti * dyi
         (fx, gx), (fy, gy) = _power_and_slope(x, n), _power_and_slope(y, n)
         f = fx + fy - 1.0
@@ -277,7 +279,12 @@ def _base_side_hits(r: _Rays, shape: ConeShape) -> np.ndarray:
             live[i[~down]] = False
             t[i] = ti  # the stopped rays keep where they stopped
             i, ti, f, df, dxi, dyi = i[down], ti[down], f[down], df[down], dxi[down], dyi[down]
-        ti = ti - np.maximum(f, 0.0) / df
+        step = ti - np.maximum(f, 0.0) / df
+        moved = step != ti  # a ray its step leaves where it was is at its fixed point: every later step repeats it
+        if not moved.all():
+            t[i] = step
+            i, step, dxi, dyi = i[moved], step[moved], dxi[moved], dyi[moved]
+        ti = step
     t[i] = ti
     x, y = ox + t * dx, oy + t * dy
     close = np.abs(_power_and_slope(x, n)[0] + _power_and_slope(y, n)[0] - 1.0) <= 1e-4

@@ -161,10 +161,19 @@ def _wrapped_blur(x: np.ndarray, sigma: float) -> np.ndarray:
     return y[:, pad:-pad]
 
 
+def _weighted_index(rng: np.random.Generator, p) -> int:
+    """An index drawn with weights ``p``: ``Generator.choice(len(p), p=p / sum(p))``'s own arithmetic (its cumulative
+    sum normalised by its last entry, one ``random()`` draw, searched from the right), the same draw of ``rng`` and
+    the same index, without its argument checks (the weights are this module's constants)."""
+    p = np.asarray(p, float)
+    cdf = (p / p.sum()).cumsum()
+    cdf /= cdf[-1]
+    return int(cdf.searchsorted(rng.random(), side="right"))
+
+
 def _choice(rng: np.random.Generator, table: dict):
     keys = list(table)
-    p = np.array([table[k][1] if isinstance(table[k], tuple) else table[k] for k in keys], float)
-    return keys[int(rng.choice(len(keys), p=p / p.sum()))]
+    return keys[_weighted_index(rng, [table[k][1] if isinstance(table[k], tuple) else table[k] for k in keys])]
 
 
 def _superellipse(theta: np.ndarray, n: float) -> np.ndarray:
@@ -312,7 +321,7 @@ def cone_params(rng: np.random.Generator, h: float, look: ConeLook | None = None
         base_h = h * rng.uniform(0.03, 0.06)
         r_bottom = min(h * rng.uniform(0.15, 0.21), base_half * 0.9)
         r_top = h * rng.uniform(0.025, 0.05)
-        n_bands = int(rng.choice(4, p=[0.15, 0.37, 0.38, 0.10]))
+        n_bands = _weighted_index(rng, [0.15, 0.37, 0.38, 0.10])
         lo, hi = 0.18, 0.88  # bands lie on this part of the body (fraction of the body height)
         w_range = {1: (0.14, 0.28), 2: (0.09, 0.2), 3: (0.07, 0.12)}.get(n_bands, (0, 0))
     else:
@@ -320,7 +329,7 @@ def cone_params(rng: np.random.Generator, h: float, look: ConeLook | None = None
         base_h = h * rng.uniform(0.05, 0.08)
         r_bottom = h * rng.uniform(0.04, 0.06)
         r_top = r_bottom * rng.uniform(0.75, 0.95)
-        n_bands = int(rng.choice([1, 2, 3], p=[0.2, 0.5, 0.3]))
+        n_bands = 1 + _weighted_index(rng, [0.2, 0.5, 0.3])
         lo, hi = 0.45, 0.95
         w_range = (0.05, 0.1)
         base_colour = "black" if rng.random() < 0.8 else base_colour
@@ -457,11 +466,15 @@ def cone_texture(
         if (sw, sh) == (tw, th):
             for rows_, cols_, f in scuffs:
                 img[rows_, cols_] *= f
-        else:  # their area-average at the level
-            field = np.ones((th, tw))
+        else:  # their area-average at the level, on the level's rows they touch (elsewhere it is exactly 1)
+            k = th // sh  # a power-of-two level: each level row averages k full rows (and k columns)
+            lv = sorted({r // k for rows_, _, _ in scuffs for r in range(rows_.start, min(rows_.stop, th))})
+            at = {r: j for j, r in enumerate(lv)}
+            field = np.ones((len(lv) * k, tw))
             for rows_, cols_, f in scuffs:
-                field[rows_, cols_] *= f
-            img *= cv2.resize(field, (sw, sh), interpolation=cv2.INTER_AREA)[..., None]
+                for r in range(rows_.start, min(rows_.stop, th)):
+                    field[at[r // k] * k + r % k, cols_] *= f
+            img[lv] *= cv2.resize(field, (sw, len(lv)), interpolation=cv2.INTER_AREA)[..., None]
     return np.clip(img, 0.0, 1.0, out=img)
 
 
@@ -585,9 +598,21 @@ class ConeMeshes(Sequence):
 
     def _extent(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(lo, hi, shift): the loft's vertex bounds (min/max over :meth:`_vertices`) and the translation
-        :func:`normalise_meshes` applies to them."""
-        v = self._vertices()
-        lo, hi = v.min(axis=0), v.max(axis=0)
+        :func:`normalise_meshes` applies to them. A ring vertex's x is ``(r s) c`` (its radius r, the exponent's
+        factor s and cos c of its angle), each product rounded: monotonic in r at every angle, so over the rings of
+        one exponent x and y reach their extremes on the narrowest or the widest ring, whose vertices are the only
+        ones made (the same products, so the same floats)."""
+        rings = [ring for sec in self.sections() for ring in sec]
+        by_n: dict[float, list[float]] = {}
+        for _, r, sn, _ in rings:
+            if r > 0:
+                by_n.setdefault(sn, []).append(r)
+        x, y = _ring_xy([(f(rs), sn) for sn, rs in by_n.items() for f in (min, max)], self.segments)
+        z = [zz for zz, _, _, _ in rings]
+        lo = np.array([x.min(), y.min(), min(z)])
+        hi = np.array([x.max(), y.max(), max(z)])
+        if any(r <= 0 for _, r, _, _ in rings):  # a pole: a vertex on the axis
+            lo[:2], hi[:2] = np.minimum(lo[:2], 0.0), np.maximum(hi[:2], 0.0)
         return lo, hi, -np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
 
     def _vertices(self) -> np.ndarray:

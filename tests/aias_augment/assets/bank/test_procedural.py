@@ -262,3 +262,16 @@ def test_raycast_cone_texture_levels_are_powers_of_two_made_once():
         assert tex.dtype == np.float32
     a = _texture_level(shape, rows / 3.0)
     assert _texture_level(shape, rows / 3.5) is a
+
+
+def test_weighted_index_is_generator_choice_draw_for_draw():
+    """The cone's weighted draws take numpy's ``Generator.choice(n, p=...)`` index and consume the same draw of the
+    generator, whatever the weights (normalised or not, zeros among them)."""
+    from aias_augment.assets.bank.procedural import _weighted_index
+
+    for weights in ([0.15, 0.37, 0.38, 0.10], [0.2, 0.5, 0.3], [0.55, 0.27, 0.06, 0.07, 0.05], [3.0, 0.0, 1.0]):
+        p = np.asarray(weights, float)
+        for seed in range(300):
+            a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+            assert _weighted_index(a, weights) == int(b.choice(len(p), p=p / p.sum()))
+            assert a.random() == b.random()  # the same state after
