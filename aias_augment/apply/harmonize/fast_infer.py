@@ -118,12 +118,11 @@ def _masked_stats(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 def _quantiles(v: np.ndarray) -> np.ndarray:
     """(C, N), N >= 1 -> (C, len(QUANTILES)): linear interpolation between order statistics (numpy's and torch's
-    default method: position q (N - 1)), from one partition at the order statistics they read (the values a full
-    sort puts there) instead of np.quantile's per-call machinery."""
-    pos = np.asarray(QUANTILES) * (v.shape[1] - 1)
+    default method: position q (N - 1)), from one sort instead of np.quantile's per-call machinery."""
+    s = np.sort(v, axis=1)
+    pos = np.asarray(QUANTILES) * (s.shape[1] - 1)
     lo = np.floor(pos).astype(np.intp)
-    hi = np.minimum(lo + 1, v.shape[1] - 1)
-    s = np.partition(v, np.union1d(lo, hi), axis=1)
+    hi = np.minimum(lo + 1, s.shape[1] - 1)
     t = (pos - lo).astype(np.float32)
     return s[:, lo] + (s[:, hi] - s[:, lo]) * t
 
