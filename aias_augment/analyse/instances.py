@@ -18,6 +18,9 @@ base. Along that column (the middle 10 % of the box's width, where the body fill
 
 A box cut by the frame, shorter than 24 px, or whose column holds too few saturated pixels (a cone seen from above,
 a wrong label) gives no look; the caller counts those.
+
+The ground the labelled objects stand on (:func:`labelled_ground_mask`): its colour beside their bases, and every
+pixel of that colour, where a row of them is continued.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ import numpy as np
 
 from aias_augment.assets.cone_look import BASE_VALUE_MAX, ConeLook
 
-__all__ = ["body_value", "fit_cone_looks", "fit_cone_look"]
+__all__ = ["body_value", "fit_cone_looks", "fit_cone_look", "labelled_ground_mask"]
 
 MIN_BOX_PX = 24  # below this a sleeve is a pixel or two: nothing to measure
 MIN_BASE_VALUE = 0.01  # a base read as pure black (V 0) is drawn as the darkest plausible paint, not as no light
@@ -125,3 +128,46 @@ def fit_cone_looks(image_rgb: np.ndarray, boxes_xyxy) -> list[ConeLook]:
         if look is not None:
             out.append(look)
     return out
+
+
+#: Ground beside a labelled object's base: rows of the box's lowest tenth, out to this share of its width either side.
+GROUND_STRIP_WIDTH = 0.35
+#: Pixels of ground beside the bases needed before their colour says which pixels are that ground.
+GROUND_MIN_SAMPLES = 60
+#: A pixel is the row's ground within this many robust spreads of its median colour (CIELAB), each spread at least
+#: the floor (L, a, b): a uniform asphalt's spread is a few levels, and its shading along a row more.
+GROUND_SPREADS = 3.0
+GROUND_SPREAD_FLOOR = (8.0, 4.0, 4.0)
+
+
+def labelled_ground_mask(image_rgb: np.ndarray, boxes_xyxy) -> np.ndarray | None:
+    """(H, W) bool: the pixels that look like the ground the labelled objects ``boxes_xyxy`` (N, 4) stand on, or
+    None when too little of it is seen. The ground is sampled beside each base (the box's lowest tenth of rows, out
+    to :data:`GROUND_STRIP_WIDTH` of its width either side, every labelled box left out); a pixel is that ground
+    when each CIELAB channel is within :data:`GROUND_SPREADS` robust spreads of the samples' median. Inside a
+    labelled box is never ground. What the image's own road region (``analyse/region.py``, seeded at the frame's
+    bottom and eroded round every edge) leaves out between and beside a row of labelled objects, this finds."""
+    img = np.asarray(image_rgb)
+    h, w = img.shape[:2]
+    boxes = np.asarray(boxes_xyxy, float).reshape(-1, 4)
+    if not len(boxes):
+        return None
+    inside = np.zeros((h, w), bool)
+    for x0, y0, x1, y1 in boxes:
+        inside[
+            max(0, int(np.floor(y0))) : max(0, int(np.ceil(y1))), max(0, int(np.floor(x0))) : max(0, int(np.ceil(x1)))
+        ] = True
+    strip = np.zeros((h, w), bool)
+    for x0, y0, x1, y1 in boxes:
+        bw, bh = x1 - x0, y1 - y0
+        r0, r1 = int(np.clip(y1 - 0.1 * bh, 0, h)), int(np.clip(np.ceil(y1), 0, h))
+        for c0, c1 in ((x0 - GROUND_STRIP_WIDTH * bw, x0), (x1, x1 + GROUND_STRIP_WIDTH * bw)):
+            strip[r0:r1, int(np.clip(c0, 0, w)) : int(np.clip(np.ceil(c1), 0, w))] = True
+    strip &= ~inside
+    if strip.sum() < GROUND_MIN_SAMPLES:
+        return None
+    lab = cv2.cvtColor(np.ascontiguousarray(img, np.uint8), cv2.COLOR_RGB2LAB).astype(np.float32)
+    samples = lab[strip]
+    med = np.median(samples, axis=0)
+    spread = np.maximum(1.4826 * np.median(np.abs(samples - med), axis=0), GROUND_SPREAD_FLOOR)
+    return np.all(np.abs(lab - med) <= GROUND_SPREADS * spread, axis=-1) & ~inside

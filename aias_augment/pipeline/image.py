@@ -169,6 +169,7 @@ def insert_into_image(
         existing_labels=inputs.labels,
         depth=inputs.depth,
         meta=inputs.meta,
+        labelled_ground=_labelled_ground(inputs.image, inputs.boxes_xyxy, cfg),
         **plan_kw,
     )
     applied = apply_plan(frame, analysis, plan, cfg, view_cache=view_cache, labelled_xywh=inputs.boxes)
@@ -227,14 +228,16 @@ def _insert_at_working_resolution(
     frame = Frame(inputs.image, inputs.intrinsics, depth=inputs.depth, meta=inputs.meta)
     small, analysis_small, analysis = working.analyse(frame, cfg, scene_cache)
     sx, sy = working.scale
+    boxes_small = inputs.boxes_xyxy * np.array([sx, sy, sx, sy])
     plan = plan_insertion(
         analysis_small,
         cfg,
         rng,
-        existing_boxes_xyxy=inputs.boxes_xyxy * np.array([sx, sy, sx, sy]),
+        existing_boxes_xyxy=boxes_small,
         existing_labels=inputs.labels,
         depth=small.depth,
         meta=small.meta,
+        labelled_ground=_labelled_ground(small.image, boxes_small, cfg),
         **plan_kw,
     )
 
@@ -303,6 +306,16 @@ def assemble_result(
     all_boxes = np.concatenate([boxes[keep], ins], axis=0)
     all_labels = [lab for lab, k in zip(labels, keep) if k] + inserted_labels
     return InsertionResult(applied.image, all_boxes, all_labels, ins, inserted_labels, keep, record)
+
+
+def _labelled_ground(image: np.ndarray, boxes_xyxy: np.ndarray, cfg: InsertionConfig) -> np.ndarray | None:
+    """The pixels that look like the ground the image's labelled objects stand on, where a row of them is continued
+    (``arrangement: row``): the row's sites (:func:`aias_augment.analyse.instances.labelled_ground_mask`)."""
+    if cfg.arrangement != "row" or not cfg.placement or not len(boxes_xyxy):
+        return None
+    from aias_augment.analyse.instances import labelled_ground_mask
+
+    return labelled_ground_mask(image, boxes_xyxy)
 
 
 def _cone_looks(inputs: DoorInputs, cfg: InsertionConfig) -> tuple:

@@ -77,7 +77,7 @@ class PlanConfig:
     deform_cfg: DeformConfig = DeformConfig()
     decoy_categories: tuple[str, ...] = ()
     decoys: tuple[int, int] = (0, 0)
-    arrangement: Literal["independent", "line", "cluster", "mixed", "row"] = "independent"
+    arrangement: Literal["independent", "line", "cluster", "mixed", "row"] = "row"
     arrangement_spacing_m: tuple[float, float] = (1.0, 3.0)
     arrangement_cluster_radius_m: float = 1.2
     naive_height_frac_range: tuple[float, float] = (0.05, 0.4)

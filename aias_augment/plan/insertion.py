@@ -87,6 +87,7 @@ def plan_insertion(
     bank=None,
     n_objects: int | None = None,
     cone_looks: tuple = (),
+    labelled_ground: np.ndarray | None = None,
 ) -> InsertionPlan:
     """Draw the insertion: ``k`` objects (``n_objects`` or uniform in [min_objects, max_objects]), each a category,
     an asset and a placement that avoids ``existing_boxes_xyxy`` (N, 4), earlier objects and, with ``meta``
@@ -96,12 +97,16 @@ def plan_insertion(
     plan's seed and the stage list's parameters (:mod:`aias_augment.core.stages`) from generators of their own.
     ``cone_looks``: the looks of the image's labelled cones (:func:`aias_augment.plan.looks.labelled_cone_looks`);
     with ``cone_look: labels`` procedural cones are drawn like them (the same draws of ``rng``).
+    ``labelled_ground`` (H, W) bool: the pixels that look like the ground the labelled objects stand on
+    (:func:`aias_augment.analyse.instances.labelled_ground_mask`): with ``arrangement: row``, the row's sites are
+    those pixels (None: the scene's placeable region, as every other object's).
     ``cfg``: the plan's record (or a config that carries one: the door's ``InsertionConfig``)."""
     if rng is None:
         raise ValueError("plan_insertion needs an explicit numpy Generator (rng) for reproducibility")
     cfg = plan_config(cfg)
     k = int(n_objects if n_objects is not None else rng.integers(cfg.min_objects, cfg.max_objects + 1))
     draft = _Draft.start(analysis, cfg, rng, existing_boxes_xyxy, existing_labels, depth, meta or {})
+    draft.labelled_ground = labelled_ground
     object_cfgs = [draft.pcfg] * k
     targets = None
     if cfg.placement and draft.pcfg.scene_scale_from_sizes and k:
@@ -128,7 +133,7 @@ def plan_insertion(
             object_cfgs = draft.scale_scene(category, base, targets)
         near = None
         if arrangement == "row":  # the image's own row of this kind, continued (none: the object stands alone)
-            near = draft.row_site_pixels(category, line, rng)
+            near = draft.row_site_pixels(category, line)
         elif arrangement != "independent" and draft.objects and category == lead_category:
             # the leader's ground (its local refit when there was one): the arrangement lies on it. Only objects
             # of the leader's kind join it: cones line a lane, a barrel among them stands on its own.
@@ -145,16 +150,18 @@ def plan_insertion(
                 max_overlap_existing=max(draft.pcfg.max_overlap_existing, 0.6),
             )
         placed = len(draft.objects)
-        draft.place(category, base, object_cfg, decoy=False, near=near)
+        draft.place(category, base, object_cfg, decoy=False, near=near, row_site=arrangement == "row")
         if not placed:
             lead_category = category
         if near is not None:
             if len(draft.objects) > placed:
                 members[1].append(placed)
+                if arrangement == "row":
+                    draft.take_row_site(category, line)
             else:  # no free ground at its place in the arrangement: it stands where it can on its own
                 draft.place(category, base, object_cfgs[i], decoy=False)
                 members[0] += 1
-    if line is not None:
+    if line is not None and (arrangement != "row" or any(line["rows"].values())):  # a row: when the image has one
         draft.mods["arrangement"] = _arrangement_note(arrangement, line, members)
     # Decoys: other categories through the same stages, never annotated. Drawn after the labelled objects, so these
     # draw as they would without decoys; their box heights come from the same targets as the labelled objects'.
@@ -195,6 +202,7 @@ class _Draft:
     reports: list = field(default_factory=list)
     ref_heights: dict = field(default_factory=dict)  # per labelled kind: its objects' heights, measured once
     row_lines: dict = field(default_factory=dict)  # per labelled kind: its box height on each row (RowHeights)
+    labelled_ground: np.ndarray | None = None  # (H, W) bool: the ground the labelled objects stand on, by its look
 
     @classmethod
     def start(cls, analysis, cfg, rng, existing_boxes_xyxy, existing_labels, depth, meta: dict) -> "_Draft":
@@ -254,12 +262,13 @@ class _Draft:
             )
         return [replace(self.pcfg, box_height_frac_samples=(t,), box_height_jitter=0.0) for t in targets]
 
-    def place(self, category: str, base: Asset, object_cfg, decoy: bool, near=None) -> None:
+    def place(self, category: str, base: Asset, object_cfg, decoy: bool, near=None, row_site: bool = False) -> None:
         """Place ``base`` (or paste it, without placement) and append it to the plan; a failed search is reported.
-        ``near``: the flat indices of the pixels an arranged object may stand on (with the scene's region)."""
+        ``near``: the flat indices of the pixels an arranged object may stand on (with the scene's region; sites of
+        the image's labelled row, ``row_site``, below the horizon)."""
         cfg, intr = self.cfg, self.analysis.intrinsics
         if cfg.placement:
-            placement = self._search(category, base, object_cfg, near)
+            placement = self._search(category, base, object_cfg, near, row_site and near is not None)
             if placement is None:
                 return
             asset = base.scaled(placement.scale)
@@ -281,11 +290,12 @@ class _Draft:
                 OrientedBox.standing_on_ground(placement.cam_from_object_matrix, tuple(asset.extents_m), category)
             )
 
-    def row_site_pixels(self, category: str, state: dict, rng: np.random.Generator) -> np.ndarray | None:
-        """The pixels of a free site on the image's row of labelled ``category`` objects, continued: one of the
-        sites a spacing beyond either end of the row, or in a gap of it (one draw of ``rng``), as flat indices; None
-        when the image has no such row (fewer than two labelled objects whose feet are seen) or every site is
-        taken. ``state``: the plan's rows, fitted once per category, and the sites already used."""
+    def row_site_pixels(self, category: str, state: dict) -> np.ndarray | None:
+        """The pixels of the free sites on the image's row of labelled ``category`` objects, continued (its sites
+        beyond either end, a spacing apart, and in its gaps: :func:`labelled_row`), as ascending flat indices: every
+        site in view at once, so the placement search finds the free ground the row has wherever it is. None when
+        the image has no such row (fewer than two labelled objects whose feet are seen), or no free site is in view.
+        ``state``: the plan's rows, fitted once per category, and the sites taken (:meth:`take_row_site`)."""
         if category not in state["rows"]:
             state["rows"][category] = labelled_row(
                 _boxes_of(self.ref_kinds, category), self.ground, self.analysis.intrinsics, self.cfg
@@ -294,18 +304,32 @@ class _Draft:
         if row is None:
             return None
         used = state["used"].setdefault(category, set())
-        free = [j for j in range(len(row["sites"])) if j not in used]
-        if not free:
-            return None
-        j = free[int(rng.integers(len(free)))]
-        used.add(j)
         n = np.asarray(self.ground.normal, float)
         tol = max(0.1, 0.15 * row["spacing_m"])
-        return ground_window_pixels(
-            row["sites"][j], n, float(self.ground.d), tol, self.analysis.intrinsics, self.analysis.image_shape
-        )
+        parts = [
+            ground_window_pixels(p, n, float(self.ground.d), tol, self.analysis.intrinsics, self.analysis.image_shape)
+            for j, p in enumerate(row["sites"])
+            if j not in used
+        ]
+        parts = [q for q in parts if len(q)]
+        if not parts:
+            return None
+        near = np.unique(np.concatenate(parts))
+        if self.labelled_ground is not None:  # where the row's own ground is seen (its look), nothing else
+            near = near[self.labelled_ground.reshape(-1)[near]]
+        return near if len(near) else None
 
-    def _search(self, category: str, base: Asset, object_cfg, near) -> Placement | None:
+    def take_row_site(self, category: str, state: dict) -> None:
+        """Mark the site of ``category``'s row that the object placed last stands on (the site nearest its contact
+        point) as taken."""
+        row = state["rows"].get(category)
+        if row is None:
+            return
+        c = np.asarray(self.objects[-1].placement.contact_point_in_cam, float)
+        j = int(np.argmin([np.linalg.norm(c - p) for p in row["sites"]]))
+        state["used"].setdefault(category, set()).add(j)
+
+    def _search(self, category: str, base: Asset, object_cfg, near, row_site: bool = False) -> Placement | None:
         """The placement search for one object (its report kept), at the height of the image's labelled objects of
         its kind when there are some."""
         intr, region = self.analysis.intrinsics, self.analysis.region
@@ -325,7 +349,9 @@ class _Draft:
             existing_boxes_xyxy=np.array(self.taken),
             depth=self.depth,
             cfg=object_cfg,
-            region_mask=region.mask,
+            # a row's sites on the ground its labelled objects stand on, seen by its look (the image region's road
+            # appearance, seeded at the frame's bottom and eroded round every edge, leaves most of it out)
+            region_mask=None if row_site and self.labelled_ground is not None else region.mask,
             within_pixels=near,
             height_range_m=CATEGORY_HEIGHT_RANGE_M.get(category),
             points_in_cam=self.scene_points,
@@ -487,7 +513,8 @@ def labelled_row(boxes_xyxy: np.ndarray, ground, intr: Intrinsics, cfg: PlanConf
     centres on the plane, moved half the box's width away from the camera; boxes cut by the image's bottom edge
     left out), the line through them (their principal direction on the plane), the spacing (the smallest gap
     between neighbours along it, within ``cfg.arrangement_spacing_m`` widened to 0.5-4 m) and the sites that
-    continue it: ``ends`` spacings beyond each end, and the middle of every gap over 1.6 spacings. None with fewer
+    continue it: 1 to ``ends`` spacings beyond each end (most of a row's continuation is out of a close-up's view:
+    the placement search takes those in view), and a spacing apart in every gap over 1.6 spacings. None with fewer
     than two feet on the ground."""
     boxes = np.asarray(boxes_xyxy, float).reshape(-1, 4)
     boxes = boxes[boxes[:, 3] < intr.height - 2]
@@ -514,7 +541,9 @@ def labelled_row(boxes_xyxy: np.ndarray, ground, intr: Intrinsics, cfg: PlanConf
     lo, hi = min(0.5, cfg.arrangement_spacing_m[0]), max(4.0, cfg.arrangement_spacing_m[1])
     spacing = float(np.clip(gaps.min(), lo, hi))  # the closest pair: a gap in the row is a missing object
     along = [t[-1] + j * spacing for j in range(1, ends + 1)] + [t[0] - j * spacing for j in range(1, ends + 1)]
-    along += [(a + b) / 2 for a, b in zip(t[:-1], t[1:]) if b - a > 1.6 * spacing]
+    for a, b in zip(t[:-1], t[1:]):  # a gap of m + 1 spacings (rounded) misses m objects, evenly spaced in it
+        m = int(round((b - a) / spacing)) - 1 if b - a > 1.6 * spacing else 0
+        along += [a + (b - a) * k / (m + 1) for k in range(1, m + 1)]
     sites = [centre + a * u for a in along]
     sites = [p for p in sites if p[2] > 0.5]  # in front of the camera
     return {"n": len(feet), "spacing_m": spacing, "sites": sites} if sites else None

@@ -123,3 +123,35 @@ def test_a_drawn_look_changes_colours_and_sleeves_only_and_rebuilds_from_its_rec
 def test_a_look_out_of_range_is_refused_at_construction(kwargs):
     with pytest.raises(ValueError, match="ConeLook"):
         ConeLook(**kwargs)
+
+
+def test_the_labelled_objects_ground_is_found_by_its_look():
+    """A grey asphalt ground (textured, shaded along the rows) with a red sign and a pale kerb standing on it, and two
+    orange cone boxes on the asphalt: the ground beside the cones' bases marks the asphalt (most of it, far from
+    the cones too), never the sign, the kerb or the sky, never a pixel inside a labelled box; without enough ground
+    beside the bases there is no mask."""
+    from aias_augment.analyse.instances import labelled_ground_mask
+
+    rng = np.random.default_rng(3)
+    h, w = 240, 320
+    img = np.empty((h, w, 3), np.float64)
+    img[:100] = (150, 190, 235)  # sky
+    shade = np.linspace(70, 95, h - 100)[:, None, None]  # asphalt, lit more toward the camera
+    img[100:] = shade + rng.normal(0, 3, (h - 100, w, 1)) + np.array([0.0, 1.0, 3.0])
+    img[120:200, 200:260] = (200, 30, 30)  # a red sign on the ground
+    img[200:230, 0:60] = (190, 190, 180)  # a pale kerb
+    img = np.clip(img, 0, 255).astype(np.uint8)
+    cones = np.array([[60.0, 130.0, 90.0, 180.0], [140.0, 150.0, 180.0, 215.0]])
+    for x0, y0, x1, y1 in cones.astype(int):
+        img[y0:y1, x0:x1] = (255, 90, 20)
+    mask = labelled_ground_mask(img, cones)
+    assert mask is not None and mask.shape == (h, w)
+    asphalt = np.zeros((h, w), bool)
+    asphalt[100:] = True
+    asphalt[120:200, 200:260] = asphalt[200:230, 0:60] = False
+    for x0, y0, x1, y1 in cones.astype(int):
+        asphalt[y0:y1, x0:x1] = False
+        assert not mask[y0:y1, x0:x1].any()
+    assert mask[asphalt].mean() > 0.9 and mask[asphalt[:, ::-1] & asphalt].mean() > 0.9  # beside them and far off
+    assert not mask[:100].any() and not mask[120:200, 200:260].any() and not mask[200:230, 0:60].any()
+    assert labelled_ground_mask(img, np.array([[0.0, 0.0, 4.0, 4.0]])) is None  # 4 px of sky beside a box: too few

@@ -210,6 +210,28 @@ def test_row_continues_the_labelled_cones_row():
             assert off_line < 0.5, (s, i, off_line)
             assert min(abs(t - f) for f in (0.0, 2.0, 6.0)) > 0.75, (s, i, t)  # on no labelled cone's place
     assert joined_total >= 12
+    # the row's ground by its look (labelled_ground): its sites are those pixels alone, whatever the scene's region
+    h, w = an.image_shape
+    for half, cols in (("left", slice(0, w // 2)), ("right", slice(w // 2, w))):
+        ground_px = np.zeros((h, w), bool)
+        ground_px[:, cols] = True
+        joined_here = 0
+        for s in range(6):
+            plan = plan_insertion(
+                an,
+                replace(CFG, categories=("traffic_cone",), arrangement="row"),
+                np.random.default_rng(s),
+                bank=ConesAndBarrels(),
+                n_objects=3,
+                existing_boxes_xyxy=boxes,
+                existing_labels=["traffic_cone"] * 3,
+                labelled_ground=ground_px,
+            )
+            for i in _joined(plan):
+                u, v = plan.objects[i].placement.contact_pixel
+                assert ground_px[int(round(v)), int(round(u))], (half, s, i, u, v)
+                joined_here += 1
+        assert joined_here >= 3, half
     # one labelled cone is no row: every object stands on its own, draw for draw as "independent" places it
     alone = [
         plan_insertion(
