@@ -293,40 +293,54 @@ class _Draft:
     def row_site_pixels(self, category: str, state: dict) -> np.ndarray | None:
         """The pixels of the free sites on the image's row of labelled ``category`` objects, continued (its sites
         beyond either end, a spacing apart, and in its gaps: :func:`labelled_row`), as ascending flat indices: every
-        site in view at once, so the placement search finds the free ground the row has wherever it is. None when
-        the image has no such row (fewer than two labelled objects whose feet are seen), or no free site is in view.
-        ``state``: the plan's rows, fitted once per category, and the sites taken (:meth:`take_row_site`)."""
+        pixel whose ground point lies within 0.15 spacings (at least 0.1 m) of a free site, on the ground the
+        labelled objects stand on when that is known (``labelled_ground``), so the placement search finds the free
+        ground the row has wherever it is in view. None when the image has no such row (fewer than two labelled
+        objects whose feet are seen) or no such pixel. ``state``: the plan's rows, fitted once per category, each
+        with its pixels' positions along and across it, and the sites taken (:meth:`take_row_site`)."""
         if category not in state["rows"]:
-            state["rows"][category] = labelled_row(
-                _boxes_of(self.ref_kinds, category), self.ground, self.analysis.intrinsics, self.cfg
-            )
+            row = labelled_row(_boxes_of(self.ref_kinds, category), self.ground, self.analysis.intrinsics, self.cfg)
+            if row is not None:
+                row["pixels"] = self._row_frame_pixels(row)
+            state["rows"][category] = row
         row = state["rows"][category]
         if row is None:
             return None
         used = state["used"].setdefault(category, set())
-        n = np.asarray(self.ground.normal, float)
-        tol = max(0.1, 0.15 * row["spacing_m"])
-        parts = [
-            ground_window_pixels(p, n, float(self.ground.d), tol, self.analysis.intrinsics, self.analysis.image_shape)
-            for j, p in enumerate(row["sites"])
-            if j not in used
-        ]
-        parts = [q for q in parts if len(q)]
-        if not parts:
+        free = np.sort([a for j, a in enumerate(row["along"]) if j not in used])
+        flat, along, across = row["pixels"]
+        if not len(free) or not len(flat):
             return None
-        near = np.unique(np.concatenate(parts))
-        if self.labelled_ground is not None:  # where the row's own ground is seen (its look), nothing else
-            near = near[self.labelled_ground.reshape(-1)[near]]
+        tol = max(0.1, 0.15 * row["spacing_m"])
+        k = np.clip(np.searchsorted(free, along), 1, len(free) - 1) if len(free) > 1 else np.zeros(len(along), int)
+        gap = np.minimum(np.abs(along - free[k]), np.abs(along - free[np.maximum(k - 1, 0)]))
+        near = flat[np.hypot(gap, across) <= tol]
         return near if len(near) else None
+
+    def _row_frame_pixels(self, row: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(flat indices ascending, position along the row's line, distance across it) of the pixels whose ground
+        point lies within a spacing of the line: on the labelled objects' ground (``labelled_ground``) when known,
+        else every pixel below the horizon."""
+        intr = self.analysis.intrinsics
+        h, w = self.analysis.image_shape
+        flat = np.flatnonzero(self.labelled_ground) if self.labelled_ground is not None else np.arange(h * w)
+        p = self.ground.intersect_pixels(np.c_[flat % w, flat // w].astype(float), intr)
+        rel = p - row["centre"]
+        n, u = np.asarray(self.ground.normal, float), row["direction"]
+        along = rel @ u
+        across = np.linalg.norm(rel - along[:, None] * u - (rel @ n)[:, None] * n, axis=1)
+        with np.errstate(invalid="ignore"):  # NaN above the horizon: not ground
+            keep = (p[:, 2] > 0.5) & (across <= row["spacing_m"])
+        return flat[keep], along[keep], across[keep]
 
     def take_row_site(self, category: str, state: dict) -> None:
         """Mark the site of ``category``'s row that the object placed last stands on (the site nearest its contact
-        point) as taken."""
+        point along the row) as taken."""
         row = state["rows"].get(category)
         if row is None:
             return
         c = np.asarray(self.objects[-1].placement.contact_point_in_cam, float)
-        j = int(np.argmin([np.linalg.norm(c - p) for p in row["sites"]]))
+        j = int(np.argmin(np.abs(np.asarray(row["along"]) - (c - row["centre"]) @ row["direction"])))
         state["used"].setdefault(category, set()).add(j)
 
     def _search(self, category: str, base: Asset, object_cfg, near, row_site: bool = False) -> Placement | None:
@@ -513,9 +527,10 @@ def labelled_row(boxes_xyxy: np.ndarray, ground, intr: Intrinsics, cfg: PlanConf
     centres on the plane, moved half the box's width away from the camera; boxes cut by the image's bottom edge
     left out), the line through them (their principal direction on the plane), the spacing (the smallest gap
     between neighbours along it, within ``cfg.arrangement_spacing_m`` widened to 0.5-4 m) and the sites that
-    continue it: 1 to ``ends`` spacings beyond each end (most of a row's continuation is out of a close-up's view:
-    the placement search takes those in view), and a spacing apart in every gap over 1.6 spacings. None with fewer
-    than two feet on the ground."""
+    continue it (``along``: their positions on the line from ``centre`` in ``direction``): 1 to ``ends`` spacings
+    beyond each end (most of a row's continuation is out of a close-up's view: the placement search takes those in
+    view), evenly in every gap over 1.6 spacings (a gap of more than ``2 ends + 1`` spacings: ``ends`` from each
+    side). None with fewer than two feet on the ground."""
     boxes = np.asarray(boxes_xyxy, float).reshape(-1, 4)
     boxes = boxes[boxes[:, 3] < intr.height - 2]
     if len(boxes) < 2:
@@ -543,10 +558,14 @@ def labelled_row(boxes_xyxy: np.ndarray, ground, intr: Intrinsics, cfg: PlanConf
     along = [t[-1] + j * spacing for j in range(1, ends + 1)] + [t[0] - j * spacing for j in range(1, ends + 1)]
     for a, b in zip(t[:-1], t[1:]):  # a gap of m + 1 spacings (rounded) misses m objects, evenly spaced in it
         m = int(round((b - a) / spacing)) - 1 if b - a > 1.6 * spacing else 0
-        along += [a + (b - a) * k / (m + 1) for k in range(1, m + 1)]
-    sites = [centre + a * u for a in along]
-    sites = [p for p in sites if p[2] > 0.5]  # in front of the camera
-    return {"n": len(feet), "spacing_m": spacing, "sites": sites} if sites else None
+        if m <= 2 * ends:
+            along += [a + (b - a) * k / (m + 1) for k in range(1, m + 1)]
+        else:  # a long gap (two groups of one row): each group continued into it, as the ends are
+            along += [a + k * spacing for k in range(1, ends + 1)] + [b - k * spacing for k in range(1, ends + 1)]
+    along = [a for a in along if (centre + a * u)[2] > 0.5]  # in front of the camera
+    if not along:
+        return None
+    return {"n": len(feet), "spacing_m": spacing, "centre": centre, "direction": u, "along": along}
 
 
 def _boxes_of(ref_kinds: list[tuple], kind) -> np.ndarray:

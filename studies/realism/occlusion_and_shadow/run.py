@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 from aias_augment.analyse.cache import SceneCache
+from aias_augment.analyse.instances import labelled_ground_mask
 from aias_augment.apply import stages
 from aias_augment.apply.composite import to_linear
 from aias_augment.apply.occluders import object_mask_from_box
@@ -120,7 +121,13 @@ def main() -> None:
         c = cfg.for_image(rng)
         xyxy = np.c_[boxes[:, :2], boxes[:, :2] + boxes[:, 2:]]
         plan = plan_insertion(
-            analysis, c, rng, existing_boxes_xyxy=xyxy, existing_labels=["cone"] * len(boxes), n_objects=3
+            analysis,
+            c,
+            rng,
+            existing_boxes_xyxy=xyxy,
+            existing_labels=["cone"] * len(boxes),
+            n_objects=3,
+            labelled_ground=labelled_ground_mask(img, xyxy) if c.arrangement == "row" else None,  # as the door
         )
         stages.sun_shadow_limits = old_limits
         before = stages.apply_plan(frame, analysis, plan, c)
@@ -151,10 +158,11 @@ def main() -> None:
     print(total)
     if not tiles:
         return print("no photo changed: no contact sheet")
-    sheet = np.concatenate([cv2.resize(t, (1600, int(t.shape[0] * 1600 / t.shape[1]))) for t in tiles], axis=0)
-    if sheet.shape[0] > 1600:
-        sheet = cv2.resize(sheet, (int(1600 * sheet.shape[1] / sheet.shape[0]), 1600), interpolation=cv2.INTER_AREA)
-    cv2.imwrite(str(OUT / "contact_sheet.jpg"), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 88])
+    side = 1200  # the results' pictures: at most 1200 px on a side
+    sheet = np.concatenate([cv2.resize(t, (side, int(t.shape[0] * side / t.shape[1]))) for t in tiles], axis=0)
+    if sheet.shape[0] > side:
+        sheet = cv2.resize(sheet, (int(side * sheet.shape[1] / sheet.shape[0]), side), interpolation=cv2.INTER_AREA)
+    cv2.imwrite(str(OUT / "contact_sheet.jpg"), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 80])
 
 
 if __name__ == "__main__":
