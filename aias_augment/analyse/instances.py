@@ -19,18 +19,20 @@ base. Along that column (the middle 10 % of the box's width, where the body fill
 A box cut by the frame, shorter than 24 px, or whose column holds too few saturated pixels (a cone seen from above,
 a wrong label) gives no look; the caller counts those.
 
-The ground the labelled objects stand on (:func:`labelled_ground_mask`): its colour beside their bases, and every
+The ground the labelled objects stand on (:func:`labelled_ground`): its colour beside their bases, and every
 pixel of that colour, where a row of them is continued.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from aias_augment.assets.cone_look import BASE_VALUE_MAX, ConeLook
 
-__all__ = ["body_value", "fit_cone_looks", "fit_cone_look", "labelled_ground_mask"]
+__all__ = ["LabelledGround", "body_value", "fit_cone_looks", "fit_cone_look", "labelled_ground", "labelled_ground_mask"]
 
 MIN_BOX_PX = 24  # below this a sleeve is a pixel or two: nothing to measure
 MIN_BASE_VALUE = 0.01  # a base read as pure black (V 0) is drawn as the darkest plausible paint, not as no light
@@ -140,23 +142,49 @@ GROUND_SPREADS = 3.0
 GROUND_SPREAD_FLOOR = (8.0, 4.0, 4.0)
 
 
-def labelled_ground_mask(image_rgb: np.ndarray, boxes_xyxy) -> np.ndarray | None:
-    """(H, W) bool: the pixels that look like the ground the labelled objects ``boxes_xyxy`` (N, 4) stand on, or
-    None when too little of it is seen. The ground is sampled beside each base (the box's lowest tenth of rows, out
-    to :data:`GROUND_STRIP_WIDTH` of its width either side, every labelled box left out); a pixel is that ground
-    when each CIELAB channel is within :data:`GROUND_SPREADS` robust spreads of the samples' median. Inside a
-    labelled box is never ground. What the image's own road region (``analyse/region.py``, seeded at the frame's
-    bottom and eroded round every edge) leaves out between and beside a row of labelled objects, this finds."""
-    img = np.asarray(image_rgb)
+@dataclass(frozen=True)
+class LabelledGround:
+    """The ground the labelled objects of an image stand on, by its look (:func:`labelled_ground`): the image, the
+    pixels inside a labelled box (never ground) and the CIELAB range of the ground beside their bases. A pixel's
+    colour is converted when it is asked about (:meth:`at`), so a caller that needs a few thousand pixels (a row's
+    sites) pays for those alone."""
+
+    image: np.ndarray  # (H, W, 3) uint8 RGB
+    inside: np.ndarray  # (H, W) bool: in a labelled box
+    lo: np.ndarray  # (3,) the range's CIELAB (8-bit) bounds, inclusive
+    hi: np.ndarray
+
+    def at(self, flat: np.ndarray) -> np.ndarray:
+        """Whether each pixel of ``flat`` (indices into the image's pixels, row-major) is that ground."""
+        flat = np.asarray(flat, np.int64)
+        if not len(flat):
+            return np.zeros(0, bool)
+        px = self.image.reshape(-1, 3)[flat].reshape(-1, 1, 3)
+        lab = cv2.cvtColor(px, cv2.COLOR_RGB2LAB).reshape(-1, 3)
+        return np.all((lab >= self.lo) & (lab <= self.hi), axis=1) & ~self.inside.reshape(-1)[flat]
+
+    def mask(self) -> np.ndarray:
+        """(H, W) bool: :meth:`at` over every pixel."""
+        h, w = self.inside.shape
+        return self.at(np.arange(h * w)).reshape(h, w)
+
+
+def labelled_ground(image_rgb: np.ndarray, boxes_xyxy) -> LabelledGround | None:
+    """The ground the labelled objects ``boxes_xyxy`` (N, 4) stand on, or None when too little of it is seen. The
+    ground is sampled beside each base (the box's lowest tenth of rows, out to :data:`GROUND_STRIP_WIDTH` of its
+    width either side, every labelled box left out); a pixel is that ground when each CIELAB channel is within
+    :data:`GROUND_SPREADS` robust spreads of the samples' median. Inside a labelled box is never ground. What the
+    image's own road region (``analyse/region.py``, seeded at the frame's bottom and eroded round every edge) leaves
+    out between and beside a row of labelled objects, this finds."""
+    img = np.ascontiguousarray(image_rgb, np.uint8)
     h, w = img.shape[:2]
     boxes = np.asarray(boxes_xyxy, float).reshape(-1, 4)
     if not len(boxes):
         return None
     inside = np.zeros((h, w), bool)
     for x0, y0, x1, y1 in boxes:
-        inside[
-            max(0, int(np.floor(y0))) : max(0, int(np.ceil(y1))), max(0, int(np.floor(x0))) : max(0, int(np.ceil(x1)))
-        ] = True
+        rows = slice(max(0, int(np.floor(y0))), max(0, int(np.ceil(y1))))
+        inside[rows, max(0, int(np.floor(x0))) : max(0, int(np.ceil(x1)))] = True
     strip = np.zeros((h, w), bool)
     for x0, y0, x1, y1 in boxes:
         bw, bh = x1 - x0, y1 - y0
@@ -166,8 +194,16 @@ def labelled_ground_mask(image_rgb: np.ndarray, boxes_xyxy) -> np.ndarray | None
     strip &= ~inside
     if strip.sum() < GROUND_MIN_SAMPLES:
         return None
-    lab = cv2.cvtColor(np.ascontiguousarray(img, np.uint8), cv2.COLOR_RGB2LAB).astype(np.float32)
-    samples = lab[strip]
+    samples = cv2.cvtColor(img[strip].reshape(-1, 1, 3), cv2.COLOR_RGB2LAB).reshape(-1, 3).astype(np.float64)
     med = np.median(samples, axis=0)
-    spread = np.maximum(1.4826 * np.median(np.abs(samples - med), axis=0), GROUND_SPREAD_FLOOR)
-    return np.all(np.abs(lab - med) <= GROUND_SPREADS * spread, axis=-1) & ~inside
+    tol = GROUND_SPREADS * np.maximum(1.4826 * np.median(np.abs(samples - med), axis=0), GROUND_SPREAD_FLOOR)
+    # |x - med| <= tol on 8-bit channels is ceil(med - tol) <= x <= floor(med + tol)
+    lo, hi = np.clip(np.ceil(med - tol), 0, 255), np.clip(np.floor(med + tol), 0, 255)
+    return LabelledGround(img, inside, lo.astype(np.uint8), hi.astype(np.uint8))
+
+
+def labelled_ground_mask(image_rgb: np.ndarray, boxes_xyxy) -> np.ndarray | None:
+    """(H, W) bool: every pixel that looks like the ground the labelled objects stand on (:func:`labelled_ground`),
+    or None when too little of it is seen."""
+    g = labelled_ground(image_rgb, boxes_xyxy)
+    return None if g is None else g.mask()

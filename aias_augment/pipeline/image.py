@@ -308,14 +308,14 @@ def assemble_result(
     return InsertionResult(applied.image, all_boxes, all_labels, ins, inserted_labels, keep, record)
 
 
-def _labelled_ground(image: np.ndarray, boxes_xyxy: np.ndarray, cfg: InsertionConfig) -> np.ndarray | None:
-    """The pixels that look like the ground the image's labelled objects stand on, where a row of them is continued
-    (``arrangement: row``): the row's sites (:func:`aias_augment.analyse.instances.labelled_ground_mask`)."""
+def _labelled_ground(image: np.ndarray, boxes_xyxy: np.ndarray, cfg: InsertionConfig):
+    """The ground the image's labelled objects stand on, by its look, where a row of them is continued
+    (``arrangement: row``): the row's sites are on it (:func:`aias_augment.analyse.instances.labelled_ground`)."""
     if cfg.arrangement != "row" or not cfg.placement or not len(boxes_xyxy):
         return None
-    from aias_augment.analyse.instances import labelled_ground_mask
+    from aias_augment.analyse.instances import labelled_ground
 
-    return labelled_ground_mask(image, boxes_xyxy)
+    return labelled_ground(image, boxes_xyxy)
 
 
 def _cone_looks(inputs: DoorInputs, cfg: InsertionConfig) -> tuple:

@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from aias_augment.analyse.analysis import SceneAnalysis
+from aias_augment.analyse.instances import LabelledGround
 from aias_augment.assets.asset import CATEGORY_HEIGHT_RANGE_M, DEFAULT_ASSETS, Asset, default_asset
 from aias_augment.assets.deform import apply_deformation, sample_deformation
 from aias_augment.core.geometry import Intrinsics, make_rigid, project_points
@@ -87,7 +88,7 @@ def plan_insertion(
     bank=None,
     n_objects: int | None = None,
     cone_looks: tuple = (),
-    labelled_ground: np.ndarray | None = None,
+    labelled_ground: LabelledGround | None = None,
 ) -> InsertionPlan:
     """Draw the insertion: ``k`` objects (``n_objects`` or uniform in [min_objects, max_objects]), each a category,
     an asset and a placement that avoids ``existing_boxes_xyxy`` (N, 4), earlier objects and, with ``meta``
@@ -97,9 +98,9 @@ def plan_insertion(
     plan's seed and the stage list's parameters (:mod:`aias_augment.core.stages`) from generators of their own.
     ``cone_looks``: the looks of the image's labelled cones (:func:`aias_augment.plan.looks.labelled_cone_looks`);
     with ``cone_look: labels`` procedural cones are drawn like them (the same draws of ``rng``).
-    ``labelled_ground`` (H, W) bool: the pixels that look like the ground the labelled objects stand on
-    (:func:`aias_augment.analyse.instances.labelled_ground_mask`): with ``arrangement: row``, the row's sites are
-    those pixels (None: the scene's placeable region, as every other object's).
+    ``labelled_ground``: the ground the labelled objects stand on, by its look
+    (:func:`aias_augment.analyse.instances.labelled_ground`): with ``arrangement: row``, the row's sites are on it
+    (None: on the scene's placeable region, as every other object's).
     ``cfg``: the plan's record (or a config that carries one: the door's ``InsertionConfig``)."""
     if rng is None:
         raise ValueError("plan_insertion needs an explicit numpy Generator (rng) for reproducibility")
@@ -202,7 +203,7 @@ class _Draft:
     reports: list = field(default_factory=list)
     ref_heights: dict = field(default_factory=dict)  # per labelled kind: its objects' heights, measured once
     row_lines: dict = field(default_factory=dict)  # per labelled kind: its box height on each row (RowHeights)
-    labelled_ground: np.ndarray | None = None  # (H, W) bool: the ground the labelled objects stand on, by its look
+    labelled_ground: LabelledGround | None = None  # the ground the labelled objects stand on, by its look
 
     @classmethod
     def start(cls, analysis, cfg, rng, existing_boxes_xyxy, existing_labels, depth, meta: dict) -> "_Draft":
@@ -318,12 +319,14 @@ class _Draft:
         return near if len(near) else None
 
     def _row_frame_pixels(self, row: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(flat indices ascending, position along the row's line, distance across it) of the pixels whose ground
-        point lies within a spacing of the line: on the labelled objects' ground (``labelled_ground``) when known,
-        else every pixel below the horizon."""
+        """(flat indices ascending, position along the row's line, distance across it) of the pixels that may hold
+        a site (:meth:`_row_windows`) whose ground point lies within a spacing of the line, on the labelled objects'
+        ground (``labelled_ground``) when it is known."""
         intr = self.analysis.intrinsics
         h, w = self.analysis.image_shape
-        flat = np.flatnonzero(self.labelled_ground) if self.labelled_ground is not None else np.arange(h * w)
+        flat = self._row_windows(row)
+        if self.labelled_ground is not None:
+            flat = flat[self.labelled_ground.at(flat)]
         p = self.ground.intersect_pixels(np.c_[flat % w, flat // w].astype(float), intr)
         rel = p - row["centre"]
         n, u = np.asarray(self.ground.normal, float), row["direction"]
@@ -332,6 +335,28 @@ class _Draft:
         with np.errstate(invalid="ignore"):  # NaN above the horizon: not ground
             keep = (p[:, 2] > 0.5) & (across <= row["spacing_m"])
         return flat[keep], along[keep], across[keep]
+
+    def _row_windows(self, row: dict) -> np.ndarray:
+        """Ascending flat indices of the pixels in the image boxes of the row's sites: each box holds the projection
+        of the square on the ground (half-side 0.15 spacings, at least 0.1 m, the sites' reach) round its site, so
+        every pixel whose ground point is that near a site is in one (a projected convex square is convex); a square
+        not all in front of the camera gives the whole frame."""
+        intr = self.analysis.intrinsics
+        h, w = self.analysis.image_shape
+        n, u = np.asarray(self.ground.normal, float), row["direction"]
+        v = np.cross(n, u)
+        r = max(0.1, 0.15 * row["spacing_m"])
+        corners = np.array([a * u + b * v for a in (-r, r) for b in (-r, r)])
+        inside = np.zeros((h, w), bool)
+        for a in row["along"]:
+            sq = row["centre"] + a * u + corners
+            if (sq[:, 2] <= 0.05).any():
+                return np.arange(h * w)
+            uv, _ = project_points(sq, intr.K)
+            x0, y0 = np.floor(uv.min(axis=0)).astype(int)
+            x1, y1 = np.ceil(uv.max(axis=0)).astype(int)
+            inside[max(y0, 0) : max(min(y1 + 1, h), 0), max(x0, 0) : max(min(x1 + 1, w), 0)] = True
+        return np.flatnonzero(inside)
 
     def take_row_site(self, category: str, state: dict) -> None:
         """Mark the site of ``category``'s row that the object placed last stands on (the site nearest its contact

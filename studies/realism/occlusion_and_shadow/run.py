@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 
 from aias_augment.analyse.cache import SceneCache
-from aias_augment.analyse.instances import labelled_ground_mask
+from aias_augment.analyse.instances import labelled_ground
 from aias_augment.apply import stages
 from aias_augment.apply.composite import to_linear
 from aias_augment.apply.occluders import object_mask_from_box
@@ -127,7 +127,7 @@ def main() -> None:
             existing_boxes_xyxy=xyxy,
             existing_labels=["cone"] * len(boxes),
             n_objects=3,
-            labelled_ground=labelled_ground_mask(img, xyxy) if c.arrangement == "row" else None,  # as the door
+            labelled_ground=labelled_ground(img, xyxy) if c.arrangement == "row" else None,  # as the door
         )
         stages.sun_shadow_limits = old_limits
         before = stages.apply_plan(frame, analysis, plan, c)

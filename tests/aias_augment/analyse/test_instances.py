@@ -130,7 +130,7 @@ def test_the_labelled_objects_ground_is_found_by_its_look():
     orange cone boxes on the asphalt: the ground beside the cones' bases marks the asphalt (most of it, far from
     the cones too), never the sign, the kerb or the sky, never a pixel inside a labelled box; without enough ground
     beside the bases there is no mask."""
-    from aias_augment.analyse.instances import labelled_ground_mask
+    from aias_augment.analyse.instances import labelled_ground, labelled_ground_mask
 
     rng = np.random.default_rng(3)
     h, w = 240, 320
@@ -155,3 +155,6 @@ def test_the_labelled_objects_ground_is_found_by_its_look():
     assert mask[asphalt].mean() > 0.9 and mask[asphalt[:, ::-1] & asphalt].mean() > 0.9  # beside them and far off
     assert not mask[:100].any() and not mask[120:200, 200:260].any() and not mask[200:230, 0:60].any()
     assert labelled_ground_mask(img, np.array([[0.0, 0.0, 4.0, 4.0]])) is None  # 4 px of sky beside a box: too few
+    g = labelled_ground(img, cones)  # asked pixel by pixel, as a row's sites ask it: the same answers
+    some = np.random.default_rng(0).choice(h * w, 500, replace=False)
+    assert np.array_equal(g.at(some), mask.reshape(-1)[some]) and g.at(np.zeros(0, int)).shape == (0,)

@@ -8,10 +8,12 @@ when it stands where the inserted one stands (same contact pixel, same ground)."
 
 from dataclasses import replace
 
+import cv2
 import numpy as np
 
 from aias_augment.analyse.analysis import analyse_scene
 from aias_augment.analyse.ground import prior_ground_plane
+from aias_augment.analyse.instances import LabelledGround
 from aias_augment.assets.bank.procedural import procedural_asset_from_seed
 from aias_augment.core.frame import Frame
 from aias_augment.core.geometry import project_points, transform_points
@@ -212,9 +214,14 @@ def test_row_continues_the_labelled_cones_row():
     assert joined_total >= 12
     # the row's ground by its look (labelled_ground): its sites are those pixels alone, whatever the scene's region
     h, w = an.image_shape
+    grey = cv2.cvtColor(np.full((1, 1, 3), 128, np.uint8), cv2.COLOR_RGB2LAB)[0, 0]
     for half, cols in (("left", slice(0, w // 2)), ("right", slice(w // 2, w))):
-        ground_px = np.zeros((h, w), bool)
-        ground_px[:, cols] = True
+        look = np.zeros((h, w, 3), np.uint8)
+        look[..., 0] = 200  # red: not ground
+        look[:, cols] = 128  # grey: the ground's colour
+        ground = LabelledGround(look, np.zeros((h, w), bool), grey, grey)
+        ground_px = ground.mask()
+        assert ground_px[:, cols].all() and ground_px.sum() == h * (cols.stop - cols.start)
         joined_here = 0
         for s in range(6):
             plan = plan_insertion(
@@ -225,7 +232,7 @@ def test_row_continues_the_labelled_cones_row():
                 n_objects=3,
                 existing_boxes_xyxy=boxes,
                 existing_labels=["traffic_cone"] * 3,
-                labelled_ground=ground_px,
+                labelled_ground=ground,
             )
             for i in _joined(plan):
                 u, v = plan.objects[i].placement.contact_pixel
