@@ -18,6 +18,9 @@ the same machine. Measurements:
 * ``transform_sun``: the same fresh calls with six TraCon roads on which the evidence model decides a direct sun
   (``bench_first_sight.sun_decided_roads``, chosen once by the tree's code) as the rotation: the objects cast
   projected sun shadows, which the six default roads (no decided sun) never pay for.
+* ``transform_labelled``: the same fresh calls on six TraCon roads with two or more labelled cones, their boxes
+  passed as a training loop passes its labels (``labelled_roads``): the inserted cones are drawn like the labelled
+  ones and continue their row (``arrangement: row``), which the unlabelled roads never exercise.
 * ``cli_fast`` / ``cli_balanced``: ``aias-augment --images DIR --preset P`` on the first ``--images`` TraCon training
   photos at their own resolution (2 objects each, seed 0), a new output folder per run: the process's wall seconds,
   its CPU seconds and the run's own median seconds per image (``summary.json``).
@@ -57,6 +60,33 @@ def _data_root() -> Path:
     return Path(os.environ.get("AIAS_DATA", REPO.parent / "shared" / "data"))
 
 
+def labelled_roads(n: int) -> list[Path]:
+    """The first ``n`` TraCon training photos (name order) with two or more labelled cones."""
+    labels = _data_root().joinpath("tracon", "labels", "train")
+    out = []
+    for f in sorted((_data_root().joinpath(*TRACON_TRAIN)).glob("*.jpg")):
+        txt = labels / f"{f.stem}.txt"
+        if txt.exists() and len([ln for ln in txt.read_text().splitlines() if ln.strip()]) >= 2:
+            out.append(f)
+        if len(out) == n:
+            return out
+    raise GuardError(f"need {n} TraCon photos with two or more labelled cones under {labels}, found {len(out)}")
+
+
+def _coco_boxes_640x480(image: Path):
+    """The photo's YOLO labels as COCO boxes (x, y, w, h) on its 640x480 copy, clipped to the frame."""
+    import numpy as np
+
+    txt = image.parent.parent.parent / "labels" / image.parent.name / f"{image.stem}.txt"
+    rows = np.array([[float(x) for x in ln.split()[1:5]] for ln in txt.read_text().splitlines() if ln.strip()])
+    x0 = np.clip((rows[:, 0] - rows[:, 2] / 2) * 640, 0, 640)
+    y0 = np.clip((rows[:, 1] - rows[:, 3] / 2) * 480, 0, 480)
+    x1 = np.clip((rows[:, 0] + rows[:, 2] / 2) * 640, 0, 640)
+    y1 = np.clip((rows[:, 1] + rows[:, 3] / 2) * 480, 0, 480)
+    keep = (x1 - x0 >= 1) & (y1 - y0 >= 1)
+    return np.c_[x0, y0, x1 - x0, y1 - y0][keep]
+
+
 def tracon_files(n: int) -> list[Path]:
     files = sorted((_data_root().joinpath(*TRACON_TRAIN)).glob("*.jpg"))
     if len(files) < n:
@@ -67,9 +97,12 @@ def tracon_files(n: int) -> list[Path]:
 # ---------------------------------------------------------------- worker: runs inside the side's PYTHONPATH
 
 
-def transform_worker(warmup: int, calls: int, first_sight: int, root: str, photos: list[str] | None = None) -> dict:
+def transform_worker(
+    warmup: int, calls: int, first_sight: int, root: str, photos: list[str] | None = None, labelled: bool = False
+) -> dict:
     """Per-call wall and CPU ms of the fast transform (see the module docstring); run in a subprocess. ``photos``:
-    the rotation's roads instead of the first six TraCon ones (then no first sight)."""
+    the rotation's roads instead of the first six TraCon ones (then no first sight); ``labelled``: each call passes
+    its road's labelled cones."""
     os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
     import albumentations as A
     import cv2
@@ -88,17 +121,20 @@ def transform_worker(warmup: int, calls: int, first_sight: int, root: str, photo
     tf = A.Compose(
         [InsertObjects(preset="fast", p=1.0)], bbox_params=A.BboxParams(format="coco", label_fields=["labels"]), seed=7
     )
-    no_boxes = np.zeros((0, 4))
+    boxes = [_coco_boxes_640x480(f) if labelled else np.zeros((0, 4)) for f in files]
 
-    def timed(img) -> tuple[float, float]:
+    def call(i: int) -> None:
+        tf(image=images[i], bboxes=boxes[i], labels=["cone"] * len(boxes[i]))
+
+    def timed(i: int) -> tuple[float, float]:
         t0, c0 = time.perf_counter(), time.process_time()
-        tf(image=img, bboxes=no_boxes, labels=[])
+        call(i)
         return 1e3 * (time.perf_counter() - t0), 1e3 * (time.process_time() - c0)
 
     for i in range(warmup):
-        tf(image=images[i % ROTATION], bboxes=no_boxes, labels=[])
-    fresh = [timed(images[i % ROTATION]) for i in range(calls)]
-    first = [timed(images[ROTATION + i]) for i in range(0 if photos else first_sight)]
+        call(i % ROTATION)
+    fresh = [timed(i % ROTATION) for i in range(calls)]
+    first = [timed(ROTATION + i) for i in range(0 if photos else first_sight)]
     return {
         "fresh_ms": [w for w, _ in fresh],
         "fresh_cpu_ms": [c for _, c in fresh],
@@ -173,11 +209,13 @@ def _run_child(
     return r, wall, cpu_s
 
 
-def measure_transform(side: Side, a, cpu: int, photos: list[str] | None = None) -> dict:
+def measure_transform(side: Side, a, cpu: int, photos: list[str] | None = None, labelled: bool = False) -> dict:
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "--root", str(side.root)]
     cmd += ["--warmup", str(a.warmup), "--calls", str(a.calls), "--first-sight", str(a.first_sight)]
     if photos:
         cmd += ["--photos", *photos]
+    if labelled:
+        cmd += ["--labelled"]
     r, _, _ = _run_child(side, cmd, cpu, timeout=900)
     return json.loads(r.stdout.strip().splitlines()[-1])
 
@@ -210,6 +248,8 @@ METRICS = (
     ("transform first sight (CPU)", "ms", "transform", "first_sight_cpu_ms"),
     ("transform fresh call, decided sun", "ms", "transform_sun", "fresh_ms"),
     ("transform fresh call, decided sun (CPU)", "ms", "transform_sun", "fresh_cpu_ms"),
+    ("transform fresh call, labelled cones", "ms", "transform_labelled", "fresh_ms"),
+    ("transform fresh call, labelled cones (CPU)", "ms", "transform_labelled", "fresh_cpu_ms"),
     ("cli fast: run", "s", "cli_fast", "wall_s"),
     ("cli fast: run (CPU)", "s", "cli_fast", "cpu_s"),
     ("cli fast: per image", "s", "cli_fast", "median_s_per_image"),
@@ -266,7 +306,8 @@ def run_guard(a) -> dict:
         from benchmarks.bench_first_sight import sun_decided_roads
 
         sunny = sun_decided_roads(ROTATION)
-        kinds = ("transform", "transform_sun", "cli_fast", "cli_balanced")
+        labelled = [str(f) for f in labelled_roads(ROTATION)]
+        kinds = ("transform", "transform_sun", "transform_labelled", "cli_fast", "cli_balanced")
         samples = {s: {k: [] for k in kinds} for s in sides}
         load_before = os.getloadavg()
         t_start = time.perf_counter()
@@ -275,7 +316,8 @@ def run_guard(a) -> dict:
             for kind in kinds:
                 for s in order:
                     if kind.startswith("transform"):
-                        res = measure_transform(sides[s], a, a.cpu, sunny if kind == "transform_sun" else None)
+                        photos = {"transform_sun": sunny, "transform_labelled": labelled}.get(kind)
+                        res = measure_transform(sides[s], a, a.cpu, photos, labelled=kind == "transform_labelled")
                     else:
                         res = measure_cli(sides[s], kind.split("_")[1], images, tmp, a.cpu)
                     samples[s][kind].append(res)
@@ -319,6 +361,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--root", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--photos", nargs="+", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--labelled", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     defaults = {"rounds": (3, 2), "warmup": (120, 40), "calls": (60, 24), "first_sight": (6, 3), "images": (4, 2)}
     for k, (full, quick) in defaults.items():
@@ -334,7 +377,7 @@ def main(argv: list[str] | None = None) -> int:
     a = parse_args(list(sys.argv[1:] if argv is None else argv))
     try:
         if a.worker:
-            print(json.dumps(transform_worker(a.warmup, a.calls, a.first_sight, a.root, a.photos)))
+            print(json.dumps(transform_worker(a.warmup, a.calls, a.first_sight, a.root, a.photos, a.labelled)))
             return 0
         if shutil.which("taskset") is None:
             raise GuardError("taskset not found (util-linux): the guard pins every run to one core")
