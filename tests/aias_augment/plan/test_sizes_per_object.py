@@ -167,6 +167,24 @@ def test_cones_take_their_row_size_when_the_camera_estimate_is_far_off():
     assert np.std(np.log(off)) > 2 * np.std(np.log(rows)), (np.round(np.sort(rows), 2), np.round(np.sort(off), 2))
 
 
+def _row_plans(an, boxes, seeds: int, **kw) -> list:
+    """Plans of 3 cones with ``arrangement: row`` beside the labelled cones ``boxes``, seeds 0 to ``seeds - 1``."""
+    cfg = replace(CFG, categories=("traffic_cone",), arrangement="row")
+    return [
+        plan_insertion(
+            an,
+            cfg,
+            np.random.default_rng(s),
+            bank=ConesAndBarrels(),
+            n_objects=3,
+            existing_boxes_xyxy=boxes,
+            existing_labels=["traffic_cone"] * len(boxes),
+            **kw,
+        )
+        for s in range(seeds)
+    ]
+
+
 def test_row_continues_the_labelled_cones_row():
     """Three labelled cones stand 2 m apart on a straight row across the ground (placed in 3D on the image's own
     ground, their boxes projected): with ``arrangement: row`` every inserted cone that joins stands on that row's
@@ -189,16 +207,7 @@ def test_row_continues_the_labelled_cones_row():
         boxes.append(np.r_[uv.min(0), uv.max(0)])
     boxes = np.array(boxes)
     joined_total = 0
-    for s in range(8):
-        plan = plan_insertion(
-            an,
-            replace(CFG, categories=("traffic_cone",), arrangement="row"),
-            np.random.default_rng(s),
-            bank=ConesAndBarrels(),
-            n_objects=3,
-            existing_boxes_xyxy=boxes,
-            existing_labels=["traffic_cone"] * 3,
-        )
+    for s, plan in enumerate(_row_plans(an, boxes, 8)):
         note = plan.modules["arrangement"]
         spacing = float(note.split("labelled, ")[1].split(" m apart")[0])
         assert abs(spacing - 2.0) < 0.3, note
@@ -223,20 +232,10 @@ def test_row_continues_the_labelled_cones_row():
         ground_px = ground.mask()
         assert ground_px[:, cols].all() and ground_px.sum() == h * (cols.stop - cols.start)
         joined_here = 0
-        for s in range(6):
-            plan = plan_insertion(
-                an,
-                replace(CFG, categories=("traffic_cone",), arrangement="row"),
-                np.random.default_rng(s),
-                bank=ConesAndBarrels(),
-                n_objects=3,
-                existing_boxes_xyxy=boxes,
-                existing_labels=["traffic_cone"] * 3,
-                labelled_ground=ground,
-            )
+        for s, plan in enumerate(_row_plans(an, boxes, 6, labelled_ground=ground)):
             for i in _joined(plan):
-                u, v = plan.objects[i].placement.contact_pixel
-                assert ground_px[int(round(v)), int(round(u))], (half, s, i, u, v)
+                cu, cv = plan.objects[i].placement.contact_pixel
+                assert ground_px[int(round(cv)), int(round(cu))], (half, s, i, cu, cv)
                 joined_here += 1
         assert joined_here >= 3, half
     # one labelled cone is no row: every object stands on its own, draw for draw as "independent" places it
