@@ -158,3 +158,18 @@ def test_the_labelled_objects_ground_is_found_by_its_look():
     g = labelled_ground(img, cones)  # asked pixel by pixel, as a row's sites ask it: the same answers
     some = np.random.default_rng(0).choice(h * w, 500, replace=False)
     assert np.array_equal(g.at(some), mask.reshape(-1)[some]) and g.at(np.zeros(0, int)).shape == (0,)
+
+
+def test_the_labelled_ground_at_the_frames_edges():
+    """Boxes half outside the frame, of zero width, or covering it all: never an error; the ground is never inside a
+    labelled box, and a box over the whole frame leaves no ground to sample (None)."""
+    from aias_augment.analyse.instances import labelled_ground
+
+    img = np.full((120, 160, 3), 90, np.uint8)
+    edge = np.array([[-30.0, 60.0, 20.0, 130.0], [150.0, -10.0, 200.0, 50.0], [80.0, 40.0, 80.0, 90.0]])
+    g = labelled_ground(img, edge)
+    assert g is not None
+    m = g.mask()
+    assert not m[60:, :20].any() and not m[:50, 150:].any() and m[:, 30:140].mean() > 0.5
+    assert labelled_ground(img, np.array([[-5.0, -5.0, 170.0, 130.0]])) is None
+    assert labelled_ground(img, np.zeros((0, 4))) is None
