@@ -547,6 +547,24 @@ def _kind_height(kind: str | None, base: Asset) -> float:
     return float(np.mean(hr)) if hr is not None else float(base.reference_height_m)
 
 
+def labelled_feet(boxes_xyxy: np.ndarray, ground, intr: Intrinsics) -> np.ndarray:
+    """(K, 3) where the labelled objects ``boxes_xyxy`` (M, 4) stand on ``ground``: each box's bottom centre on the
+    plane (its object's nearest edge), moved half the box's width (in metres there) away from the camera; boxes cut
+    by the image's bottom edge, or whose bottom is not on the ground in front of the camera, left out."""
+    boxes = np.asarray(boxes_xyxy, float).reshape(-1, 4)
+    boxes = boxes[boxes[:, 3] < intr.height - 2]
+    if not len(boxes):
+        return np.zeros((0, 3))
+    n = np.asarray(ground.normal, float)
+    near_edge = ground.intersect_pixels(np.c_[(boxes[:, 0] + boxes[:, 2]) / 2, boxes[:, 3]], intr)
+    ok = np.all(np.isfinite(near_edge), axis=1) & (near_edge[:, 2] > 0.5)
+    near_edge, boxes = near_edge[ok], boxes[ok]
+    away = near_edge + float(ground.d) * n  # from the camera's foot on the plane
+    away /= np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-9)  # eps: a box right below the camera
+    half_m = (boxes[:, 2] - boxes[:, 0]) / 2 * near_edge[:, 2] / intr.fx
+    return near_edge + half_m[:, None] * away
+
+
 def labelled_row(boxes_xyxy: np.ndarray, ground, intr: Intrinsics, cfg: PlanConfig, ends: int = 3) -> dict | None:
     """The row the labelled objects ``boxes_xyxy`` (M, 4) stand in, on ``ground``: their feet (the boxes' bottom
     centres on the plane, moved half the box's width away from the camera; boxes cut by the image's bottom edge
@@ -556,21 +574,10 @@ def labelled_row(boxes_xyxy: np.ndarray, ground, intr: Intrinsics, cfg: PlanConf
     beyond each end (most of a row's continuation is out of a close-up's view: the placement search takes those in
     view), evenly in every gap over 1.6 spacings (a gap of more than ``2 ends + 1`` spacings: ``ends`` from each
     side). None with fewer than two feet on the ground."""
-    boxes = np.asarray(boxes_xyxy, float).reshape(-1, 4)
-    boxes = boxes[boxes[:, 3] < intr.height - 2]
-    if len(boxes) < 2:
+    feet = labelled_feet(boxes_xyxy, ground, intr)
+    if len(feet) < 2:
         return None
     n = np.asarray(ground.normal, float)
-    near_edge = ground.intersect_pixels(np.c_[(boxes[:, 0] + boxes[:, 2]) / 2, boxes[:, 3]], intr)
-    ok = np.all(np.isfinite(near_edge), axis=1) & (near_edge[:, 2] > 0.5)
-    if ok.sum() < 2:
-        return None
-    # a box's bottom is its object's nearest edge: the foot lies half its width (in metres there) farther away
-    near_edge, boxes = near_edge[ok], boxes[ok]
-    away = near_edge + float(ground.d) * n  # from the camera's foot on the plane
-    away /= np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-9)  # eps: a box right below the camera
-    half_m = (boxes[:, 2] - boxes[:, 0]) / 2 * near_edge[:, 2] / intr.fx
-    feet = near_edge + half_m[:, None] * away
     centre = feet.mean(axis=0)
     flat = (feet - centre) - np.outer((feet - centre) @ n, n)  # on the plane
     u = np.linalg.svd(flat, full_matrices=False)[2][0]
