@@ -124,8 +124,7 @@ def plan_insertion(
             arrangement = ("independent", "line", "cluster")[int(rng.integers(3))]
         line = draw_arrangement(arrangement, rng, cfg)
     lead_category = None
-    # [how many stood on their own for want of ground at their place, the joined objects' indices, those beside]
-    members = [0, [], []]
+    members = [0, []]  # [how many stood on their own for want of ground at their place, the joined objects' indices]
     for i in range(k):
         category = cfg.categories[int(rng.integers(len(cfg.categories)))]
         base = choose_asset(category, rng, cfg, bank, cone_looks)
@@ -134,12 +133,8 @@ def plan_insertion(
         if cfg.placement and targets is not None and i == 0:
             object_cfgs = draft.scale_scene(category, base, targets)
         near = None
-        beside = False
-        if arrangement == "row":  # the image's own row of this kind, continued, else beside its labelled objects
+        if arrangement == "row":  # the image's own row of this kind, continued (none: the object stands alone)
             near = draft.row_site_pixels(category, line)
-            if near is None:
-                near = draft.group_site_pixels(category, line)
-                beside = near is not None
         elif arrangement != "independent" and draft.objects and category == lead_category:
             # the leader's ground (its local refit when there was one): the arrangement lies on it. Only objects
             # of the leader's kind join it: cones line a lane, a barrel among them stands on its own.
@@ -161,14 +156,13 @@ def plan_insertion(
             lead_category = category
         if near is not None:
             if len(draft.objects) > placed:
-                members[2 if beside else 1].append(placed)
-                if arrangement == "row" and not beside:
+                members[1].append(placed)
+                if arrangement == "row":
                     draft.take_row_site(category, line)
             else:  # no free ground at its place in the arrangement: it stands where it can on its own
                 draft.place(category, base, object_cfgs[i], decoy=False)
                 members[0] += 1
-    # a row's note: when the image has one, or objects stood beside its labelled ones
-    if line is not None and (arrangement != "row" or any(line["rows"].values()) or members[2]):
+    if line is not None and (arrangement != "row" or any(line["rows"].values())):  # a row: when the image has one
         draft.mods["arrangement"] = _arrangement_note(arrangement, line, members)
     # Decoys: other categories through the same stages, never annotated. Drawn after the labelled objects, so these
     # draw as they would without decoys; their box heights come from the same targets as the labelled objects'.
@@ -364,63 +358,6 @@ class _Draft:
             inside[max(y0, 0) : max(min(y1 + 1, h), 0), max(x0, 0) : max(min(x1 + 1, w), 0)] = True
         return np.flatnonzero(inside)
 
-    def group_site_pixels(self, category: str, state: dict) -> np.ndarray | None:
-        """Where an object of ``category`` stands beside the image's labelled objects of its kind when their row has
-        no free site (or they form none): ascending flat indices of the pixels whose ground point lies between 0.8
-        and 2 spacings from the nearest labelled foot and over 0.8 spacings from every object of the kind inserted
-        so far, on the labelled objects' ground when it is known. The spacing is the row's, else the arrangement's
-        smallest. None without a labelled object of the kind whose foot is seen, or without such a pixel."""
-        groups = state.setdefault("groups", {})
-        if category not in groups:
-            feet = labelled_feet(_boxes_of(self.ref_kinds, category), self.ground, self.analysis.intrinsics)
-            row = state["rows"].get(category)
-            spacing = row["spacing_m"] if row else max(0.5, self.cfg.arrangement_spacing_m[0])
-            groups[category] = None if not len(feet) else self._group_frame_pixels(feet, spacing)
-        got = groups[category]
-        if got is None:
-            return None
-        flat, points, spacing = got
-        keep = np.ones(len(flat), bool)
-        for o in self.objects:
-            if o.placement.category == category:
-                c = np.asarray(o.placement.contact_point_in_cam, float)
-                keep &= np.linalg.norm(points - c, axis=1) > 0.8 * spacing
-        near = flat[keep]
-        return near if len(near) else None
-
-    def _group_frame_pixels(self, feet: np.ndarray, spacing: float) -> tuple | None:
-        """(flat indices ascending, their ground points, the spacing) of the pixels 0.8-2 spacings from the nearest
-        of ``feet``: the image boxes of the ground squares (half-side 2 spacings) round the feet, on the labelled
-        ground when it is known."""
-        intr = self.analysis.intrinsics
-        h, w = self.analysis.image_shape
-        n = np.asarray(self.ground.normal, float)
-        u = np.cross(n, [1.0, 0.0, 0.0])
-        u = u / max(float(np.linalg.norm(u)), 1e-9) if np.linalg.norm(u) > 1e-6 else np.cross(n, [0.0, 0.0, 1.0])
-        v = np.cross(n, u)
-        r = 2.0 * spacing
-        corners = np.array([a * u + b * v for a in (-r, r) for b in (-r, r)])
-        inside = np.zeros((h, w), bool)
-        for f in feet:
-            sq = f + corners
-            if (sq[:, 2] <= 0.05).any():
-                inside[:] = True
-                break
-            uv, _ = project_points(sq, intr.K)
-            x0, y0 = np.floor(uv.min(axis=0)).astype(int)
-            x1, y1 = np.ceil(uv.max(axis=0)).astype(int)
-            inside[max(y0, 0) : max(min(y1 + 1, h), 0), max(x0, 0) : max(min(x1 + 1, w), 0)] = True
-        flat = np.flatnonzero(inside)
-        if self.labelled_ground is not None:
-            flat = flat[self.labelled_ground.at(flat)]
-        p = self.ground.intersect_pixels(np.c_[flat % w, flat // w].astype(float), intr)
-        with np.errstate(invalid="ignore"):  # NaN above the horizon: not ground
-            d = np.min(np.linalg.norm(p[:, None, :] - feet[None], axis=2), axis=1) if len(flat) else np.zeros(0)
-            keep = (p[:, 2] > 0.5) & (d >= 0.8 * spacing) & (d <= 2.0 * spacing)
-        if not keep.any():
-            return None
-        return flat[keep], p[keep], spacing
-
     def take_row_site(self, category: str, state: dict) -> None:
         """Mark the site of ``category``'s row that the object placed last stands on (the site nearest its contact
         point along the row) as taken."""
@@ -502,8 +439,7 @@ def _arrangement_note(kind: str, params: dict, members: list) -> str:
         what, whom = f"line {params['spacing_m']:.2f} m apart {way}", "object 0"
     else:
         what, whom = f"cluster within {max(params['radii_m']):.2f} m", "object 0"
-    beside = f", objects [{', '.join(str(i) for i in members[2])}] beside the labelled ones" if members[2] else ""
-    return f"{what}: objects [{joined}] joined {whom}{beside}, {members[0]} placed on their own (no free ground there)"
+    return f"{what}: objects [{joined}] joined {whom}, {members[0]} placed on their own (no free ground there)"
 
 
 def arrangement_pixels(leader: Placement, i: int, kind: str, params: dict, intr: Intrinsics, shape) -> np.ndarray:
