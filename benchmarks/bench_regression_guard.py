@@ -60,25 +60,29 @@ def _data_root() -> Path:
     return Path(os.environ.get("AIAS_DATA", REPO.parent / "shared" / "data"))
 
 
+def _label_file(image: Path) -> Path:
+    """A TraCon photo's YOLO label file (``labels/<split>/<stem>.txt`` beside ``images/<split>/``)."""
+    return image.parent.parent.parent / "labels" / image.parent.name / f"{image.stem}.txt"
+
+
 def labelled_roads(n: int) -> list[Path]:
     """The first ``n`` TraCon training photos (name order) with two or more labelled cones."""
-    labels = _data_root().joinpath("tracon", "labels", "train")
     out = []
     for f in sorted((_data_root().joinpath(*TRACON_TRAIN)).glob("*.jpg")):
-        txt = labels / f"{f.stem}.txt"
+        txt = _label_file(f)
         if txt.exists() and len([ln for ln in txt.read_text().splitlines() if ln.strip()]) >= 2:
             out.append(f)
         if len(out) == n:
             return out
-    raise GuardError(f"need {n} TraCon photos with two or more labelled cones under {labels}, found {len(out)}")
+    raise GuardError(f"need {n} TraCon training photos with two or more labelled cones, found {len(out)}")
 
 
 def _coco_boxes_640x480(image: Path):
     """The photo's YOLO labels as COCO boxes (x, y, w, h) on its 640x480 copy, clipped to the frame."""
     import numpy as np
 
-    txt = image.parent.parent.parent / "labels" / image.parent.name / f"{image.stem}.txt"
-    rows = np.array([[float(x) for x in ln.split()[1:5]] for ln in txt.read_text().splitlines() if ln.strip()])
+    lines = _label_file(image).read_text().splitlines()
+    rows = np.array([[float(x) for x in ln.split()[1:5]] for ln in lines if ln.strip()])
     x0 = np.clip((rows[:, 0] - rows[:, 2] / 2) * 640, 0, 640)
     y0 = np.clip((rows[:, 1] - rows[:, 3] / 2) * 480, 0, 480)
     x1 = np.clip((rows[:, 0] + rows[:, 2] / 2) * 640, 0, 640)

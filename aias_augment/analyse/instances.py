@@ -32,7 +32,7 @@ import numpy as np
 
 from aias_augment.assets.cone_look import BASE_VALUE_MAX, ConeLook
 
-__all__ = ["LabelledGround", "body_value", "fit_cone_looks", "fit_cone_look", "labelled_ground", "labelled_ground_mask"]
+__all__ = ["LabelledGround", "body_value", "fit_cone_looks", "fit_cone_look", "labelled_ground"]
 
 MIN_BOX_PX = 24  # below this a sleeve is a pixel or two: nothing to measure
 MIN_BASE_VALUE = 0.01  # a base read as pure black (V 0) is drawn as the darkest plausible paint, not as no light
@@ -200,10 +200,3 @@ def labelled_ground(image_rgb: np.ndarray, boxes_xyxy) -> LabelledGround | None:
     # |x - med| <= tol on 8-bit channels is ceil(med - tol) <= x <= floor(med + tol)
     lo, hi = np.clip(np.ceil(med - tol), 0, 255), np.clip(np.floor(med + tol), 0, 255)
     return LabelledGround(img, inside, lo.astype(np.uint8), hi.astype(np.uint8))
-
-
-def labelled_ground_mask(image_rgb: np.ndarray, boxes_xyxy) -> np.ndarray | None:
-    """(H, W) bool: every pixel that looks like the ground the labelled objects stand on (:func:`labelled_ground`),
-    or None when too little of it is seen."""
-    g = labelled_ground(image_rgb, boxes_xyxy)
-    return None if g is None else g.mask()

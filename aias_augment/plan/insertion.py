@@ -308,13 +308,12 @@ class _Draft:
         if row is None:
             return None
         used = state["used"].setdefault(category, set())
-        free = np.sort([a for j, a in enumerate(row["along"]) if j not in used])
+        free = np.array([a for j, a in enumerate(row["along"]) if j not in used])
         flat, along, across = row["pixels"]
         if not len(free) or not len(flat):
             return None
         tol = max(0.1, 0.15 * row["spacing_m"])
-        k = np.clip(np.searchsorted(free, along), 1, len(free) - 1) if len(free) > 1 else np.zeros(len(along), int)
-        gap = np.minimum(np.abs(along - free[k]), np.abs(along - free[np.maximum(k - 1, 0)]))
+        gap = np.abs(along[:, None] - free[None, :]).min(axis=1)  # to the nearest free site along the line
         near = flat[np.hypot(gap, across) <= tol]
         return near if len(near) else None
 

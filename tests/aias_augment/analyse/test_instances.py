@@ -4,6 +4,7 @@ Each cone is drawn with a chosen :class:`ConeLook` (body colour, base colour, sl
 standing on the road of ``road_image`` about 4 m from the camera, and measured on the output image inside its
 projected box: the fit must give back the look that was drawn."""
 
+import cv2
 import numpy as np
 import pytest
 
@@ -130,7 +131,7 @@ def test_the_labelled_objects_ground_is_found_by_its_look():
     orange cone boxes on the asphalt: the ground beside the cones' bases marks the asphalt (most of it, far from
     the cones too), never the sign, the kerb or the sky, never a pixel inside a labelled box; without enough ground
     beside the bases there is no mask."""
-    from aias_augment.analyse.instances import labelled_ground, labelled_ground_mask
+    from aias_augment.analyse.instances import labelled_ground
 
     rng = np.random.default_rng(3)
     h, w = 240, 320
@@ -144,8 +145,10 @@ def test_the_labelled_objects_ground_is_found_by_its_look():
     cones = np.array([[60.0, 130.0, 90.0, 180.0], [140.0, 150.0, 180.0, 215.0]])
     for x0, y0, x1, y1 in cones.astype(int):
         img[y0:y1, x0:x1] = (255, 90, 20)
-    mask = labelled_ground_mask(img, cones)
-    assert mask is not None and mask.shape == (h, w)
+    g = labelled_ground(img, cones)
+    assert g is not None
+    mask = g.mask()
+    assert mask.shape == (h, w)
     asphalt = np.zeros((h, w), bool)
     asphalt[100:] = True
     asphalt[120:200, 200:260] = asphalt[200:230, 0:60] = False
@@ -154,10 +157,16 @@ def test_the_labelled_objects_ground_is_found_by_its_look():
         assert not mask[y0:y1, x0:x1].any()
     assert mask[asphalt].mean() > 0.9 and mask[asphalt[:, ::-1] & asphalt].mean() > 0.9  # beside them and far off
     assert not mask[:100].any() and not mask[120:200, 200:260].any() and not mask[200:230, 0:60].any()
-    assert labelled_ground_mask(img, np.array([[0.0, 0.0, 4.0, 4.0]])) is None  # 4 px of sky beside a box: too few
-    g = labelled_ground(img, cones)  # asked pixel by pixel, as a row's sites ask it: the same answers
+    assert labelled_ground(img, np.array([[0.0, 0.0, 4.0, 4.0]])) is None  # 4 px of sky beside a box: too few
+    # asked pixel by pixel, as a row's sites ask it: the answers of the whole frame converted at once, its range
+    # tested channel by channel, outside every box
+    lab = cv2.cvtColor(img, cv2.COLOR_RGB2LAB)
+    whole = np.all((lab >= g.lo) & (lab <= g.hi), axis=-1)
+    for x0, y0, x1, y1 in cones.astype(int):
+        whole[y0:y1, x0:x1] = False
     some = np.random.default_rng(0).choice(h * w, 500, replace=False)
-    assert np.array_equal(g.at(some), mask.reshape(-1)[some]) and g.at(np.zeros(0, int)).shape == (0,)
+    assert np.array_equal(g.at(some), whole.reshape(-1)[some]) and np.array_equal(mask, whole)
+    assert g.at(np.zeros(0, int)).shape == (0,)
 
 
 def test_the_labelled_ground_at_the_frames_edges():
